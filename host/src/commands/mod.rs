@@ -1,0 +1,10 @@
+//! One module per `smartagg` command: each has `Args` (clap) and `run`.
+
+pub mod aggregate;
+pub mod bench_localize;
+pub mod bench_simulate;
+pub mod localize;
+pub mod params;
+pub mod presets;
+pub mod render;
+pub mod simulate;

@@ -1,0 +1,101 @@
+//! A bit-plane: one binary exposure of the whole sensor.
+//!
+//! Pixels are stored in raster order (row by row from the top, left to right
+//! within a row); pixel (x, y) has raster index `y·width + x`.
+
+use bitvec::prelude::*;
+
+/// One binary bit-plane `B_t(x, y) ∈ {0, 1}`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BitPlane {
+    width: usize,
+    height: usize,
+    bits: BitVec<u64, Lsb0>,
+}
+
+impl BitPlane {
+    /// An all-zero plane.
+    pub fn zeros(width: usize, height: usize) -> BitPlane {
+        BitPlane {
+            width,
+            height,
+            bits: bitvec![u64, Lsb0; 0; width * height],
+        }
+    }
+
+    /// An all-one plane (every pixel saturated).
+    pub fn ones(width: usize, height: usize) -> BitPlane {
+        BitPlane {
+            width,
+            height,
+            bits: bitvec![u64, Lsb0; 1; width * height],
+        }
+    }
+
+    /// Builds a plane from a predicate on (x, y).
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> bool) -> BitPlane {
+        let mut p = BitPlane::zeros(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                if f(x, y) {
+                    p.set(x, y, true);
+                }
+            }
+        }
+        p
+    }
+
+    /// Wraps raster-order bits; `bits.len()` must equal `width·height`.
+    pub fn from_bits(width: usize, height: usize, bits: BitVec<u64, Lsb0>) -> Option<BitPlane> {
+        (bits.len() == width * height).then_some(BitPlane { width, height, bits })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The pixel at (x, y); panics if outside the plane.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> bool {
+        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}x{}", self.width, self.height);
+        self.bits[y * self.width + x]
+    }
+
+    /// The pixel at signed (x, y), 0 outside the plane (zero padding).
+    #[inline]
+    pub fn get_or_zero(&self, x: i64, y: i64) -> bool {
+        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
+            false
+        } else {
+            self.bits[y as usize * self.width + x as usize]
+        }
+    }
+
+    /// Sets the pixel at (x, y); panics if outside the plane.
+    #[inline]
+    pub fn set(&mut self, x: usize, y: usize, value: bool) {
+        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}x{}", self.width, self.height);
+        self.bits.set(y * self.width + x, value);
+    }
+
+    /// Raster-order bits.
+    pub fn bits(&self) -> &BitSlice<u64, Lsb0> {
+        &self.bits
+    }
+
+    /// Mutable raster-order bits.
+    pub fn bits_mut(&mut self) -> &mut BitSlice<u64, Lsb0> {
+        &mut self.bits
+    }
+
+    /// Number of pixels that read 1.
+    pub fn count_ones(&self) -> usize {
+        self.bits.count_ones()
+    }
+}
