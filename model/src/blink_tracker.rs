@@ -190,7 +190,8 @@ impl BlinkTracker {
                 seg.live = false;
                 seg.in_dip = false;
                 seg.t_drop = Some(seg.dip_plane);
-                seg.confirmed = seg.continuation || seg.dip_plane - seg.t_cross >= self.l_min as u64;
+                seg.confirmed =
+                    seg.continuation || seg.dip_plane - seg.t_cross >= self.l_min as u64;
             }
         }
     }
@@ -202,7 +203,10 @@ impl BlinkTracker {
         let mut drops: Option<Drops> = None;
         let r = self.r_assoc as i64;
         for c in candidates {
-            let near = |seg: &Segment| (seg.anchor_x as i64 - c.x as i64).abs() <= r && (seg.anchor_y as i64 - c.y as i64).abs() <= r;
+            let near = |seg: &Segment| {
+                (seg.anchor_x as i64 - c.x as i64).abs() <= r
+                    && (seg.anchor_y as i64 - c.y as i64).abs() <= r
+            };
             let absorbed = self.slots.iter().enumerate().any(|(i, s)| match s {
                 Slot::Busy(seg) => (self.active_prev[i] || opened.contains(&i)) && near(seg),
                 Slot::Free => false,
@@ -210,7 +214,9 @@ impl BlinkTracker {
             if absorbed {
                 continue;
             }
-            let free = (0..self.slots.len()).find(|&i| self.free_prev[i] && !opened.contains(&i) && self.slots[i] == Slot::Free);
+            let free = (0..self.slots.len()).find(|&i| {
+                self.free_prev[i] && !opened.contains(&i) && self.slots[i] == Slot::Free
+            });
             match free {
                 Some(i) => {
                     self.slots[i] = Slot::Busy(Segment {
@@ -231,7 +237,12 @@ impl BlinkTracker {
                     self.counters.dropped_candidates += 1;
                     match &mut drops {
                         Some(d) => d.count += 1,
-                        None => drops = Some(Drops { count: 1, first: *c }),
+                        None => {
+                            drops = Some(Drops {
+                                count: 1,
+                                first: *c,
+                            })
+                        }
                     }
                 }
             }

@@ -20,7 +20,8 @@ pub struct Candidate {
 /// Candidates of one plane, in raster order.
 pub fn find(filtered: &[u32], width: usize, height: usize, threshold_int: u32) -> Vec<Candidate> {
     let at = |x: i64, y: i64| -> Option<u32> {
-        (x >= 0 && y >= 0 && x < width as i64 && y < height as i64).then(|| filtered[y as usize * width + x as usize])
+        (x >= 0 && y >= 0 && x < width as i64 && y < height as i64)
+            .then(|| filtered[y as usize * width + x as usize])
     };
     let mut out = Vec::new();
     for y in 0..height as i64 {
@@ -31,10 +32,17 @@ pub fn find(filtered: &[u32], width: usize, height: usize, threshold_int: u32) -
             }
             let earlier = [(-1, -1), (0, -1), (1, -1), (-1, 0)];
             let later = [(1, 0), (-1, 1), (0, 1), (1, 1)];
-            let beats_earlier = earlier.iter().all(|&(dx, dy)| at(x + dx, y + dy).is_none_or(|n| h > n));
-            let holds_later = later.iter().all(|&(dx, dy)| at(x + dx, y + dy).is_none_or(|n| h >= n));
+            let beats_earlier = earlier
+                .iter()
+                .all(|&(dx, dy)| at(x + dx, y + dy).is_none_or(|n| h > n));
+            let holds_later = later
+                .iter()
+                .all(|&(dx, dy)| at(x + dx, y + dy).is_none_or(|n| h >= n));
             if beats_earlier && holds_later {
-                out.push(Candidate { x: x as u16, y: y as u16 });
+                out.push(Candidate {
+                    x: x as u16,
+                    y: y as u16,
+                });
             }
         }
     }
@@ -54,7 +62,10 @@ mod tests {
             1, 5, 1, 0,
             0, 1, 0, 7,
         ];
-        assert_eq!(find(&h, 4, 3, 2), vec![Candidate { x: 1, y: 1 }, Candidate { x: 3, y: 2 }]);
+        assert_eq!(
+            find(&h, 4, 3, 2),
+            vec![Candidate { x: 1, y: 1 }, Candidate { x: 3, y: 2 }]
+        );
         // A 2x2 plateau gives exactly its first pixel in raster order.
         let p = [0, 0, 0, 0, 3, 3, 0, 3, 3];
         assert_eq!(find(&p, 3, 3, 1), vec![Candidate { x: 1, y: 1 }]);

@@ -128,11 +128,19 @@ impl PipelineConfig {
             return Err(invalid("height", self.height, "must be 1..=65535 pixels"));
         }
         if self.n_window == 0 {
-            return Err(invalid("n_window", 0, "the window must hold at least one bit-plane"));
+            return Err(invalid(
+                "n_window",
+                0,
+                "the window must hold at least one bit-plane",
+            ));
         }
         let k = self.kernel.len();
-        if k == 0 || k % 2 == 0 || k > 63 {
-            return Err(invalid("kernel", format!("{:?}", self.kernel), "length must be odd, 1..=63"));
+        if k == 0 || k.is_multiple_of(2) || k > 63 {
+            return Err(invalid(
+                "kernel",
+                format!("{:?}", self.kernel),
+                "length must be odd, 1..=63",
+            ));
         }
         if !(1..=12).contains(&self.kernel_shift) {
             return Err(invalid("kernel_shift", self.kernel_shift, "must be 1..=12"));
@@ -142,14 +150,26 @@ impl PipelineConfig {
             return Err(invalid(
                 "kernel",
                 format!("{:?}", self.kernel),
-                format!("weights must sum to exactly 2^{} = {}", self.kernel_shift, 1u64 << self.kernel_shift),
+                format!(
+                    "weights must sum to exactly 2^{} = {}",
+                    self.kernel_shift,
+                    1u64 << self.kernel_shift
+                ),
             ));
         }
         if (0..k).any(|i| self.kernel[i] != self.kernel[k - 1 - i]) {
-            return Err(invalid("kernel", format!("{:?}", self.kernel), "weights must be symmetric"));
+            return Err(invalid(
+                "kernel",
+                format!("{:?}", self.kernel),
+                "weights must be symmetric",
+            ));
         }
         if self.kernel.iter().any(|&w| w > u16::MAX as u32) {
-            return Err(invalid("kernel", format!("{:?}", self.kernel), "weights must fit 16 bits"));
+            return Err(invalid(
+                "kernel",
+                format!("{:?}", self.kernel),
+                "weights must fit 16 bits",
+            ));
         }
         if self.max_filtered() > u32::MAX as u64 {
             return Err(invalid(
@@ -162,25 +182,40 @@ impl PipelineConfig {
             ));
         }
         if self.threshold_int == 0 {
-            return Err(invalid("threshold_int", 0, "must be at least 1 (H ≥ 0 fires everywhere)"));
+            return Err(invalid(
+                "threshold_int",
+                0,
+                "must be at least 1 (H ≥ 0 fires everywhere)",
+            ));
         }
         if self.l_min == 0 {
-            return Err(invalid("l_min", 0, "a track must stay on at least one plane"));
+            return Err(invalid(
+                "l_min",
+                0,
+                "a track must stay on at least one plane",
+            ));
         }
         if self.l_max < self.l_min.max(self.n_window) {
             return Err(invalid(
                 "l_max",
                 self.l_max,
-                format!("must be at least max(L_min, N) = {}", self.l_min.max(self.n_window)),
+                format!(
+                    "must be at least max(L_min, N) = {}",
+                    self.l_min.max(self.n_window)
+                ),
             ));
         }
         if self.max_planes_summed() > u32::MAX as u64 {
-            return Err(invalid("l_max", self.l_max, "N + L_max + 1 must fit 32 bits"));
+            return Err(invalid(
+                "l_max",
+                self.l_max,
+                "N + L_max + 1 must fit 32 bits",
+            ));
         }
         if self.slots == 0 || self.slots > 255 {
             return Err(invalid("slots", self.slots, "must be 1..=255"));
         }
-        if self.roi_size == 0 || self.roi_size % 2 == 0 || self.roi_size > 31 {
+        if self.roi_size == 0 || self.roi_size.is_multiple_of(2) || self.roi_size > 31 {
             return Err(invalid("roi_size", self.roi_size, "must be odd, 1..=31"));
         }
         if self.r_assoc > 255 {
@@ -233,7 +268,8 @@ mod tests {
 
     #[test]
     fn every_bad_field_is_named() {
-        let cases: Vec<(&str, Box<dyn Fn(&mut PipelineConfig)>)> = vec![
+        type Mutation = Box<dyn Fn(&mut PipelineConfig)>;
+        let cases: Vec<(&str, Mutation)> = vec![
             ("width", Box::new(|c| c.width = 0)),
             ("n_window", Box::new(|c| c.n_window = 0)),
             ("kernel", Box::new(|c| c.kernel = vec![1, 3])),
@@ -244,7 +280,10 @@ mod tests {
             ("l_max", Box::new(|c| c.l_max = 5)),
             ("slots", Box::new(|c| c.slots = 0)),
             ("roi_size", Box::new(|c| c.roi_size = 4)),
-            ("hot_mask", Box::new(|c| c.hot_mask = Some(HotPixelMask::new(3, 3)))),
+            (
+                "hot_mask",
+                Box::new(|c| c.hot_mask = Some(HotPixelMask::new(3, 3))),
+            ),
             (
                 "n_window",
                 Box::new(|c| {
@@ -259,7 +298,10 @@ mod tests {
             let mut c = base();
             mutate(&mut c);
             let e = c.validate().unwrap_err().to_string();
-            assert!(e.contains(&format!("`{field}`")), "expected {field} in: {e}");
+            assert!(
+                e.contains(&format!("`{field}`")),
+                "expected {field} in: {e}"
+            );
         }
     }
 }

@@ -57,7 +57,9 @@ mod tests {
     #[test]
     fn returns_plane_from_n_ago_and_zero_before() {
         let mut d = DelayLine::new(3, 4, 1);
-        let planes: Vec<BitPlane> = (0..8).map(|t| BitPlane::from_fn(4, 1, |x, _| (t >> x) & 1 == 1)).collect();
+        let planes: Vec<BitPlane> = (0..8)
+            .map(|t| BitPlane::from_fn(4, 1, |x, _| (t >> x) & 1 == 1))
+            .collect();
         for (t, p) in planes.iter().enumerate() {
             let out = d.push(p.clone());
             if t < 3 {

@@ -25,7 +25,11 @@ impl HotPixelMask {
 
     /// A mask from a list of (x, y) pixels; pixels outside the sensor are ignored
     /// and returned so the caller can report them.
-    pub fn from_pixels(width: usize, height: usize, pixels: &[(usize, usize)]) -> (HotPixelMask, Vec<(usize, usize)>) {
+    pub fn from_pixels(
+        width: usize,
+        height: usize,
+        pixels: &[(usize, usize)],
+    ) -> (HotPixelMask, Vec<(usize, usize)>) {
         let mut m = HotPixelMask::new(width, height);
         let mut outside = Vec::new();
         for &(x, y) in pixels {
@@ -55,7 +59,11 @@ impl HotPixelMask {
 
     /// Whether the pixel at signed (x, y) is masked (outside the sensor: no).
     pub fn is_masked(&self, x: i64, y: i64) -> bool {
-        x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height && self.masked[y as usize * self.width + x as usize]
+        x >= 0
+            && y >= 0
+            && (x as usize) < self.width
+            && (y as usize) < self.height
+            && self.masked[y as usize * self.width + x as usize]
     }
 
     /// Number of masked pixels.
@@ -81,7 +89,8 @@ mod tests {
 
     #[test]
     fn masked_pixels_read_zero_and_others_pass() {
-        let (mask, outside) = HotPixelMask::from_pixels(70, 3, &[(0, 0), (69, 2), (65, 1), (80, 0)]);
+        let (mask, outside) =
+            HotPixelMask::from_pixels(70, 3, &[(0, 0), (69, 2), (65, 1), (80, 0)]);
         assert_eq!(outside, vec![(80, 0)]);
         assert_eq!(mask.count(), 3);
         let out = mask.apply(&BitPlane::ones(70, 3));

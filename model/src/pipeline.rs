@@ -33,7 +33,9 @@ pub enum PipelineError {
     #[error(transparent)]
     Config(#[from] ConfigError),
     /// A plane of the wrong size.
-    #[error("bit-plane {plane} is {got_w}x{got_h} but the pipeline is configured for {want_w}x{want_h}")]
+    #[error(
+        "bit-plane {plane} is {got_w}x{got_h} but the pipeline is configured for {want_w}x{want_h}"
+    )]
     PlaneSize {
         /// Plane index.
         plane: u64,
@@ -162,14 +164,17 @@ impl Pipeline {
 
         // Stage 5a: tracks live at the end of t−1.
         let filtered = &self.filtered;
-        self.tracker.evaluate(t, |x, y| threshold::neighbourhood_on(filtered, w, h, x as usize, y as usize, thr));
+        self.tracker.evaluate(t, |x, y| {
+            threshold::neighbourhood_on(filtered, w, h, x as usize, y as usize, thr)
+        });
 
         // Stages 3–4 and 5b.
         self.candidates = candidates::find(&self.filtered, w, h, thr);
         let (opened, drops) = self.tracker.associate(t, &self.candidates);
         for &slot in &opened {
             if let crate::blink_tracker::Slot::Busy(seg) = &self.tracker.slots()[slot] {
-                self.rois.open(slot, seg.anchor_x, seg.anchor_y, self.cfg.hot_mask.as_ref());
+                self.rois
+                    .open(slot, seg.anchor_x, seg.anchor_y, self.cfg.hot_mask.as_ref());
             }
         }
 
@@ -249,7 +254,11 @@ impl Pipeline {
         let t_drop = seg.t_drop.expect("a completed segment has ended");
         let (counts, roi_flags) = self.rois.take(c.slot).expect("a busy slot has an ROI");
         let f = seg.flags(n) | roi_flags;
-        let t_s = if seg.continuation { seg.t_cross as i64 } else { seg.t_cross as i64 - half };
+        let t_s = if seg.continuation {
+            seg.t_cross as i64
+        } else {
+            seg.t_cross as i64 - half
+        };
         let t_e = if f & (flags::CUT | flags::TRUNCATED) != 0 {
             t_drop as i64
         } else {

@@ -33,7 +33,11 @@ impl BitPlane {
     }
 
     /// Builds a plane from a predicate on (x, y).
-    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> bool) -> BitPlane {
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> bool,
+    ) -> BitPlane {
         let mut p = BitPlane::zeros(width, height);
         for y in 0..height {
             for x in 0..width {
@@ -47,7 +51,11 @@ impl BitPlane {
 
     /// Wraps raster-order bits; `bits.len()` must equal `width·height`.
     pub fn from_bits(width: usize, height: usize, bits: BitVec<u64, Lsb0>) -> Option<BitPlane> {
-        (bits.len() == width * height).then_some(BitPlane { width, height, bits })
+        (bits.len() == width * height).then_some(BitPlane {
+            width,
+            height,
+            bits,
+        })
     }
 
     /// Width in pixels.
@@ -63,7 +71,12 @@ impl BitPlane {
     /// The pixel at (x, y); panics if outside the plane.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> bool {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}x{}", self.width, self.height);
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside {}x{}",
+            self.width,
+            self.height
+        );
         self.bits[y * self.width + x]
     }
 
@@ -80,7 +93,12 @@ impl BitPlane {
     /// Sets the pixel at (x, y); panics if outside the plane.
     #[inline]
     pub fn set(&mut self, x: usize, y: usize, value: bool) {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}x{}", self.width, self.height);
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside {}x{}",
+            self.width,
+            self.height
+        );
         self.bits.set(y * self.width + x, value);
     }
 

@@ -26,7 +26,12 @@ impl RollingCount {
     /// Adds the newest plane and removes the plane leaving the window.
     pub fn update(&mut self, newest: &BitPlane, leaving: &BitPlane) {
         debug_assert_eq!((newest.width(), newest.height()), (self.width, self.height));
-        for ((c, b_new), b_old) in self.counts.iter_mut().zip(newest.bits().iter().by_vals()).zip(leaving.bits().iter().by_vals()) {
+        for ((c, b_new), b_old) in self
+            .counts
+            .iter_mut()
+            .zip(newest.bits().iter().by_vals())
+            .zip(leaving.bits().iter().by_vals())
+        {
             // A one can only leave the window if it entered it N planes ago.
             *c = *c + b_new as u32 - b_old as u32;
         }

@@ -18,7 +18,7 @@ pub struct SpatialFilter {
 impl SpatialFilter {
     /// A filter with the 1-D integer kernel `k1` (odd length).
     pub fn new(k1: Vec<u32>) -> SpatialFilter {
-        assert!(k1.len() % 2 == 1, "kernel length must be odd");
+        assert!(!k1.len().is_multiple_of(2), "kernel length must be odd");
         SpatialFilter { k1 }
     }
 
@@ -47,7 +47,10 @@ impl SpatialFilter {
     pub fn apply(&self, counts: &[u32], width: usize, height: usize) -> Vec<u32> {
         let mut horiz = vec![0u32; width * height];
         for y in 0..height {
-            self.horizontal(&counts[y * width..(y + 1) * width], &mut horiz[y * width..(y + 1) * width]);
+            self.horizontal(
+                &counts[y * width..(y + 1) * width],
+                &mut horiz[y * width..(y + 1) * width],
+            );
         }
         let c = self.half() as i64;
         let mut out = vec![0u32; width * height];

@@ -12,7 +12,14 @@ pub fn above(filtered: &[u32], threshold_int: u32) -> BitVec<u64, Lsb0> {
 
 /// Whether the maximum of H over the 3×3 neighbourhood of (x, y) (clipped to
 /// the sensor) reaches the threshold: the on/off test of a track's anchor.
-pub fn neighbourhood_on(filtered: &[u32], width: usize, height: usize, x: usize, y: usize, threshold_int: u32) -> bool {
+pub fn neighbourhood_on(
+    filtered: &[u32],
+    width: usize,
+    height: usize,
+    x: usize,
+    y: usize,
+    threshold_int: u32,
+) -> bool {
     let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
     let (y0, y1) = (y.saturating_sub(1), (y + 1).min(height - 1));
     (y0..=y1).any(|yy| (x0..=x1).any(|xx| filtered[yy * width + xx] >= threshold_int))
@@ -25,7 +32,10 @@ mod tests {
     #[test]
     fn threshold_is_inclusive() {
         let a = above(&[0, 4, 5, 6], 5);
-        assert_eq!(a.iter().by_vals().collect::<Vec<_>>(), vec![false, false, true, true]);
+        assert_eq!(
+            a.iter().by_vals().collect::<Vec<_>>(),
+            vec![false, false, true, true]
+        );
     }
 
     #[test]

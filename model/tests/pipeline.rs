@@ -18,7 +18,12 @@ fn cfg(n: u32, threshold: u32) -> PipelineConfig {
 /// A stream where pixel (x, y) reads 1 on the given planes.
 fn spots(planes: usize, on: &[(usize, usize, std::ops::Range<usize>)]) -> Vec<BitPlane> {
     (0..planes)
-        .map(|t| BitPlane::from_fn(W, H, |x, y| on.iter().any(|(sx, sy, r)| *sx == x && *sy == y && r.contains(&t))))
+        .map(|t| {
+            BitPlane::from_fn(W, H, |x, y| {
+                on.iter()
+                    .any(|(sx, sy, r)| *sx == x && *sy == y && r.contains(&t))
+            })
+        })
         .collect()
 }
 
@@ -65,7 +70,10 @@ fn single_blink_gives_one_record_with_exact_times_and_sum() {
     assert_eq!(b.flags, 0);
     assert_eq!(b.roi_size, 3);
     let e = end(&recs);
-    assert_eq!((e.planes, e.blinks, e.unconfirmed, e.bridged_dips), (40, 1, 0, 0));
+    assert_eq!(
+        (e.planes, e.blinks, e.unconfirmed, e.bridged_dips),
+        (40, 1, 0, 0)
+    );
 }
 
 #[test]
@@ -115,7 +123,10 @@ fn blinks_at_the_four_corners_are_flagged_edge_and_counted_inside() {
         assert_eq!(roi_at(rec, x as i32, y as i32), 10);
         assert_eq!(rec.counts.iter().sum::<u32>(), 10);
         // Records of one completion plane come in slot order.
-        assert_eq!(rec.slot as usize, corners.iter().position(|c| *c == (x, y)).unwrap());
+        assert_eq!(
+            rec.slot as usize,
+            corners.iter().position(|c| *c == (x, y)).unwrap()
+        );
     }
 }
 
@@ -135,7 +146,9 @@ fn slot_exhaustion_is_counted_and_reported() {
         })
         .collect();
     assert_eq!(drops.len(), 5, "one dropped record per plane 5..=9");
-    assert!(drops.iter().all(|d| d.count == 1 && (d.first_x, d.first_y) == (12, 8)));
+    assert!(drops
+        .iter()
+        .all(|d| d.count == 1 && (d.first_x, d.first_y) == (12, 8)));
     assert_eq!(end(&recs).dropped_candidates, 5);
 }
 
@@ -162,12 +175,23 @@ fn empty_planes_give_no_blink() {
 fn saturated_planes_give_one_track_and_no_wrap() {
     // Every pixel on: H is a plateau inside, lower at the borders; the tie rule
     // gives exactly one candidate, the first interior pixel (1,1).
-    let planes: Vec<BitPlane> = (0..60).map(|t| if (10..40).contains(&t) { BitPlane::ones(W, H) } else { BitPlane::zeros(W, H) }).collect();
+    let planes: Vec<BitPlane> = (0..60)
+        .map(|t| {
+            if (10..40).contains(&t) {
+                BitPlane::ones(W, H)
+            } else {
+                BitPlane::zeros(W, H)
+            }
+        })
+        .collect();
     let mut p = Pipeline::new(cfg(8, 8)).unwrap();
     let mut recs = vec![p.start_record()];
     for plane in &planes {
         recs.extend(p.push_plane(plane).unwrap());
-        assert!(p.counts().iter().all(|&s| s <= 8), "rolling count never exceeds N");
+        assert!(
+            p.counts().iter().all(|&s| s <= 8),
+            "rolling count never exceeds N"
+        );
         assert!(p.candidates().len() <= 1);
     }
     recs.extend(p.finish());
@@ -185,7 +209,9 @@ fn stuck_pixel_is_cut_at_l_max_into_contiguous_segments_without_wrap() {
     let recs = run(c.clone(), spots(45, &[(5, 5, 0..45)])).unwrap();
     let b = blinks(&recs);
     assert!(b.len() >= 4, "{b:?}");
-    assert!(b[0].has(flags::CUT) && !b[0].has(flags::CONTINUATION) && b[0].has(flags::PREROLL_CLIPPED));
+    assert!(
+        b[0].has(flags::CUT) && !b[0].has(flags::CONTINUATION) && b[0].has(flags::PREROLL_CLIPPED)
+    );
     for w in b.windows(2) {
         assert!(w[1].has(flags::CONTINUATION));
         assert_eq!(w[1].t_cross, w[0].t_drop + 1, "segments are contiguous");
@@ -223,7 +249,10 @@ fn wrong_plane_size_and_push_after_finish_are_errors() {
     assert!(matches!(e, PipelineError::PlaneSize { .. }));
     assert!(e.to_string().contains("17x12"));
     p.finish();
-    assert_eq!(p.push_plane(&BitPlane::zeros(W, H)), Err(PipelineError::Finished));
+    assert_eq!(
+        p.push_plane(&BitPlane::zeros(W, H)),
+        Err(PipelineError::Finished)
+    );
 }
 
 /// A random scene: sparse background plus a few blinking 2x2 spots.
@@ -239,13 +268,20 @@ fn random_stream(seed: u64, planes: usize, spots: usize, bg_per_mille: u64) -> V
         .map(|_| {
             let start = (rnd() % planes as u64) as usize;
             let len = 1 + (rnd() % 40) as usize;
-            ((rnd() % W as u64) as usize, (rnd() % H as u64) as usize, start, start + len)
+            (
+                (rnd() % W as u64) as usize,
+                (rnd() % H as u64) as usize,
+                start,
+                start + len,
+            )
         })
         .collect();
     (0..planes)
         .map(|t| {
             BitPlane::from_fn(W, H, |x, y| {
-                let lit = sp.iter().any(|&(sx, sy, a, b)| (a..b).contains(&t) && (x == sx || x == sx + 1) && (y == sy || y == sy + 1));
+                let lit = sp.iter().any(|&(sx, sy, a, b)| {
+                    (a..b).contains(&t) && (x == sx || x == sx + 1) && (y == sy || y == sy + 1)
+                });
                 (lit && rnd() % 4 != 0) || rnd() % 1000 < bg_per_mille
             })
         })
