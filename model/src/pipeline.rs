@@ -56,40 +56,140 @@ pub enum PipelineError {
     Finished,
 }
 
-/// The streaming smart-aggregation pipeline.
+/// Stages 1–4 (rolling count, filter, threshold, candidates) behind one
+/// interface, so that a faster implementation can replace the golden one while
+/// the tracker, ROI sums and records (stages 5–7) stay the reference code.
+pub trait FrontEnd {
+    /// Consumes plane t (`live`, already masked) and `B_{t−N}` (`delayed`).
+    fn push(&mut self, live: &BitPlane, delayed: &BitPlane);
+    /// Whether max of `H_t` over the 3×3 around (x, y), clipped to the sensor, is ≥ T_int.
+    fn neighbourhood_on(&self, x: usize, y: usize) -> bool;
+    /// Candidates of plane t, raster order.
+    fn candidates(&self) -> &[Candidate];
+}
+
+/// The reference front end: [`RollingCount`], [`SpatialFilter`],
+/// [`threshold`] and [`candidates::find`], exactly as written.
 #[derive(Debug, Clone)]
-pub struct Pipeline {
-    cfg: PipelineConfig,
-    delay: DelayLine,
+pub struct GoldenFrontEnd {
+    width: usize,
+    height: usize,
+    threshold_int: u32,
     rolling: RollingCount,
     filter: SpatialFilter,
+    filtered: Vec<u32>,
+    candidates: Vec<Candidate>,
+}
+
+impl GoldenFrontEnd {
+    /// The golden stages 1–4 for a configuration.
+    pub fn new(cfg: &PipelineConfig) -> GoldenFrontEnd {
+        GoldenFrontEnd {
+            width: cfg.width,
+            height: cfg.height,
+            threshold_int: cfg.threshold_int,
+            rolling: RollingCount::new(cfg.width, cfg.height),
+            filter: SpatialFilter::new(cfg.kernel.clone()),
+            filtered: vec![0; cfg.width * cfg.height],
+            candidates: Vec::new(),
+        }
+    }
+
+    /// Stage 1 output: rolling counts `S_t`.
+    pub fn counts(&self) -> &[u32] {
+        self.rolling.counts()
+    }
+
+    /// Stage 2 output: `H_t`.
+    pub fn filtered(&self) -> &[u32] {
+        &self.filtered
+    }
+}
+
+impl FrontEnd for GoldenFrontEnd {
+    fn push(&mut self, live: &BitPlane, delayed: &BitPlane) {
+        self.rolling.update(live, delayed);
+        self.filtered = self
+            .filter
+            .apply(self.rolling.counts(), self.width, self.height);
+        self.candidates =
+            candidates::find(&self.filtered, self.width, self.height, self.threshold_int);
+    }
+
+    fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
+        threshold::neighbourhood_on(
+            &self.filtered,
+            self.width,
+            self.height,
+            x,
+            y,
+            self.threshold_int,
+        )
+    }
+
+    fn candidates(&self) -> &[Candidate] {
+        &self.candidates
+    }
+}
+
+/// The streaming smart-aggregation pipeline; `F` computes stages 1–4.
+#[derive(Debug, Clone)]
+pub struct Pipeline<F: FrontEnd = GoldenFrontEnd> {
+    cfg: PipelineConfig,
+    delay: DelayLine,
+    front: F,
     tracker: BlinkTracker,
     rois: RoiAggregator,
     planes: u64,
     blinks: u64,
     finished: bool,
-    filtered: Vec<u32>,
-    candidates: Vec<Candidate>,
 }
 
-impl Pipeline {
-    /// A pipeline at stream start (all counts zero, all slots free).
+impl Pipeline<GoldenFrontEnd> {
+    /// The golden pipeline at stream start (all counts zero, all slots free).
     pub fn new(cfg: PipelineConfig) -> Result<Pipeline, PipelineError> {
+        cfg.validate()?;
+        let front = GoldenFrontEnd::new(&cfg);
+        Pipeline::with_front_end(cfg, front)
+    }
+
+    /// Stage 1 output of the last plane: rolling counts `S_t`.
+    pub fn counts(&self) -> &[u32] {
+        self.front.counts()
+    }
+
+    /// Stage 2 output of the last plane: `H_t`.
+    pub fn filtered(&self) -> &[u32] {
+        self.front.filtered()
+    }
+}
+
+impl<F: FrontEnd> Pipeline<F> {
+    /// A pipeline at stream start whose stages 1–4 are computed by `front`
+    /// (which must start from all-zero counts as well).
+    pub fn with_front_end(cfg: PipelineConfig, front: F) -> Result<Pipeline<F>, PipelineError> {
         cfg.validate()?;
         let (w, h) = (cfg.width, cfg.height);
         Ok(Pipeline {
             delay: DelayLine::new(cfg.n_window as usize, w, h),
-            rolling: RollingCount::new(w, h),
-            filter: SpatialFilter::new(cfg.kernel.clone()),
+            front,
             tracker: BlinkTracker::new(cfg.slots, cfg.n_window, cfg.l_min, cfg.l_max, cfg.r_assoc),
             rois: RoiAggregator::new(cfg.slots, cfg.roi_size, w, h),
             planes: 0,
             blinks: 0,
             finished: false,
-            filtered: vec![0; w * h],
-            candidates: Vec::new(),
             cfg,
         })
+    }
+
+    /// The front end (stages 1–4).
+    pub fn front_end(&self) -> &F {
+        &self.front
+    }
+
+    /// The front end, mutably (to feed precomputed stages 1–4).
+    pub fn front_end_mut(&mut self) -> &mut F {
+        &mut self.front
     }
 
     /// The configuration.
@@ -107,19 +207,9 @@ impl Pipeline {
         self.planes
     }
 
-    /// Stage 1 output of the last plane: rolling counts `S_t`.
-    pub fn counts(&self) -> &[u32] {
-        self.rolling.counts()
-    }
-
-    /// Stage 2 output of the last plane: `H_t`.
-    pub fn filtered(&self) -> &[u32] {
-        &self.filtered
-    }
-
     /// Stage 4 output of the last plane: candidates in raster order.
     pub fn candidates(&self) -> &[Candidate] {
-        &self.candidates
+        self.front.candidates()
     }
 
     /// Stage 5 state: the tracker.
@@ -151,26 +241,22 @@ impl Pipeline {
             return Err(PipelineError::TooManyPlanes);
         }
         let t = self.planes;
-        let thr = self.cfg.threshold_int;
 
-        // Stage 0–2.
+        // Stages 0–4.
         let live = match &self.cfg.hot_mask {
             Some(m) => m.apply(plane),
             None => plane.clone(),
         };
         let delayed = self.delay.push(live.clone());
-        self.rolling.update(&live, &delayed);
-        self.filtered = self.filter.apply(self.rolling.counts(), w, h);
+        self.front.push(&live, &delayed);
 
         // Stage 5a: tracks live at the end of t−1.
-        let filtered = &self.filtered;
-        self.tracker.evaluate(t, |x, y| {
-            threshold::neighbourhood_on(filtered, w, h, x as usize, y as usize, thr)
-        });
+        let front = &self.front;
+        self.tracker
+            .evaluate(t, |x, y| front.neighbourhood_on(x as usize, y as usize));
 
-        // Stages 3–4 and 5b.
-        self.candidates = candidates::find(&self.filtered, w, h, thr);
-        let (opened, drops) = self.tracker.associate(t, &self.candidates);
+        // Stage 5b: candidates in raster order.
+        let (opened, drops) = self.tracker.associate(t, self.front.candidates());
         for &slot in &opened {
             if let crate::blink_tracker::Slot::Busy(seg) = &self.tracker.slots()[slot] {
                 self.rois
@@ -289,13 +375,21 @@ impl Pipeline {
     }
 }
 
-/// Runs a whole stream: the start record, every plane's records, and the
-/// records of [`Pipeline::finish`].
+/// Runs a whole stream through the golden pipeline: the start record, every
+/// plane's records, and the records of [`Pipeline::finish`].
 pub fn run<I>(cfg: PipelineConfig, planes: I) -> Result<Vec<Record>, PipelineError>
 where
     I: IntoIterator<Item = BitPlane>,
 {
-    let mut p = Pipeline::new(cfg)?;
+    run_with(Pipeline::new(cfg)?, planes)
+}
+
+/// Runs a whole stream through a pipeline with any front end.
+pub fn run_with<F, I>(mut p: Pipeline<F>, planes: I) -> Result<Vec<Record>, PipelineError>
+where
+    F: FrontEnd,
+    I: IntoIterator<Item = BitPlane>,
+{
     let mut out = vec![p.start_record()];
     for plane in planes {
         out.extend(p.push_plane(&plane)?);

@@ -107,6 +107,12 @@ impl BitPlane {
         &self.bits
     }
 
+    /// The raster-order bits as 64-bit words, pixel i at bit `i % 64` of word
+    /// `i / 64`. Bits past `width·height` in the last word are unspecified.
+    pub fn words(&self) -> &[u64] {
+        self.bits.as_raw_slice()
+    }
+
     /// Mutable raster-order bits.
     pub fn bits_mut(&mut self) -> &mut BitSlice<u64, Lsb0> {
         &mut self.bits
