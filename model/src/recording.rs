@@ -985,7 +985,7 @@ mod tests {
     impl Read for Dribble<'_> {
         fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
             self.1 += 1;
-            if self.1 % 5 == 0 {
+            if self.1.is_multiple_of(5) {
                 return Err(std::io::Error::new(ErrorKind::Interrupted, "again"));
             }
             let k = buf.len().min(3).min(self.0.len());
