@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 mod commands;
+mod setup;
 
 /// Smart aggregation of binary SPAD bit-planes for single-molecule localisation.
 ///
