@@ -1674,3 +1674,63 @@ proptest! {
         }
     }
 }
+
+/// Payloads built by hand from the offsets in PACKETS.md equal the encoder's.
+#[test]
+fn layouts_match_the_written_definition() {
+    let o = Record::Overflow(OverflowRecord {
+        first_seq: 42,
+        count: 7,
+    });
+    assert_eq!(
+        encode(&o, 42),
+        raw_frame(1, 0x7F, 42, &[42, 0, 0, 0, 7, 0, 0, 0])
+    );
+    let d = Record::Dropped(vector_dropped());
+    let mut p = vec![0xBC, 0x9A, 0x78, 0x56, 0x34, 0x12, 3, 0, 0, 0];
+    p.extend_from_slice(&[0x2C, 0x01, 17, 0]);
+    assert_eq!(encode(&d, 4), raw_frame(1, 0x03, 4, &p));
+    let e = Record::End(vector_end());
+    let p: Vec<u8> = [600_000u64, 1_234, 56_789, 12, 345, 6]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    assert_eq!(encode(&e, 5), raw_frame(1, 0x04, 5, &p));
+    let s = vector_start();
+    let mut p = Vec::new();
+    p.extend_from_slice(&320u16.to_le_bytes());
+    p.extend_from_slice(&240u16.to_le_bytes());
+    for v in [108u32, 1_234_567, 3, 10_000] {
+        p.extend_from_slice(&v.to_le_bytes());
+    }
+    p.extend_from_slice(&[1, 32, 9, 8, 7]);
+    for w in &s.kernel {
+        p.extend_from_slice(&w.to_le_bytes());
+    }
+    p.extend_from_slice(&100_000u32.to_le_bytes());
+    p.extend_from_slice(&5u32.to_le_bytes());
+    assert_eq!(encode(&Record::Start(s), 0), raw_frame(1, 0x01, 0, &p));
+    // Blink: fixed fields, then the count block of a 1x1 ROI with count 5:
+    // base 5, k = 0, the single code bit "0" padded to a byte: 05 00 00.
+    let b = Record::Blink(BlinkRecord {
+        slot: 7,
+        flags: flags::EDGE,
+        anchor_x: 0x0102,
+        anchor_y: 0x0304,
+        t_cross: 0x0A0B_0C0D_0E0F,
+        t_drop: 1,
+        t_s: -2,
+        t_e: 3,
+        planes_summed: 0x1122_3344,
+        roi_size: 1,
+        counts: vec![5],
+    });
+    let mut p = vec![7, 0x01, 0x02, 0x01, 0x04, 0x03];
+    p.extend_from_slice(&[0x0F, 0x0E, 0x0D, 0x0C, 0x0B, 0x0A]);
+    p.extend_from_slice(&[1, 0, 0, 0, 0, 0]);
+    p.extend_from_slice(&[0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF]);
+    p.extend_from_slice(&[3, 0, 0, 0, 0, 0]);
+    p.extend_from_slice(&[0x44, 0x33, 0x22, 0x11, 1]);
+    p.extend_from_slice(&[5, 0, 0]);
+    assert_eq!(encode(&b, 9), raw_frame(1, 0x02, 9, &p));
+}
