@@ -77,11 +77,21 @@ pub fn open_recording<R: Read>(r: R, raw: &RawArgs) -> anyhow::Result<RecordingR
         "msb" => BitOrder::MsbFirst,
         other => bail!("--bit-order must be lsb or msb, not `{other}`"),
     };
-    Ok(RecordingReader::open_raw(r, w, h, order, raw.plane_period_ns)?)
+    Ok(RecordingReader::open_raw(
+        r,
+        w,
+        h,
+        order,
+        raw.plane_period_ns,
+    )?)
 }
 
 /// The paper's statistics for a preset, objective and flux.
-pub fn detection(preset: &str, objective: u32, flux: Option<f64>) -> anyhow::Result<(Preset, Detection)> {
+pub fn detection(
+    preset: &str,
+    objective: u32,
+    flux: Option<f64>,
+) -> anyhow::Result<(Preset, Detection)> {
     let preset = Preset::new(PresetName::parse(preset)?, objective)?;
     let inputs = DetectionInputs::from_preset(&preset, flux)?;
     let det = stats::derive(&inputs)?;
@@ -89,12 +99,18 @@ pub fn detection(preset: &str, objective: u32, flux: Option<f64>) -> anyhow::Res
 }
 
 /// A validated pipeline configuration for a `width × height` sensor.
-pub fn pipeline_config(args: &PipelineArgs, width: u32, height: u32, plane_period_ns: u64) -> anyhow::Result<PipelineConfig> {
+pub fn pipeline_config(
+    args: &PipelineArgs,
+    width: u32,
+    height: u32,
+    plane_period_ns: u64,
+) -> anyhow::Result<PipelineConfig> {
     let (_, det) = detection(&args.preset, args.objective, args.flux)?;
     let n = args.n_window.unwrap_or(det.n_window);
     let threshold = match args.threshold_int {
         Some(t) => t,
-        None => u32::try_from(det.threshold_int).context("the derived threshold does not fit 32 bits")?,
+        None => u32::try_from(det.threshold_int)
+            .context("the derived threshold does not fit 32 bits")?,
     };
     let mut cfg = PipelineConfig::new(
         width as usize,
@@ -144,9 +160,11 @@ pub fn progress(total: Option<u64>, quiet: bool) -> indicatif::ProgressBar {
         None => indicatif::ProgressBar::new_spinner(),
     };
     pb.set_style(
-        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} planes ({per_sec}) {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} planes ({per_sec}) {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
     );
     pb
 }

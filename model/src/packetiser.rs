@@ -52,7 +52,8 @@ mod tests {
     #[test]
     fn pipeline_stream_decodes_back_to_its_records_without_loss() {
         let cfg = PipelineConfig::new(12, 10, 3, vec![1, 2, 1], 2, 8);
-        let planes = (0..40).map(|t| BitPlane::from_fn(12, 10, |x, y| (5..20).contains(&t) && x == 4 && y == 6));
+        let planes = (0..40)
+            .map(|t| BitPlane::from_fn(12, 10, |x, y| (5..20).contains(&t) && x == 4 && y == 6));
         let records = run(cfg, planes).unwrap();
         assert!(records.iter().any(|r| matches!(r, Record::Blink(_))));
         let bytes = encode_stream(&records).unwrap();

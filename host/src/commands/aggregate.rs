@@ -50,13 +50,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let reader = setup::open_recording(BufReader::with_capacity(1 << 20, file), &args.raw)
         .with_context(|| format!("reading {}", args.recording.display()))?;
     let header = reader.header().clone();
-    let cfg = setup::pipeline_config(&args.pipeline, header.width, header.height, header.plane_period_ns)?;
+    let cfg = setup::pipeline_config(
+        &args.pipeline,
+        header.width,
+        header.height,
+        header.plane_period_ns,
+    )?;
     let out_file = std::fs::File::create(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut out = BufWriter::new(out_file);
     eprintln!("{}", setup::describe(&cfg));
 
-    let planes_total = (header.planes != smartagg_model::recording::PLANES_UNKNOWN).then_some(header.planes);
+    let planes_total =
+        (header.planes != smartagg_model::recording::PLANES_UNKNOWN).then_some(header.planes);
     let progress = setup::progress(planes_total, args.quiet);
     let started = Instant::now();
     let mut summary = Summary::default();
@@ -103,7 +109,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     out.flush()?;
     progress.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
-    let raw_bytes = summary.planes * smartagg_model::recording::plane_bytes(header.width, header.height) as u64;
+    let raw_bytes =
+        summary.planes * smartagg_model::recording::plane_bytes(header.width, header.height) as u64;
     println!(
         "{} planes in {:.2} s ({:.0} planes/s, {:.1} Mpixel/s); {} blinks, {} unconfirmed tracks, {} candidates dropped (no free slot), {} segments cut at L_max",
         summary.planes,
