@@ -42,40 +42,59 @@
 //! of the weights: Daniels' second continuity correction), and
 //! `P(H ≥ T_int) ≈ Q(r) + φ(r)(1/u − 1/r)` with
 //! `r = sgn(ŝ)√(2(ŝx̃ − K(ŝ)))`, `u = (2/δ) sinh(ŝδ/2) √K''(ŝ)`.
-//! It is accurate when each pixel's count is spread over several values
-//! (N·p of a few or more); for the presets' lumpy H (N·p ≈ 1) the exact
-//! method always runs. The tests state the agreement measured.
+//! Measured against the exact tail at thresholds giving tails from 1e-2 to
+//! 1e-9 (`saddle_point_agrees_with_the_exact_tail` in `tests/statistics.rs`,
+//! six kernels/windows including the SPCIMAGER 150× one): within 2.5 %
+//! everywhere, within 1e-4 for the SPCIMAGER 150× case. For the presets
+//! the exact method runs (T_int ≈ 1e5, tens of milliseconds).
 //!
 //! ## Confirmation length ([`false_blink_rate`], [`l_min_for_target`])
 //!
 //! A track stays on while H ≥ T_int, bridging single planes below; it ends
 //! at `t_drop`, the first of two consecutive planes below, and its on-length
-//! is `t_drop − t_cross`. Background-only excursions of on-length ≥ L
-//! starting at plane t require `H_t ≥ T` and *no two consecutive planes
-//! below T among t ..= t+L*. So for every c in `[t, t+L−1]` the event
+//! is `t_drop − t_cross`. A background-only excursion *starts* at plane t
+//! only on an up-crossing `U_t = {H_{t−1} < T ≤ H_t}` (were `H_{t−1} ≥ T`,
+//! plane t−1 would already be on and t would continue it). It lasts ≥ L
+//! planes only if there are *no two consecutive planes below T among
+//! t ..= t+L*, so for every c in `[t, t+L−1]` the event
 //! `E(c) = {H_c ≥ T or H_{c+1} ≥ T}` holds. With `L − 1 = m(N+1) + r`,
-//! `0 ≤ r ≤ N`, take `E(t+r)` and the m events `E(t+r+j(N+1))`: each of the
-//! latter depends on planes `c−N+1 ..= c+1` only, disjoint from the others
-//! and from `H_t`'s and `E(t+r)`'s planes, so they are independent and
+//! `0 ≤ r ≤ N`, take `U_t ∩ E(t+r)` (planes `t−N ..= t+r+1`) and the m
+//! events `E(t+r+j(N+1))`, `j = 1..m`: each of these depends on planes
+//! `c−N+1 ..= c+1` only, disjoint from the others and from the first, so
+//! they are independent and
 //!
-//! `P(on-length ≥ L) ≤ first(r) · P(E)^m`, with
-//! `first(0) = P`, `first(N) = P·P(E)` (disjoint windows) and, for
-//! `0 < r < N`, `first(r) ≤ min(P, P2(r) + P2(r+1))` (union bound on `E`),
-//! where `P = P(H ≥ T)` and `P2(r) = P(H_t ≥ T, H_{t+r} ≥ T)`.
+//! `P(start at t, on-length ≥ L) ≤ first(r) · P(E)^m`, with
+//! `first(0) = P(U)`, `first(N) = P(U)·P(E)` (disjoint planes) and, for
+//! `0 < r < N`, `first(r) ≤ min(P(U), P(H_t ≥ T, W_{t+r} ≥ T))`, where
+//! `W_c` is the sum over the N+1 planes `c−N+1 ..= c+1`: the weights are
+//! non-negative, so `H_c, H_{c+1} ≤ W_c` and `E(c) ⊂ {W_c ≥ T}`.
 //!
-//! `P2(r)` is exact: `H_t = A + C`, `H_{t+r} = C + D` with C over the
-//! `N − r` shared planes and A, D over r private planes each (A, D i.i.d.),
-//! so `P2(r) = Σ_{c<T} P(C=c)·P(A ≥ T−c)² + P(C ≥ T)`, both distributions
-//! from the lattice; likewise
-//! `P(E) = Σ_{c<T} P(C=c)·(1 − (1 − P(A ≥ T−c))²) + P(C ≥ T)` with r = 1.
+//! All of these are exact. Two windows sharing planes split as
+//! `X = A + C`, `Y = C + D` (C over the shared planes, A and D over the
+//! private ones, all independent), so
+//! `P(X ≥ T, Y ≥ T) = Σ_{c<T} P(C=c)·P(A ≥ T−c)·P(D ≥ T−c) + P(C ≥ T)`,
+//! with the laws of C, A and D from the lattice. For `(H_t, W_{t+r})`:
+//! `N − r` shared, r and r + 1 private planes. With `(H_t, H_{t+1})` (N − 1
+//! shared, one private plane each),
+//! `P(E) = Σ_{c<T} P(C=c)·(P(A ≥ x) + P(A < x)·P(D ≥ x)) + P(C ≥ T)` and
+//! `P(U) = Σ_{c<T} P(C=c)·P(A < x)·P(D ≥ x)`, `x = T − c` (prefix and
+//! suffix sums: no `1 − y` anywhere). [`BackgroundProcess::pair`] gives
+//! `P2(r) = P(H_t ≥ T, H_{t+r} ≥ T)` the same way.
 //! Since an excursion of length ≥ L' also has length ≥ L for L < L', the
 //! bound for L may use any shorter L'. `first(r)` is evaluated on a grid of
 //! at most [`FIRST_SEGMENT_GRID`]+1 values of r (always 0 and N) and replaced
 //! by its running minimum `f̂(r)` over grid points ≤ r; the bound used is
 //! `min(P(E)^m·f̂(r), P(E)^(m−1)·f̂(N))` (the second term for m ≥ 1 being the
 //! end of the previous block), which is non-increasing in L.
-//! If the lattice would exceed the budget, `P2` and `P(E)` fall back to the
-//! always-valid `P2(r) ≤ P`, `P(E) ≤ 2P` ([`FalseBlinkBound::pair_terms_exact`]).
+//! If the lattice would exceed the budget, these fall back to the
+//! always-valid `first(r) ≤ P`, `P(E) ≤ 2P`, `P(U) ≤ P`
+//! ([`FalseBlinkBound::pair_terms_exact`]).
+//!
+//! Measured against a seeded simulation of 10^7 background-only planes
+//! (SPCIMAGER 150×, `tests/statistics.rs`), the bound is tight at L = 1
+//! (it is then the exact up-crossing rate) and loose by one to two orders of
+//! magnitude for L of order N: between the independent checkpoints it knows
+//! nothing of the planes in between.
 //!
 //! This counts every excursion at its start (a rate per pixel-plane).
 //! Pixels at the field's edges see fewer neighbours (zero padding): H there
@@ -87,14 +106,18 @@
 //! as often as the anchor alone. [`Neighbourhood::Pixel`] bounds the
 //! single-pixel process above (what the brief and the paper describe);
 //! [`Neighbourhood::Max3x3`] is a valid bound for the tracker's rule: the
-//! track opens on its anchor (`first = P`, no pair refinement since the pair
-//! terms across pixels are not computed) and the union over the 9 pixels
-//! gives `P(E_max) ≤ 9·P(E)`, so `bound = P·min(1, 9P(E))^m`,
+//! track opens on its anchor crossing (`first = P`: no up-crossing or window
+//! refinement, since whether a neighbour's track already holds the anchor
+//! and the pair terms across pixels are not computed) and the union over
+//! the 9 pixels gives `P(E_max) ≤ 9·P(E)`, so `bound = P·min(1, 9P(E))^m`,
 //! `m = ⌊(L−1)/(N+1)⌋`. It is much looser (a factor 9 per block).
 //!
 //! `L_min = 1` confirms every crossing: that is the paper's scheme, fine for
-//! one molecule in a small field; across a full 320×240 field at 10 kHz the
-//! paper's T is crossed by background about 2 million times per second.
+//! one molecule in a small field. Across a full 320×240 field at 10 kHz
+//! (SPCIMAGER 150×) background alone holds H above the paper's T on about
+//! 2.1 million pixel-planes per second, in about 280,000 separate
+//! excursions per second; the bound then asks for `L_min` = 296 planes for
+//! one false blink per second (551 with the 3×3 rule).
 
 use crate::kernel::{IntegerKernel, KernelError};
 use crate::stats::{normal_sf, Detection};
@@ -106,7 +129,7 @@ use thiserror::Error;
 /// Largest exact lattice computation, in multiply-adds (about a second).
 pub const EXACT_WORK_BUDGET: f64 = 1e9;
 /// Largest exact lattice, in states (T_int); two f64 arrays of this size.
-pub const EXACT_MAX_STATES: u64 = 1 << 23;
+pub const EXACT_MAX_STATES: u64 = 1 << 22;
 /// Grid intervals on which `first(r)` of the false-blink bound is evaluated.
 pub const FIRST_SEGMENT_GRID: u32 = 16;
 /// Binomial terms below this are not computed at all.
@@ -189,10 +212,13 @@ pub struct FalseBlinkBound {
     pub single: f64,
     /// P(E) = P(H_t ≥ T or H_{t+1} ≥ T) (9× for [`Neighbourhood::Max3x3`]).
     pub either: f64,
+    /// P(U) = P(H_{t−1} < T ≤ H_t), the up-crossing probability
+    /// ([`Neighbourhood::Pixel`]; P for [`Neighbourhood::Max3x3`]).
+    pub upcrossing: f64,
     /// The first-segment factor f̂(r) used.
     pub first_segment: f64,
-    /// Whether P2 and P(E) came from the exact lattice (else the cruder
-    /// bounds `P2 ≤ P`, `P(E) ≤ 2P`).
+    /// Whether the two-window terms (P(E), P(U), first(r)) came from the
+    /// exact lattice (else the cruder bounds `first ≤ P`, `P(E) ≤ 2P`, `P(U) ≤ P`).
     pub pair_terms_exact: bool,
     /// How P was computed.
     pub method: Method,
@@ -864,7 +890,8 @@ pub struct BackgroundProcess {
     threshold_int: u64,
     single: TailProbability,
     pairs_exact: bool,
-    either: OnceLock<f64>,
+    /// `(P(E), P(U))`.
+    lag_one: OnceLock<(f64, f64)>,
     /// `(r, f̂(r))` on the grid, ascending r, running minimum.
     first_table: OnceLock<Vec<(u32, f64)>>,
 }
@@ -890,7 +917,7 @@ impl BackgroundProcess {
             threshold_int,
             single,
             pairs_exact,
-            either: OnceLock::new(),
+            lag_one: OnceLock::new(),
             first_table: OnceLock::new(),
         })
     }
@@ -905,40 +932,72 @@ impl BackgroundProcess {
         self.single
     }
 
-    /// `Σ_{c<T} P(C=c)·g(P(A ≥ T−c)) + P(C ≥ T)` with C over `N−r` planes
-    /// and A over r planes (exact lattice), for `1 ≤ r < N`.
-    fn split(&self, r: u32, g: impl Fn(f64) -> f64) -> f64 {
-        let n = self.n_window as u64;
-        let t = self.threshold_int;
-        if t == 0 {
-            return 1.0;
+    /// `(P(X ≥ x), P(X < x))` for x in `0..=T`, X the sum over `planes`
+    /// background planes (exact lattice; suffix and prefix sums, so neither
+    /// is a `1 − y`).
+    fn sf_cdf(&self, planes: u64, cutoff: f64) -> (Vec<f64>, Vec<f64>) {
+        let t = self.threshold_int as usize;
+        let l = Prepared::new(
+            &background_classes(&self.pixels, planes, self.p_off),
+            t as u64,
+        )
+        .run(cutoff);
+        let mut sf = vec![0.0; t + 1];
+        sf[t] = l.tail;
+        for x in (0..t).rev() {
+            sf[x] = sf[x + 1] + l.below[x];
         }
-        // P2 ≥ P² (windows sharing planes are positively associated), so
-        // skipping up to 1e-13·P² of mass per class side keeps P2 and P(E)
-        // good to ~1e-11 relative while sparing most of the far terms.
+        let mut cdf = vec![0.0; t + 1];
+        for x in 0..t {
+            cdf[x + 1] = cdf[x] + l.below[x];
+        }
+        (sf, cdf)
+    }
+
+    /// Two windows sharing `shared` planes, with `a` and `d` private planes:
+    /// `X = A + C`, `Y = C + D`. For each `g`, returns
+    /// `Σ_{c<T} P(C=c)·g(P(A ≥ T−c), P(A < T−c), P(D ≥ T−c), P(D < T−c))
+    ///  + P(C ≥ T)·g(1, 0, 1, 0)`; `g` encodes the event on (X, Y).
+    fn joint(
+        &self,
+        shared: u64,
+        a: u64,
+        d: u64,
+        gs: &[&dyn Fn(f64, f64, f64, f64) -> f64],
+    ) -> Vec<f64> {
+        let t = self.threshold_int as usize;
+        if t == 0 {
+            return gs.iter().map(|g| g(1.0, 0.0, 1.0, 0.0)).collect();
+        }
+        // Every event used here has probability ≥ P² (increasing events of
+        // independent pixels are positively associated) or is compared with
+        // such, so skipping 1e-13·P² of mass per class side keeps ~1e-11
+        // relative accuracy while sparing most of the far terms.
         let p = self.single.p;
         let cutoff = (1e-13 * p * p).clamp(TERM_FLOOR, 1e-16);
         let c = Prepared::new(
-            &background_classes(&self.pixels, n - r as u64, self.p_off),
-            t,
+            &background_classes(&self.pixels, shared, self.p_off),
+            t as u64,
         )
         .run(cutoff);
-        let a =
-            Prepared::new(&background_classes(&self.pixels, r as u64, self.p_off), t).run(cutoff);
-        let t = t as usize;
-        // sf_a[x] = P(A ≥ x) for x in 0..=T.
-        let mut sf_a = vec![0.0; t + 1];
-        sf_a[t] = a.tail;
-        for x in (0..t).rev() {
-            sf_a[x] = sf_a[x + 1] + a.below[x];
-        }
-        let mut sum = c.tail;
-        for (cv, &m) in c.below.iter().enumerate() {
-            if m != 0.0 {
-                sum += m * g(sf_a[t - cv]);
-            }
-        }
-        sum.min(1.0)
+        let (sf_a, cdf_a) = self.sf_cdf(a, cutoff);
+        let (sf_d, cdf_d) = if d == a {
+            (sf_a.clone(), cdf_a.clone())
+        } else {
+            self.sf_cdf(d, cutoff)
+        };
+        gs.iter()
+            .map(|g| {
+                let mut sum = c.tail * g(1.0, 0.0, 1.0, 0.0);
+                for (cv, &m) in c.below.iter().enumerate() {
+                    if m != 0.0 {
+                        let x = t - cv;
+                        sum += m * g(sf_a[x], cdf_a[x], sf_d[x], cdf_d[x]);
+                    }
+                }
+                sum.min(1.0)
+            })
+            .collect()
     }
 
     /// `P2(r) = P(H_t ≥ T, H_{t+r} ≥ T)`: exact when the lattice is within
@@ -954,22 +1013,59 @@ impl BackgroundProcess {
         if !self.pairs_exact {
             return None;
         }
-        Some(self.split(r, |s| s * s))
+        let n = self.n_window as u64;
+        Some(self.joint(n - r as u64, r as u64, r as u64, &[&|sa, _, sd, _| sa * sd])[0])
+    }
+
+    /// `(P(E), P(U))` with `E = {H_t ≥ T or H_{t+1} ≥ T}` and the up-crossing
+    /// `U = {H_{t−1} < T ≤ H_t}`; over budget, the bounds `2P` and `P`.
+    fn lag_one(&self) -> (f64, f64) {
+        *self.lag_one.get_or_init(|| {
+            let p = self.single.p;
+            if self.n_window == 1 {
+                // Windows of one plane at consecutive planes are independent.
+                return (1.0 - (1.0 - p) * (1.0 - p), (1.0 - p) * p);
+            }
+            if !self.pairs_exact {
+                return ((2.0 * p).min(1.0), p);
+            }
+            // H_t = A + C, H_{t+1} = C + D: E ⇔ not both below, i.e.
+            // 1 − P(A < x)·P(D < x) = sf_a + cdf_a·sf_d; U (the same law one
+            // plane earlier) ⇔ A < x ≤ D: cdf_a·sf_d.
+            let n = self.n_window as u64;
+            let v = self.joint(
+                n - 1,
+                1,
+                1,
+                &[&|sa, ca, sd, _| sa + ca * sd, &|_, ca, sd, _| ca * sd],
+            );
+            (v[0], v[1])
+        })
     }
 
     /// `P(E) = P(H_t ≥ T or H_{t+1} ≥ T)` (exact, or the bound 2P over budget).
     pub fn either(&self) -> f64 {
-        *self.either.get_or_init(|| {
-            let p = self.single.p;
-            if self.n_window == 1 {
-                // Consecutive windows of one plane are independent.
-                return 1.0 - (1.0 - p) * (1.0 - p);
-            }
-            if !self.pairs_exact {
-                return (2.0 * p).min(1.0);
-            }
-            self.split(1, |s| s * (2.0 - s))
-        })
+        self.lag_one().0
+    }
+
+    /// `P(U) = P(H_{t−1} < T ≤ H_t)`, the up-crossing probability per
+    /// pixel-plane: an excursion can only start at an up-crossing (exact, or
+    /// the bound P over budget).
+    pub fn upcrossing(&self) -> f64 {
+        self.lag_one().1
+    }
+
+    /// `P(H_t ≥ T, W ≥ T)` with W the sum over the N+1 planes
+    /// `t+r−N+1 ..= t+r+1`, for `0 < r < N`: since weights are non-negative,
+    /// `H_{t+r}, H_{t+r+1} ≤ W`, so `E(t+r) ⊂ {W ≥ T}`. Shared planes `N − r`,
+    /// private r (H_t) and r + 1 (W). `None` over budget or outside `0 < r < N`.
+    pub fn pair_with_wide_window(&self, r: u32) -> Option<f64> {
+        if !self.pairs_exact || r == 0 || r >= self.n_window {
+            return None;
+        }
+        let n = self.n_window as u64;
+        let r = r as u64;
+        Some(self.joint(n - r, r, r + 1, &[&|sa, _, sd, _| sa * sd])[0])
     }
 
     fn first_table(&self) -> &[(u32, f64)] {
@@ -981,18 +1077,16 @@ impl BackgroundProcess {
                 .map(|i| ((i as u64 * n as u64 + g as u64 / 2) / g as u64) as u32)
                 .collect();
             rs.dedup();
+            let u = self.upcrossing().min(p);
             let mut table = Vec::with_capacity(rs.len());
             let mut best = f64::INFINITY;
             for r in rs {
                 let f = if r == 0 {
-                    p
+                    u
                 } else if r >= n {
-                    p * self.either()
+                    u * self.either()
                 } else {
-                    match (self.pair(r), self.pair(r + 1)) {
-                        (Some(a), Some(b)) => (a + b).min(p),
-                        _ => p,
-                    }
+                    self.pair_with_wide_window(r).map_or(u, |v| v.min(u))
                 };
                 best = best.min(f);
                 table.push((r, best));
@@ -1022,6 +1116,7 @@ impl BackgroundProcess {
             remainder,
             single: p,
             either: p,
+            upcrossing: p,
             first_segment: p,
             pair_terms_exact: self.pairs_exact,
             method: self.single.method,
@@ -1030,23 +1125,27 @@ impl BackgroundProcess {
             return Ok(FalseBlinkBound {
                 per_pixel_plane: 0.0,
                 either: 0.0,
+                upcrossing: 0.0,
+                first_segment: 0.0,
                 ..base
             });
-        }
-        if min_length == 1 {
-            return Ok(base);
         }
         match neighbourhood {
             Neighbourhood::Pixel => {
                 let e = self.either();
-                let table = self.first_table();
-                let f_r = table
-                    .iter()
-                    .rev()
-                    .find(|(r, _)| *r <= remainder)
-                    .map(|x| x.1)
-                    .unwrap_or(p);
-                let f_n = table.last().map(|x| x.1).unwrap_or(p);
+                let u = self.upcrossing().min(p);
+                // L = 1 needs only f̂(0) = P(U); spare the grid.
+                let (f_r, f_n) = if min_length == 1 {
+                    (u, u)
+                } else {
+                    let table = self.first_table();
+                    let f_r = table
+                        .iter()
+                        .rev()
+                        .find(|(r, _)| *r <= remainder)
+                        .map_or(u, |x| x.1);
+                    (f_r, table.last().map_or(u, |x| x.1))
+                };
                 let mut bound = e.powf(blocks as f64) * f_r;
                 if blocks >= 1 {
                     bound = bound.min(e.powf(blocks as f64 - 1.0) * f_n);
@@ -1054,14 +1153,23 @@ impl BackgroundProcess {
                 Ok(FalseBlinkBound {
                     per_pixel_plane: bound,
                     either: e,
+                    upcrossing: u,
                     first_segment: f_r,
                     ..base
                 })
             }
             Neighbourhood::Max3x3 => {
-                let e = (9.0 * self.either()).min(1.0);
+                let e = if min_length == 1 {
+                    p
+                } else {
+                    (9.0 * self.either()).min(1.0)
+                };
                 Ok(FalseBlinkBound {
-                    per_pixel_plane: p * e.powf(blocks as f64),
+                    per_pixel_plane: p * if blocks == 0 {
+                        1.0
+                    } else {
+                        e.powf(blocks as f64)
+                    },
                     either: e,
                     first_segment: p,
                     ..base
@@ -1099,7 +1207,7 @@ impl BackgroundProcess {
         let scale = field_pixels as f64 * plane_rate_hz;
         let ok = |b: f64| b * scale <= target_per_s;
         let p = self.single.p;
-        if ok(p) {
+        if ok(self.false_blink_bound(1, neighbourhood)?.per_pixel_plane) {
             return Ok(1);
         }
         let n1 = self.n_window as u64 + 1;

@@ -133,7 +133,7 @@ pub struct IntegerKernel {
 /// How far the integer kernel is from the ideal one.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct KernelQuantisation {
-    /// max over taps of |k1[i]/2^a − g[i]|, `g` the ideal normalised 1-D weights.
+    /// max over taps of `|k1[i]/2^a − g[i]|`, `g` the ideal normalised 1-D weights.
     pub max_abs_error_1d: f64,
     /// max over the k×k taps of |K/2^(2a) − g⊗g|.
     pub max_abs_error_2d: f64,

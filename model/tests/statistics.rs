@@ -688,9 +688,17 @@ fn saddle_point_agrees_with_the_exact_tail() {
 // ---------------------------------------------------------------------------
 // Pair probabilities against a plain joint enumeration
 
-/// Joint law of (H_t, H_{t+r}) built pixel by pixel from (a, c, d) counts:
-/// H_t = Σ w(a + c), H_{t+r} = Σ w(c + d), values clamped at T.
-fn joint_reference(kernel: &IntegerKernel, n: u32, r: u32, p: f64, t: u64) -> Vec<Vec<f64>> {
+/// Joint law of two windows sharing `shared` planes with `a` and `d`
+/// private planes, built pixel by pixel from (a, c, d) counts:
+/// X = Σ w(a + c), Y = Σ w(c + d), values clamped at T.
+fn joint_reference(
+    kernel: &IntegerKernel,
+    shared: u32,
+    a: u32,
+    d: u32,
+    p: f64,
+    t: u64,
+) -> Vec<Vec<f64>> {
     let binom = |m: u32| -> Vec<f64> {
         let mut v = vec![0.0; m as usize + 1];
         for (s, x) in v.iter_mut().enumerate() {
@@ -702,7 +710,7 @@ fn joint_reference(kernel: &IntegerKernel, n: u32, r: u32, p: f64, t: u64) -> Ve
         }
         v
     };
-    let (pa, pc) = (binom(r), binom(n - r));
+    let (pa, pc, pd) = (binom(a), binom(shared), binom(d));
     let ts = t as usize + 1;
     let mut joint = vec![vec![0.0; ts]; ts];
     joint[0][0] = 1.0;
@@ -715,11 +723,11 @@ fn joint_reference(kernel: &IntegerKernel, n: u32, r: u32, p: f64, t: u64) -> Ve
                 if m == 0.0 {
                     continue;
                 }
-                for (a, &qa) in pa.iter().enumerate() {
-                    for (c, &qc) in pc.iter().enumerate() {
-                        for (d, &qd) in pa.iter().enumerate() {
-                            let nx = (x + w * (a + c)).min(t as usize);
-                            let ny = (y + w * (c + d)).min(t as usize);
+                for (sa, &qa) in pa.iter().enumerate() {
+                    for (sc, &qc) in pc.iter().enumerate() {
+                        for (sd, &qd) in pd.iter().enumerate() {
+                            let nx = (x + w * (sa + sc)).min(t as usize);
+                            let ny = (y + w * (sc + sd)).min(t as usize);
                             next[nx][ny] += m * qa * qc * qd;
                         }
                     }
@@ -732,7 +740,7 @@ fn joint_reference(kernel: &IntegerKernel, n: u32, r: u32, p: f64, t: u64) -> Ve
 }
 
 #[test]
-fn pair_and_either_probabilities_match_a_joint_enumeration() {
+fn two_window_probabilities_match_a_joint_enumeration() {
     let kernel = IntegerKernel {
         shift: 3,
         weights: vec![1, 6, 1],
@@ -740,26 +748,47 @@ fn pair_and_either_probabilities_match_a_joint_enumeration() {
     };
     let (n, p) = (4u32, 0.15);
     let t = 120u64;
+    let ti = t as usize;
     let bp = BackgroundProcess::new(&kernel, n, p, t).unwrap();
     for r in 1..n {
-        let j = joint_reference(&kernel, n, r, p, t);
-        let ti = t as usize;
+        // (H_t, H_{t+r}): N − r shared planes, r private each.
+        let j = joint_reference(&kernel, n - r, r, r, p, t);
         let both = j[ti][ti];
         let got = bp.pair(r).unwrap();
         assert!((got - both).abs() < 1e-13, "r {r}: {got} vs {both}");
+        let single: f64 = (0..=ti).map(|y| j[ti][y]).sum();
+        assert!((bp.single().p - single).abs() < 1e-13);
         if r == 1 {
-            let either: f64 =
-                (0..=ti).map(|y| j[ti][y]).sum::<f64>() + (0..ti).map(|x| j[x][ti]).sum::<f64>();
+            // E = {X ≥ T or Y ≥ T}; U = {X < T ≤ Y} (X one plane earlier).
+            let either: f64 = 1.0
+                - (0..ti)
+                    .flat_map(|x| (0..ti).map(move |y| (x, y)))
+                    .map(|(x, y)| j[x][y])
+                    .sum::<f64>();
+            let up: f64 = (0..ti).map(|x| j[x][ti]).sum();
             assert!(
                 (bp.either() - either).abs() < 1e-13,
                 "{} vs {either}",
                 bp.either()
             );
+            assert!(
+                (bp.upcrossing() - up).abs() < 1e-13,
+                "{} vs {up}",
+                bp.upcrossing()
+            );
         }
-        let single: f64 = (0..=ti).map(|y| j[ti][y]).sum();
-        assert!((bp.single().p - single).abs() < 1e-13);
+        // (H_t, W) with W over N + 1 planes: r and r + 1 private planes.
+        let jw = joint_reference(&kernel, n - r, r, r + 1, p, t);
+        let got = bp.pair_with_wide_window(r).unwrap();
+        assert!(
+            (got - jw[ti][ti]).abs() < 1e-13,
+            "wide r {r}: {got} vs {}",
+            jw[ti][ti]
+        );
+        assert!(got >= bp.pair(r).unwrap() && got >= bp.pair(r + 1).unwrap());
     }
     assert!((bp.pair(n).unwrap() - bp.single().p.powi(2)).abs() < 1e-15);
+    assert_eq!(bp.pair_with_wide_window(0), None);
 }
 
 // ---------------------------------------------------------------------------
