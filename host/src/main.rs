@@ -45,6 +45,8 @@ enum BenchCommand {
     Simulate(commands::bench_simulate::Args),
     /// Fits/s, RMSE and Cramér–Rao ratio of every estimator on simulated ROIs.
     Localize(commands::bench_localize::Args),
+    /// Planes/s of the golden and fast aggregation engines side by side.
+    Aggregate(commands::bench_aggregate::Args),
 }
 
 fn main() {
@@ -58,6 +60,7 @@ fn main() {
         Command::Render(a) => commands::render::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
+        Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),
     };
     if let Err(e) = result {
         eprintln!("smartagg: error: {e:#}");

@@ -115,6 +115,40 @@ impl FastFrontEnd {
     }
 
     fn add_kernel(&mut self, x: usize, y: usize, plus: bool) {
+        // Fixed kernel sizes let the compiler keep each row in vector registers.
+        match self.k1.len() {
+            3 => self.add_kernel_k::<3>(x, y, plus),
+            5 => self.add_kernel_k::<5>(x, y, plus),
+            7 => self.add_kernel_k::<7>(x, y, plus),
+            9 => self.add_kernel_k::<9>(x, y, plus),
+            11 => self.add_kernel_k::<11>(x, y, plus),
+            13 => self.add_kernel_k::<13>(x, y, plus),
+            _ => self.add_kernel_any(x, y, plus),
+        }
+    }
+
+    fn add_kernel_k<const K: usize>(&mut self, x: usize, y: usize, plus: bool) {
+        for dy in 0..K {
+            let row = (y + dy) * self.stride + x;
+            let dst: &mut [u32; K] = (&mut self.filtered[row..row + K])
+                .try_into()
+                .expect("K cells");
+            let w: &[u32; K] = self.kernel_2d[dy * K..(dy + 1) * K]
+                .try_into()
+                .expect("K weights");
+            if plus {
+                for i in 0..K {
+                    dst[i] = dst[i].wrapping_add(w[i]);
+                }
+            } else {
+                for i in 0..K {
+                    dst[i] = dst[i].wrapping_sub(w[i]);
+                }
+            }
+        }
+    }
+
+    fn add_kernel_any(&mut self, x: usize, y: usize, plus: bool) {
         let k = self.k1.len();
         for dy in 0..k {
             let row = (y + dy) * self.stride + x;
@@ -140,7 +174,7 @@ impl FastFrontEnd {
             let row = &self.filtered[start..start + self.width];
             // Cheap rejection of whole 16-pixel blocks first (vectorises).
             for (bi, block) in row.chunks(16).enumerate() {
-                if block.iter().fold(0u32, |m, &v| m.max(v)) < thr {
+                if block.iter().fold(0u32, |m, &v| m | u32::from(v >= thr)) == 0 {
                     continue;
                 }
                 for (j, &v) in block.iter().enumerate() {

@@ -90,6 +90,23 @@ impl BitPlane {
         }
     }
 
+    /// Up to 64 pixels of row `y` from column `x0` (signed) as bits, pixel
+    /// `x0 + i` at bit i; pixels outside the plane read 0.
+    pub fn row_bits(&self, x0: i64, y: i64, len: usize) -> u64 {
+        debug_assert!(len <= 64);
+        if y < 0 || y >= self.height as i64 || len == 0 {
+            return 0;
+        }
+        let lo = x0.max(0);
+        let hi = (x0 + len as i64).min(self.width as i64);
+        if lo >= hi {
+            return 0;
+        }
+        let start = y as usize * self.width + lo as usize;
+        let bits: u64 = self.bits[start..start + (hi - lo) as usize].load_le();
+        bits << (lo - x0)
+    }
+
     /// Sets the pixel at (x, y); panics if outside the plane.
     #[inline]
     pub fn set(&mut self, x: usize, y: usize, value: bool) {
@@ -121,5 +138,23 @@ impl BitPlane {
     /// Number of pixels that read 1.
     pub fn count_ones(&self) -> usize {
         self.bits.count_ones()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn row_bits_equals_pixel_reads(w in 1usize..90, h in 1usize..4, x0 in -70i64..100, y in -2i64..6, len in 0usize..=64, seed in any::<u64>()) {
+            let p = BitPlane::from_fn(w, h, |x, y| (seed.rotate_left((x * 7 + y * 13) as u32 % 64)) & 1 == 1);
+            let bits = p.row_bits(x0, y, len);
+            for i in 0..64 {
+                let expect = i < len && p.get_or_zero(x0 + i as i64, y);
+                prop_assert_eq!((bits >> i) & 1 == 1, expect, "bit {}", i);
+            }
+        }
     }
 }

@@ -37,10 +37,12 @@ impl RoiAccumulator {
 
     fn add(&mut self, plane: &BitPlane) {
         for dy in 0..self.size {
-            for dx in 0..self.size {
-                if plane.get_or_zero(self.x0 + dx as i64, self.y0 + dy as i64) {
-                    self.counts[dy * self.size + dx] += 1;
-                }
+            // One row of the ROI at a time, visiting only the pixels that read 1.
+            let mut bits = plane.row_bits(self.x0, self.y0 + dy as i64, self.size);
+            while bits != 0 {
+                let dx = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                self.counts[dy * self.size + dx] += 1;
             }
         }
     }

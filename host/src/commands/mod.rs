@@ -1,6 +1,7 @@
 //! One module per `smartagg` command: each has `Args` (clap) and `run`.
 
 pub mod aggregate;
+pub mod bench_aggregate;
 pub mod bench_localize;
 pub mod bench_simulate;
 pub mod localize;
