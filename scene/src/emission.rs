@@ -105,7 +105,7 @@ impl Emission {
         for (idx, fp) in &self.cache {
             let b = &mut self.timeline.blinks[*idx];
             let overlap = t1.min(b.t_off_s) - t0.max(b.t_on_s);
-            if !(overlap > 0.0) {
+            if overlap.is_nan() || overlap <= 0.0 {
                 continue;
             }
             b.on_exposed_s += overlap;

@@ -36,7 +36,7 @@ use smartagg_model::params::{check_non_negative, check_range, Camera, EmccdCamer
 
 use crate::emission::Emission;
 use crate::sampling::{poisson, rng_stream, std_normal, STREAM_MAPS, STREAM_PHOTONS};
-use crate::scene::Scene;
+use crate::scene::{Position, Scene};
 use crate::timeline::Timeline;
 use crate::truth::BlinkTruth;
 use crate::SceneError;
@@ -178,6 +178,11 @@ impl EmccdSimulator {
     /// Pixels clipped so far, all frames.
     pub fn clipped_total(&self) -> u64 {
         self.clipped_total
+    }
+
+    /// The emitters of the layout (see [`crate::SpadSimulator::emitters`]).
+    pub fn emitters(&self) -> &[Position] {
+        self.emission.timeline.population()
     }
 
     /// Ground truth of every blink started so far.
@@ -423,8 +428,8 @@ impl ScmosSimulator {
         let mut adu = Vec::with_capacity(n);
         let mut clipped = 0u32;
         let m = &self.maps;
-        for i in 0..n {
-            let el = e[i] as f64;
+        for (i, &ei) in e.iter().enumerate() {
+            let el = ei as f64;
             electrons.push(el);
             let noisy = el + m.read_noise_e[i] * std_normal(&mut self.rng);
             adu.push(to_adu(
@@ -449,6 +454,11 @@ impl ScmosSimulator {
     /// Pixels clipped so far, all frames.
     pub fn clipped_total(&self) -> u64 {
         self.clipped_total
+    }
+
+    /// The emitters of the layout (see [`crate::SpadSimulator::emitters`]).
+    pub fn emitters(&self) -> &[Position] {
+        self.emission.timeline.population()
     }
 
     /// Ground truth of every blink started so far.

@@ -45,7 +45,8 @@ impl AxisProfile {
         let reach = SUPPORT_SIGMAS * sigma_px;
         let lo = (centre_px - reach).floor().max(0.0);
         let hi = (centre_px + reach).ceil().min(len as f64);
-        if !(lo < hi) {
+        // NaN (a non-finite centre) also yields an empty profile.
+        if lo.is_nan() || hi.is_nan() || lo >= hi {
             return AxisProfile {
                 start: 0,
                 cum: Vec::new(),

@@ -49,7 +49,7 @@ use crate::emission::Emission;
 use crate::sampling::{
     lognormal_sigma_for_spread, rng_stream, std_normal, STREAM_MAPS, STREAM_PHOTONS,
 };
-use crate::scene::Scene;
+use crate::scene::{Position, Scene};
 use crate::timeline::Timeline;
 use crate::truth::BlinkTruth;
 use crate::SceneError;
@@ -208,7 +208,7 @@ impl BackgroundSampler {
         let mut dense = Vec::new();
         let mut by_octave: std::collections::BTreeMap<i32, Vec<u32>> = Default::default();
         for (i, &pi) in p.iter().enumerate() {
-            if !(pi > 0.0) {
+            if pi.is_nan() || pi <= 0.0 {
                 continue;
             }
             if pi >= DENSE_P {
@@ -265,7 +265,7 @@ impl BackgroundSampler {
                 // E = −ln U ~ Exp(1), drawn by rand_distr's ziggurat (no log).
                 let skip = rng.sample::<f64, _>(Exp1) / g.rate;
                 // Also stops on NaN (cannot happen: E ≥ 0 finite, rate > 0).
-                if !(skip < (n - j) as f64) {
+                if skip.is_nan() || skip >= (n - j) as f64 {
                     break;
                 }
                 j += skip as usize;
@@ -449,8 +449,10 @@ impl SpadSimulator {
         &self.emission.timeline.blinks
     }
 
-    /// Number of emitters in the layout.
-    pub fn emitters(&self) -> usize {
+    /// The emitters of the layout: emitter `e` of the truth sits at
+    /// `emitters()[e]` (empty for one-at-a-time random positions, where every
+    /// blink has its own emitter, and for explicit blinks).
+    pub fn emitters(&self) -> &[Position] {
         self.emission.timeline.population()
     }
 

@@ -223,9 +223,10 @@ impl Timeline {
         }
     }
 
-    /// Number of emitters in the layout (0 for one-at-a-time random positions).
-    pub(crate) fn population(&self) -> usize {
-        self.population.len()
+    /// The emitters of the layout (empty for one-at-a-time random positions
+    /// and explicit blinks); emitter `e` of the truth is `population[e]`.
+    pub(crate) fn population(&self) -> &[Position] {
+        &self.population
     }
 
     fn push_blink(&mut self, emitter: u64, pos: Position, t_on: f64, t_off: f64, flux: f64) {

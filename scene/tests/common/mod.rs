@@ -32,24 +32,24 @@ pub fn event_plane(s: &EventScene, k: u64, rng: &mut ChaCha8Rng) -> Vec<bool> {
     let t0 = k as f64 * s.period_s;
     let t1 = t0 + s.exposure_s;
     let mut bits = vec![false; w * h];
-    for i in 0..w * h {
+    for (i, bit) in bits.iter_mut().enumerate() {
         // Background photons: a Poisson process in time, each thinned by η_i.
         if s.background_photons_hz > 0.0 {
             let gap = Exp::new(s.background_photons_hz).unwrap();
             let mut t = t0 + gap.sample(rng);
             while t < t1 {
                 if rng.gen::<f64>() < s.maps.eta[i] {
-                    bits[i] = true;
+                    *bit = true;
                     break;
                 }
                 t += gap.sample(rng);
             }
         }
         // Dark counts: a Poisson process of rate DCR_i.
-        if !bits[i] && s.maps.dcr_hz[i] > 0.0 {
+        if !*bit && s.maps.dcr_hz[i] > 0.0 {
             let first = t0 + Exp::new(s.maps.dcr_hz[i]).unwrap().sample(rng);
             if first < t1 {
-                bits[i] = true;
+                *bit = true;
             }
         }
     }
@@ -58,7 +58,7 @@ pub fn event_plane(s: &EventScene, k: u64, rng: &mut ChaCha8Rng) -> Vec<bool> {
         let a = t0.max(b.t_on_s);
         let e = t1.min(b.t_off_s);
         let flux = s.flux_hz * b.flux_factor;
-        if !(e > a) || flux <= 0.0 {
+        if e <= a || flux <= 0.0 {
             continue;
         }
         let gap = Exp::new(flux).unwrap();
