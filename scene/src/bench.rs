@@ -14,8 +14,10 @@ use crate::SceneError;
 pub struct SpadBench {
     /// Planes generated.
     pub planes: u64,
-    /// Field width × height, pixels.
-    pub pixels: u64,
+    /// Field width, pixels.
+    pub width: u32,
+    /// Field height, pixels.
+    pub height: u32,
     /// Wall-clock seconds spent generating them (setup excluded).
     pub seconds: f64,
     /// Fraction of pixel-planes that read 1.
@@ -34,7 +36,7 @@ impl SpadBench {
 
     /// Million pixels per second.
     pub fn mpixel_per_s(&self) -> f64 {
-        self.planes as f64 * self.pixels as f64 / self.seconds / 1e6
+        self.planes as f64 * self.width as f64 * self.height as f64 / self.seconds / 1e6
     }
 
     /// Bit-planes per second relative to the camera's own rate.
@@ -64,7 +66,8 @@ pub fn bench_spad(
     let on_time: f64 = sim.truth().iter().map(|b| b.on_exposed_s).sum();
     Ok(SpadBench {
         planes,
-        pixels: n as u64,
+        width: scene.width,
+        height: scene.height,
         seconds,
         ones_fraction: ones as f64 / (planes as f64 * n as f64).max(1.0),
         mean_on: on_time / span.max(1e-300) * camera.plane_period_s / camera.exposure_s,
