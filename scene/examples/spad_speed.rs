@@ -23,9 +23,10 @@ fn main() {
     };
     let b = bench_spad(cam, &sc, planes, 1).unwrap();
     println!(
-        "{} planes: {:.0} planes/s, {:.0} Mpixel/s, ones {:.4}, on {:.1}, setup {:.3}s",
+        "{} planes: {:.0} planes/s ({:.0} per CPU-s), {:.0} Mpixel/s, ones {:.4}, on {:.1}, setup {:.3}s",
         b.planes,
         b.planes_per_s(),
+        b.planes_per_cpu_s().unwrap_or(f64::NAN),
         b.mpixel_per_s(),
         b.ones_fraction,
         b.mean_on,

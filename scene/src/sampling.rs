@@ -116,7 +116,7 @@ mod tests {
             for _ in 0..n {
                 hist[poisson(&mut r, mean).min(39) as usize] += 1;
             }
-            let mut pk = (-mean as f64).exp();
+            let mut pk = (-mean).exp();
             for (k, &h) in hist.iter().enumerate().take(25) {
                 if k > 0 {
                     pk *= mean / k as f64;
