@@ -63,12 +63,14 @@ impl Emission {
     /// Samples the molecule detections of the exposure window `[t0, t1)`:
     /// calls `hit(pixel)` once per detected photon (raster index; a pixel may
     /// be hit more than once) and updates the ground truth. `eff` is the
-    /// per-pixel detection efficiency, `eff_max` its maximum.
+    /// per-pixel detection efficiency, `eff_min` and `eff_max` its extremes.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn deposit<R: Rng>(
         &mut self,
         t0: f64,
         t1: f64,
         eff: &[f64],
+        eff_min: f64,
         eff_max: f64,
         rng: &mut R,
         mut hit: impl FnMut(usize),
@@ -119,9 +121,11 @@ impl Emission {
                 let x = fp.x.sample(rng.gen::<f64>());
                 let y = fp.y.sample(rng.gen::<f64>());
                 let i = y * self.width + x;
-                let e = eff[i];
-                // Thinning by η(i, j)/η_max; no draw when the pixel is at the maximum.
-                if e >= eff_max || rng.gen::<f64>() * eff_max < e {
+                // Thinning by η(i, j)/η_max. A draw below η_min/η_max keeps the
+                // photon whatever the pixel, so the (cache-missing) map is
+                // only read for the rest.
+                let u = rng.gen::<f64>() * eff_max;
+                if u < eff_min || u < eff[i] {
                     hit(i);
                     detected += 1;
                 }

@@ -139,7 +139,7 @@ impl EmccdSimulator {
         let t0 = self.frames as f64 * c.frame_period_s;
         let t1 = t0 + c.exposure_s;
         self.emission
-            .deposit(t0, t1, &self.qe_map, c.qe, &mut self.rng, |i| {
+            .deposit(t0, t1, &self.qe_map, c.qe, c.qe, &mut self.rng, |i| {
                 e_in[i] = e_in[i].saturating_add(1)
             });
         let g = c.em_gain;
@@ -313,6 +313,7 @@ pub struct ScmosSimulator {
     maps: ScmosMaps,
     /// Mean electrons per pixel per frame from background and dark current.
     mean_bg: Vec<f64>,
+    qe_min: f64,
     qe_max: f64,
     emission: Emission,
     rng: ChaCha8Rng,
@@ -387,6 +388,7 @@ impl ScmosSimulator {
             })
             .collect();
         let qe_max = maps.qe.iter().copied().fold(0.0, f64::max);
+        let qe_min = maps.qe.iter().copied().fold(1.0, f64::min);
         let timeline = Timeline::new(scene, pixel_nm, seed);
         Ok(ScmosSimulator {
             camera: camera.clone(),
@@ -396,6 +398,7 @@ impl ScmosSimulator {
             sigma_px,
             maps,
             mean_bg,
+            qe_min,
             qe_max,
             emission: Emission::new(
                 timeline,
@@ -420,10 +423,15 @@ impl ScmosSimulator {
             .collect();
         let t0 = self.frames as f64 * self.camera.frame_period_s;
         let t1 = t0 + self.camera.exposure_s;
-        self.emission
-            .deposit(t0, t1, &self.maps.qe, self.qe_max, &mut self.rng, |i| {
-                e[i] += 1
-            });
+        self.emission.deposit(
+            t0,
+            t1,
+            &self.maps.qe,
+            self.qe_min,
+            self.qe_max,
+            &mut self.rng,
+            |i| e[i] += 1,
+        );
         let mut electrons = Vec::with_capacity(n);
         let mut adu = Vec::with_capacity(n);
         let mut clipped = 0u32;

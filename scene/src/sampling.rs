@@ -22,15 +22,33 @@ pub(crate) fn rng_stream(seed: u64, stream: u64) -> ChaCha8Rng {
 }
 
 /// A Poisson variate of mean `mean` (0 for a mean of 0 or less).
+///
+/// Small means (the usual case: a molecule gives well under one photon per
+/// bit-plane) use sequential inversion of the CDF — one exponential and one
+/// uniform — instead of building a `rand_distr::Poisson` (two logarithms and
+/// a log-gamma) on every call; larger means use `rand_distr`.
 #[inline]
 pub(crate) fn poisson<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> u64 {
-    if mean > 0.0 && mean.is_finite() {
-        // `Poisson::new` only fails for a non-positive or non-finite mean.
-        let d = Poisson::new(mean).expect("positive finite mean");
-        d.sample(rng) as u64
-    } else {
-        0
+    if !(mean > 0.0 && mean.is_finite()) {
+        return 0;
     }
+    if mean < 10.0 {
+        let u = rng.gen::<f64>();
+        let mut p = (-mean).exp();
+        let mut cdf = p;
+        let mut k = 0u64;
+        // p > 0 until far beyond any u < 1 can reach for mean < 10.
+        while u >= cdf && p > 0.0 {
+            k += 1;
+            p *= mean / k as f64;
+            cdf += p;
+        }
+        return k;
+    }
+    // `Poisson::new` only fails for a non-positive or non-finite mean.
+    Poisson::new(mean)
+        .expect("positive finite mean")
+        .sample(rng) as u64
 }
 
 /// A uniform variate in (0, 1] (never 0, so its logarithm is finite).
@@ -87,6 +105,29 @@ mod tests {
             assert!(((v * (v - 1.0)).sqrt() - d).abs() < 1e-12 * d.max(1.0));
         }
         assert_eq!(lognormal_sigma_for_spread(0.0), 0.0);
+    }
+
+    #[test]
+    fn small_mean_poisson_has_the_right_pmf() {
+        let mut r = rng_stream(2, 0);
+        for mean in [0.03, 0.7, 4.0, 9.9] {
+            let n = 200_000;
+            let mut hist = [0u64; 40];
+            for _ in 0..n {
+                hist[poisson(&mut r, mean).min(39) as usize] += 1;
+            }
+            let mut pk = (-mean).exp();
+            for (k, &h) in hist.iter().enumerate().take(25) {
+                if k > 0 {
+                    pk *= mean / k as f64;
+                }
+                let e = n as f64 * pk;
+                if e > 20.0 {
+                    let z = (h as f64 - e) / e.sqrt();
+                    assert!(z.abs() < 5.0, "mean {mean}, k {k}: {h} vs {e}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -182,7 +182,7 @@ impl Scene {
                 gap_mean_s: 0.040,
             },
             intensity_cv: 0.0,
-            margin_px: (3.0 * preset.sigma_px()).min(f as f64 / 2.0),
+            margin_px: (3.0 * preset.sigma_px()).min(f as f64 / 4.0),
         }
     }
 

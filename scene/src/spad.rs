@@ -310,6 +310,7 @@ pub struct SpadSimulator {
     sigma_px: f64,
     maps: SpadMaps,
     background_hz: Vec<f64>,
+    eta_min: f64,
     eta_max: f64,
     sampler: BackgroundSampler,
     emission: Emission,
@@ -372,6 +373,7 @@ impl SpadSimulator {
             .collect();
         let sampler = BackgroundSampler::new(&p);
         let eta_max = maps.eta.iter().copied().fold(0.0, f64::max);
+        let eta_min = maps.eta.iter().copied().fold(1.0, f64::min);
         let timeline = Timeline::new(scene, pixel_nm, seed);
         let emission = Emission::new(
             timeline,
@@ -388,6 +390,7 @@ impl SpadSimulator {
             sigma_px,
             maps,
             background_hz,
+            eta_min,
             eta_max,
             sampler,
             emission,
@@ -421,10 +424,15 @@ impl SpadSimulator {
         self.sampler.sample(&mut self.rng, words);
         let t0 = self.planes as f64 * self.camera.plane_period_s;
         let t1 = t0 + self.camera.exposure_s;
-        self.emission
-            .deposit(t0, t1, &self.maps.eta, self.eta_max, &mut self.rng, |i| {
-                words[i >> 6] |= 1u64 << (i & 63)
-            });
+        self.emission.deposit(
+            t0,
+            t1,
+            &self.maps.eta,
+            self.eta_min,
+            self.eta_max,
+            &mut self.rng,
+            |i| words[i >> 6] |= 1u64 << (i & 63),
+        );
         self.planes += 1;
     }
 
