@@ -1,7 +1,15 @@
-//! Gateware of the smart-aggregation pipeline (rust-hdl, XEM6310).
-//!
-//! Not built yet: the blocks arrive with the gateware issue. Each stage will
-//! live in the file named like its twin in `model/src/`.
+//! Gateware of the smart-aggregation pipeline (rust-hdl, XEM6310): phase 1,
+//! the streaming front half — delay line, rolling count, spatial filter,
+//! threshold and candidates. Each stage lives in the file named like its
+//! twin in `model/src/` and equals it bit for bit (tests in `hdl/tests/`).
+
+pub mod bram;
+pub mod config;
+pub mod delay_line;
+pub mod rolling_count;
+pub mod sim;
+pub mod stream;
+pub mod synth;
 
 /// The model crate this gateware mirrors.
 pub use smartagg_model as model;
