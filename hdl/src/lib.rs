@@ -8,6 +8,7 @@ pub mod config;
 pub mod delay_line;
 pub mod rolling_count;
 pub mod sim;
+pub mod spatial_filter;
 pub mod stream;
 pub mod synth;
 

@@ -333,3 +333,64 @@ impl<const DW: usize> Logic for WordWindow<DW> {
 pub fn lanes<T: Default>(n: usize) -> Vec<T> {
     (0..n).map(|_| T::default()).collect()
 }
+
+/// One pipeline register of a word's tag: valid, flush, column, row.
+#[derive(LogicBlock, Default)]
+pub struct TagReg {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Clears `valid` (stream start).
+    pub restart: Signal<In, Bit>,
+    /// Word present.
+    pub valid: Signal<In, Bit>,
+    /// Flush plane.
+    pub flush: Signal<In, Bit>,
+    /// Word column.
+    pub x: Signal<In, Bits<16>>,
+    /// Row.
+    pub y: Signal<In, Bits<16>>,
+    /// `valid`, one clock later.
+    pub out_valid: Signal<Out, Bit>,
+    /// `flush`, one clock later.
+    pub out_flush: Signal<Out, Bit>,
+    /// `x`, one clock later.
+    pub out_x: Signal<Out, Bits<16>>,
+    /// `y`, one clock later.
+    pub out_y: Signal<Out, Bits<16>>,
+    v: DFF<Bit>,
+    f: DFF<Bit>,
+    xr: DFF<Bits<16>>,
+    yr: DFF<Bits<16>>,
+}
+
+impl Logic for TagReg {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, v, f, xr, yr);
+        self.v.d.next = self.valid.val() & !self.restart.val();
+        self.f.d.next = self.flush.val();
+        self.xr.d.next = self.x.val();
+        self.yr.d.next = self.y.val();
+        self.out_valid.next = self.v.q.val();
+        self.out_flush.next = self.f.q.val();
+        self.out_x.next = self.xr.q.val();
+        self.out_y.next = self.yr.q.val();
+    }
+}
+
+/// Zero-extends (or truncates) A bits to B bits: a wire, as a block because
+/// rust-hdl cannot cast an indexed signal inside a loop.
+#[derive(LogicBlock, Default)]
+pub struct Widen<const A: usize, const B: usize> {
+    /// Input.
+    pub x: Signal<In, Bits<A>>,
+    /// Output.
+    pub y: Signal<Out, Bits<B>>,
+}
+
+impl<const A: usize, const B: usize> Logic for Widen<A, B> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        self.y.next = bit_cast::<B, A>(self.x.val());
+    }
+}
