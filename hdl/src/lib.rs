@@ -4,6 +4,7 @@
 //! twin in `model/src/` and equals it bit for bit (tests in `hdl/tests/`).
 
 pub mod bram;
+pub mod candidates;
 pub mod config;
 pub mod delay_line;
 pub mod rolling_count;
@@ -11,6 +12,7 @@ pub mod sim;
 pub mod spatial_filter;
 pub mod stream;
 pub mod synth;
+pub mod threshold;
 
 /// The model crate this gateware mirrors.
 pub use smartagg_model as model;
