@@ -7,6 +7,7 @@ pub mod bram;
 pub mod candidates;
 pub mod config;
 pub mod delay_line;
+pub mod front_half;
 pub mod rolling_count;
 pub mod sim;
 pub mod spatial_filter;

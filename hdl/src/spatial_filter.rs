@@ -155,7 +155,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
         let c16 = |v: usize| Constant::new((v as u64).to_bits());
         // Tap m (0 = newest row) of output row yo reads source row yo + c − m,
         // inside the plane iff m ≤ yo + c < H + m.
-        let tap_lo = (0..k).map(c16).collect();
+        let tap_lo = (1..k).map(c16).collect();
         let tap_hi = (0..k).map(|m| c16(cfg.height + m)).collect();
         let muls = |n: usize| -> Vec<u32> { (0..n).map(|q| cfg.kernel[q % (c + 1)]).collect() };
         Ok(SpatialFilter {
@@ -246,9 +246,11 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         self.skew.x.next = self.t1.out_x.val();
         self.skew.y.next = self.t1.out_y.val();
         self.yoc.next = self.skew.out_y.val() + self.half.val();
-        for m in 0..self._k {
-            self.mask[m].next =
-                (self.tap_lo[m].val() <= self.yoc.val()) & (self.yoc.val() < self.tap_hi[m].val());
+        // Tap 0 (the newest row) is never above the plane.
+        self.mask[0].next = self.yoc.val() < self.tap_hi[0].val();
+        for m in 1..self._k {
+            self.mask[m].next = (self.tap_lo[m - 1].val() <= self.yoc.val())
+                & (self.yoc.val() < self.tap_hi[m].val());
         }
         for kk in self._k..(self._k + 1) {
             for km in (self._k - 1)..self._k {

@@ -121,7 +121,7 @@ pub struct RowSkew {
     prev_started: DFF<Bit>,
     prev_flush: DFF<Bit>,
     sop: Signal<Local, Bit>,
-    skew: Constant<Bits<16>>,
+    lag: Constant<Bits<16>>,
     wrap: Constant<Bits<16>>,
 }
 
@@ -144,7 +144,7 @@ impl RowSkew {
             prev_started: Default::default(),
             prev_flush: Default::default(),
             sop: Default::default(),
-            skew: Constant::new((skew as u64).to_bits()),
+            lag: Constant::new((skew as u64).to_bits()),
             wrap: Constant::new(((height - skew) as u64).to_bits()),
         }
     }
@@ -161,8 +161,8 @@ impl Logic for RowSkew {
             self.prev_started.d.next = self.started.q.val();
             self.prev_flush.d.next = self.cur_flush.q.val();
         }
-        if self.y.val() >= self.skew.val() {
-            self.out_y.next = self.y.val() - self.skew.val();
+        if self.y.val() >= self.lag.val() {
+            self.out_y.next = self.y.val() - self.lag.val();
             self.out_valid.next = self.valid.val();
             self.out_flush.next = self.flush.val();
         } else {
