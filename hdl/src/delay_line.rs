@@ -133,10 +133,8 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             if self.planes.q.val() < self.n_reg.q.val() {
                 self.planes.d.next = self.planes.q.val() + 1;
             }
-            if self.planes.q.val() == 0 {
-                self.slot_now.next = 0.into();
-                self.base_now.next = 0.into();
-            } else if self.slot.q.val() == self.n_reg.q.val() - 1 {
+            // Plane 0 of the stream, or the wrap of the ring of N slots.
+            if (self.planes.q.val() == 0) | (self.slot.q.val() == self.n_reg.q.val() - 1) {
                 self.slot_now.next = 0.into();
                 self.base_now.next = 0.into();
             } else {
