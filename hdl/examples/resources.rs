@@ -1,6 +1,8 @@
 //! Resource figures of the generated front half from yosys
 //! `synth_xilinx -family xc6s` (run: `cargo run -p smartagg-hdl --release
-//! --example resources`), and the throughput arithmetic of the chosen P.
+//! --example resources [test] [spc150] [dl24]`, all three by default), and
+//! the throughput arithmetic of the chosen P. The SPCImager front half takes
+//! minutes of yosys time.
 //!
 //! Configurations: the small test configuration (with its block-RAM delay
 //! line) and the SPCImager at 150× (320×240, P = 16, N_max = 128, k = 9,
@@ -10,6 +12,7 @@
 //! rounded, centre = remainder): only the figures depend on it, weakly.
 
 use smartagg_hdl::config::GatewareConfig;
+use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::synth::{yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_model::params::{Preset, PresetName};

@@ -13,15 +13,19 @@ fn scratch(name: &str) -> std::path::PathBuf {
 fn generated_verilog_passes_verilator_lint() {
     let v = test_front_half_verilog().unwrap();
     assert!(v.contains("module top("));
-    if let Err(e) = verilator_lint(&v, &scratch("lint")) {
+    let dir = scratch("lint");
+    if let Err(e) = verilator_lint(&v, &dir) {
         panic!("{e}");
     }
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 #[test]
 fn yosys_maps_the_test_front_half_to_spartan6() {
     let v = test_front_half_verilog().unwrap();
-    let r = yosys_resources(&v, &scratch("yosys")).unwrap_or_else(|e| panic!("{e}"));
+    let dir = scratch("yosys");
+    let r = yosys_resources(&v, &dir).unwrap_or_else(|e| panic!("{e}"));
+    let _ = std::fs::remove_dir_all(dir);
     // Shift-and-add constant multipliers: no DSP slice.
     assert_eq!(r.dsp48a1, 0, "{r:?}");
     // The delay line (7 planes x 96 bits) and the counter memory are memories, not flip-flops.
