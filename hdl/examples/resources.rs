@@ -80,13 +80,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     println!("yosys script: {YOSYS_SCRIPT}");
     let dir = std::env::temp_dir().join("smartagg-hdl-resources");
-    let small = test_config();
-    let r = yosys_resources(&verilog(TestFrontHalf::new(&small)?), &dir.join("test"))?;
-    print("test config (16x6, P 4, k 5, N_max 7)", &r);
-    let r = yosys_resources(
-        &verilog(Spcimager150FrontHalf::new(&big)?),
-        &dir.join("spc150"),
-    )?;
-    print("SPCImager 150x front half (no DL)", &r);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let want = |name: &str| args.is_empty() || args.iter().any(|a| a == name);
+    if want("test") {
+        let small = test_config();
+        let r = yosys_resources(&verilog(TestFrontHalf::new(&small)?), &dir.join("test"))?;
+        print("test config (16x6, P 4, k 5, N_max 7)", &r);
+    }
+    if want("spc150") {
+        let r = yosys_resources(
+            &verilog(Spcimager150FrontHalf::new(&big)?),
+            &dir.join("spc150"),
+        )?;
+        print("SPCImager 150x front half (no DL)", &r);
+    }
+    if want("dl24") {
+        // The largest block-RAM delay line of 320x240 planes an LX45 can
+        // hold: 24 planes x 76,800 bits = 1.84 Mbit (the projected
+        // SPCImager's N is about 18).
+        let dl = GatewareConfig {
+            n_max: 24,
+            ..big.clone()
+        };
+        println!(
+            "delay line N_max 24: {} bits of block RAM",
+            dl.delay_line_bits()
+        );
+        let r = yosys_resources(
+            &verilog(DelayLine::<16, 17, 5>::new(&dl)?),
+            &dir.join("dl24"),
+        )?;
+        print("BRAM delay line 320x240, N_max 24", &r);
+    }
     Ok(())
 }
