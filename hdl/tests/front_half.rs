@@ -5,6 +5,7 @@
 
 mod common;
 
+use proptest::prelude::*;
 use rust_hdl::prelude::*;
 use smartagg_hdl::front_half::{test_config, TestFrontHalf};
 use smartagg_hdl::sim::{settle, Bench, Stalls};
@@ -14,12 +15,12 @@ use smartagg_model::rolling_count::RollingCount;
 use smartagg_model::spatial_filter::SpatialFilter;
 use smartagg_model::threshold::above;
 
-#[test]
-fn front_half_equals_model_stages() {
+/// One stream of `planes` planes with window `n`, `stall_percent` stalls;
+/// returns the number of candidates compared.
+fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     let g = test_config();
-    let (w, h, p, n) = (g.width, g.height, g.pixels_per_clock, 5usize);
-    let planes = 12;
-    let mut rng = common::rng(71);
+    let (w, h, p) = (g.width, g.height, g.pixels_per_clock);
+    let mut rng = common::rng(seed);
     let stream = common::random_planes(&mut rng, w, h, planes, 0.15);
 
     // The model, stage by stage.
@@ -47,7 +48,7 @@ fn front_half_equals_model_stages() {
 
     let wpp = w * h / p;
     let total = (planes + 1) * wpp;
-    let mut stalls = Stalls::new(72, 30);
+    let mut stalls = Stalls::new(seed ^ 0x77, stall_percent);
     let (mut sent, mut idle) = (0, 0);
     let mut got_above: Vec<Vec<bool>> = Vec::new();
     let mut got_cand: Vec<Vec<Candidate>> = Vec::new();
@@ -102,5 +103,20 @@ fn front_half_equals_model_stages() {
         candidates_seen += want.len();
         assert_eq!(got_cand[t], want, "candidates, plane {t}");
     }
-    assert!(candidates_seen > 0, "the stream exercises candidates");
+    candidates_seen
+}
+
+#[test]
+fn front_half_equals_model_stages() {
+    let seen = run(71, 5, 30, 12);
+    assert!(seen > 0, "the stream exercises candidates");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+    /// Any N up to N_max, any stall rate (none to most clocks).
+    #[test]
+    fn front_half_equals_model_for_any_window_and_stalls(seed in any::<u64>(), n in 1usize..=7, stall in 0u64..80) {
+        run(seed, n, stall, 9);
+    }
 }
