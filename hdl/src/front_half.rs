@@ -274,6 +274,21 @@ pub fn test_config() -> GatewareConfig {
 /// [`FrontHalfBram`] of [`test_config`].
 pub type TestFrontHalf = FrontHalfBram<4, 8, 3, 5, 7, 11, 2>;
 
+/// The SPCImager at 150× (320×240, P = 16, N_max = 128 ≥ N ≈ 108): k = 9,
+/// a = 8, k1 the pixel-integrated Gaussian of σ = 1.514 px scaled to 2^8
+/// (computed by `examples/resources.rs`; the model's kernel module will
+/// define the official rounding).
+pub fn spcimager150_config() -> GatewareConfig {
+    GatewareConfig {
+        width: 320,
+        height: 240,
+        pixels_per_clock: 16,
+        n_max: 128,
+        kernel: vec![2, 10, 29, 54, 66, 54, 29, 10, 2],
+        kernel_shift: 8,
+    }
+}
+
 /// [`FrontHalf`] for the SPCImager at 150× (320×240, P = 16, N_max = 128,
 /// k = 9, a = 8): the delay line (128 planes, 9.8 Mbit) goes to DDR2.
 pub type Spcimager150FrontHalf = FrontHalf<16, 8, 13, 16, 24, 5>;

@@ -2,7 +2,9 @@
 //! and a yosys Spartan-6 synthesis of the test configuration's front half.
 //! The tools are required: a missing tool fails with an install hint.
 
-use smartagg_hdl::front_half::test_front_half_verilog;
+use smartagg_hdl::front_half::{
+    spcimager150_config, test_front_half_verilog, verilog, Spcimager150FrontHalf,
+};
 use smartagg_hdl::synth::{verilator_lint, yosys_resources};
 
 fn scratch(name: &str) -> std::path::PathBuf {
@@ -14,6 +16,16 @@ fn generated_verilog_passes_verilator_lint() {
     let v = test_front_half_verilog().unwrap();
     assert!(v.contains("module top("));
     let dir = scratch("lint");
+    if let Err(e) = verilator_lint(&v, &dir) {
+        panic!("{e}");
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn spcimager_150x_verilog_passes_verilator_lint() {
+    let v = verilog(Spcimager150FrontHalf::new(&spcimager150_config()).unwrap());
+    let dir = scratch("lint150");
     if let Err(e) = verilator_lint(&v, &dir) {
         panic!("{e}");
     }
