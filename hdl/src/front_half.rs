@@ -9,6 +9,7 @@
 use crate::candidates::Candidates;
 use crate::config::{GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
+use crate::hot_pixel_mask::HotPixelMask;
 use crate::rolling_count::RollingCount;
 use crate::spatial_filter::SpatialFilter;
 use crate::stream::lanes;
@@ -142,8 +143,9 @@ impl<
     }
 }
 
-/// The front half behind a block-RAM delay line: the whole phase-1 pipeline
-/// from the live bit-plane stream to above-threshold bits and candidates.
+/// The front half behind the hot-pixel mask and a block-RAM delay line: the
+/// whole phase-1 pipeline from the raw bit-plane stream to above-threshold
+/// bits and candidates.
 #[derive(LogicBlock)]
 pub struct FrontHalfBram<
     const P: usize,
@@ -160,6 +162,12 @@ pub struct FrontHalfBram<
     pub restart: Signal<In, Bit>,
     /// N register (1..=N_max).
     pub n_window: Signal<In, Bits<CW>>,
+    /// Mask load strobe (before the stream starts).
+    pub load: Signal<In, Bit>,
+    /// Mask word index.
+    pub load_address: Signal<In, Bits<CAW>>,
+    /// Mask word: bit i = pixel i is hot.
+    pub load_data: Signal<In, Bits<P>>,
     /// T_int register.
     pub threshold: Signal<In, Bits<HW>>,
     /// Input word present.
@@ -182,6 +190,7 @@ pub struct FrontHalfBram<
     pub above: Vec<Signal<Out, Bit>>,
     /// Candidate per pixel.
     pub candidate: Vec<Signal<Out, Bit>>,
+    mask: HotPixelMask<P, CAW>,
     delay: DelayLine<P, DAW, CW>,
     front: FrontHalf<P, CW, CAW, VW, HW, LAW>,
 }
@@ -202,6 +211,9 @@ impl<
             clock: Default::default(),
             restart: Default::default(),
             n_window: Default::default(),
+            load: Default::default(),
+            load_address: Default::default(),
+            load_data: Default::default(),
             threshold: Default::default(),
             valid: Default::default(),
             sop: Default::default(),
@@ -213,6 +225,7 @@ impl<
             out_y: Default::default(),
             above: lanes(P),
             candidate: lanes(P),
+            mask: HotPixelMask::new(cfg)?,
             delay: DelayLine::new(cfg)?,
             front: FrontHalf::new(cfg)?,
         })
@@ -231,15 +244,22 @@ impl<
 {
     #[hdl_gen]
     fn update(&mut self) {
-        clock!(self, clock, delay, front);
+        clock!(self, clock, mask, delay, front);
+        self.mask.load.next = self.load.val();
+        self.mask.load_address.next = self.load_address.val();
+        self.mask.load_data.next = self.load_data.val();
+        self.mask.valid.next = self.valid.val();
+        self.mask.sop.next = self.sop.val();
+        self.mask.flush.next = self.flush.val();
+        self.mask.live.next = self.live.val();
         self.delay.restart.next = self.restart.val();
         self.front.restart.next = self.restart.val();
         self.delay.n_window.next = self.n_window.val();
         self.front.threshold.next = self.threshold.val();
-        self.delay.valid.next = self.valid.val();
-        self.delay.sop.next = self.sop.val();
-        self.delay.flush.next = self.flush.val();
-        self.delay.live.next = self.live.val();
+        self.delay.valid.next = self.mask.out_valid.val();
+        self.delay.sop.next = self.mask.out_sop.val();
+        self.delay.flush.next = self.mask.out_flush.val();
+        self.delay.live.next = self.mask.out_live.val();
         self.front.valid.next = self.delay.out_valid.val();
         self.front.flush.next = self.delay.out_flush.val();
         self.front.x.next = self.delay.out_x.val();

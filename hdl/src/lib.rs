@@ -1,7 +1,7 @@
 //! # smartagg-hdl — gateware of the smart-aggregation pipeline (rust-hdl 0.46)
 //!
-//! Phase 1 of the gateware: the streaming front half — delay line, rolling
-//! count, spatial filter, threshold and candidates — as rust-hdl blocks, each
+//! Phase 1 of the gateware: the streaming front half — hot-pixel mask, delay
+//! line, rolling count, spatial filter, threshold and candidates — as rust-hdl blocks, each
 //! in the file named like its twin in `model/src/`, each simulated against
 //! that model stage bit for bit (`hdl/tests/`), plus Verilog generation,
 //! Verilator lint and a yosys Spartan-6 resource report ([`synth`]).
@@ -16,7 +16,9 @@
 //! leave 5 %). The pipeline itself never inserts a bubble: one word in per
 //! clock sustained, so the figure above is also its cycles per plane.
 //!
-//! ## Blocks (order of work of `model/src/pipeline.rs`, stages 1–4)
+//! ## Blocks (order of work of `model/src/pipeline.rs`, stages 0–4)
+//! * [`hot_pixel_mask::HotPixelMask`]: `B AND NOT mask`, the mask a W·H-bit
+//!   memory loaded before the stream;
 //! * [`delay_line::DelayLine`]: block-RAM ring of N_max planes, runtime N,
 //!   zero for t < N (a saturating plane count), read-first `B_{t−N}` beside
 //!   `B_t`; numbers the words (column, row, index);
@@ -36,6 +38,7 @@ pub mod candidates;
 pub mod config;
 pub mod delay_line;
 pub mod front_half;
+pub mod hot_pixel_mask;
 pub mod rolling_count;
 pub mod sim;
 pub mod spatial_filter;

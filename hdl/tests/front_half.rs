@@ -1,4 +1,4 @@
-//! The whole phase-1 pipeline (block-RAM delay line → rolling count →
+//! The whole phase-1 pipeline (hot-pixel mask → block-RAM delay line → rolling count →
 //! filter → threshold and candidates) against the model's stages run in the
 //! order of `model/src/pipeline.rs`: random bit-planes with a blinking blob,
 //! random stalls, runtime N below N_max, a flush plane at the end.
@@ -6,11 +6,14 @@
 mod common;
 
 use proptest::prelude::*;
+use rand::Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::front_half::{test_config, TestFrontHalf};
 use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::candidates::{find, Candidate};
 use smartagg_model::delay_line::DelayLine;
+use smartagg_model::hot_pixel_mask::HotPixelMask;
+use smartagg_model::plane::BitPlane;
 use smartagg_model::rolling_count::RollingCount;
 use smartagg_model::spatial_filter::SpatialFilter;
 use smartagg_model::threshold::above;
@@ -21,7 +24,14 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     let g = test_config();
     let (w, h, p) = (g.width, g.height, g.pixels_per_clock);
     let mut rng = common::rng(seed);
-    let stream = common::random_planes(&mut rng, w, h, planes, 0.15);
+    let raw = common::random_planes(&mut rng, w, h, planes, 0.15);
+    // Stage 0: a few hot pixels, loaded through the mask port.
+    let hot: Vec<(usize, usize)> = (0..3)
+        .map(|_| (rng.gen_range(0..w), rng.gen_range(0..h)))
+        .collect();
+    let (mask, _) = HotPixelMask::from_pixels(w, h, &hot);
+    let mask_plane = BitPlane::from_fn(w, h, |x, y| mask.is_masked(x as i64, y as i64));
+    let stream: Vec<BitPlane> = raw.iter().map(|b| mask.apply(b)).collect();
 
     // The model, stage by stage.
     let mut dl = DelayLine::new(n, w, h);
@@ -45,8 +55,15 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     bench.uut.threshold.next = g.threshold_register(thr).to_bits();
     bench.tick();
     bench.uut.restart.next = false;
-
     let wpp = w * h / p;
+    for idx in 0..wpp {
+        bench.uut.load.next = true;
+        bench.uut.load_address.next = (idx as u64).to_bits();
+        bench.uut.load_data.next = common::word(&mask_plane, p, idx).to_bits();
+        bench.tick();
+    }
+    bench.uut.load.next = false;
+
     let total = (planes + 1) * wpp;
     let mut stalls = Stalls::new(seed ^ 0x77, stall_percent);
     let (mut sent, mut idle) = (0, 0);
