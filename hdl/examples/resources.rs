@@ -1,6 +1,6 @@
 //! Resource figures of the generated front half from yosys
 //! `synth_xilinx -family xc6s` (run: `cargo run -p smartagg-hdl --release
-//! --example resources [test] [spc150] [dl24]`, all three by default), and
+//! --example resources [test] [spc150] [mask150] [dl24]`, all by default), and
 //! the throughput arithmetic of the chosen P. The SPCImager front half takes
 //! minutes of yosys time.
 //!
@@ -14,6 +14,7 @@
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
+use smartagg_hdl::hot_pixel_mask::HotPixelMask;
 use smartagg_hdl::synth::{yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_model::params::{Preset, PresetName};
 
@@ -93,6 +94,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &dir.join("spc150"),
         )?;
         print("SPCImager 150x front half (no DL)", &r);
+    }
+    if want("mask150") {
+        let r = yosys_resources(
+            &verilog(HotPixelMask::<16, 13>::new(&big)?),
+            &dir.join("mask150"),
+        )?;
+        print("SPCImager 150x hot-pixel mask", &r);
     }
     if want("dl24") {
         // The largest block-RAM delay line of 320x240 planes an LX45 can

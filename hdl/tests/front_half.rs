@@ -78,7 +78,7 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
             u.sop.next = idx == 0;
             u.flush.next = t == planes;
             u.live.next = if t < planes {
-                common::word(&stream[t], p, idx).to_bits()
+                common::word(&raw[t], p, idx).to_bits()
             } else {
                 0.into()
             };
