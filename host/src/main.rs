@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod calibration;
 mod commands;
 mod setup;
 
@@ -34,6 +35,8 @@ enum Command {
     Localize(commands::localize::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
     Render(commands::render::Args),
+    /// Calibrate a camera from its own recordings: DCR map, hot pixels, PRNU (SPAD); offset, gain, read noise (EMCCD, sCMOS).
+    Calibrate(commands::calibrate::Args),
     /// Measure speed and accuracy (figures printed, nothing asserted).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -58,6 +61,7 @@ fn main() {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Localize(a) => commands::localize::run(a),
         Command::Render(a) => commands::render::run(a),
+        Command::Calibrate(a) => commands::calibrate::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),
