@@ -50,7 +50,8 @@ fn camera() -> SpadCamera {
 fn record(path: &Path, maps: &SpadMaps, light: f64, planes: u64, seed: u64, raw: Option<&Path>) {
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
     let mut sim =
-        SpadSimulator::with_maps(&camera(), &empty_scene(&p, W, light), maps.clone(), seed).unwrap();
+        SpadSimulator::with_maps(&camera(), &empty_scene(&p, W, light), maps.clone(), seed)
+            .unwrap();
     let header = sim.recording_header(planes, BitOrder::LsbFirst);
     let f = BufWriter::new(std::fs::File::create(path).unwrap());
     let mut wr = RecordingWriter::new(f, header).unwrap();
@@ -155,11 +156,28 @@ fn spad_dark_and_flat_recordings_give_the_maps_hot_pixels_and_report() {
     let cam = camera();
     record(&dark, &fx.maps, 0.0, 150_000, 8, None);
     let px_um = Preset::new(PresetName::Spcimager, 150).unwrap().pixel_nm() / 1000.0;
-    record(&flat, &fx.maps, 3000.0 / (cam.eta() * px_um * px_um), 30_000, 9, None);
+    record(
+        &flat,
+        &fx.maps,
+        3000.0 / (cam.eta() * px_um * px_um),
+        30_000,
+        9,
+        None,
+    );
     let stdout = ok(&smartagg(&[
-        "calibrate", "--dark", s(&dark), "--flat", s(&flat), "--out", s(&out), "--quiet",
+        "calibrate",
+        "--dark",
+        s(&dark),
+        "--flat",
+        s(&flat),
+        "--out",
+        s(&out),
+        "--quiet",
     ]));
-    assert!(stdout.contains("hot pixels") && stdout.contains("PRNU spread"), "{stdout}");
+    assert!(
+        stdout.contains("hot pixels") && stdout.contains("PRNU spread"),
+        "{stdout}"
+    );
 
     let h = header(&out);
     assert_eq!(h["format"].as_str(), Some("smartagg-calibration"));
@@ -169,7 +187,9 @@ fn spad_dark_and_flat_recordings_give_the_maps_hot_pixels_and_report() {
     let dcr = map_f32(&out, "dcr_hz");
     let sd = map_f32(&out, "dcr_sd_hz");
     let n = (W * W) as usize;
-    let z: Vec<f64> = (0..n).map(|i| (dcr[i] - fx.maps.dcr_hz[i]) / sd[i]).collect();
+    let z: Vec<f64> = (0..n)
+        .map(|i| (dcr[i] - fx.maps.dcr_hz[i]) / sd[i])
+        .collect();
     let within = z.iter().filter(|z| z.abs() < 3.0).count() as f64 / n as f64;
     let chi2 = z.iter().map(|z| z * z).sum::<f64>() / n as f64;
     eprintln!("DCR: {:.2} % within 3 sd, chi2/k {chi2:.3}", 100.0 * within);
@@ -199,7 +219,13 @@ fn spad_dark_and_flat_recordings_give_the_maps_hot_pixels_and_report() {
 
     // The report a person reads.
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    for want in ["## Dark-count rate", "Planes needed", "## Hot pixels", "## PRNU", "critical DCR"] {
+    for want in [
+        "## Dark-count rate",
+        "Planes needed",
+        "## Hot pixels",
+        "## PRNU",
+        "critical DCR",
+    ] {
         assert!(md.contains(want), "{want}");
     }
     let png = png::Decoder::new(std::fs::File::open(out.join("dcr_histogram.png")).unwrap());
@@ -213,15 +239,42 @@ fn a_recording_too_short_for_the_precision_says_so() {
     let dark = fx.path("dark.spad");
     // 100 Hz at 100 µs: 5 % needs ≈ 40,000 planes; 4,000 are recorded.
     record(&dark, &fx.maps, 0.0, 4_000, 18, None);
-    let out = smartagg(&["calibrate", "--dark", s(&dark), "--out", s(&fx.path("c")), "--quiet"]);
+    let out = smartagg(&[
+        "calibrate",
+        "--dark",
+        s(&dark),
+        "--out",
+        s(&fx.path("c")),
+        "--quiet",
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("too short") && err.contains("4000 bit-planes") && err.contains("needs"), "{err}");
+    assert!(
+        err.contains("too short") && err.contains("4000 bit-planes") && err.contains("needs"),
+        "{err}"
+    );
     assert!(!fx.path("c").join("calibration.toml").exists());
     // A precision the recording supports is fine.
-    ok(&smartagg(&["calibrate", "--dark", s(&dark), "--out", s(&fx.path("c")), "--precision", "0.2", "--quiet"]));
+    ok(&smartagg(&[
+        "calibrate",
+        "--dark",
+        s(&dark),
+        "--out",
+        s(&fx.path("c")),
+        "--precision",
+        "0.2",
+        "--quiet",
+    ]));
     // Accepted: written, and the report and stderr say it is short.
-    let out = smartagg(&["calibrate", "--dark", s(&dark), "--out", s(&fx.path("c")), "--allow-short", "--quiet"]);
+    let out = smartagg(&[
+        "calibrate",
+        "--dark",
+        s(&dark),
+        "--out",
+        s(&fx.path("c")),
+        "--allow-short",
+        "--quiet",
+    ]);
     ok(&out);
     assert!(String::from_utf8_lossy(&out.stderr).contains("warning"));
     let md = std::fs::read_to_string(fx.path("c").join("report.md")).unwrap();
@@ -235,7 +288,11 @@ fn a_recording_too_short_for_the_precision_says_so() {
 fn the_threshold_moves_the_hot_set_and_raw_planes_read_like_spad_files() {
     let mut fx = Fixture::new(27);
     // A very wide DCR spread, so many pixels sit near the critical DCR.
-    let wide = SpadCamera { drnu: 3.0, hot_pixel_fraction: 0.0, ..camera() };
+    let wide = SpadCamera {
+        drnu: 3.0,
+        hot_pixel_fraction: 0.0,
+        ..camera()
+    };
     fx.maps = SpadMaps::generate(&wide, W, W, 27);
     let (dark, raw) = (fx.path("dark.spad"), fx.path("dark.raw"));
     record(&dark, &fx.maps, 0.0, 60_000, 28, Some(&raw));
@@ -249,7 +306,12 @@ fn the_threshold_moves_the_hot_set_and_raw_planes_read_like_spad_files() {
     let base = hot(&[], "base");
     let lower = hot(&["--threshold-int", "110000"], "lower");
     let higher = hot(&["--threshold-int", "150000"], "higher");
-    eprintln!("hot pixels at T_int 110000 / default / 150000: {} / {} / {}", lower.len(), base.len(), higher.len());
+    eprintln!(
+        "hot pixels at T_int 110000 / default / 150000: {} / {} / {}",
+        lower.len(),
+        base.len(),
+        higher.len()
+    );
     assert!(higher.is_subset(&base) && base.is_subset(&lower));
     assert!(higher.len() < base.len() && base.len() < lower.len());
     // The 60x objective's criterion is another one.
@@ -259,16 +321,44 @@ fn the_threshold_moves_the_hot_set_and_raw_planes_read_like_spad_files() {
     // Raw MSB-first planes with the size given: the same DCR map.
     let raw_out = fx.path("raw");
     ok(&smartagg(&[
-        "calibrate", "--dark", s(&raw), "--out", s(&raw_out), "--raw", "--width", "16", "--height", "16",
-        "--bit-order", "msb", "--quiet",
+        "calibrate",
+        "--dark",
+        s(&raw),
+        "--out",
+        s(&raw_out),
+        "--raw",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--bit-order",
+        "msb",
+        "--quiet",
     ]));
-    assert_eq!(map_f32(&raw_out, "dcr_hz"), map_f32(&fx.path("base"), "dcr_hz"));
+    assert_eq!(
+        map_f32(&raw_out, "dcr_hz"),
+        map_f32(&fx.path("base"), "dcr_hz")
+    );
     // The wrong bit order reads other pixels.
     ok(&smartagg(&[
-        "calibrate", "--dark", s(&raw), "--out", s(&raw_out), "--raw", "--width", "16", "--height", "16",
-        "--quiet", "--precision", "0.5",
+        "calibrate",
+        "--dark",
+        s(&raw),
+        "--out",
+        s(&raw_out),
+        "--raw",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--quiet",
+        "--precision",
+        "0.5",
     ]));
-    assert_ne!(map_f32(&raw_out, "dcr_hz"), map_f32(&fx.path("base"), "dcr_hz"));
+    assert_ne!(
+        map_f32(&raw_out, "dcr_hz"),
+        map_f32(&fx.path("base"), "dcr_hz")
+    );
 }
 
 #[test]
@@ -283,7 +373,16 @@ fn bad_inputs_are_named() {
         assert!(err.contains(want), "{args:?}: {err}");
     };
     let out = s(&fx.path("c")).to_string();
-    fail(&["calibrate", "--dark", s(&fx.path("none.spad")), "--out", &out], "none.spad");
+    fail(
+        &[
+            "calibrate",
+            "--dark",
+            s(&fx.path("none.spad")),
+            "--out",
+            &out,
+        ],
+        "none.spad",
+    );
     // A flat of another size.
     let small = SpadMaps::generate(&camera(), W, W, 1);
     let small = SpadMaps {
@@ -296,34 +395,86 @@ fn bad_inputs_are_named() {
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
     let mut sim = SpadSimulator::with_maps(&camera(), &empty_scene(&p, 8, 1e6), small, 2).unwrap();
     let flat = fx.path("flat8.spad");
-    let mut wr = RecordingWriter::new(std::fs::File::create(&flat).unwrap(), sim.recording_header(10, BitOrder::LsbFirst)).unwrap();
+    let mut wr = RecordingWriter::new(
+        std::fs::File::create(&flat).unwrap(),
+        sim.recording_header(10, BitOrder::LsbFirst),
+    )
+    .unwrap();
     for _ in 0..10 {
         wr.write_plane(&sim.next_plane()).unwrap();
     }
     wr.finish().unwrap();
-    fail(&["calibrate", "--dark", s(&dark), "--flat", s(&flat), "--out", &out], "expected 16x16 pixels, found 8x8");
+    fail(
+        &[
+            "calibrate",
+            "--dark",
+            s(&dark),
+            "--flat",
+            s(&flat),
+            "--out",
+            &out,
+        ],
+        "expected 16x16 pixels, found 8x8",
+    );
     // A text file is not a recording.
     let txt = fx.path("notes.txt");
     std::fs::write(&txt, "hello").unwrap();
-    fail(&["calibrate", "--dark", s(&txt), "--out", &out], "not a .spad recording");
+    fail(
+        &["calibrate", "--dark", s(&txt), "--out", &out],
+        "not a .spad recording",
+    );
     // A TIFF without the camera kind.
-    fail(&["calibrate", "--dark", s(&fx.path("x.tif")), "--out", &out], "--camera emccd or --camera scmos");
-    fail(&["calibrate", "--dark", s(&dark), "--out", &out, "--camera", "scmos", "--preset", "spcimager"], "contradicts");
-    fail(&["calibrate", "--dark", s(&dark), "--out", &out, "--precision", "2"], "precision");
+    fail(
+        &["calibrate", "--dark", s(&fx.path("x.tif")), "--out", &out],
+        "--camera emccd or --camera scmos",
+    );
+    fail(
+        &[
+            "calibrate",
+            "--dark",
+            s(&dark),
+            "--out",
+            &out,
+            "--camera",
+            "scmos",
+            "--preset",
+            "spcimager",
+        ],
+        "contradicts",
+    );
+    fail(
+        &[
+            "calibrate",
+            "--dark",
+            s(&dark),
+            "--out",
+            &out,
+            "--precision",
+            "2",
+        ],
+        "precision",
+    );
     // Output path that is a file.
-    fail(&["calibrate", "--dark", s(&dark), "--out", s(&txt)], "not a directory");
+    fail(
+        &["calibrate", "--dark", s(&dark), "--out", s(&txt)],
+        "not a directory",
+    );
 }
 
 #[test]
 fn scmos_stacks_give_offset_read_noise_and_gain_maps() {
     let tmp = tempfile::tempdir().unwrap();
     let p = Preset::new(PresetName::Scmos, 150).unwrap();
-    let Camera::Scmos(cam) = p.camera.clone() else { unreachable!() };
+    let Camera::Scmos(cam) = p.camera.clone() else {
+        unreachable!()
+    };
     let maps = smartagg_scene::ScmosMaps::generate(&cam, &Default::default(), W, W, 5);
     let bg = 200.0 / (cam.qe * cam.exposure_s * (p.pixel_nm() / 1000.0).powi(2));
     let write = |name: &str, light: f64, seed: u64| {
         let path = tmp.path().join(name);
-        let mut sim = ScmosSimulator::with_maps(&cam, &empty_scene(&p, W, light), maps.clone(), seed).unwrap();
+        let mut sim =
+            ScmosSimulator::with_maps(&cam, &empty_scene(&p, W, light), maps.clone(), seed)
+                .unwrap();
         let mut w = TiffStackWriter::new(std::fs::File::create(&path).unwrap(), W, W).unwrap();
         for _ in 0..800 {
             w.write_frame(&sim.next_frame().adu).unwrap();
@@ -333,7 +484,15 @@ fn scmos_stacks_give_offset_read_noise_and_gain_maps() {
     let (dark, flat) = (write("dark.tif", 0.0, 6), write("flat.tif", bg, 7));
     let out = tmp.path().join("calib");
     let stdout = ok(&smartagg(&[
-        "calibrate", "--camera", "scmos", "--dark", s(&dark), "--flat", s(&flat), "--out", s(&out),
+        "calibrate",
+        "--camera",
+        "scmos",
+        "--dark",
+        s(&dark),
+        "--flat",
+        s(&flat),
+        "--out",
+        s(&out),
     ]));
     assert!(stdout.contains("photon transfer"), "{stdout}");
     let h = header(&out);
@@ -351,9 +510,23 @@ fn scmos_stacks_give_offset_read_noise_and_gain_maps() {
     assert!((0..n).all(|i| (offset[i] - maps.offset_adu[i]).abs() < 1.0));
     let g = h["frame"]["gain_adu_per_e"].as_float().unwrap();
     assert!((g * cam.e_per_adu - 1.0).abs() < 0.03, "{g}");
-    assert!(std::fs::read_to_string(out.join("report.md")).unwrap().contains("sCMOS calibration"));
+    assert!(std::fs::read_to_string(out.join("report.md"))
+        .unwrap()
+        .contains("sCMOS calibration"));
     // The preset says which camera; a SPAD preset contradicts a TIFF stack's kind.
-    ok(&smartagg(&["calibrate", "--preset", "scmos", "--dark", s(&dark), "--out", s(&out), "--quiet"]));
+    ok(&smartagg(&[
+        "calibrate",
+        "--preset",
+        "scmos",
+        "--dark",
+        s(&dark),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]));
     let h = header(&out);
-    assert!(h["frame"]["gain_source"].as_str().unwrap().contains("preset scmos"));
+    assert!(h["frame"]["gain_source"]
+        .as_str()
+        .unwrap()
+        .contains("preset scmos"));
 }

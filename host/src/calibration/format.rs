@@ -181,7 +181,12 @@ fn map_err(name: &str, path: &Path, why: impl Into<String>) -> CalibrationError 
     }
 }
 
-fn check_values(spec: &Spec, values: &Data, width: u32, path: &Path) -> Result<(), CalibrationError> {
+fn check_values(
+    spec: &Spec,
+    values: &Data,
+    width: u32,
+    path: &Path,
+) -> Result<(), CalibrationError> {
     let at = |i: usize| (i % width as usize, i / width as usize);
     match values {
         Data::F(v) => {
@@ -203,7 +208,9 @@ fn check_values(spec: &Spec, values: &Data, width: u32, path: &Path) -> Result<(
                     return Err(map_err(
                         spec.name,
                         path,
-                        format!("pixel ({px}, {py}) holds {x}; values must be {need} (and fit f32)"),
+                        format!(
+                            "pixel ({px}, {py}) holds {x}; values must be {need} (and fit f32)"
+                        ),
                     ));
                 }
             }
@@ -320,7 +327,10 @@ pub fn validate_spad(c: &Calibration) -> Result<(), CalibrationError> {
         (Some(a), Some(b)) => (a - b).abs() <= 1e-9 * a.abs().max(1e-300),
         _ => false,
     };
-    if !same || again.kernel_centre_weight != hc.kernel_centre_weight || again.kernel_sum != hc.kernel_sum {
+    if !same
+        || again.kernel_centre_weight != hc.kernel_centre_weight
+        || again.kernel_sum != hc.kernel_sum
+    {
         return Err(CalibrationError::invalid(
             "hot_criterion",
             format!(
@@ -405,10 +415,17 @@ fn frame_maps(c: &FrameCalibration) -> Vec<(Spec, Data<'_>)> {
     v
 }
 
-fn write_map(dir: &Path, spec: &Spec, w: u32, h: u32, data: &Data) -> Result<MapEntry, CalibrationError> {
+fn write_map(
+    dir: &Path,
+    spec: &Spec,
+    w: u32,
+    h: u32,
+    data: &Data,
+) -> Result<MapEntry, CalibrationError> {
     let file = format!("{}.tif", spec.name);
     let path = dir.join(&file);
-    let out = std::fs::File::create(&path).map_err(|e| CalibrationError::io(&path, "creating", e))?;
+    let out =
+        std::fs::File::create(&path).map_err(|e| CalibrationError::io(&path, "creating", e))?;
     let tiff_err = |e: tiff::TiffError| map_err(spec.name, &path, format!("writing: {e}"));
     let mut enc = TiffEncoder::new(BufWriter::new(out)).map_err(tiff_err)?;
     let desc = format!(
@@ -620,12 +637,19 @@ fn read_map(
     }
     let path = resolve(dir, spec.name, entry)?;
     let entry = entry.expect("resolved above");
-    let want = if spec.range == Range::Flags { "u8" } else { "f32" };
+    let want = if spec.range == Range::Flags {
+        "u8"
+    } else {
+        "f32"
+    };
     if entry.sample != want {
         return Err(map_err(
             spec.name,
             &path,
-            format!("the header says sample `{}`, version 1 stores `{want}`", entry.sample),
+            format!(
+                "the header says sample `{}`, version 1 stores `{want}`",
+                entry.sample
+            ),
         ));
     }
     let file = match std::fs::File::open(&path) {
@@ -639,7 +663,8 @@ fn read_map(
         Err(e) => return Err(CalibrationError::io(&path, "opening", e)),
     };
     let bad = |why: String| map_err(spec.name, &path, why);
-    let mut d = Decoder::new(BufReader::new(file)).map_err(|e| bad(format!("not a readable TIFF: {e}")))?;
+    let mut d =
+        Decoder::new(BufReader::new(file)).map_err(|e| bad(format!("not a readable TIFF: {e}")))?;
     let (w, h) = d.dimensions().map_err(|e| bad(e.to_string()))?;
     if (w, h) != (header.width, header.height) {
         return Err(bad(format!(
@@ -647,7 +672,11 @@ fn read_map(
             header.width, header.height
         )));
     }
-    let values = match (d.read_image().map_err(|e| bad(format!("unreadable: {e}")))?, spec.range) {
+    let values = match (
+        d.read_image()
+            .map_err(|e| bad(format!("unreadable: {e}")))?,
+        spec.range,
+    ) {
         (DecodingResult::F32(v), r) if r != Range::Flags => {
             MapValues::F(v.into_iter().map(f64::from).collect())
         }
@@ -660,7 +689,9 @@ fn read_map(
         MapValues::U8(v) => v.len(),
     };
     if len != n {
-        return Err(bad(format!("holds {len} samples for {n} pixels (not single-channel)")));
+        return Err(bad(format!(
+            "holds {len} samples for {n} pixels (not single-channel)"
+        )));
     }
     if d.more_images() {
         return Err(bad("has more than one page; a map has one".into()));
@@ -702,7 +733,9 @@ pub fn load(path: &Path) -> Result<AnyCalibration, CalibrationError> {
     };
     check_size(header.width, header.height).map_err(|e| header_err(e.to_string()))?;
     let req = |spec: &Spec| -> Result<Vec<f64>, CalibrationError> {
-        Ok(read_map(&dir, &header, spec, true)?.map(MapValues::f).unwrap_or_default())
+        Ok(read_map(&dir, &header, spec, true)?
+            .map(MapValues::f)
+            .unwrap_or_default())
     };
     let opt = |spec: &Spec| -> Result<Option<Vec<f64>>, CalibrationError> {
         Ok(read_map(&dir, &header, spec, false)?.map(MapValues::f))
@@ -713,10 +746,9 @@ pub fn load(path: &Path) -> Result<AnyCalibration, CalibrationError> {
     let revalidate = |e: CalibrationError| header_err(e.to_string());
     match header.kind.as_str() {
         "spad" => {
-            let s = header
-                .spad
-                .clone()
-                .ok_or_else(|| header_err("kind is `spad` but the [spad] table is missing".into()))?;
+            let s = header.spad.clone().ok_or_else(|| {
+                header_err("kind is `spad` but the [spad] table is missing".into())
+            })?;
             let c = Calibration {
                 width: header.width,
                 height: header.height,
@@ -743,7 +775,10 @@ pub fn load(path: &Path) -> Result<AnyCalibration, CalibrationError> {
                 FrameCamera::Scmos
             };
             let summary = header.frame.clone().ok_or_else(|| {
-                header_err(format!("kind is `{}` but the [frame] table is missing", header.kind))
+                header_err(format!(
+                    "kind is `{}` but the [frame] table is missing",
+                    header.kind
+                ))
             })?;
             let c = FrameCalibration {
                 camera,

@@ -66,16 +66,16 @@ impl FrameCamera {
     }
 }
 
+/// What a [`FrameSource`] calls for each frame: `(width, height, ADU values)`.
+pub type Visit<'a> = dyn FnMut(u32, u32, &[u16]) -> Result<(), CalibrationError> + 'a;
+
 /// A source of 16-bit frames, read from the start each time it is visited.
 pub trait FrameSource {
     /// How to name the source in messages.
     fn name(&self) -> String;
     /// Calls `visit(width, height, frame)` for every frame in order and
     /// returns the number of frames.
-    fn for_each_frame(
-        &self,
-        visit: &mut dyn FnMut(u32, u32, &[u16]) -> Result<(), CalibrationError>,
-    ) -> Result<u64, CalibrationError>;
+    fn for_each_frame(&self, visit: &mut Visit<'_>) -> Result<u64, CalibrationError>;
 }
 
 /// A multi-page 16-bit greyscale TIFF stack on disk, read page by page
@@ -91,18 +91,12 @@ impl FrameSource for TiffStack {
         self.path.display().to_string()
     }
 
-    fn for_each_frame(
-        &self,
-        visit: &mut dyn FnMut(u32, u32, &[u16]) -> Result<(), CalibrationError>,
-    ) -> Result<u64, CalibrationError> {
+    fn for_each_frame(&self, visit: &mut Visit<'_>) -> Result<u64, CalibrationError> {
         read_tiff_stack(&self.path, visit)
     }
 }
 
-fn read_tiff_stack(
-    path: &Path,
-    visit: &mut dyn FnMut(u32, u32, &[u16]) -> Result<(), CalibrationError>,
-) -> Result<u64, CalibrationError> {
+fn read_tiff_stack(path: &Path, visit: &mut Visit<'_>) -> Result<u64, CalibrationError> {
     let file = std::fs::File::open(path).map_err(|e| CalibrationError::io(path, "opening", e))?;
     let stack_err = |why: String| CalibrationError::Stack {
         path: path.to_path_buf(),
@@ -380,7 +374,7 @@ pub fn calibrate_frames(
     let mut offset_sd = Vec::with_capacity(n);
     let mut rn = Vec::with_capacity(n);
     let mut rn_sd = Vec::with_capacity(n);
-    for i in 0..n {
+    for (i, f) in fl.iter_mut().enumerate() {
         let m = dn.moments.count(i).max(1) as f64;
         let var = dn.moments.variance(i);
         offset.push(dn.moments.mean(i));
@@ -389,7 +383,7 @@ pub fn calibrate_frames(
         rn.push(s);
         rn_sd.push(s / (2.0 * (m - 1.0).max(1.0)).sqrt());
         if d1.clipped[i] > 0 {
-            fl[i] |= flags::SATURATED;
+            *f |= flags::SATURATED;
         }
     }
     let offset_median = median(&offset).unwrap_or(0.0);
@@ -450,9 +444,9 @@ pub fn calibrate_frames(
         let mut dmu_sd = Vec::with_capacity(n);
         let mut dv = Vec::with_capacity(n);
         let mut ratio_var = Vec::with_capacity(n);
-        for i in 0..n {
+        for (i, fi) in fl.iter_mut().enumerate() {
             if f.clipped[i] > 0 {
-                fl[i] |= flags::SATURATED;
+                *fi |= flags::SATURATED;
             }
             let (vd, vf) = (d1.moments.variance(i), f.moments.variance(i));
             let a = f.moments.mean(i) - d1.moments.mean(i);
@@ -470,7 +464,7 @@ pub fn calibrate_frames(
             .map(|i| dmu[i])
             .collect();
         let median_dmu = median(&usable0).unwrap_or(0.0);
-        if !(median_dmu > 0.0) {
+        if median_dmu.is_nan() || median_dmu <= 0.0 {
             return Err(CalibrationError::invalid(
                 "flat",
                 format!(
@@ -518,7 +512,7 @@ pub fn calibrate_frames(
                     * k
                     / (k - 1.0).max(1.0);
                 let slope_sd = resid.sqrt() / sum_a;
-                if !(slope > 0.0) {
+                if slope.is_nan() || slope <= 0.0 {
                     return Err(CalibrationError::invalid(
                         "flat",
                         format!(
@@ -542,7 +536,11 @@ pub fn calibrate_frames(
                         g[i] = dv[i] / dmu[i];
                         let r = ratio_var[i].sqrt();
                         // A slope barely above 0 is known to no better than itself.
-                        g_sd[i] = if r.is_finite() { g[i] * r.min(1.0) } else { g[i] };
+                        g_sd[i] = if r.is_finite() {
+                            g[i] * r.min(1.0)
+                        } else {
+                            g[i]
+                        };
                         if fl[i] & (flags::SATURATED | flags::HOT) == 0 {
                             measured.push(g[i]);
                         }
@@ -599,9 +597,10 @@ pub fn calibrate_frames(
         gain_map = Some(vec![*g; n]);
         gain_sd_map = Some(vec![0.0; n]);
     } else {
-        provenance
-            .notes
-            .push("no flat stack and no preset: gain, read noise in electrons and PRNU are not known".into());
+        provenance.notes.push(
+            "no flat stack and no preset: gain, read noise in electrons and PRNU are not known"
+                .into(),
+        );
     }
     let read_noise_e = gain_map
         .as_ref()

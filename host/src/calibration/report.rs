@@ -51,6 +51,23 @@ fn log_bins(values: &[f64], bins: usize) -> Vec<(f64, f64, u32)> {
     out
 }
 
+/// A tick label on a log axis: plain numbers from 0.01 to 99,999, else
+/// scientific.
+fn tick(v: f64) -> String {
+    if (0.01..100_000.0).contains(&v) {
+        let digits = if v >= 10.0 {
+            0
+        } else if v >= 1.0 {
+            1
+        } else {
+            2
+        };
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
 /// A vertical marker on a histogram.
 struct Marker {
     x: f64,
@@ -84,7 +101,7 @@ fn histogram_png(
         .configure_mesh()
         .x_desc(x_label)
         .y_desc("pixels")
-        .x_label_formatter(&|v| format!("{v:.3e}"))
+        .x_label_formatter(&|v| tick(*v))
         .draw()
         .map_err(|e| e.to_string())?;
     chart
@@ -139,7 +156,13 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
         }
         let (x, y) = (i % w, i / w);
         if f & flags::HOT != 0 {
-            let _ = writeln!(hot_csv, "{x},{y},{:.6e},{:.6e},{}", c.dcr_hz[i], c.dcr_sd_hz[i], flags::names(f));
+            let _ = writeln!(
+                hot_csv,
+                "{x},{y},{:.6e},{:.6e},{}",
+                c.dcr_hz[i],
+                c.dcr_sd_hz[i],
+                flags::names(f)
+            );
         }
         let (p, ps) = match (&c.prnu, &c.prnu_sd) {
             (Some(p), Some(s)) => (format!("{:.6}", p[i]), format!("{:.6}", s[i])),
@@ -153,7 +176,10 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
             flags::names(f)
         );
     }
-    for (name, text) in [("hot_pixels.csv", &hot_csv), ("flagged_pixels.csv", &all_csv)] {
+    for (name, text) in [
+        ("hot_pixels.csv", &hot_csv),
+        ("flagged_pixels.csv", &all_csv),
+    ] {
         let p = dir.join(name);
         write_file(&p, text)?;
         files.written.push(p);
@@ -176,7 +202,10 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
     let zeros = c.dcr_hz.iter().filter(|&&v| v <= 0.0).count();
     let png_ok = match histogram_png(
         &png,
-        &format!("Dark-count rate, {}x{} pixels, {} bit-planes", c.width, c.height, c.planes),
+        &format!(
+            "Dark-count rate, {}x{} pixels, {} bit-planes",
+            c.width, c.height, c.planes
+        ),
         "dark-count rate (Hz, log scale)",
         &c.dcr_hz,
         &markers,
@@ -215,7 +244,10 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
         );
     }
     if let Some(p) = &c.provenance.preset {
-        let obj = c.provenance.objective.map_or(String::new(), |o| format!(", {o}x objective"));
+        let obj = c
+            .provenance
+            .objective
+            .map_or(String::new(), |o| format!(", {o}x objective"));
         let _ = writeln!(md, "| preset | {p}{obj} |");
     }
     let _ = writeln!(md, "| made by | {} |", c.provenance.created_by);
@@ -226,19 +258,49 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
     let _ = writeln!(md, "\n## Dark-count rate\n");
     let _ = writeln!(md, "Per pixel: `DCR = −ln(1 − k/n)/τ` (k ones in n planes, pile-up corrected), uncertainty `√(p/(n(1−p)))/τ` (delta method).\n");
     let _ = writeln!(md, "| figure | value |\n|---|---|");
-    let _ = writeln!(md, "| median DCR (all pixels) | {:.4} Hz |", d.median_dcr_hz);
-    let _ = writeln!(md, "| mean DCR (neither hot nor saturated) | {:.4} Hz |", d.mean_dcr_hz);
-    let _ = writeln!(md, "| DRNU measured (1.4826·MAD/median, neither hot nor saturated) | {} |", pct(d.drnu_measured));
+    let _ = writeln!(
+        md,
+        "| median DCR (all pixels) | {:.4} Hz |",
+        d.median_dcr_hz
+    );
+    let _ = writeln!(
+        md,
+        "| mean DCR (neither hot nor saturated) | {:.4} Hz |",
+        d.mean_dcr_hz
+    );
+    let _ = writeln!(
+        md,
+        "| DRNU measured (1.4826·MAD/median, neither hot nor saturated) | {} |",
+        pct(d.drnu_measured)
+    );
     let _ = writeln!(md, "| DRNU with counting noise removed | {} |", pct(d.drnu));
-    let _ = writeln!(md, "| median per-pixel uncertainty / median DCR | {} |", pct(d.dcr_relative_sd_median));
-    let _ = writeln!(md, "| pixels with no dark count | {} (rate 0; below {:.4} Hz at 95 %) |", d.no_count_pixels, LN_20 / (c.planes as f64 * c.tau_s));
-    let _ = writeln!(md, "| saturated pixels (1 in every plane) | {} (finite lower estimate ln(2n)/τ = {:.4e} Hz) |", d.saturated_pixels, (2.0 * c.planes as f64).ln() / c.tau_s);
+    let _ = writeln!(
+        md,
+        "| median per-pixel uncertainty / median DCR | {} |",
+        pct(d.dcr_relative_sd_median)
+    );
+    let _ = writeln!(
+        md,
+        "| pixels with no dark count | {} (rate 0; below {:.4} Hz at 95 %) |",
+        d.no_count_pixels,
+        LN_20 / (c.planes as f64 * c.tau_s)
+    );
+    let _ = writeln!(
+        md,
+        "| saturated pixels (1 in every plane) | {} (finite lower estimate ln(2n)/τ = {:.4e} Hz) |",
+        d.saturated_pixels,
+        (2.0 * c.planes as f64).ln() / c.tau_s
+    );
 
     let _ = writeln!(md, "\n### Precision\n");
     let achieved = d
         .precision_achieved
         .map_or("not stated (no count at the median pixel)".to_string(), pct);
-    let bound = if d.planes_needed_is_bound { "at least " } else { "" };
+    let bound = if d.planes_needed_is_bound {
+        "at least "
+    } else {
+        ""
+    };
     let _ = writeln!(
         md,
         "Requested relative DCR uncertainty at the median DCR: {}; reached: {}. Planes needed: {bound}{} ({bound}{:.2} s); recorded: {}.",
@@ -265,13 +327,29 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
     );
     let _ = writeln!(md, "| | |\n|---|---|");
     let _ = writeln!(md, "| source | {} |", hc.source);
-    let _ = writeln!(md, "| N, T_int | {} planes, {} |", hc.n_window, hc.threshold_int);
-    let _ = writeln!(md, "| kernel k1 (sum 2^{}) | {:?}; K_c = {}, ΣK = {} |", hc.kernel_shift, hc.kernel_weights, hc.kernel_centre_weight, hc.kernel_sum);
-    let _ = writeln!(md, "| background light per pixel | {:.4} Hz |", hc.background_light_hz);
+    let _ = writeln!(
+        md,
+        "| N, T_int | {} planes, {} |",
+        hc.n_window, hc.threshold_int
+    );
+    let _ = writeln!(
+        md,
+        "| kernel k1 (sum 2^{}) | {:?}; K_c = {}, ΣK = {} |",
+        hc.kernel_shift, hc.kernel_weights, hc.kernel_centre_weight, hc.kernel_sum
+    );
+    let _ = writeln!(
+        md,
+        "| background light per pixel | {:.4} Hz |",
+        hc.background_light_hz
+    );
     let _ = writeln!(md, "| neighbours' DCR | {:.4} Hz |", hc.neighbour_dcr_hz);
     match hc.dcr_critical_hz {
         Some(crit) => {
-            let _ = writeln!(md, "| critical DCR | **{crit:.4} Hz** ({:.1}× the median) |", crit / d.median_dcr_hz.max(f64::MIN_POSITIVE));
+            let _ = writeln!(
+                md,
+                "| critical DCR | **{crit:.4} Hz** ({:.1}× the median) |",
+                crit / d.median_dcr_hz.max(f64::MIN_POSITIVE)
+            );
         }
         None => {
             let _ = writeln!(md, "| critical DCR | none: no rate crosses T_int alone |");
@@ -284,7 +362,11 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
         n,
         pct(d.hot_fraction)
     );
-    let _ = writeln!(md, "| within 3 sd of the critical DCR (call uncertain) | {} |", d.ambiguous_pixels);
+    let _ = writeln!(
+        md,
+        "| within 3 sd of the critical DCR (call uncertain) | {} |",
+        d.ambiguous_pixels
+    );
     let _ = writeln!(
         md,
         "| expected H at the median pixel | {:.0} (T_int = {}) |",
@@ -300,10 +382,17 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
                 let crit = other
                     .dcr_critical_hz
                     .map_or("none reachable".to_string(), |c| format!("{c:.4}"));
-                let _ = writeln!(md, "| {t} ({f:.2}×) | {crit} | {} |", c.hot_mask_for(&other).count());
+                let _ = writeln!(
+                    md,
+                    "| {t} ({f:.2}×) | {crit} | {} |",
+                    c.hot_mask_for(&other).count()
+                );
             }
             Err(_) => {
-                let _ = writeln!(md, "| {t} ({f:.2}×) | reached by the background alone | all |");
+                let _ = writeln!(
+                    md,
+                    "| {t} ({f:.2}×) | reached by the background alone | all |"
+                );
             }
         }
     }
@@ -312,7 +401,15 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
     if !hot.is_empty() {
         let _ = writeln!(md, "\nHottest pixels (all in `hot_pixels.csv`):\n\n| x | y | DCR (Hz) | sd (Hz) | flags |\n|---|---|---|---|---|");
         for &i in hot.iter().take(40) {
-            let _ = writeln!(md, "| {} | {} | {:.4e} | {:.3e} | {} |", i % w, i / w, c.dcr_hz[i], c.dcr_sd_hz[i], flags::names(c.flags[i]));
+            let _ = writeln!(
+                md,
+                "| {} | {} | {:.4e} | {:.3e} | {} |",
+                i % w,
+                i / w,
+                c.dcr_hz[i],
+                c.dcr_sd_hz[i],
+                flags::names(c.flags[i])
+            );
         }
         if hot.len() > 40 {
             let _ = writeln!(md, "\n… and {} more.", hot.len() - 40);
@@ -323,13 +420,43 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
         let _ = writeln!(md, "\n## PRNU (flat recording)\n");
         let _ = writeln!(md, "Per pixel: photon response = flat rate − DCR (both pile-up corrected), divided by the mean response of the normalising pixels; uncertainty `√(sd_flat² + sd_dark²)/mean`.\n");
         let _ = writeln!(md, "| figure | value |\n|---|---|");
-        let _ = writeln!(md, "| median detection rate in the flat | {:.4} Hz |", fs.median_rate_hz);
-        let _ = writeln!(md, "| mean photon response (PRNU = 1) | {:.4} Hz over {} pixels |", fs.mean_response_hz, fs.normalising_pixels);
-        let _ = writeln!(md, "| PRNU spread measured (std) | {} (robust {}) |", pct(fs.prnu_spread_measured), pct(fs.prnu_spread_robust));
-        let _ = writeln!(md, "| per-pixel PRNU uncertainty (RMS) | {} |", pct(fs.prnu_noise));
-        let _ = writeln!(md, "| PRNU spread with counting noise removed | **{}** |", pct(fs.prnu_spread));
-        let _ = writeln!(md, "| dead pixels (response < {} of the median) | {} |", pct(fs.dead_below), fs.dead_pixels);
-        let _ = writeln!(md, "| pixels saturated in the flat | {} |", fs.flat_saturated_pixels);
+        let _ = writeln!(
+            md,
+            "| median detection rate in the flat | {:.4} Hz |",
+            fs.median_rate_hz
+        );
+        let _ = writeln!(
+            md,
+            "| mean photon response (PRNU = 1) | {:.4} Hz over {} pixels |",
+            fs.mean_response_hz, fs.normalising_pixels
+        );
+        let _ = writeln!(
+            md,
+            "| PRNU spread measured (std) | {} (robust {}) |",
+            pct(fs.prnu_spread_measured),
+            pct(fs.prnu_spread_robust)
+        );
+        let _ = writeln!(
+            md,
+            "| per-pixel PRNU uncertainty (RMS) | {} |",
+            pct(fs.prnu_noise)
+        );
+        let _ = writeln!(
+            md,
+            "| PRNU spread with counting noise removed | **{}** |",
+            pct(fs.prnu_spread)
+        );
+        let _ = writeln!(
+            md,
+            "| dead pixels (response < {} of the median) | {} |",
+            pct(fs.dead_below),
+            fs.dead_pixels
+        );
+        let _ = writeln!(
+            md,
+            "| pixels saturated in the flat | {} |",
+            fs.flat_saturated_pixels
+        );
         if fs.prnu_noise > fs.prnu_spread_measured * 0.5 {
             let _ = writeln!(md, "\nThe per-pixel uncertainty is not small against the spread: record a longer flat to resolve the PRNU pixel by pixel.");
         }
@@ -354,7 +481,10 @@ fn notes(md: &mut String, notes: &[String], warnings: &[String]) {
 
 /// Writes `report.md`, `read_noise_histogram.png` and `flagged_pixels.csv`
 /// of a frame-camera calibration into `dir`.
-pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFiles, CalibrationError> {
+pub fn write_frame_report(
+    c: &FrameCalibration,
+    dir: &Path,
+) -> Result<ReportFiles, CalibrationError> {
     let mut files = ReportFiles::default();
     let w = c.width as usize;
     let n = c.pixels();
@@ -365,8 +495,14 @@ pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFile
         if f == 0 {
             continue;
         }
-        let g = c.gain_adu_per_e.as_ref().map_or(String::new(), |g| format!("{:.6}", g[i]));
-        let p = c.prnu.as_ref().map_or(String::new(), |p| format!("{:.6}", p[i]));
+        let g = c
+            .gain_adu_per_e
+            .as_ref()
+            .map_or(String::new(), |g| format!("{:.6}", g[i]));
+        let p = c
+            .prnu
+            .as_ref()
+            .map_or(String::new(), |p| format!("{:.6}", p[i]));
         let _ = writeln!(
             csv,
             "{},{},{:.4},{:.4},{g},{p},{}",
@@ -389,7 +525,10 @@ pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFile
     }];
     let png_ok = match histogram_png(
         &png,
-        &format!("Read noise, {}x{} pixels, {} dark frames", c.width, c.height, s.dark_frames),
+        &format!(
+            "Read noise, {}x{} pixels, {} dark frames",
+            c.width, c.height, s.dark_frames
+        ),
         "read noise (ADU rms, log scale)",
         &c.read_noise_adu,
         &markers,
@@ -399,9 +538,10 @@ pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFile
             true
         }
         Err(e) => {
-            files
-                .warnings
-                .push(format!("read-noise histogram {} not drawn: {e}", png.display()));
+            files.warnings.push(format!(
+                "read-noise histogram {} not drawn: {e}",
+                png.display()
+            ));
             false
         }
     };
@@ -411,9 +551,17 @@ pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFile
         FrameCamera::Scmos => "sCMOS",
     };
     let mut md = String::new();
-    let _ = writeln!(md, "# {name} calibration: {}x{} pixels\n", c.width, c.height);
+    let _ = writeln!(
+        md,
+        "# {name} calibration: {}x{} pixels\n",
+        c.width, c.height
+    );
     let _ = writeln!(md, "| | |\n|---|---|");
-    let _ = writeln!(md, "| dark stack | `{}`: {} frames |", c.provenance.dark, s.dark_frames);
+    let _ = writeln!(
+        md,
+        "| dark stack | `{}`: {} frames |",
+        c.provenance.dark, s.dark_frames
+    );
     if let (Some(f), Some(k)) = (&c.provenance.flat, s.flat_frames) {
         let _ = writeln!(md, "| flat stack | `{f}`: {k} frames |");
     }
@@ -422,15 +570,32 @@ pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFile
         let _ = writeln!(md, "| command | `{cmd}` |");
     }
     let _ = writeln!(md, "\n## Results\n\n| figure | value |\n|---|---|");
-    let _ = writeln!(md, "| median offset (mean of dark frames) | {:.4} ADU |", s.offset_median_adu);
-    let _ = writeln!(md, "| median read noise | {:.4} ADU rms |", s.read_noise_median_adu);
+    let _ = writeln!(
+        md,
+        "| median offset (mean of dark frames) | {:.4} ADU |",
+        s.offset_median_adu
+    );
+    let _ = writeln!(
+        md,
+        "| median read noise | {:.4} ADU rms |",
+        s.read_noise_median_adu
+    );
     if let Some(e) = s.read_noise_median_e {
-        let referred = if c.camera == FrameCamera::Emccd { " (input-referred)" } else { "" };
+        let referred = if c.camera == FrameCamera::Emccd {
+            " (input-referred)"
+        } else {
+            ""
+        };
         let _ = writeln!(md, "| median read noise | {e:.4} e⁻ rms{referred} |");
     }
     match (s.gain_adu_per_e, s.gain_sd_adu_per_e) {
         (Some(g), Some(sd)) => {
-            let _ = writeln!(md, "| gain ({}) | {g:.5} ± {sd:.5} ADU/e⁻ ({:.5} e⁻/ADU) |", s.gain_source, 1.0 / g);
+            let _ = writeln!(
+                md,
+                "| gain ({}) | {g:.5} ± {sd:.5} ADU/e⁻ ({:.5} e⁻/ADU) |",
+                s.gain_source,
+                1.0 / g
+            );
         }
         (Some(g), None) => {
             let _ = writeln!(md, "| gain ({}) | {g:.5} ADU/e⁻ |", s.gain_source);
@@ -440,19 +605,40 @@ pub fn write_frame_report(c: &FrameCalibration, dir: &Path) -> Result<ReportFile
         }
     }
     if c.camera == FrameCamera::Emccd {
-        let _ = writeln!(md, "| excess-noise factor F² used | {:.5} (photon transfer: Δvar = F²·g·Δmean) |", s.excess_noise_f2);
-        let _ = writeln!(md, "| dark values rejected as clock-induced-charge spikes | {} |", s.rejected_dark_values);
+        let _ = writeln!(
+            md,
+            "| excess-noise factor F² used | {:.5} (photon transfer: Δvar = F²·g·Δmean) |",
+            s.excess_noise_f2
+        );
+        let _ = writeln!(
+            md,
+            "| dark values rejected as clock-induced-charge spikes | {} |",
+            s.rejected_dark_values
+        );
     }
     if let Some(gs) = s.gain_spread {
-        let _ = writeln!(md, "| per-pixel gain spread (noise removed) | {} |", pct(gs));
+        let _ = writeln!(
+            md,
+            "| per-pixel gain spread (noise removed) | {} |",
+            pct(gs)
+        );
     }
     if let Some(m) = s.flat_signal_mean_adu {
         let _ = writeln!(md, "| mean flat signal above dark | {m:.3} ADU |");
     }
     if let (Some(ps), Some(pn)) = (s.prnu_spread, s.prnu_noise) {
-        let _ = writeln!(md, "| PRNU spread (noise removed) | {} (per-pixel uncertainty {}) |", pct(ps), pct(pn));
+        let _ = writeln!(
+            md,
+            "| PRNU spread (noise removed) | {} (per-pixel uncertainty {}) |",
+            pct(ps),
+            pct(pn)
+        );
     }
-    let _ = writeln!(md, "| clipped values (0 or 65535 ADU) | dark {}, flat {} |", s.clipped_dark_values, s.clipped_flat_values);
+    let _ = writeln!(
+        md,
+        "| clipped values (0 or 65535 ADU) | dark {}, flat {} |",
+        s.clipped_dark_values, s.clipped_flat_values
+    );
     let _ = writeln!(
         md,
         "| flagged pixels | hot {}, noisy {}, dead {}, saturated {}, unmeasured {} (all in `flagged_pixels.csv`) |",

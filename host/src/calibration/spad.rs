@@ -6,8 +6,8 @@ use smartagg_model::stats::Detection;
 
 use super::counter::PlaneCounts;
 use super::estimate::{
-    mean_sd, median, noise_corrected, plane_probability, planes_for_precision,
-    rate_from_counts, rate_of_probability, relative_precision, robust_sd, RateKind, LN_20,
+    mean_sd, median, noise_corrected, plane_probability, planes_for_precision, rate_from_counts,
+    rate_of_probability, relative_precision, robust_sd, RateKind, LN_20,
 };
 use super::{flags, Calibration, CalibrationError, Provenance};
 
@@ -110,7 +110,8 @@ impl HotCriterion {
         let kc = kernel.weight_2d(c, c);
         let sum = kernel.sum_2d();
         let p_bg = plane_probability(background_light_hz + neighbour_dcr_hz, tau_s);
-        let p_crit = (threshold_int as f64 / n_window as f64 - (sum - kc) as f64 * p_bg) / kc as f64;
+        let p_crit =
+            (threshold_int as f64 / n_window as f64 - (sum - kc) as f64 * p_bg) / kc as f64;
         let p_light = plane_probability(background_light_hz, tau_s);
         let dcr_critical_hz = if p_crit >= 1.0 {
             None
@@ -175,7 +176,10 @@ impl HotCriterion {
             self.tau_s,
             self.background_light_hz,
             self.neighbour_dcr_hz,
-            format!("{} with N = {n_window}, T_int = {threshold_int}", self.source),
+            format!(
+                "{} with N = {n_window}, T_int = {threshold_int}",
+                self.source
+            ),
         )
     }
 
@@ -383,7 +387,11 @@ pub fn calibrate_spad(
         // No count at the median pixel: its rate is below ln 20/(nτ), and a
         // lower rate needs more planes, so this gives a lower bound.
         let p_up = plane_probability(LN_20 / (n as f64 * tau), tau);
-        (None, planes_for_precision(p_up, options.precision).ceil(), true)
+        (
+            None,
+            planes_for_precision(p_up, options.precision).ceil(),
+            true,
+        )
     };
     let needed = if needed.is_finite() {
         needed.min(u64::MAX as f64) as u64
@@ -448,7 +456,10 @@ pub fn calibrate_spad(
     let (mean_dcr, drnu_measured, noise) = if median_dcr > 0.0 && !normal.is_empty() {
         let (m, _) = mean_sd(&normal_dcr).unwrap_or((0.0, 0.0));
         let spread = robust_sd(&normal_dcr).unwrap_or(0.0) / median_dcr;
-        let ms: f64 = normal.iter().map(|&i| (sd[i] / median_dcr).powi(2)).sum::<f64>()
+        let ms: f64 = normal
+            .iter()
+            .map(|&i| (sd[i] / median_dcr).powi(2))
+            .sum::<f64>()
             / normal.len() as f64;
         (m, spread, ms.sqrt())
     } else {
@@ -568,7 +579,7 @@ fn prnu_from_flat(
         .map(|i| response[i])
         .collect();
     let median_resp = median(&usable_resp).unwrap_or(0.0);
-    if !(median_resp > 0.0) {
+    if median_resp.is_nan() || median_resp <= 0.0 {
         return Err(CalibrationError::invalid(
             "flat",
             format!(
@@ -585,7 +596,7 @@ fn prnu_from_flat(
         .filter(|&i| usable(fl[i]) && fl[i] & flags::DEAD == 0)
         .collect();
     let mean_resp = norm.iter().map(|&i| response[i]).sum::<f64>() / norm.len().max(1) as f64;
-    if norm.is_empty() || !(mean_resp > 0.0) {
+    if norm.is_empty() || mean_resp.is_nan() || mean_resp <= 0.0 {
         return Err(CalibrationError::invalid(
             "flat",
             format!("no pixel of the flat {flat_name} is usable to normalise the PRNU"),
@@ -597,7 +608,8 @@ fn prnu_from_flat(
     let prnu_sd: Vec<f64> = response_sd.iter().map(|s| s / mean_resp).collect();
     let norm_prnu: Vec<f64> = norm.iter().map(|&i| prnu[i]).collect();
     let spread = mean_sd(&norm_prnu).map_or(0.0, |v| v.1);
-    let noise = (norm.iter().map(|&i| prnu_sd[i] * prnu_sd[i]).sum::<f64>() / norm.len() as f64).sqrt();
+    let noise =
+        (norm.iter().map(|&i| prnu_sd[i] * prnu_sd[i]).sum::<f64>() / norm.len() as f64).sqrt();
     let summary = FlatSummary {
         tau_s: f.tau_s,
         plane_period_s: f.plane_period_s,

@@ -141,7 +141,8 @@ fn count_planes(path: &Path, what: &str, args: &Args) -> anyhow::Result<Counted>
         .with_context(|| format!("reading {what} {}", path.display()))?;
     let h = *reader.header();
     let limit = args.max_planes.unwrap_or(u64::MAX);
-    let total = (h.planes != smartagg_model::recording::PLANES_UNKNOWN).then(|| h.planes.min(limit));
+    let total =
+        (h.planes != smartagg_model::recording::PLANES_UNKNOWN).then(|| h.planes.min(limit));
     let progress = setup::progress(total, args.quiet);
     progress.set_message(what.to_string());
     let mut counter = PlaneCounter::new(h.width, h.height);
@@ -182,7 +183,9 @@ fn run_spad(args: &Args) -> anyhow::Result<()> {
         args.objective, det.flux_hz, det.n_window, det.threshold_int
     );
     if args.n_window.is_some() || args.threshold_int.is_some() {
-        source.push_str(&format!("; used N = {n_window}, T_int = {threshold_int} (overridden)"));
+        source.push_str(&format!(
+            "; used N = {n_window}, T_int = {threshold_int} (overridden)"
+        ));
     }
     let spec = CriterionSpec {
         n_window,
@@ -214,7 +217,10 @@ fn run_spad(args: &Args) -> anyhow::Result<()> {
     // Read back what was written: the file is what the pipeline will use.
     let back = Calibration::load(&args.out)?;
     if back.hot_mask().count() != cal.dark.hot_pixels {
-        bail!("the calibration written to {} does not read back with the same hot pixels", args.out.display());
+        bail!(
+            "the calibration written to {} does not read back with the same hot pixels",
+            args.out.display()
+        );
     }
     let d = &cal.dark;
     println!(
@@ -238,7 +244,11 @@ fn run_spad(args: &Args) -> anyhow::Result<()> {
         d.precision_achieved
             .map_or("none".to_string(), |a| format!("{:.3} %", 100.0 * a)),
         100.0 * d.precision_requested,
-        if d.planes_needed_is_bound { "at least " } else { "" },
+        if d.planes_needed_is_bound {
+            "at least "
+        } else {
+            ""
+        },
         d.planes_needed
     );
     if let Some(f) = &cal.flat {
@@ -268,12 +278,16 @@ fn finish(out: &Path, notes: &[String], files: &report::ReportFiles) -> anyhow::
 
 fn run_frames(args: &Args, camera: FrameCamera) -> anyhow::Result<()> {
     if args.raw.raw || args.max_planes.is_some() {
-        bail!("--raw and --max-planes apply to SPAD bit-plane recordings, not to {} frame stacks", camera.as_str());
+        bail!(
+            "--raw and --max-planes apply to SPAD bit-plane recordings, not to {} frame stacks",
+            camera.as_str()
+        );
     }
     let mut prov = provenance(args);
     let fallback_gain = match &args.preset {
         Some(p) => {
-            let preset = smartagg_model::params::Preset::new(PresetName::parse(p)?, args.objective)?;
+            let preset =
+                smartagg_model::params::Preset::new(PresetName::parse(p)?, args.objective)?;
             prov.preset = Some(p.clone());
             match &preset.camera {
                 Camera::Emccd(c) => Some((c.em_gain / c.e_per_adu, format!("preset {p}"))),
@@ -308,7 +322,10 @@ fn run_frames(args: &Args, camera: FrameCamera) -> anyhow::Result<()> {
     let files = report::write_frame_report(&cal, &args.out)?;
     let back = FrameCalibration::load(&args.out)?;
     if back.flags != cal.flags {
-        bail!("the calibration written to {} does not read back with the same flags", args.out.display());
+        bail!(
+            "the calibration written to {} does not read back with the same flags",
+            args.out.display()
+        );
     }
     let s = &cal.summary;
     println!(
