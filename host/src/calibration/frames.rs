@@ -41,7 +41,7 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::decoder::{Decoder, DecodingResult};
 
 use super::estimate::{mean_sd, median, noise_corrected, robust_sd, Welford};
 use super::{flags, CalibrationError, Provenance};
@@ -103,8 +103,7 @@ fn read_tiff_stack(path: &Path, visit: &mut Visit<'_>) -> Result<u64, Calibratio
         why,
     };
     let mut d = Decoder::new(BufReader::new(file))
-        .map_err(|e| stack_err(format!("not a readable TIFF file: {e}")))?
-        .with_limits(Limits::unlimited());
+        .map_err(|e| stack_err(format!("not a readable TIFF file: {e}")))?;
     let (w, h) = d
         .dimensions()
         .map_err(|e| stack_err(format!("page 0: {e}")))?;

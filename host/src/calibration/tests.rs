@@ -1055,3 +1055,58 @@ fn emccd_gain_and_input_referred_read_noise_are_recovered() {
         .to_string()
         .contains("at least 2"));
 }
+
+#[test]
+fn tiff_stacks_are_read_page_by_page_and_bad_pages_are_named() {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let tmp = tempfile::tempdir().unwrap();
+    let stack = |name: &str, pages: &[(u32, u32, bool)]| {
+        let path = tmp.path().join(name);
+        let mut enc = TiffEncoder::new(std::fs::File::create(&path).unwrap()).unwrap();
+        for (k, &(w, h, eight_bit)) in pages.iter().enumerate() {
+            let n = (w * h) as usize;
+            if eight_bit {
+                enc.write_image::<colortype::Gray8>(w, h, &vec![7u8; n])
+                    .unwrap();
+            } else {
+                let v: Vec<u16> = (0..n).map(|i| (i + 1000 * k) as u16).collect();
+                enc.write_image::<colortype::Gray16>(w, h, &v).unwrap();
+            }
+        }
+        super::frames::TiffStack { path }
+    };
+    let read = |s: &super::frames::TiffStack| {
+        let mut frames = Vec::new();
+        s.for_each_frame(&mut |w, h, f| {
+            frames.push((w, h, f.to_vec()));
+            Ok(())
+        })
+        .map(|n| (n, frames))
+    };
+    let (n, frames) = read(&stack("good.tif", &[(3, 2, false); 3])).unwrap();
+    assert_eq!(n, 3);
+    assert_eq!(frames[2], (3, 2, vec![2000, 2001, 2002, 2003, 2004, 2005]));
+    let e = read(&stack("mixed.tif", &[(3, 2, false), (4, 4, false)]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("page 1 is 4x4, page 0 is 3x2"), "{e}");
+    let e = read(&stack("bytes.tif", &[(3, 2, false), (3, 2, true)]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("page 1 is not 16-bit"), "{e}");
+    let text = tmp.path().join("text.tif");
+    std::fs::write(&text, "not an image").unwrap();
+    let e = read(&super::frames::TiffStack { path: text })
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not a readable TIFF") && e.contains("text.tif"),
+        "{e}"
+    );
+    let e = read(&super::frames::TiffStack {
+        path: tmp.path().join("absent.tif"),
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("absent.tif"), "{e}");
+}
