@@ -193,7 +193,9 @@ fn spad_dark_and_flat_recordings_give_the_maps_hot_pixels_and_report() {
     let within = z.iter().filter(|z| z.abs() < 3.0).count() as f64 / n as f64;
     let chi2 = z.iter().map(|z| z * z).sum::<f64>() / n as f64;
     eprintln!("DCR: {:.2} % within 3 sd, chi2/k {chi2:.3}", 100.0 * within);
-    assert!(within >= 0.99 && chi2 < 1.0 + 5.0 * (2.0 / n as f64).sqrt());
+    // P(|z| ≥ 3) = 0.27 %: 0.7 of 256 pixels expected, more than 4 has
+    // probability < 10⁻³ (so ≥ 98.4 % within 3 sd); χ²/k within 5 standard errors.
+    assert!(within >= 0.984 && chi2 < 1.0 + 5.0 * (2.0 / n as f64).sqrt());
 
     // Hot pixels: the CSV lists exactly the simulator's.
     let truth: BTreeSet<(u32, u32)> = (0..n)
@@ -215,7 +217,7 @@ fn spad_dark_and_flat_recordings_give_the_maps_hot_pixels_and_report() {
         .collect();
     let within = zp.iter().filter(|z| z.abs() < 3.0).count() as f64 / n as f64;
     eprintln!("PRNU: {:.2} % within 3 sd", 100.0 * within);
-    assert!(within >= 0.99);
+    assert!(within >= 0.984);
 
     // The report a person reads.
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
@@ -505,7 +507,7 @@ fn scmos_stacks_give_offset_read_noise_and_gain_maps() {
         .count() as f64
         / n as f64;
     eprintln!("sCMOS gain map: {:.2} % within 3 sd", 100.0 * within);
-    assert!(within >= 0.98);
+    assert!(within >= 0.984);
     let offset = map_f32(&out, "offset_adu");
     assert!((0..n).all(|i| (offset[i] - maps.offset_adu[i]).abs() < 1.0));
     let g = h["frame"]["gain_adu_per_e"].as_float().unwrap();
