@@ -168,7 +168,9 @@ fn print_summary(r: &DownloadReport, out: &Path) {
             end.planes, end.blinks, end.unconfirmed, end.dropped_candidates, end.cut_segments
         );
     }
-    println!("{}", r.stats);
+    if r.bytes > 0 {
+        println!("{}", r.stats);
+    }
     for note in &r.gap_notes {
         println!("  {note}");
     }
@@ -234,17 +236,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let problems = report.problems();
     let fatal = report.bytes == 0 || report.stats.packets_ok == 0;
     if fatal || !args.allow_loss {
-        bail!(
-            "{}; all {} bytes received are in {}{}",
-            problems.join("; "),
-            report.bytes,
-            args.out.display(),
-            if fatal {
-                ""
-            } else {
-                " (--allow-loss accepts an incomplete stream)"
-            }
+        let mut msg = format!(
+            "the download is incomplete:\n  - {}",
+            problems.join("\n  - ")
         );
+        if report.bytes > 0 {
+            msg += &format!(
+                "\nall {} bytes received are in {}",
+                report.bytes,
+                args.out.display()
+            );
+        }
+        if !fatal {
+            msg += " (--allow-loss accepts an incomplete stream)";
+        }
+        bail!(msg);
     }
     for p in problems {
         eprintln!("smartagg: WARNING: {p}");

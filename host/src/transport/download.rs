@@ -290,7 +290,7 @@ pub struct DownloadFailure {
     /// What went wrong.
     pub error: DownloadError,
     /// Counts up to the failure (the decoder was finished on the bytes received).
-    pub report: DownloadReport,
+    pub report: Box<DownloadReport>,
 }
 
 impl fmt::Display for DownloadFailure {
@@ -459,7 +459,7 @@ pub fn download(
             let error = ($make)(bytes);
             return Err(DownloadFailure {
                 error,
-                report: st.report,
+                report: Box::new(st.report),
             });
         }};
     }

@@ -644,7 +644,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join(LIB_NAME);
         std::fs::write(&p, b"not an ELF file").unwrap();
-        let e = FrontPanelLib::load_from(&[p.clone()])
+        let e = FrontPanelLib::load_from(std::slice::from_ref(&p))
             .err()
             .unwrap()
             .to_string();

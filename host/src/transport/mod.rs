@@ -19,6 +19,8 @@ pub mod cosim;
 pub mod download;
 pub mod file;
 pub mod frontpanel;
+#[cfg(test)]
+mod fuzz_tests;
 pub mod registers;
 pub mod usb;
 
