@@ -75,7 +75,9 @@ pub struct Args {
     /// Bitfile to load into the FPGA before streaming (frontpanel source).
     #[arg(long)]
     pub bitfile: Option<PathBuf>,
-    /// Give up when the source sends nothing for this many seconds.
+    /// Give up when the source sends nothing for this many seconds. A device
+    /// sends packets only when molecules blink: set this above the longest
+    /// quiet period the sample can have.
     #[arg(long, value_parser = parse_seconds, default_value = "5")]
     pub timeout: f64,
     /// Stop the device after this many seconds (it then finishes its stream).

@@ -511,6 +511,8 @@ pub fn download(
             wait = wait.min(d.saturating_sub(now - t0));
         }
         match source.read(&mut buf, wait) {
+            // A source breaking the contract with Data(0) is idle, not alive.
+            Ok(Chunk::Data(0)) | Ok(Chunk::Idle) => {}
             Ok(Chunk::Data(n)) => {
                 let n = n.min(buf.len());
                 let bytes = &buf[..n];
@@ -530,7 +532,6 @@ pub fn download(
                     break Ending::StreamEnd;
                 }
             }
-            Ok(Chunk::Idle) => {}
             Ok(Chunk::End) => break Ending::SourceEnd,
             Err(error) => fail!(|bytes| DownloadError::Source {
                 source: source_name.clone(),
