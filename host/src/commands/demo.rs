@@ -118,18 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let planes = (args.seconds / cam.plane_period_s).round() as u64;
     anyhow::ensure!(planes >= 1, "--seconds must cover at least one bit-plane");
     let (scene, rulers) = scene(&preset, args.field, args.mean_off_s);
-    let pipeline_args = PipelineArgs {
-        preset: "spcimager".into(),
-        objective: 150,
-        flux: None,
-        n_window: None,
-        threshold_int: None,
-        l_min: 1,
-        l_max: smartagg_model::config::DEFAULT_L_MAX,
-        slots: smartagg_model::config::DEFAULT_SLOTS,
-        roi: None,
-        r_assoc: 1,
-    };
+    let pipeline_args = PipelineArgs::default();
     let cfg = setup::pipeline_config(&pipeline_args, args.field, args.field, 100_000)?;
     eprintln!(
         "smartagg demo: {} GATTA-PAINT 80G rulers, SPCImager 150x, {}x{} pixels, {:.0} s = {} bit-planes",

@@ -284,16 +284,12 @@ mod tests {
     #[test]
     fn device_config_follows_the_preset() {
         let args = PipelineArgs {
-            preset: "spcimager".into(),
-            objective: 150,
-            flux: None,
             n_window: Some(40),
             threshold_int: None,
             l_min: 2,
             l_max: 500,
             slots: 16,
-            roi: None,
-            r_assoc: 1,
+            ..PipelineArgs::default()
         };
         let cfg = device_config(&args).unwrap();
         assert_eq!((cfg.width, cfg.height), (320, 240));
