@@ -22,6 +22,7 @@
 //! localisation at sensor column `X` (pixels) is at `X · pixel_nm` nm with
 //! `X = roi_x0 + x_fit`.
 
+pub mod bench;
 pub mod centroid;
 pub mod crlb;
 pub mod erf;

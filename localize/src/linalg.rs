@@ -6,7 +6,7 @@
 
 /// Solves `A δ = b` for symmetric positive-definite `A`; `None` when `A` is
 /// not (numerically) positive definite or anything is non-finite.
-#[inline]
+#[inline(always)]
 pub fn solve_spd<const P: usize>(a: &[[f64; P]; P], b: &[f64; P]) -> Option<[f64; P]> {
     let (l, s) = scaled_cholesky(a)?;
     let mut y = [0.0; P];
@@ -44,7 +44,7 @@ pub fn invert_spd<const P: usize>(a: &[[f64; P]; P]) -> Option<[[f64; P]; P]> {
 }
 
 /// Cholesky factor of the Jacobi-scaled matrix, and the scale `1/√A_ii`.
-#[inline]
+#[inline(always)]
 fn scaled_cholesky<const P: usize>(a: &[[f64; P]; P]) -> Option<([[f64; P]; P], [f64; P])> {
     let mut s = [0.0; P];
     for i in 0..P {
@@ -76,7 +76,7 @@ fn scaled_cholesky<const P: usize>(a: &[[f64; P]; P]) -> Option<([[f64; P]; P], 
     Some((l, s))
 }
 
-#[inline]
+#[inline(always)]
 fn cholesky_substitute<const P: usize>(l: &[[f64; P]; P], b: &[f64; P]) -> [f64; P] {
     let mut y = [0.0; P];
     for i in 0..P {

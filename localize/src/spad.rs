@@ -363,7 +363,7 @@ fn solve<const P: usize>(
     let (non, noff) = (n_on as f64, n_off as f64);
     let mut ax = AxisTerms::default();
     let mut ay = AxisTerms::default();
-    let evaluate = |theta: &[f64; P]| -> Eval<P> {
+    let mut evaluate = |theta: &[f64; P]| -> Eval<P> {
         let mut ll = 0.0;
         let mut g = [0.0; P];
         let mut h = [[0.0; P]; P];
@@ -395,7 +395,7 @@ fn solve<const P: usize>(
         }
         Eval { ll, g, h }
     };
-    let out = levenberg_marquardt(evaluate, init, lo, hi, opts.max_iterations, |_| 1.0);
+    let out = levenberg_marquardt(&mut evaluate, init, lo, hi, opts.max_iterations);
     let th = out.theta;
     let cov = invert_spd(&out.eval.h);
     let r = side as f64;
