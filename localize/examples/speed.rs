@@ -15,8 +15,5 @@ fn main() {
         }
     }
     let s = t.seconds();
-    let v = smartagg_localize::lm::PROF.with(|c| c.get());
-    let n = (reps * 10000) as f64;
-    println!("setup {:.0} fit {:.0} trial-evals {:.0} per eval {:.0} evals/fit {:.2} (tsc/fit)", v[0] as f64 / n, v[1] as f64 / n, v[2] as f64 / n, v[2] as f64 / v[3] as f64, v[3] as f64 / n);
     println!("{acc} {:.0} fits/s cpu, {:.0} wall", (reps * 10000) as f64 / s, (reps * 10000) as f64 / t.wall_seconds());
 }

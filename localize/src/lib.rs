@@ -27,6 +27,7 @@ pub mod centroid;
 pub mod crlb;
 pub mod erf;
 pub mod error;
+pub(crate) mod fastmath;
 pub mod fit;
 pub mod linalg;
 pub mod lm;

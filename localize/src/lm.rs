@@ -24,6 +24,9 @@
 
 use crate::fit::{Fit, FitOptions, FitStatus, NoiseModel};
 use crate::linalg::{invert_spd, solve_spd};
+use crate::fastmath::{ln_and_recip, Arith, Plain};
+#[cfg(target_arch = "x86_64")]
+use crate::fastmath::Fused;
 use crate::psf::AxisTerms;
 use crate::roi::{PixelMaps, RoiView};
 
@@ -32,38 +35,9 @@ use crate::roi::{PixelMaps, RoiView};
 const MU_FLOOR: f64 = 1e-12;
 /// Newton decrement at which the fit takes its last step and stops.
 const DECREMENT_TOL: f64 = 1e-2;
-
-/// Natural logarithm of a positive, finite, normal `x`, branch-free so that
-/// it vectorises: `x = m·2^e` with `m ∈ [√½, √2)`, `ln m = 2 atanh(s)`,
-/// `s = (m − 1)/(m + 1)`, series to `s²¹` (relative error below 1e-16).
-#[inline(always)]
-pub(crate) fn fast_ln(x: f64) -> f64 {
-    const MANT: u64 = 0x000f_ffff_ffff_ffff;
-    const ONE: u64 = 0x3ff0_0000_0000_0000;
-    // 2^52 as a bit pattern: OR-ing a small integer into its mantissa and
-    // subtracting 2^52 converts it to f64 without an int→float instruction.
-    const MAGIC: u64 = 0x4330_0000_0000_0000;
-    let bits = x.to_bits();
-    let m = f64::from_bits((bits & MANT) | ONE);
-    let e = f64::from_bits(MAGIC | (bits >> 52)) - 4_503_599_627_370_496.0 - 1023.0;
-    let big = m > std::f64::consts::SQRT_2;
-    let m = if big { 0.5 * m } else { m };
-    let e = if big { e + 1.0 } else { e };
-    let f = m - 1.0;
-    let s = f / (2.0 + f);
-    let z = s * s;
-    let p = 1.0 / 19.0 + z * (1.0 / 21.0);
-    let p = 1.0 / 17.0 + z * p;
-    let p = 1.0 / 15.0 + z * p;
-    let p = 1.0 / 13.0 + z * p;
-    let p = 1.0 / 11.0 + z * p;
-    let p = 1.0 / 9.0 + z * p;
-    let p = 1.0 / 7.0 + z * p;
-    let p = 1.0 / 5.0 + z * p;
-    let p = 1.0 / 3.0 + z * p;
-    let p = 1.0 + z * p;
-    e * std::f64::consts::LN_2 + 2.0 * s * p
-}
+/// Newton decrement below which steps are judged by the trapezoid rule on
+/// the gradients instead of by the objective.
+const TRAPEZOID_LIMIT: f64 = 1.0;
 
 /// Per-pixel knowledge seen by the fit loop; the uniform version compiles to
 /// constants.
@@ -132,7 +106,9 @@ impl PixelModel for Mapped<'_> {
 /// The objective's contribution of one pixel: (objective, residual factor r,
 /// weight w) with gradient `Σ r ∂μ` and curvature `Σ w ∂μ∂μᵀ`.
 pub(crate) trait Objective {
-    fn pixel(n: f64, mu: f64) -> (f64, f64, f64);
+    fn pixel<A: Arith>(n: f64, mu: f64) -> (f64, f64, f64);
+    /// Residual factor and weight only (no objective).
+    fn pixel_grad<A: Arith>(n: f64, mu: f64) -> (f64, f64);
     /// Lowest background allowed.
     const B_MIN: f64;
     /// Whether the objective is a (negative half) sum of squares.
@@ -143,12 +119,17 @@ pub(crate) struct PoissonObjective;
 
 impl Objective for PoissonObjective {
     #[inline(always)]
-    fn pixel(n: f64, mu: f64) -> (f64, f64, f64) {
+    fn pixel<A: Arith>(n: f64, mu: f64) -> (f64, f64, f64) {
         // Negative data (sCMOS after offset subtraction) are clamped: a Poisson
         // variable cannot be negative.
         let n = n.max(0.0);
+        let (ln, inv) = ln_and_recip::<A>(mu);
+        (A::madd(n, ln, -mu), A::madd(n, inv, -1.0), inv)
+    }
+    #[inline(always)]
+    fn pixel_grad<A: Arith>(n: f64, mu: f64) -> (f64, f64) {
         let inv = 1.0 / mu;
-        (n * fast_ln(mu) - mu, n * inv - 1.0, inv)
+        (A::madd(n.max(0.0), inv, -1.0), inv)
     }
     const B_MIN: f64 = 0.0;
     const LEAST_SQUARES: bool = false;
@@ -158,9 +139,13 @@ pub(crate) struct LsqObjective;
 
 impl Objective for LsqObjective {
     #[inline(always)]
-    fn pixel(n: f64, mu: f64) -> (f64, f64, f64) {
+    fn pixel<A: Arith>(n: f64, mu: f64) -> (f64, f64, f64) {
         let r = n - mu;
         (-0.5 * r * r, r, 1.0)
+    }
+    #[inline(always)]
+    fn pixel_grad<A: Arith>(n: f64, mu: f64) -> (f64, f64) {
+        (n - mu, 1.0)
     }
     const B_MIN: f64 = -1e12;
     const LEAST_SQUARES: bool = true;
@@ -176,32 +161,6 @@ pub(crate) struct Eval<const P: usize> {
 
 /// Pixels per vectorised block (four f64 lanes: one AVX2 register).
 const LANES: usize = 4;
-
-/// Multiply-add: fused where the CPU has FMA (the AVX2+FMA build), plain
-/// otherwise (`mul_add` without hardware FMA is a slow library call).
-pub(crate) trait Arith {
-    fn madd(a: f64, b: f64, c: f64) -> f64;
-}
-
-pub(crate) struct Plain;
-
-impl Arith for Plain {
-    #[inline(always)]
-    fn madd(a: f64, b: f64, c: f64) -> f64 {
-        a * b + c
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-pub(crate) struct Fused;
-
-#[cfg(target_arch = "x86_64")]
-impl Arith for Fused {
-    #[inline(always)]
-    fn madd(a: f64, b: f64, c: f64) -> f64 {
-        a.mul_add(b, c)
-    }
-}
 
 thread_local! {
     /// Per-thread work arrays of the pixel passes (weights and derivatives),
@@ -390,7 +349,7 @@ impl<M: PixelModel> Problem<M> {
     /// pass 2 sums the curvature one row at a time (see [`curvature_row`]).
     /// Every block is a fixed-size array, so the lanes vectorise.
     #[inline(always)]
-    fn evaluate<const P: usize, O: Objective, A: Arith>(
+    fn evaluate<const P: usize, O: Objective, A: Arith, const OBJECTIVE: bool>(
         &self,
         theta: &[f64; P],
         ax: &mut AxisTerms,
@@ -402,8 +361,8 @@ impl<M: PixelModel> Problem<M> {
         let sigma = if fit_sigma { theta[P - 1] } else { self.sigma_fixed };
         let side = lay.side;
         let np = lay.np;
-        ax.compute(side, theta[0], sigma, fit_sigma);
-        ay.compute(side, theta[1], sigma, fit_sigma);
+        ax.compute_with::<A>(side, theta[0], sigma, fit_sigma);
+        ay.compute_with::<A>(side, theta[1], sigma, fit_sigma);
         let (inputs, outputs) = scratch[..(INPUTS + 1 + P) * np].split_at_mut(INPUTS * np);
         let (dp, rest) = inputs.split_at(np);
         let (gp, rest) = rest.split_at(np);
@@ -438,8 +397,13 @@ impl<M: PixelModel> Problem<M> {
                     if fit_sigma {
                         d[P - 1][l] = gain[l] * A::madd(dsx[l], n_ey, ex[l] * n_sy);
                     }
-                    let (lk, r, w) = O::pixel(data[l], mu);
-                    ll[l] = A::madd(used[l], lk, ll[l]);
+                    let (r, w) = if OBJECTIVE {
+                        let (lk, r, w) = O::pixel::<A>(data[l], mu);
+                        ll[l] = A::madd(used[l], lk, ll[l]);
+                        (r, w)
+                    } else {
+                        O::pixel_grad::<A>(data[l], mu)
+                    };
                     let rv = r * used[l];
                     for p in 0..P {
                         g[p][l] = A::madd(rv, d[p][l], g[p][l]);
@@ -464,7 +428,7 @@ impl<M: PixelModel> Problem<M> {
         curvature_row::<P, 3, A>(w, d, np, &mut h);
         curvature_row::<P, 4, A>(w, d, np, &mut h);
         let mut out = Eval {
-            ll: lane_sum(&ll),
+            ll: if OBJECTIVE { lane_sum(&ll) } else { f64::NAN },
             g: [0.0; P],
             h,
         };
@@ -511,8 +475,9 @@ pub(crate) struct LmOutcome<const P: usize> {
 /// Something Levenberg–Marquardt can maximise. A trait rather than a
 /// closure so that the evaluation is inlined into the AVX2 build of the fit.
 pub(crate) trait Evaluate<const P: usize> {
-    /// Objective, gradient and curvature at θ.
-    fn eval(&mut self, theta: &[f64; P]) -> Eval<P>;
+    /// Gradient and curvature at θ, and the objective if `objective` (else
+    /// it may be NaN).
+    fn eval(&mut self, theta: &[f64; P], objective: bool) -> Eval<P>;
     /// Unit of the Newton decrement (1 for log-likelihoods).
     fn decrement_scale(&self, _e: &Eval<P>) -> f64 {
         1.0
@@ -521,7 +486,7 @@ pub(crate) trait Evaluate<const P: usize> {
 
 impl<const P: usize, F: FnMut(&[f64; P]) -> Eval<P>> Evaluate<P> for F {
     #[inline(always)]
-    fn eval(&mut self, theta: &[f64; P]) -> Eval<P> {
+    fn eval(&mut self, theta: &[f64; P], _objective: bool) -> Eval<P> {
         self(theta)
     }
 }
@@ -538,9 +503,15 @@ struct FrameEval<'p, M, O, A> {
 
 impl<const P: usize, M: PixelModel, O: Objective, A: Arith> Evaluate<P> for FrameEval<'_, M, O, A> {
     #[inline(always)]
-    fn eval(&mut self, theta: &[f64; P]) -> Eval<P> {
-        self.prob
-            .evaluate::<P, O, A>(theta, &mut self.ax, &mut self.ay, self.scratch, self.layout)
+    fn eval(&mut self, theta: &[f64; P], objective: bool) -> Eval<P> {
+        // The least-squares objective costs nothing extra: always computed.
+        if objective || O::LEAST_SQUARES {
+            self.prob
+                .evaluate::<P, O, A, true>(theta, &mut self.ax, &mut self.ay, self.scratch, self.layout)
+        } else {
+            self.prob
+                .evaluate::<P, O, A, false>(theta, &mut self.ax, &mut self.ay, self.scratch, self.layout)
+        }
     }
     #[inline(always)]
     fn decrement_scale(&self, e: &Eval<P>) -> f64 {
@@ -568,7 +539,7 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
     for p in 0..P {
         theta[p] = theta[p].clamp(lo[p], hi[p]);
     }
-    let mut cur = evaluator.eval(&theta);
+    let mut cur = evaluator.eval(&theta, true);
     let mut lambda = 1e-3;
     let mut converged = false;
     let mut iterations = 0;
@@ -603,8 +574,22 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
         for p in 0..P {
             next[p] = (theta[p] + delta[p]).clamp(lo[p], hi[p]);
         }
-        let trial = evaluator.eval(&next);
-        if trial.ll >= cur.ll && trial.ll.is_finite() {
+        // Far from the optimum compare objectives; near it (the step within
+        // about one standard deviation) the quadratic model is accurate and
+        // the trapezoid rule on the gradients, ½ δ·(∇₀ + ∇₁), tells whether
+        // the objective increased without computing it (no logarithms).
+        let exact = decrement.abs() > TRAPEZOID_LIMIT * evaluator.decrement_scale(&cur);
+        if exact && cur.ll.is_nan() {
+            cur = evaluator.eval(&theta, true);
+        }
+        let trial = evaluator.eval(&next, exact);
+        let better = if exact {
+            trial.ll >= cur.ll && trial.ll.is_finite()
+        } else {
+            let gain: f64 = (0..P).map(|p| (next[p] - theta[p]) * (cur.g[p] + trial.g[p])).sum();
+            gain >= 0.0 && gain.is_finite()
+        };
+        if better {
             theta = next;
             cur = trial;
             lambda = (lambda * 0.1).max(1e-9);
@@ -903,7 +888,7 @@ pub fn bench_evaluate(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -
         for r in 0..reps {
             let mut t = theta;
             t[0] += r as f64 * 1e-9;
-            let e = prob.evaluate::<5, PoissonObjective, Fused>(&t, &mut ax, &mut ay, &mut scratch, lay);
+            let e = prob.evaluate::<5, PoissonObjective, Fused, true>(&t, &mut ax, &mut ay, &mut scratch, lay);
             s += e.ll + e.h[1][2];
         }
         s
@@ -917,7 +902,7 @@ pub fn bench_axis(reps: usize) -> f64 {
         let mut ax = AxisTerms::default();
         let mut s = 0.0;
         for r in 0..reps {
-            ax.compute(9, 4.5 + r as f64 * 1e-9, 1.5, true);
+            ax.compute_with::<Fused>(9, 4.5 + r as f64 * 1e-9, 1.5, true);
             s += ax.e[3] + ax.ds[2];
         }
         s
