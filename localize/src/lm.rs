@@ -168,30 +168,30 @@ thread_local! {
     static SCRATCH: std::cell::Cell<Vec<f64>> = const { std::cell::Cell::new(Vec::new()) };
 }
 
-/// Row-padded layout of the pixel arrays: each row is `stride` (a whole
-/// number of blocks) long, the lanes past the ROI's side are masked out.
+/// Layout of the pixel arrays: the ROI's pixels row-major and flat, padded
+/// to a whole number of blocks; padding lanes are masked out.
 #[derive(Clone, Copy)]
 struct Layout {
     side: usize,
-    stride: usize,
-    /// Entries per array, `side · stride`.
+    /// Entries per array, `side²` rounded up to a multiple of [`LANES`].
     np: usize,
 }
 
 impl Layout {
     #[inline(always)]
     fn new(side: usize) -> Layout {
-        let stride = side.div_ceil(LANES) * LANES;
         Layout {
             side,
-            stride,
-            np: side * stride,
+            np: (side * side).div_ceil(LANES) * LANES,
         }
     }
 }
 
-/// Number of padded input arrays: data (+ shift), gain, offset, use.
+/// Number of input arrays: data (+ shift), gain, offset, use.
 const INPUTS: usize = 4;
+/// Number of per-iteration arrays of the separable model: the column terms
+/// `Ex, ∂Ex/∂x, ∂Ex/∂σ` and row terms `Ey, ∂Ey/∂y, ∂Ey/∂σ` of every pixel.
+const TILES: usize = 6;
 
 /// Borrows this thread's scratch buffer, sized for the input arrays and the
 /// `1 + params` output arrays (weights, derivatives) of [`Layout`]. Give it
@@ -200,7 +200,7 @@ const INPUTS: usize = 4;
 #[inline(always)]
 fn take_scratch(lay: Layout, params: usize) -> Vec<f64> {
     let mut buf = SCRATCH.with(|c| c.take());
-    let need = lay.np * (INPUTS + 1 + params);
+    let need = lay.np * (INPUTS + TILES + 1 + params);
     if buf.len() < need {
         buf.resize(need, 0.0);
     }
@@ -212,32 +212,31 @@ fn return_scratch(buf: Vec<f64>) {
     SCRATCH.with(|c| c.set(buf));
 }
 
-/// Copies the ROI into the padded input arrays once per fit: data plus
-/// shift (0 where ignored: NaN in an ignored pixel never reaches a sum),
-/// gain, offset, and use (1 or 0; padding lanes 0 with a harmless μ > 0).
+/// Copies the ROI into the input arrays once per fit: data plus shift (0
+/// where ignored: NaN in an ignored pixel never reaches a sum), gain,
+/// offset, and use (1 or 0); padding lanes get use 0 and a harmless μ > 0,
+/// and the padding of the tile arrays is zeroed.
 #[inline(always)]
 fn prepare<M: PixelModel>(data: &[f64], m: &M, lay: Layout, scratch: &mut [f64]) {
     let np = lay.np;
-    let (dp, rest) = scratch[..INPUTS * np].split_at_mut(np);
+    let n = lay.side * lay.side;
+    let (dp, rest) = scratch[..(INPUTS + TILES) * np].split_at_mut(np);
     let (gp, rest) = rest.split_at_mut(np);
-    let (op, up) = rest.split_at_mut(np);
-    for j in 0..lay.side {
-        for i in 0..lay.stride {
-            let q = j * lay.stride + i;
-            if i < lay.side {
-                let k = j * lay.side + i;
-                let used = !m.ignored(k);
-                dp[q] = if used { data[k] + m.shift(k) } else { 0.0 };
-                gp[q] = m.gain(k);
-                op[q] = m.offset(k);
-                up[q] = if used { 1.0 } else { 0.0 };
-            } else {
-                dp[q] = 0.0;
-                gp[q] = 1.0;
-                op[q] = 1.0;
-                up[q] = 0.0;
-            }
-        }
+    let (op, rest) = rest.split_at_mut(np);
+    let (up, tiles) = rest.split_at_mut(np);
+    for k in 0..n {
+        let used = !m.ignored(k);
+        dp[k] = if used { data[k] + m.shift(k) } else { 0.0 };
+        gp[k] = m.gain(k);
+        op[k] = m.offset(k);
+        up[k] = if used { 1.0 } else { 0.0 };
+    }
+    dp[n..].fill(0.0);
+    gp[n..].fill(1.0);
+    op[n..].fill(1.0);
+    up[n..].fill(0.0);
+    for t in 0..TILES {
+        tiles[t * np + n..(t + 1) * np].fill(0.0);
     }
 }
 
@@ -341,13 +340,15 @@ impl<M: PixelModel> Problem<M> {
         }
     }
 
-    /// Objective, gradient and curvature at θ. `scratch` holds the input
-    /// arrays filled by [`prepare`] and receives the weights and derivatives.
+    /// Objective (if `OBJECTIVE`), gradient and curvature at θ. `scratch`
+    /// holds the input arrays filled by [`prepare`], then the tiles and the
+    /// weights and derivatives written here.
     ///
-    /// Pass 1 visits every row in whole blocks of [`LANES`] pixels (padding
-    /// lanes masked): μ, ∂μ, objective and gradient, storing `w` and `∂μ`;
-    /// pass 2 sums the curvature one row at a time (see [`curvature_row`]).
-    /// Every block is a fixed-size array, so the lanes vectorise.
+    /// The 1-D terms of both axes are spread over every pixel (tiles), then
+    /// pass 1 visits all pixels flat in blocks of [`LANES`] (padding lanes
+    /// masked): μ, ∂μ, objective and gradient, storing `w` and `∂μ`; pass 2
+    /// sums the curvature one row at a time (see [`curvature_row`]). Every
+    /// block is a fixed-size array, so the lanes vectorise.
     #[inline(always)]
     fn evaluate<const P: usize, O: Objective, A: Arith, const OBJECTIVE: bool>(
         &self,
@@ -363,60 +364,76 @@ impl<M: PixelModel> Problem<M> {
         let np = lay.np;
         ax.compute_with::<A>(side, theta[0], sigma, fit_sigma);
         ay.compute_with::<A>(side, theta[1], sigma, fit_sigma);
-        let (inputs, outputs) = scratch[..(INPUTS + 1 + P) * np].split_at_mut(INPUTS * np);
+        let (inputs, rest) = scratch[..(INPUTS + TILES + 1 + P) * np].split_at_mut(INPUTS * np);
+        let (tiles, outputs) = rest.split_at_mut(TILES * np);
+        {
+            let (xe, t) = tiles.split_at_mut(np);
+            let (xdc, t) = t.split_at_mut(np);
+            let (xds, t) = t.split_at_mut(np);
+            let (ye, t) = t.split_at_mut(np);
+            let (ydc, yds) = t.split_at_mut(np);
+            for j in 0..side {
+                let r = j * side..(j + 1) * side;
+                xe[r.clone()].copy_from_slice(&ax.e[..side]);
+                xdc[r.clone()].copy_from_slice(&ax.dc[..side]);
+                ye[r.clone()].fill(ay.e[j]);
+                ydc[r.clone()].fill(ay.dc[j]);
+                if fit_sigma {
+                    xds[r.clone()].copy_from_slice(&ax.ds[..side]);
+                    yds[r].fill(ay.ds[j]);
+                }
+            }
+        }
         let (dp, rest) = inputs.split_at(np);
         let (gp, rest) = rest.split_at(np);
         let (op, up) = rest.split_at(np);
         let (n_ph, b) = (theta[2], theta[3]);
         let mut ll = [0.0; LANES];
         let mut g = [[0.0; LANES]; P];
-        for j in 0..side {
-            let ey = ay.e[j];
-            let n_ey = n_ph * ey;
-            let n_dey = n_ph * ay.dc[j];
-            let n_sy = n_ph * ay.ds[j];
-            let mut i0 = 0;
-            while i0 < lay.stride {
-                let q0 = j * lay.stride + i0;
-                let data = block(dp, q0);
-                let gain = block(gp, q0);
-                let offset = block(op, q0);
-                let used = block(up, q0);
-                let ex = block(&ax.e, i0);
-                let dcx = block(&ax.dc, i0);
-                let dsx = block(&ax.ds, i0);
-                let mut d = [[0.0; LANES]; P];
-                let mut wv = [0.0; LANES];
-                for l in 0..LANES {
-                    let psf = ex[l] * ey;
-                    let mu = (gain[l] * A::madd(n_ph, psf, b) + offset[l]).max(MU_FLOOR);
-                    d[0][l] = gain[l] * dcx[l] * n_ey;
-                    d[1][l] = gain[l] * ex[l] * n_dey;
-                    d[2][l] = gain[l] * psf;
-                    d[3][l] = gain[l];
-                    if fit_sigma {
-                        d[P - 1][l] = gain[l] * A::madd(dsx[l], n_ey, ex[l] * n_sy);
-                    }
-                    let (r, w) = if OBJECTIVE {
-                        let (lk, r, w) = O::pixel::<A>(data[l], mu);
-                        ll[l] = A::madd(used[l], lk, ll[l]);
-                        (r, w)
-                    } else {
-                        O::pixel_grad::<A>(data[l], mu)
-                    };
-                    let rv = r * used[l];
-                    for p in 0..P {
-                        g[p][l] = A::madd(rv, d[p][l], g[p][l]);
-                    }
-                    wv[l] = w * used[l];
+        let mut k0 = 0;
+        while k0 < np {
+            let data = block(dp, k0);
+            let gain = block(gp, k0);
+            let offset = block(op, k0);
+            let used = block(up, k0);
+            let ex = block(tiles, k0);
+            let dcx = block(tiles, np + k0);
+            let dsx = block(tiles, 2 * np + k0);
+            let ey = block(tiles, 3 * np + k0);
+            let dcy = block(tiles, 4 * np + k0);
+            let dsy = block(tiles, 5 * np + k0);
+            let mut d = [[0.0; LANES]; P];
+            let mut wv = [0.0; LANES];
+            for l in 0..LANES {
+                let psf = ex[l] * ey[l];
+                let n_ey = n_ph * ey[l];
+                let mu = (gain[l] * A::madd(n_ph, psf, b) + offset[l]).max(MU_FLOOR);
+                d[0][l] = gain[l] * dcx[l] * n_ey;
+                d[1][l] = gain[l] * ex[l] * (n_ph * dcy[l]);
+                d[2][l] = gain[l] * psf;
+                d[3][l] = gain[l];
+                if fit_sigma {
+                    d[P - 1][l] = gain[l] * A::madd(dsx[l], n_ey, ex[l] * (n_ph * dsy[l]));
                 }
-                outputs[q0..q0 + LANES].copy_from_slice(&wv);
+                let (r, w) = if OBJECTIVE {
+                    let (lk, r, w) = O::pixel::<A>(data[l], mu);
+                    ll[l] = A::madd(used[l], lk, ll[l]);
+                    (r, w)
+                } else {
+                    O::pixel_grad::<A>(data[l], mu)
+                };
+                let rv = r * used[l];
                 for p in 0..P {
-                    let off = np + p * np + q0;
-                    outputs[off..off + LANES].copy_from_slice(&d[p]);
+                    g[p][l] = A::madd(rv, d[p][l], g[p][l]);
                 }
-                i0 += LANES;
+                wv[l] = w * used[l];
             }
+            outputs[k0..k0 + LANES].copy_from_slice(&wv);
+            for p in 0..P {
+                let off = np + p * np + k0;
+                outputs[off..off + LANES].copy_from_slice(&d[p]);
+            }
+            k0 += LANES;
         }
         let (w, d) = outputs.split_at(np);
         let mut h = [[0.0; P]; P];
@@ -897,7 +914,7 @@ pub fn bench_evaluate(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -
 }
 #[doc(hidden)]
 pub fn bench_axis(reps: usize) -> f64 {
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     unsafe fn inner(reps: usize) -> f64 {
         let mut ax = AxisTerms::default();
         let mut s = 0.0;

@@ -62,7 +62,13 @@ impl AxisTerms {
         assert!(n <= MAX_SIDE);
         let mut lower = edge_block::<A>(0, c, inv, pdf_scale);
         for blk in 0..n.div_ceil(4) {
-            let next = edge_block::<A>(blk + 1, c, inv, pdf_scale);
+            // The next block's first edge is needed only if it bounds a real
+            // pixel; otherwise it would serve virtual pixels alone.
+            let next = if 4 * (blk + 1) <= n {
+                edge_block::<A>(blk + 1, c, inv, pdf_scale)
+            } else {
+                EdgeBlock::default()
+            };
             let t1 = shift_in(&lower.tail, &next.tail);
             let r1 = shift_in(&lower.right, &next.right);
             let p1 = shift_in(&lower.pdf, &next.pdf);
