@@ -569,14 +569,46 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
             // N = 0) from making the system singular.
             a[p][p] = cur.h[p][p] * (1.0 + lambda) + 1e-12 * max_diag + 1e-300;
         }
-        let Some(delta) = solve_spd(&a, &cur.g) else {
+        let Some(mut delta) = solve_spd(&a, &cur.g) else {
             lambda *= 10.0;
             if lambda > 1e12 {
                 break;
             }
             continue;
         };
-        let decrement: f64 = (0..P).map(|p| delta[p] * cur.g[p]).sum::<f64>() * (1.0 + lambda);
+        // Parameters on a bound whose step points outward are held there
+        // (active set), so that a fit converging to a bound (σ of a hot
+        // pixel, say) converges instead of pushing against it.
+        let mut held = [false; P];
+        let mut any = false;
+        for p in 0..P {
+            held[p] = (theta[p] <= lo[p] && delta[p] < 0.0) || (theta[p] >= hi[p] && delta[p] > 0.0);
+            any |= held[p];
+        }
+        let mut g = cur.g;
+        if any {
+            for p in 0..P {
+                if held[p] {
+                    for q in 0..P {
+                        a[p][q] = 0.0;
+                        a[q][p] = 0.0;
+                    }
+                    a[p][p] = 1.0;
+                    g[p] = 0.0;
+                }
+            }
+            match solve_spd(&a, &g) {
+                Some(d) => delta = d,
+                None => {
+                    lambda *= 10.0;
+                    if lambda > 1e12 {
+                        break;
+                    }
+                    continue;
+                }
+            }
+        }
+        let decrement: f64 = (0..P).map(|p| delta[p] * g[p]).sum::<f64>() * (1.0 + lambda);
         if decrement.abs() < DECREMENT_TOL * evaluator.decrement_scale(&cur) {
             // The remaining step is a small fraction of every parameter's
             // standard deviation: take it without checking (the quadratic
@@ -862,7 +894,9 @@ fn finish<const P: usize, M: PixelModel, A: Arith>(
     let r = prob.side as f64;
     if !out.converged {
         status = FitStatus::NotConverged;
-    } else if th[2] <= lo[2] * 1.000_001 {
+    } else if th[2] <= lo[2] * 1.000_001 || cov.is_some_and(|c| th[2] < c[2][2].sqrt()) {
+        // No emitter, or one not distinguishable from zero at one standard
+        // deviation.
         status = FitStatus::NoSignal;
     } else if th[0] < -0.5 || th[1] < -0.5 || th[0] > r + 0.5 || th[1] > r + 0.5 {
         status = FitStatus::OutsideRoi;

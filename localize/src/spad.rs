@@ -402,7 +402,9 @@ fn solve<const P: usize>(
     let mut status = FitStatus::Ok;
     if !out.converged {
         status = FitStatus::NotConverged;
-    } else if th[2] <= lo[2] * 1.000_001 {
+    } else if th[2] <= lo[2] * 1.000_001 || cov.is_some_and(|c| th[2] < c[2][2].sqrt()) {
+        // No emitter, or one not distinguishable from zero at one standard
+        // deviation.
         status = FitStatus::NoSignal;
     } else if th[0] < -0.5 || th[1] < -0.5 || th[0] > r + 0.5 || th[1] > r + 0.5 {
         status = FitStatus::OutsideRoi;
