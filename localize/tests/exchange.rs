@@ -102,9 +102,11 @@ fn merging_consecutive_frames_within_40_nm() {
     assert!((m.uncertainty_nm - (1.0 / sw).sqrt()).abs() < 1e-9);
     assert_eq!(m.intensity, 300.0);
     assert!(out.iter().any(|l| l.status == FitStatus::NotConverged));
-    // With one frame of gap allowed, frame 6 joins the frame-4 track.
-    let (_, stats) = merge_consecutive(&locs, 40.0, 1);
-    assert_eq!(stats.merged_tracks, 2);
+    // Allowing two missing frames, frame 6 continues the frame-1–3 track
+    // (the frame-4 localisation is 50 nm away from both).
+    let (out, stats) = merge_consecutive(&locs, 40.0, 2);
+    assert_eq!(stats.merged_tracks, 1);
+    assert!(out.iter().any(|l| l.detections == 4));
 }
 
 #[test]
