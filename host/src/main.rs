@@ -3,7 +3,10 @@
 
 use clap::{Parser, Subcommand};
 
+mod calibration;
 mod commands;
+mod setup;
+mod transport;
 
 /// Smart aggregation of binary SPAD bit-planes for single-molecule localisation.
 ///
@@ -31,8 +34,12 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Localise molecules in blink-ROI packets (.rois) or a TIFF frame stack; ThunderSTORM CSV out.
     Localize(commands::localize::Args),
+    /// Receive the blink-ROI packet stream from a board, a file or the co-simulation into a .rois file.
+    Download(commands::download::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
     Render(commands::render::Args),
+    /// Calibrate a camera from its own recordings: DCR map, hot pixels, PRNU (SPAD); offset, gain, read noise (EMCCD, sCMOS).
+    Calibrate(commands::calibrate::Args),
     /// Measure speed and accuracy (figures printed, nothing asserted).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -44,6 +51,8 @@ enum BenchCommand {
     Simulate(commands::bench_simulate::Args),
     /// Fits/s, RMSE and Cramér–Rao ratio of every estimator on simulated ROIs.
     Localize(commands::bench_localize::Args),
+    /// Planes/s of the golden and fast aggregation engines side by side.
+    Aggregate(commands::bench_aggregate::Args),
 }
 
 fn main() {
@@ -55,8 +64,11 @@ fn main() {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Localize(a) => commands::localize::run(a),
         Command::Render(a) => commands::render::run(a),
+        Command::Calibrate(a) => commands::calibrate::run(a),
+        Command::Download(a) => commands::download::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
+        Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),
     };
     if let Err(e) = result {
         eprintln!("smartagg: error: {e:#}");

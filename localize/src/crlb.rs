@@ -115,7 +115,13 @@ fn bound<M: PixelModel>(prob: &Problem<M>, em: &Emitter, f2: f64, fit_sigma: boo
 /// per-axis variance `F² σa²/N · (1 + ∫₀¹ ln t / (1 + t/τ) dt)⁻¹` with
 /// `σa² = σ² + a²/12` and `τ = 2π σa² b / (N a²)`. Units: σ and `a` in the
 /// same length unit (the result is in its square), b photons per pixel.
-pub fn mortensen_mle_variance(sigma: f64, a: f64, photons: f64, background: f64, excess: f64) -> f64 {
+pub fn mortensen_mle_variance(
+    sigma: f64,
+    a: f64,
+    photons: f64,
+    background: f64,
+    excess: f64,
+) -> f64 {
     let sa2 = sigma * sigma + a * a / 12.0;
     let tau = 2.0 * std::f64::consts::PI * sa2 * background / (photons * a * a);
     excess * sa2 / photons / (1.0 + log_integral(tau))
@@ -123,9 +129,16 @@ pub fn mortensen_mle_variance(sigma: f64, a: f64, photons: f64, background: f64,
 
 /// Mortensen's least-squares formula (the one ThunderSTORM reports):
 /// `F² σa²/N · (16/9 + 8π σa² b / (N a²))`.
-pub fn mortensen_lsq_variance(sigma: f64, a: f64, photons: f64, background: f64, excess: f64) -> f64 {
+pub fn mortensen_lsq_variance(
+    sigma: f64,
+    a: f64,
+    photons: f64,
+    background: f64,
+    excess: f64,
+) -> f64 {
     let sa2 = sigma * sigma + a * a / 12.0;
-    excess * sa2 / photons * (16.0 / 9.0 + 8.0 * std::f64::consts::PI * sa2 * background / (photons * a * a))
+    excess * sa2 / photons
+        * (16.0 / 9.0 + 8.0 * std::f64::consts::PI * sa2 * background / (photons * a * a))
 }
 
 /// `∫₀¹ ln t / (1 + t/τ) dt` (≤ 0; 0 for τ = 0), by the substitution
@@ -185,7 +198,14 @@ mod tests {
         maps.read_var.iter_mut().for_each(|v| *v = 2.0);
         let s = crlb_frame(9, &em, Some(&maps), NoiseModel::Scmos, false).unwrap();
         assert!(s.var_x > p.var_x);
-        let s0 = crlb_frame(9, &em, Some(&PixelMaps::uniform(9)), NoiseModel::Scmos, false).unwrap();
+        let s0 = crlb_frame(
+            9,
+            &em,
+            Some(&PixelMaps::uniform(9)),
+            NoiseModel::Scmos,
+            false,
+        )
+        .unwrap();
         assert!((s0.var_x / p.var_x - 1.0).abs() < 1e-12);
     }
 }

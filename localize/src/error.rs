@@ -80,7 +80,12 @@ pub enum LocalizeError {
 }
 
 /// Checks a finite value within `[lo, hi]`, naming the option otherwise.
-pub fn check_option(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f64, LocalizeError> {
+pub fn check_option(
+    name: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+) -> Result<f64, LocalizeError> {
     if !value.is_finite() {
         return Err(LocalizeError::InvalidOption {
             name,

@@ -308,7 +308,11 @@ impl<M: PixelModel> Problem<M> {
         mut f: impl FnMut(usize, f64, &[f64; P]),
     ) {
         let fit_sigma = P == 5;
-        let sigma = if fit_sigma { theta[P - 1] } else { self.sigma_fixed };
+        let sigma = if fit_sigma {
+            theta[P - 1]
+        } else {
+            self.sigma_fixed
+        };
         let side = self.side;
         ax.compute(side, theta[0], sigma, fit_sigma);
         ay.compute(side, theta[1], sigma, fit_sigma);
@@ -714,7 +718,9 @@ pub(crate) fn initial_guess<M: PixelModel>(data: &[f64], side: usize, m: &M) -> 
 
 /// True if any pixel that is not ignored holds a NaN or an infinity.
 pub(crate) fn has_non_finite<M: PixelModel>(data: &[f64], m: &M) -> bool {
-    data.iter().enumerate().any(|(k, v)| !v.is_finite() && !m.ignored(k))
+    data.iter()
+        .enumerate()
+        .any(|(k, v)| !v.is_finite() && !m.ignored(k))
 }
 
 /// Which objective.
@@ -797,7 +803,13 @@ fn run<M: PixelModel, A: Arith>(data: &[f64], side: usize, m: M, opts: &FitOptio
         sigma_fixed: sigma0.clamp(1e-3, 1e4),
     };
     if opts.sigma.is_fitted() {
-        let init = [init4[0], init4[1], init4[2], init4[3], sigma0.clamp(smin, smax)];
+        let init = [
+            init4[0],
+            init4[1],
+            init4[2],
+            init4[3],
+            sigma0.clamp(smin, smax),
+        ];
         let lo = [lo4[0], lo4[1], lo4[2], lo4[3], smin];
         let hi = [hi4[0], hi4[1], hi4[2], hi4[3], smax];
         let lay = Layout::new(side);

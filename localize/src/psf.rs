@@ -209,9 +209,17 @@ mod tests {
         assert!(t.e[0] > 1e-25 && t.e[0] < 1e-20, "{}", t.e[0]);
         // Extremely narrow and extremely wide PSFs stay finite.
         t.compute(9, 4.5, 1e-6, true);
-        assert!(t.e[..9].iter().chain(&t.dc[..9]).chain(&t.ds[..9]).all(|v| v.is_finite()));
+        assert!(t.e[..9]
+            .iter()
+            .chain(&t.dc[..9])
+            .chain(&t.ds[..9])
+            .all(|v| v.is_finite()));
         assert!((t.e[4] - 1.0).abs() < 1e-12);
         t.compute(9, 4.5, 1e6, true);
-        assert!(t.e[..9].iter().chain(&t.dc[..9]).chain(&t.ds[..9]).all(|v| v.is_finite()));
+        assert!(t.e[..9]
+            .iter()
+            .chain(&t.dc[..9])
+            .chain(&t.ds[..9])
+            .all(|v| v.is_finite()));
     }
 }

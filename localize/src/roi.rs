@@ -64,7 +64,10 @@ impl PixelMaps {
                 why: "every relative efficiency must be finite and greater than zero".into(),
             });
         }
-        for (name, map) in [("dark map", &self.dark), ("read-variance map", &self.read_var)] {
+        for (name, map) in [
+            ("dark map", &self.dark),
+            ("read-variance map", &self.read_var),
+        ] {
             if let Some(&v) = map.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
                 return Err(LocalizeError::InvalidOption {
                     name,
@@ -95,7 +98,11 @@ pub struct RoiView<'a> {
 
 impl<'a> RoiView<'a> {
     /// Wraps data of side `side`, checking the shape and the maps.
-    pub fn new(side: usize, data: &'a [f64], maps: Option<&'a PixelMaps>) -> Result<Self, LocalizeError> {
+    pub fn new(
+        side: usize,
+        data: &'a [f64],
+        maps: Option<&'a PixelMaps>,
+    ) -> Result<Self, LocalizeError> {
         check_shape(side, data.len())?;
         if let Some(m) = maps {
             if m.side != side {

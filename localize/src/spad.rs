@@ -92,7 +92,10 @@ impl<'a> SpadRoi<'a> {
     /// The ROI of a blink record: `n_on = t_e − t_s` clamped to
     /// `[1, planes_summed]` (a record always has at least one on-plane; with
     /// no split information every plane counts as on), `n_off` the rest.
-    pub fn from_record(rec: &'a BlinkRecord, maps: Option<&'a PixelMaps>) -> Result<Self, LocalizeError> {
+    pub fn from_record(
+        rec: &'a BlinkRecord,
+        maps: Option<&'a PixelMaps>,
+    ) -> Result<Self, LocalizeError> {
         let (n_on, n_off) = on_off_split(rec);
         SpadRoi::new(rec.roi_size as usize, &rec.counts, n_on, n_off, maps)
     }
@@ -107,7 +110,13 @@ pub fn on_off_split(rec: &BlinkRecord) -> (u32, u32) {
 
 /// Exact log-likelihood of one pixel count (up to a constant independent of
 /// the rates) and its derivatives with respect to `λ_on` and `λ_off`.
-pub fn pixel_log_likelihood(c: u32, n_on: u32, n_off: u32, lam_on: f64, lam_off: f64) -> (f64, f64, f64) {
+pub fn pixel_log_likelihood(
+    c: u32,
+    n_on: u32,
+    n_off: u32,
+    lam_on: f64,
+    lam_off: f64,
+) -> (f64, f64, f64) {
     let p_on = -(-lam_on).exp_m1();
     let p_off = -(-lam_off).exp_m1();
     if n_off == 0 || n_on == 0 {
@@ -120,7 +129,11 @@ pub fn pixel_log_likelihood(c: u32, n_on: u32, n_off: u32, lam_on: f64, lam_off:
         let c = c as f64;
         let ll = if c > 0.0 { c * p.ln() } else { 0.0 } - (n as f64 - c) * lam;
         let s = if c > 0.0 { c / p } else { 0.0 } - n as f64;
-        return if n_off == 0 { (ll, s, 0.0) } else { (ll, 0.0, s) };
+        return if n_off == 0 {
+            (ll, s, 0.0)
+        } else {
+            (ll, 0.0, s)
+        };
     }
     let j0 = c.saturating_sub(n_on);
     let j1 = c.min(n_off);
@@ -253,20 +266,28 @@ fn information<const P: usize>(
     let mut ay = AxisTerms::default();
     let mut h = [[0.0; P]; P];
     let (non, noff) = (n_on as f64, n_off as f64);
-    for_each_pixel(side, px, theta, sigma_fixed, &mut ax, &mut ay, |_, lon, loff, g, dl| {
-        let (_, v, de_on, de_off) = moments(non, noff, lon, loff);
-        let mut de = [0.0; P];
-        for p in 0..P {
-            de[p] = de_on * dl[p];
-        }
-        de[3] += de_off * g;
-        let iv = 1.0 / v.max(1e-300);
-        for p in 0..P {
-            for q in p..P {
-                h[p][q] += de[p] * de[q] * iv;
+    for_each_pixel(
+        side,
+        px,
+        theta,
+        sigma_fixed,
+        &mut ax,
+        &mut ay,
+        |_, lon, loff, g, dl| {
+            let (_, v, de_on, de_off) = moments(non, noff, lon, loff);
+            let mut de = [0.0; P];
+            for p in 0..P {
+                de[p] = de_on * dl[p];
             }
-        }
-    });
+            de[3] += de_off * g;
+            let iv = 1.0 / v.max(1e-300);
+            for p in 0..P {
+                for q in p..P {
+                    h[p][q] += de[p] * de[q] * iv;
+                }
+            }
+        },
+    );
     for p in 0..P {
         for q in 0..p {
             h[p][q] = h[q][p];
@@ -339,7 +360,13 @@ pub fn fit_binomial(roi: &SpadRoi, opts: &FitOptions) -> Fit {
     let hi4 = [r + 1.0, r + 1.0, 1e6, 50.0];
     let init4 = [x0, y0, s_init, b_init];
     let fit = if opts.sigma.is_fitted() {
-        let init = [init4[0], init4[1], init4[2], init4[3], sigma0.clamp(smin, smax)];
+        let init = [
+            init4[0],
+            init4[1],
+            init4[2],
+            init4[3],
+            sigma0.clamp(smin, smax),
+        ];
         let lo = [lo4[0], lo4[1], lo4[2], lo4[3], smin];
         let hi = [hi4[0], hi4[1], hi4[2], hi4[3], smax];
         solve::<5>(roi, &px, init, lo, hi, sigma_fixed, opts)
@@ -367,27 +394,35 @@ fn solve<const P: usize>(
         let mut ll = 0.0;
         let mut g = [0.0; P];
         let mut h = [[0.0; P]; P];
-        for_each_pixel(side, px, theta, sigma_fixed, &mut ax, &mut ay, |k, lon, loff, gk, dl| {
-            let (l, s_on, s_off) = pixel_log_likelihood(roi.counts[k], n_on, n_off, lon, loff);
-            ll += l;
-            for p in 0..P {
-                g[p] += s_on * dl[p];
-            }
-            g[3] += s_off * gk;
-            let (_, v, de_on, de_off) = moments(non, noff, lon, loff);
-            let mut de = [0.0; P];
-            for p in 0..P {
-                de[p] = de_on * dl[p];
-            }
-            de[3] += de_off * gk;
-            let iv = 1.0 / v.max(1e-300);
-            for p in 0..P {
-                let w = de[p] * iv;
-                for q in p..P {
-                    h[p][q] += w * de[q];
+        for_each_pixel(
+            side,
+            px,
+            theta,
+            sigma_fixed,
+            &mut ax,
+            &mut ay,
+            |k, lon, loff, gk, dl| {
+                let (l, s_on, s_off) = pixel_log_likelihood(roi.counts[k], n_on, n_off, lon, loff);
+                ll += l;
+                for p in 0..P {
+                    g[p] += s_on * dl[p];
                 }
-            }
-        });
+                g[3] += s_off * gk;
+                let (_, v, de_on, de_off) = moments(non, noff, lon, loff);
+                let mut de = [0.0; P];
+                for p in 0..P {
+                    de[p] = de_on * dl[p];
+                }
+                de[3] += de_off * gk;
+                let iv = 1.0 / v.max(1e-300);
+                for p in 0..P {
+                    let w = de[p] * iv;
+                    for q in p..P {
+                        h[p][q] += w * de[q];
+                    }
+                }
+            },
+        );
         for p in 0..P {
             for q in 0..p {
                 h[p][q] = h[q][p];
@@ -484,7 +519,11 @@ mod tests {
             }
             let lc: f64 = (1..=k).map(|i| ((n - k + i) as f64 / i as f64).ln()).sum();
             let a = if k > 0 { k as f64 * p.ln() } else { 0.0 };
-            let b = if n > k { (n - k) as f64 * (1.0 - p).ln() } else { 0.0 };
+            let b = if n > k {
+                (n - k) as f64 * (1.0 - p).ln()
+            } else {
+                0.0
+            };
             lc + a + b
         };
         let (pon, poff) = (1.0 - (-lon).exp(), 1.0 - (-loff).exp());
@@ -500,7 +539,8 @@ mod tests {
 
     /// Log of the θ-independent binomial coefficients of the first term.
     fn constant(c: u32, n_on: u32, n_off: u32) -> f64 {
-        let lc = |n: u32, k: u32| -> f64 { (1..=k).map(|i| ((n - k + i) as f64 / i as f64).ln()).sum() };
+        let lc =
+            |n: u32, k: u32| -> f64 { (1..=k).map(|i| ((n - k + i) as f64 / i as f64).ln()).sum() };
         let j0 = c.saturating_sub(n_on);
         lc(n_off, j0) + lc(n_on, c - j0)
     }
@@ -519,24 +559,37 @@ mod tests {
             let (ll, son, soff) = pixel_log_likelihood(c, n_on, n_off, lon, loff);
             let want = if n_on == 0 || n_off == 0 {
                 // Single binomial: constant is the one binomial coefficient.
-                let (n, l) = if n_on == 0 { (n_off, loff) } else { (n_on, lon) };
+                let (n, l) = if n_on == 0 {
+                    (n_off, loff)
+                } else {
+                    (n_on, lon)
+                };
                 brute(c, n, 0, l, 1e-300) - constant(c, n, 0)
             } else {
                 brute(c, n_on, n_off, lon, loff) - constant(c, n_on, n_off)
             };
-            assert!((ll - want).abs() < 1e-9 * want.abs().max(1.0), "c={c}: {ll} vs {want}");
+            assert!(
+                (ll - want).abs() < 1e-9 * want.abs().max(1.0),
+                "c={c}: {ll} vs {want}"
+            );
             let h = 1e-6;
             if n_on > 0 {
                 let d = (pixel_log_likelihood(c, n_on, n_off, lon + h, loff).0
                     - pixel_log_likelihood(c, n_on, n_off, lon - h, loff).0)
                     / (2.0 * h);
-                assert!((d - son).abs() < 1e-5 * son.abs().max(1.0), "c={c}: son {son} vs {d}");
+                assert!(
+                    (d - son).abs() < 1e-5 * son.abs().max(1.0),
+                    "c={c}: son {son} vs {d}"
+                );
             }
             if n_off > 0 {
                 let d = (pixel_log_likelihood(c, n_on, n_off, lon, loff + h).0
                     - pixel_log_likelihood(c, n_on, n_off, lon, loff - h).0)
                     / (2.0 * h);
-                assert!((d - soff).abs() < 1e-5 * soff.abs().max(1.0), "c={c}: soff {soff} vs {d}");
+                assert!(
+                    (d - soff).abs() < 1e-5 * soff.abs().max(1.0),
+                    "c={c}: soff {soff} vs {d}"
+                );
             }
         }
     }

@@ -38,7 +38,12 @@ pub fn poisson<R: Rng + ?Sized>(rng: &mut R, mu: f64) -> f64 {
 }
 
 /// A Poisson ROI (ideal photon counting).
-pub fn poisson_roi<R: Rng + ?Sized>(rng: &mut R, side: usize, em: &Emitter, maps: Option<&PixelMaps>) -> Vec<f64> {
+pub fn poisson_roi<R: Rng + ?Sized>(
+    rng: &mut R,
+    side: usize,
+    em: &Emitter,
+    maps: Option<&PixelMaps>,
+) -> Vec<f64> {
     expected_roi(side, em, maps)
         .into_iter()
         .map(|mu| poisson(rng, mu))
@@ -47,7 +52,12 @@ pub fn poisson_roi<R: Rng + ?Sized>(rng: &mut R, side: usize, em: &Emitter, maps
 
 /// An EMCCD ROI in photon units: Poisson photo-electrons, multiplied by a
 /// gamma-distributed EM register of mean gain `em_gain`, divided by it.
-pub fn emccd_roi<R: Rng + ?Sized>(rng: &mut R, side: usize, em: &Emitter, em_gain: f64) -> Vec<f64> {
+pub fn emccd_roi<R: Rng + ?Sized>(
+    rng: &mut R,
+    side: usize,
+    em: &Emitter,
+    em_gain: f64,
+) -> Vec<f64> {
     expected_roi(side, em, None)
         .into_iter()
         .map(|mu| {
@@ -63,7 +73,12 @@ pub fn emccd_roi<R: Rng + ?Sized>(rng: &mut R, side: usize, em: &Emitter, em_gai
 
 /// An sCMOS ROI in photo-electrons: Poisson plus Gaussian read noise of the
 /// per-pixel variance `maps.read_var`.
-pub fn scmos_roi<R: Rng + ?Sized>(rng: &mut R, side: usize, em: &Emitter, maps: &PixelMaps) -> Vec<f64> {
+pub fn scmos_roi<R: Rng + ?Sized>(
+    rng: &mut R,
+    side: usize,
+    em: &Emitter,
+    maps: &PixelMaps,
+) -> Vec<f64> {
     expected_roi(side, em, Some(maps))
         .into_iter()
         .enumerate()
@@ -100,7 +115,9 @@ pub fn spad_roi<R: Rng + ?Sized>(
 ) -> Vec<u32> {
     spad_rates(side, em, maps)
         .into_iter()
-        .map(|(lon, loff)| binomial(rng, n_on, -(-lon).exp_m1()) + binomial(rng, n_off, -(-loff).exp_m1()))
+        .map(|(lon, loff)| {
+            binomial(rng, n_on, -(-lon).exp_m1()) + binomial(rng, n_off, -(-loff).exp_m1())
+        })
         .collect()
 }
 
@@ -113,7 +130,13 @@ fn binomial<R: Rng + ?Sized>(rng: &mut R, n: u32, p: f64) -> u32 {
 
 /// Expected image of a whole frame (`width × height`, photons) with emitters
 /// at frame pixel coordinates `(x, y, photons)`, PSF σ and uniform background.
-pub fn expected_frame(width: usize, height: usize, emitters: &[(f64, f64, f64)], sigma: f64, background: f64) -> Vec<f64> {
+pub fn expected_frame(
+    width: usize,
+    height: usize,
+    emitters: &[(f64, f64, f64)],
+    sigma: f64,
+    background: f64,
+) -> Vec<f64> {
     let mut img = vec![background; width * height];
     let s2 = std::f64::consts::SQRT_2 * sigma;
     let axis = |n: usize, c: f64| -> Vec<f64> {

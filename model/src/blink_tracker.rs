@@ -1,1 +1,356 @@
-//! (being written)
+//! Stage 5 — blink tracking in M slots: when is each molecule on?
+//!
+//! Rules (DESIGN.md §3, with the choices this model makes and the gateware copies):
+//!
+//! * **Association.** A candidate within Chebyshev distance `r_assoc` of the
+//!   anchor of a track that was active at the end of the previous plane — or
+//!   that an earlier candidate of this plane opened (raster order) — belongs to
+//!   it. Otherwise it opens a track in the lowest slot that was free at the end
+//!   of the previous plane and not yet taken in this plane; its position becomes
+//!   the fixed *anchor* and the plane its `t_cross`. With no such slot it is
+//!   counted as dropped. Using the previous plane's slot states makes the
+//!   decision independent of the order in which the gateware evaluates tracks
+//!   and candidates within a plane. (With `r_assoc ≤ 1` a candidate next to an
+//!   anchor keeps that track on; with a larger radius a candidate can be
+//!   absorbed by a track that ends in the same plane — the next plane's
+//!   candidate then opens a new track.)
+//! * **On/off.** From the plane after `t_cross`, a track is *on* while the
+//!   maximum of H over the 3×3 around its anchor is ≥ T_int. A single plane
+//!   below is bridged (counted); `t_drop` is the first of two consecutive
+//!   planes below, detected at `t_drop + 1`.
+//! * **Confirmation.** A track is confirmed when its on-duration
+//!   `t_drop − t_cross` reaches `L_min`; otherwise its slot is freed at the end
+//!   of the plane that detected the drop and nothing is emitted (counted).
+//! * **Cut.** A track still on (not in a dip) at a plane `t ≥ t_cross + L_max − 1`
+//!   ends its segment there (`t_drop = t`, flag CUT) and continues in the same
+//!   slot from `t + 1` as a CONTINUATION segment, so no slot or counter is held
+//!   forever. Because a cut waits out a one-plane dip, a segment holds at most
+//!   `L_max + 1` live planes.
+//! * **Summation ranges** (stage 6): live planes `[t_cross, t_drop]`; a first
+//!   segment also sums the pre-roll `[max(0, t_cross − N), t_cross − 1]`, read
+//!   from the delay line as `B_{t−N}` during planes `t_cross … t_cross + N − 1`.
+//! * **Completion.** A confirmed segment completes at the end of the first plane
+//!   at which its live range has ended and its pre-roll is complete:
+//!   `max(t_drop + 1, t_cross + N − 1)` for a dropped track, the cut plane for
+//!   a cut one. Records are emitted in order of completion plane, then slot;
+//!   the slot is free again from the next plane.
+//! * **Stream end.** Live tracks end with `t_drop` = last plane (flag
+//!   TRUNCATED); confirmed ones complete their pre-roll from the delay line.
+
+use crate::candidates::Candidate;
+use crate::record::flags;
+
+/// One segment of a track, from `t_cross` on.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Segment {
+    /// Anchor column.
+    pub anchor_x: u16,
+    /// Anchor row.
+    pub anchor_y: u16,
+    /// First live plane of the segment.
+    pub t_cross: u64,
+    /// Whether this segment continues a cut one (no pre-roll).
+    pub continuation: bool,
+    /// Whether live planes are still being summed.
+    pub live: bool,
+    /// In a one-plane dip (the previous evaluated plane was below).
+    pub in_dip: bool,
+    /// The plane of the pending dip.
+    pub dip_plane: u64,
+    /// Last live plane summed, once the live range has ended.
+    pub t_drop: Option<u64>,
+    /// CUT / TRUNCATED bits decided by the tracker.
+    pub end_flags: u8,
+    /// Whether the segment will be emitted.
+    pub confirmed: bool,
+}
+
+impl Segment {
+    /// First plane summed into the ROI.
+    pub fn first_plane(&self, n_window: u32) -> u64 {
+        if self.continuation {
+            self.t_cross
+        } else {
+            self.t_cross.saturating_sub(n_window as u64)
+        }
+    }
+
+    /// Flags this segment contributes to its record (CUT, CONTINUATION,
+    /// TRUNCATED, PREROLL_CLIPPED).
+    pub fn flags(&self, n_window: u32) -> u8 {
+        let mut f = self.end_flags;
+        if self.continuation {
+            f |= flags::CONTINUATION;
+        } else if self.t_cross < n_window as u64 {
+            f |= flags::PREROLL_CLIPPED;
+        }
+        f
+    }
+}
+
+/// A tracking slot.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Slot {
+    /// Available.
+    Free,
+    /// Holding a segment (live, or waiting for its pre-roll).
+    Busy(Segment),
+}
+
+/// What happened in a slot at the end of a plane.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Completed {
+    /// The slot.
+    pub slot: usize,
+    /// The completed segment (with `t_drop` set).
+    pub segment: Segment,
+}
+
+/// Totals kept by the tracker (reported in the stream-end record).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TrackerCounters {
+    /// Tracks that ended before L_min planes.
+    pub unconfirmed: u64,
+    /// Candidates that found no free slot.
+    pub dropped_candidates: u64,
+    /// One-plane dips bridged.
+    pub bridged_dips: u64,
+    /// Segments cut at L_max.
+    pub cut_segments: u64,
+}
+
+/// The M-slot blink tracker.
+#[derive(Debug, Clone)]
+pub struct BlinkTracker {
+    slots: Vec<Slot>,
+    n_window: u32,
+    l_min: u32,
+    l_max: u32,
+    r_assoc: u32,
+    /// Slot states at the end of the previous plane.
+    active_prev: Vec<bool>,
+    free_prev: Vec<bool>,
+    counters: TrackerCounters,
+}
+
+/// Candidates dropped during one plane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Drops {
+    /// How many.
+    pub count: u32,
+    /// The first in raster order.
+    pub first: Candidate,
+}
+
+impl BlinkTracker {
+    /// A tracker with `slots` free slots.
+    pub fn new(slots: usize, n_window: u32, l_min: u32, l_max: u32, r_assoc: u32) -> BlinkTracker {
+        BlinkTracker {
+            slots: vec![Slot::Free; slots],
+            n_window,
+            l_min,
+            l_max,
+            r_assoc,
+            active_prev: vec![false; slots],
+            free_prev: vec![true; slots],
+            counters: TrackerCounters::default(),
+        }
+    }
+
+    /// The slots.
+    pub fn slots(&self) -> &[Slot] {
+        &self.slots
+    }
+
+    /// The totals so far.
+    pub fn counters(&self) -> &TrackerCounters {
+        &self.counters
+    }
+
+    /// Step 1 of a plane: evaluates every track that was live at the end of
+    /// the previous plane with `on(anchor_x, anchor_y)`.
+    pub fn evaluate(&mut self, t: u64, mut on: impl FnMut(u16, u16) -> bool) {
+        for slot in self.slots.iter_mut() {
+            let Slot::Busy(seg) = slot else { continue };
+            // A new track is on at its t_cross by definition; a continuation
+            // segment is evaluated from its first plane.
+            if !seg.live || (!seg.continuation && seg.t_cross >= t) {
+                continue;
+            }
+            if on(seg.anchor_x, seg.anchor_y) {
+                if seg.in_dip {
+                    seg.in_dip = false;
+                    self.counters.bridged_dips += 1;
+                }
+            } else if !seg.in_dip {
+                seg.in_dip = true;
+                seg.dip_plane = t;
+            } else {
+                // Second plane below: the blink ended at the first.
+                seg.live = false;
+                seg.in_dip = false;
+                seg.t_drop = Some(seg.dip_plane);
+                seg.confirmed =
+                    seg.continuation || seg.dip_plane - seg.t_cross >= self.l_min as u64;
+            }
+        }
+    }
+
+    /// Step 2 of a plane: associates candidates (raster order) with tracks or
+    /// opens new ones. Returns the slots opened, and the drops if any.
+    pub fn associate(&mut self, t: u64, candidates: &[Candidate]) -> (Vec<usize>, Option<Drops>) {
+        let mut opened: Vec<usize> = Vec::new();
+        let mut drops: Option<Drops> = None;
+        let r = self.r_assoc as i64;
+        for c in candidates {
+            let near = |seg: &Segment| {
+                (seg.anchor_x as i64 - c.x as i64).abs() <= r
+                    && (seg.anchor_y as i64 - c.y as i64).abs() <= r
+            };
+            let absorbed = self.slots.iter().enumerate().any(|(i, s)| match s {
+                Slot::Busy(seg) => (self.active_prev[i] || opened.contains(&i)) && near(seg),
+                Slot::Free => false,
+            });
+            if absorbed {
+                continue;
+            }
+            let free = (0..self.slots.len()).find(|&i| {
+                self.free_prev[i] && !opened.contains(&i) && self.slots[i] == Slot::Free
+            });
+            match free {
+                Some(i) => {
+                    self.slots[i] = Slot::Busy(Segment {
+                        anchor_x: c.x,
+                        anchor_y: c.y,
+                        t_cross: t,
+                        continuation: false,
+                        live: true,
+                        in_dip: false,
+                        dip_plane: 0,
+                        t_drop: None,
+                        end_flags: 0,
+                        confirmed: false,
+                    });
+                    opened.push(i);
+                }
+                None => {
+                    self.counters.dropped_candidates += 1;
+                    match &mut drops {
+                        Some(d) => d.count += 1,
+                        None => {
+                            drops = Some(Drops {
+                                count: 1,
+                                first: *c,
+                            })
+                        }
+                    }
+                }
+            }
+        }
+        (opened, drops)
+    }
+
+    /// Whether slot `i` sums the live plane `t` into its ROI.
+    pub fn sums_live(&self, i: usize, t: u64) -> bool {
+        match &self.slots[i] {
+            Slot::Busy(seg) => seg.live || seg.t_drop.is_some_and(|d| d >= t),
+            Slot::Free => false,
+        }
+    }
+
+    /// Whether slot `i` sums the delayed plane `t − N` (its pre-roll) at plane `t`.
+    pub fn sums_preroll(&self, i: usize, t: u64) -> bool {
+        let n = self.n_window as u64;
+        match &self.slots[i] {
+            Slot::Busy(seg) => !seg.continuation && t >= n && t < seg.t_cross + n,
+            Slot::Free => false,
+        }
+    }
+
+    /// Step 3 of a plane, after the ROI sums: cuts long tracks, completes
+    /// segments, frees slots. Returns the completed confirmed segments in slot
+    /// order; a cut slot continues with a fresh segment from `t + 1`.
+    pub fn end_of_plane(&mut self, t: u64) -> Vec<Completed> {
+        let mut done = Vec::new();
+        let n = self.n_window as u64;
+        for (i, slot) in self.slots.iter_mut().enumerate() {
+            let Slot::Busy(seg) = slot else { continue };
+            if seg.live && !seg.in_dip && t + 1 >= seg.t_cross + self.l_max as u64 {
+                seg.live = false;
+                seg.t_drop = Some(t);
+                seg.end_flags |= flags::CUT;
+                seg.confirmed = true;
+                self.counters.cut_segments += 1;
+            }
+            if seg.live {
+                continue;
+            }
+            if !seg.confirmed {
+                self.counters.unconfirmed += 1;
+                *slot = Slot::Free;
+                continue;
+            }
+            let preroll_done = seg.continuation || t + 1 >= seg.t_cross + n;
+            if !preroll_done {
+                continue;
+            }
+            done.push(Completed {
+                slot: i,
+                segment: seg.clone(),
+            });
+            if seg.end_flags & flags::CUT != 0 {
+                *seg = Segment {
+                    t_cross: t + 1,
+                    continuation: true,
+                    live: true,
+                    in_dip: false,
+                    dip_plane: 0,
+                    t_drop: None,
+                    end_flags: 0,
+                    confirmed: true,
+                    ..seg.clone()
+                };
+            } else {
+                *slot = Slot::Free;
+            }
+        }
+        self.snapshot();
+        done
+    }
+
+    /// Stream end after `planes` planes: ends live tracks at the last plane
+    /// (TRUNCATED) and returns every confirmed segment still held, slot order.
+    /// Their pre-rolls are completed by the caller from the delay line.
+    pub fn finish(&mut self, planes: u64) -> Vec<Completed> {
+        let mut done = Vec::new();
+        for (i, slot) in self.slots.iter_mut().enumerate() {
+            let Slot::Busy(seg) = slot else { continue };
+            if seg.live {
+                let last = planes - 1;
+                let on_until = if seg.in_dip { last } else { planes };
+                seg.live = false;
+                seg.t_drop = Some(last);
+                seg.end_flags |= flags::TRUNCATED;
+                seg.confirmed = seg.continuation || on_until - seg.t_cross >= self.l_min as u64;
+            }
+            if seg.confirmed {
+                done.push(Completed {
+                    slot: i,
+                    segment: seg.clone(),
+                });
+            } else {
+                self.counters.unconfirmed += 1;
+            }
+            *slot = Slot::Free;
+        }
+        self.snapshot();
+        done
+    }
+
+    fn snapshot(&mut self) {
+        for (i, s) in self.slots.iter().enumerate() {
+            self.active_prev[i] = matches!(s, Slot::Busy(seg) if seg.live);
+            self.free_prev[i] = *s == Slot::Free;
+        }
+    }
+}

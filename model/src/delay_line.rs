@@ -1,1 +1,84 @@
-//! (being written)
+//! Stage 1a — the N-plane delay line: returns `B_{t−N}` when `B_t` goes in.
+//!
+//! Planes before stream start are all zero, so for `t < N` it returns a zero
+//! plane (the gateware must force this: DDR2 powers up with garbage). The same
+//! delayed stream serves the rolling count (stage 1) and the ROI pre-roll
+//! (stage 6), which needs the planes from `t_cross − N` on.
+
+use crate::plane::BitPlane;
+use std::collections::VecDeque;
+
+/// A first-in first-out line of the last N bit-planes.
+#[derive(Debug, Clone)]
+pub struct DelayLine {
+    n: usize,
+    planes: VecDeque<BitPlane>,
+    zero: BitPlane,
+}
+
+impl DelayLine {
+    /// A delay line of `n ≥ 1` planes of `width × height`, initially all zero.
+    pub fn new(n: usize, width: usize, height: usize) -> DelayLine {
+        assert!(n >= 1, "a delay line holds at least one plane");
+        DelayLine {
+            n,
+            planes: VecDeque::with_capacity(n + 1),
+            zero: BitPlane::zeros(width, height),
+        }
+    }
+
+    /// Pushes `B_t` and returns `B_{t−N}` (zero for `t < N`).
+    pub fn push(&mut self, plane: BitPlane) -> BitPlane {
+        self.planes.push_back(plane);
+        if self.planes.len() > self.n {
+            self.planes.pop_front().expect("non-empty")
+        } else {
+            self.zero.clone()
+        }
+    }
+
+    /// The plane that will come out `i + 1` pushes from now (`i < N`), i.e.
+    /// `B_{t−N+1+i}` after `B_t` went in; zero where that plane precedes the stream.
+    /// Used to drain pre-rolls at stream end.
+    pub fn peek(&self, i: usize) -> &BitPlane {
+        let missing = self.n - self.planes.len();
+        if i < missing {
+            &self.zero
+        } else {
+            &self.planes[i - missing]
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn returns_plane_from_n_ago_and_zero_before() {
+        let mut d = DelayLine::new(3, 4, 1);
+        let planes: Vec<BitPlane> = (0..8)
+            .map(|t| BitPlane::from_fn(4, 1, |x, _| (t >> x) & 1 == 1))
+            .collect();
+        for (t, p) in planes.iter().enumerate() {
+            let out = d.push(p.clone());
+            if t < 3 {
+                assert_eq!(out.count_ones(), 0);
+            } else {
+                assert_eq!(out, planes[t - 3]);
+            }
+        }
+        // After B_7 went in, the next three outputs are B_5, B_6, B_7.
+        assert_eq!(d.peek(0), &planes[5]);
+        assert_eq!(d.peek(2), &planes[7]);
+    }
+
+    #[test]
+    fn peek_before_the_line_is_full_is_zero() {
+        let mut d = DelayLine::new(4, 2, 1);
+        d.push(BitPlane::ones(2, 1));
+        assert_eq!(d.peek(0).count_ones(), 0);
+        assert_eq!(d.peek(2).count_ones(), 0);
+        assert_eq!(d.peek(3).count_ones(), 2);
+    }
+}

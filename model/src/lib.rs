@@ -12,6 +12,8 @@
 //!   `hdl/`: [`hot_pixel_mask`], [`delay_line`], [`rolling_count`],
 //!   [`spatial_filter`], [`threshold`], [`candidates`], [`blink_tracker`],
 //!   [`roi_aggregator`], [`packetiser`], wired together by [`pipeline`];
+//! * [`fast_engine`]: the same records from incremental stages 1–4, on
+//!   several cores;
 //! * [`record`] and [`packet`]: the records and their byte format;
 //! * [`recording`]: the `.spad` bit-plane container and raw packed planes.
 
@@ -20,6 +22,7 @@ pub mod candidates;
 pub mod config;
 pub mod delay_line;
 pub mod false_alarm;
+pub mod fast_engine;
 pub mod hot_pixel_mask;
 pub mod kernel;
 pub mod packet;

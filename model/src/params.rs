@@ -621,7 +621,11 @@ mod tests {
         assert!(e.contains("`na`"), "{e}");
         let mut c = spcimager();
         c.pixel_pitch_um = 0.0;
-        assert!(c.validate().unwrap_err().to_string().contains("pixel_pitch_um"));
+        assert!(c
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("pixel_pitch_um"));
         let l = SceneLight {
             flux_hz: -1.0,
             background_per_um2_hz: 1.0,

@@ -1,1 +1,399 @@
-//! (being written)
+//! The golden streaming pipeline: stages 0–7 of DESIGN.md §3, one bit-plane
+//! at a time, integer-exact. Clear beats fast: this is the reference that the
+//! fast software engine and the gateware must equal byte for byte.
+//!
+//! Per plane `t` the order of work is:
+//! 1. mask hot pixels (stage 0); push `B_t` into the delay line, get `B_{t−N}`;
+//! 2. rolling count `S_t` (stage 1), filter `H_t = K ⊛ S_t` (stage 2);
+//! 3. evaluate the tracks live at the end of plane t−1 against `H_t` (stage 5);
+//! 4. threshold and 3×3-maximum candidates (stages 3–4), associated in raster
+//!    order, opening tracks in free slots (stage 5);
+//! 5. ROI sums of live `B_t` and pre-roll `B_{t−N}` (stage 6);
+//! 6. cuts, completions and slot frees; records out in slot order, then one
+//!    dropped-candidates record if any candidate found no slot (stage 7).
+//!
+//! Every stage's output of the last plane is observable (for co-simulation).
+
+use crate::blink_tracker::{BlinkTracker, Completed};
+use crate::candidates::{self, Candidate};
+use crate::config::{ConfigError, PipelineConfig};
+use crate::delay_line::DelayLine;
+use crate::plane::BitPlane;
+use crate::record::{flags, BlinkRecord, DroppedRecord, Record, StreamEnd, MAX_PLANE};
+use crate::roi_aggregator::RoiAggregator;
+use crate::rolling_count::RollingCount;
+use crate::spatial_filter::SpatialFilter;
+use crate::threshold;
+use thiserror::Error;
+
+/// Misuse of a running pipeline.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum PipelineError {
+    /// The configuration is invalid.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// A plane of the wrong size.
+    #[error(
+        "bit-plane {plane} is {got_w}x{got_h} but the pipeline is configured for {want_w}x{want_h}"
+    )]
+    PlaneSize {
+        /// Plane index.
+        plane: u64,
+        /// Width received.
+        got_w: usize,
+        /// Height received.
+        got_h: usize,
+        /// Width expected.
+        want_w: usize,
+        /// Height expected.
+        want_h: usize,
+    },
+    /// More planes than the packet format can index.
+    #[error("stream longer than 2^48 bit-planes")]
+    TooManyPlanes,
+    /// A plane pushed after [`Pipeline::finish`].
+    #[error("the stream has already been finished")]
+    Finished,
+}
+
+/// Stages 1–4 (rolling count, filter, threshold, candidates) behind one
+/// interface, so that a faster implementation can replace the golden one while
+/// the tracker, ROI sums and records (stages 5–7) stay the reference code.
+pub trait FrontEnd {
+    /// Consumes plane t (`live`, already masked) and `B_{t−N}` (`delayed`).
+    fn push(&mut self, live: &BitPlane, delayed: &BitPlane);
+    /// Whether max of `H_t` over the 3×3 around (x, y), clipped to the sensor, is ≥ T_int.
+    fn neighbourhood_on(&self, x: usize, y: usize) -> bool;
+    /// Candidates of plane t, raster order.
+    fn candidates(&self) -> &[Candidate];
+}
+
+/// The reference front end: [`RollingCount`], [`SpatialFilter`],
+/// [`threshold`] and [`candidates::find`], exactly as written.
+#[derive(Debug, Clone)]
+pub struct GoldenFrontEnd {
+    width: usize,
+    height: usize,
+    threshold_int: u32,
+    rolling: RollingCount,
+    filter: SpatialFilter,
+    filtered: Vec<u32>,
+    candidates: Vec<Candidate>,
+}
+
+impl GoldenFrontEnd {
+    /// The golden stages 1–4 for a configuration.
+    pub fn new(cfg: &PipelineConfig) -> GoldenFrontEnd {
+        GoldenFrontEnd {
+            width: cfg.width,
+            height: cfg.height,
+            threshold_int: cfg.threshold_int,
+            rolling: RollingCount::new(cfg.width, cfg.height),
+            filter: SpatialFilter::new(cfg.kernel.clone()),
+            filtered: vec![0; cfg.width * cfg.height],
+            candidates: Vec::new(),
+        }
+    }
+
+    /// Stage 1 output: rolling counts `S_t`.
+    pub fn counts(&self) -> &[u32] {
+        self.rolling.counts()
+    }
+
+    /// Stage 2 output: `H_t`.
+    pub fn filtered(&self) -> &[u32] {
+        &self.filtered
+    }
+}
+
+impl FrontEnd for GoldenFrontEnd {
+    fn push(&mut self, live: &BitPlane, delayed: &BitPlane) {
+        self.rolling.update(live, delayed);
+        self.filtered = self
+            .filter
+            .apply(self.rolling.counts(), self.width, self.height);
+        self.candidates =
+            candidates::find(&self.filtered, self.width, self.height, self.threshold_int);
+    }
+
+    fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
+        threshold::neighbourhood_on(
+            &self.filtered,
+            self.width,
+            self.height,
+            x,
+            y,
+            self.threshold_int,
+        )
+    }
+
+    fn candidates(&self) -> &[Candidate] {
+        &self.candidates
+    }
+}
+
+/// The streaming smart-aggregation pipeline; `F` computes stages 1–4.
+#[derive(Debug, Clone)]
+pub struct Pipeline<F: FrontEnd = GoldenFrontEnd> {
+    cfg: PipelineConfig,
+    delay: DelayLine,
+    front: F,
+    tracker: BlinkTracker,
+    rois: RoiAggregator,
+    planes: u64,
+    blinks: u64,
+    finished: bool,
+}
+
+impl Pipeline<GoldenFrontEnd> {
+    /// The golden pipeline at stream start (all counts zero, all slots free).
+    pub fn new(cfg: PipelineConfig) -> Result<Pipeline, PipelineError> {
+        cfg.validate()?;
+        let front = GoldenFrontEnd::new(&cfg);
+        Pipeline::with_front_end(cfg, front)
+    }
+
+    /// Stage 1 output of the last plane: rolling counts `S_t`.
+    pub fn counts(&self) -> &[u32] {
+        self.front.counts()
+    }
+
+    /// Stage 2 output of the last plane: `H_t`.
+    pub fn filtered(&self) -> &[u32] {
+        self.front.filtered()
+    }
+}
+
+impl<F: FrontEnd> Pipeline<F> {
+    /// A pipeline at stream start whose stages 1–4 are computed by `front`
+    /// (which must start from all-zero counts as well).
+    pub fn with_front_end(cfg: PipelineConfig, front: F) -> Result<Pipeline<F>, PipelineError> {
+        cfg.validate()?;
+        let (w, h) = (cfg.width, cfg.height);
+        Ok(Pipeline {
+            delay: DelayLine::new(cfg.n_window as usize, w, h),
+            front,
+            tracker: BlinkTracker::new(cfg.slots, cfg.n_window, cfg.l_min, cfg.l_max, cfg.r_assoc),
+            rois: RoiAggregator::new(cfg.slots, cfg.roi_size, w, h),
+            planes: 0,
+            blinks: 0,
+            finished: false,
+            cfg,
+        })
+    }
+
+    /// The front end (stages 1–4).
+    pub fn front_end(&self) -> &F {
+        &self.front
+    }
+
+    /// The front end, mutably (to feed precomputed stages 1–4).
+    pub fn front_end_mut(&mut self) -> &mut F {
+        &mut self.front
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &PipelineConfig {
+        &self.cfg
+    }
+
+    /// The first record of the stream (the parameters).
+    pub fn start_record(&self) -> Record {
+        Record::Start(self.cfg.stream_start())
+    }
+
+    /// Planes processed so far.
+    pub fn planes(&self) -> u64 {
+        self.planes
+    }
+
+    /// Stage 4 output of the last plane: candidates in raster order.
+    pub fn candidates(&self) -> &[Candidate] {
+        self.front.candidates()
+    }
+
+    /// Stage 5 state: the tracker.
+    pub fn tracker(&self) -> &BlinkTracker {
+        &self.tracker
+    }
+
+    /// Stage 6 state: the ROI accumulators.
+    pub fn rois(&self) -> &RoiAggregator {
+        &self.rois
+    }
+
+    /// Processes bit-plane `t = planes()` and returns the records completed by it.
+    pub fn push_plane(&mut self, plane: &BitPlane) -> Result<Vec<Record>, PipelineError> {
+        if self.finished {
+            return Err(PipelineError::Finished);
+        }
+        let (w, h) = (self.cfg.width, self.cfg.height);
+        if plane.width() != w || plane.height() != h {
+            return Err(PipelineError::PlaneSize {
+                plane: self.planes,
+                got_w: plane.width(),
+                got_h: plane.height(),
+                want_w: w,
+                want_h: h,
+            });
+        }
+        if self.planes > MAX_PLANE {
+            return Err(PipelineError::TooManyPlanes);
+        }
+        let t = self.planes;
+
+        // Stages 0–4.
+        let live = match &self.cfg.hot_mask {
+            Some(m) => m.apply(plane),
+            None => plane.clone(),
+        };
+        let delayed = self.delay.push(live.clone());
+        self.front.push(&live, &delayed);
+
+        // Stage 5a: tracks live at the end of t−1.
+        let front = &self.front;
+        self.tracker
+            .evaluate(t, |x, y| front.neighbourhood_on(x as usize, y as usize));
+
+        // Stage 5b: candidates in raster order.
+        let (opened, drops) = self.tracker.associate(t, self.front.candidates());
+        for &slot in &opened {
+            if let crate::blink_tracker::Slot::Busy(seg) = &self.tracker.slots()[slot] {
+                self.rois
+                    .open(slot, seg.anchor_x, seg.anchor_y, self.cfg.hot_mask.as_ref());
+            }
+        }
+
+        // Stage 6.
+        for slot in 0..self.cfg.slots {
+            if self.tracker.sums_live(slot, t) {
+                self.rois.add(slot, &live);
+            }
+            if self.tracker.sums_preroll(slot, t) {
+                self.rois.add(slot, &delayed);
+            }
+        }
+
+        // Stage 7.
+        let done = self.tracker.end_of_plane(t);
+        let mut out = Vec::with_capacity(done.len() + 1);
+        for c in done {
+            out.push(self.emit(c));
+        }
+        self.close_free_slots();
+        if let Some(d) = drops {
+            out.push(Record::Dropped(DroppedRecord {
+                plane: t,
+                count: d.count,
+                first_x: d.first.x,
+                first_y: d.first.y,
+            }));
+        }
+        self.planes += 1;
+        Ok(out)
+    }
+
+    /// Ends the stream: closes live tracks (TRUNCATED), completes pending
+    /// pre-rolls from the delay line, and returns the last blink records and
+    /// the stream-end record. Further planes are refused.
+    pub fn finish(&mut self) -> Vec<Record> {
+        if self.finished {
+            return Vec::new();
+        }
+        self.finished = true;
+        let mut out = Vec::new();
+        if self.planes > 0 {
+            let n = self.cfg.n_window as u64;
+            let p = self.planes;
+            let done = self.tracker.finish(p);
+            for c in done {
+                // Pre-roll planes not yet read: d in [max(p − N, t_cross − N), t_cross − 1],
+                // still inside the delay line, which holds B_{p−N} … B_{p−1}.
+                let seg = &c.segment;
+                if !seg.continuation {
+                    let from = p.saturating_sub(n).max(seg.t_cross.saturating_sub(n));
+                    for d in from..seg.t_cross {
+                        let i = (d + n - p) as usize;
+                        self.rois.add(c.slot, self.delay.peek(i));
+                    }
+                }
+                out.push(self.emit(c));
+            }
+            self.close_free_slots();
+        }
+        let counters = self.tracker.counters();
+        out.push(Record::End(StreamEnd {
+            planes: self.planes,
+            blinks: self.blinks,
+            unconfirmed: counters.unconfirmed,
+            dropped_candidates: counters.dropped_candidates,
+            bridged_dips: counters.bridged_dips,
+            cut_segments: counters.cut_segments,
+        }));
+        out
+    }
+
+    fn emit(&mut self, c: Completed) -> Record {
+        let seg = c.segment;
+        let n = self.cfg.n_window;
+        let half = (n / 2) as i64;
+        let t_drop = seg.t_drop.expect("a completed segment has ended");
+        let (counts, roi_flags) = self.rois.take(c.slot).expect("a busy slot has an ROI");
+        let f = seg.flags(n) | roi_flags;
+        let t_s = if seg.continuation {
+            seg.t_cross as i64
+        } else {
+            seg.t_cross as i64 - half
+        };
+        let t_e = if f & (flags::CUT | flags::TRUNCATED) != 0 {
+            t_drop as i64
+        } else {
+            t_drop as i64 - half
+        };
+        self.blinks += 1;
+        Record::Blink(BlinkRecord {
+            slot: c.slot as u8,
+            flags: f,
+            anchor_x: seg.anchor_x,
+            anchor_y: seg.anchor_y,
+            t_cross: seg.t_cross,
+            t_drop,
+            t_s,
+            t_e,
+            planes_summed: (t_drop + 1 - seg.first_plane(n)) as u32,
+            roi_size: self.cfg.roi_size as u8,
+            counts,
+        })
+    }
+
+    fn close_free_slots(&mut self) {
+        for (i, s) in self.tracker.slots().iter().enumerate() {
+            if *s == crate::blink_tracker::Slot::Free {
+                self.rois.close(i);
+            }
+        }
+    }
+}
+
+/// Runs a whole stream through the golden pipeline: the start record, every
+/// plane's records, and the records of [`Pipeline::finish`].
+pub fn run<I>(cfg: PipelineConfig, planes: I) -> Result<Vec<Record>, PipelineError>
+where
+    I: IntoIterator<Item = BitPlane>,
+{
+    run_with(Pipeline::new(cfg)?, planes)
+}
+
+/// Runs a whole stream through a pipeline with any front end.
+pub fn run_with<F, I>(mut p: Pipeline<F>, planes: I) -> Result<Vec<Record>, PipelineError>
+where
+    F: FrontEnd,
+    I: IntoIterator<Item = BitPlane>,
+{
+    let mut out = vec![p.start_record()];
+    for plane in planes {
+        out.extend(p.push_plane(&plane)?);
+    }
+    out.extend(p.finish());
+    Ok(out)
+}

@@ -33,7 +33,11 @@ impl BitPlane {
     }
 
     /// Builds a plane from a predicate on (x, y).
-    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> bool) -> BitPlane {
+    pub fn from_fn(
+        width: usize,
+        height: usize,
+        mut f: impl FnMut(usize, usize) -> bool,
+    ) -> BitPlane {
         let mut p = BitPlane::zeros(width, height);
         for y in 0..height {
             for x in 0..width {
@@ -47,7 +51,11 @@ impl BitPlane {
 
     /// Wraps raster-order bits; `bits.len()` must equal `width·height`.
     pub fn from_bits(width: usize, height: usize, bits: BitVec<u64, Lsb0>) -> Option<BitPlane> {
-        (bits.len() == width * height).then_some(BitPlane { width, height, bits })
+        (bits.len() == width * height).then_some(BitPlane {
+            width,
+            height,
+            bits,
+        })
     }
 
     /// Width in pixels.
@@ -63,7 +71,12 @@ impl BitPlane {
     /// The pixel at (x, y); panics if outside the plane.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> bool {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}x{}", self.width, self.height);
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside {}x{}",
+            self.width,
+            self.height
+        );
         self.bits[y * self.width + x]
     }
 
@@ -77,16 +90,44 @@ impl BitPlane {
         }
     }
 
+    /// Up to 64 pixels of row `y` from column `x0` (signed) as bits, pixel
+    /// `x0 + i` at bit i; pixels outside the plane read 0.
+    pub fn row_bits(&self, x0: i64, y: i64, len: usize) -> u64 {
+        debug_assert!(len <= 64);
+        if y < 0 || y >= self.height as i64 || len == 0 {
+            return 0;
+        }
+        let lo = x0.max(0);
+        let hi = (x0 + len as i64).min(self.width as i64);
+        if lo >= hi {
+            return 0;
+        }
+        let start = y as usize * self.width + lo as usize;
+        let bits: u64 = self.bits[start..start + (hi - lo) as usize].load_le();
+        bits << (lo - x0)
+    }
+
     /// Sets the pixel at (x, y); panics if outside the plane.
     #[inline]
     pub fn set(&mut self, x: usize, y: usize, value: bool) {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) outside {}x{}", self.width, self.height);
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside {}x{}",
+            self.width,
+            self.height
+        );
         self.bits.set(y * self.width + x, value);
     }
 
     /// Raster-order bits.
     pub fn bits(&self) -> &BitSlice<u64, Lsb0> {
         &self.bits
+    }
+
+    /// The raster-order bits as 64-bit words, pixel i at bit `i % 64` of word
+    /// `i / 64`. Bits past `width·height` in the last word are unspecified.
+    pub fn words(&self) -> &[u64] {
+        self.bits.as_raw_slice()
     }
 
     /// Mutable raster-order bits.
@@ -97,5 +138,23 @@ impl BitPlane {
     /// Number of pixels that read 1.
     pub fn count_ones(&self) -> usize {
         self.bits.count_ones()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn row_bits_equals_pixel_reads(w in 1usize..90, h in 1usize..4, x0 in -70i64..100, y in -2i64..6, len in 0usize..=64, seed in any::<u64>()) {
+            let p = BitPlane::from_fn(w, h, |x, y| (seed.rotate_left((x * 7 + y * 13) as u32 % 64)) & 1 == 1);
+            let bits = p.row_bits(x0, y, len);
+            for i in 0..64 {
+                let expect = i < len && p.get_or_zero(x0 + i as i64, y);
+                prop_assert_eq!((bits >> i) & 1 == 1, expect, "bit {}", i);
+            }
+        }
     }
 }

@@ -1,8 +1,11 @@
 //! One module per `smartagg` command: each has `Args` (clap) and `run`.
 
 pub mod aggregate;
+pub mod bench_aggregate;
 pub mod bench_localize;
 pub mod bench_simulate;
+pub mod calibrate;
+pub mod download;
 pub mod localize;
 pub mod params;
 pub mod presets;

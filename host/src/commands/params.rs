@@ -1,10 +1,156 @@
-//! (being written)
+//! `smartagg params`: the paper's statistics (Eq. 1–7) for a camera and a
+//! molecule — window N, threshold T and T_int, the integer kernel — with the
+//! predicted false alarms and the confirmation length they imply.
 
-/// Arguments.
+use crate::setup;
+use serde::Serialize;
+use smartagg_model::false_alarm::{self, DetectionProbability, FalseAlarmReport};
+use smartagg_model::params::Camera;
+use smartagg_model::stats::Detection;
+
+/// Arguments of `smartagg params`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Camera preset: spcimager or spcimager-projected (bit-plane cameras).
+    #[arg(long, default_value = "spcimager")]
+    pub preset: String,
+    /// Objective magnification: 150 or 60.
+    #[arg(long, default_value_t = 150)]
+    pub objective: u32,
+    /// Molecule flux, photons/s reaching the sensor (default: 50,000).
+    #[arg(long)]
+    pub flux: Option<f64>,
+    /// Field for the false-alarm figures, pixels (default: the whole sensor).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Field height, pixels (default: the whole sensor).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Tolerated false blinks per second over the field, for the suggested L_min.
+    #[arg(long, default_value_t = 1.0)]
+    pub false_blinks_per_s: f64,
+    /// Print JSON (all fields) instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct Output<'a> {
+    preset: &'a str,
+    objective: u32,
+    #[serde(flatten)]
+    detection: &'a Detection,
+    detection_probability: Option<DetectionProbability>,
+    false_alarms: Option<FalseAlarmReport>,
+    false_blinks_per_s_target: f64,
+    l_min_suggested: Option<u32>,
+    notes: Vec<String>,
+}
 
 /// Runs the command.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("this command is being written")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (preset, det) = setup::detection(&args.preset, args.objective, args.flux)?;
+    let Camera::Spad(cam) = &preset.camera else {
+        anyhow::bail!("params applies to bit-plane (SPAD) presets");
+    };
+    let (w, h) = (
+        args.width.unwrap_or(cam.width),
+        args.height.unwrap_or(cam.height),
+    );
+    let rate = 1.0 / cam.plane_period_s;
+    let mut notes = Vec::new();
+    let pd = false_alarm::detection_probability(&det)
+        .map_err(|e| notes.push(format!("detection probability not computed: {e}")))
+        .ok();
+    let fa = false_alarm::false_alarm_report(&det, w, h, rate)
+        .map_err(|e| notes.push(format!("false alarms not computed: {e}")))
+        .ok();
+    let l_min = false_alarm::l_min_for_target(
+        &det.kernel(),
+        det.n_window,
+        det.p_off,
+        det.threshold_int,
+        w as u64 * h as u64,
+        rate,
+        args.false_blinks_per_s,
+    )
+    .map_err(|e| notes.push(format!("L_min not computed: {e}")))
+    .ok();
+    if args.json {
+        let out = Output {
+            preset: &args.preset,
+            objective: args.objective,
+            detection: &det,
+            detection_probability: pd,
+            false_alarms: fa,
+            false_blinks_per_s_target: args.false_blinks_per_s,
+            l_min_suggested: l_min,
+            notes,
+        };
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{} at {}x: eta = {:.4}, background b = {:.2} Hz/pixel, molecule I = {:.0} photons/s, tau = {:.0} us, PSF sigma = {:.3} px",
+        args.preset,
+        args.objective,
+        det.eta,
+        det.background_rate_hz,
+        det.flux_hz,
+        det.tau_s * 1e6,
+        det.sigma_px
+    );
+    println!(
+        "kernel: {} taps {:?}, sum 2^{} (max 2-D weight error {:.2e}, sum K^2 error {:+.2e} relative)",
+        det.kernel_size,
+        det.kernel_weights,
+        det.kernel_shift,
+        det.kernel_quantisation.max_abs_error_2d,
+        det.kernel_quantisation.sum_sq_rel_error
+    );
+    println!(
+        "window N = {} bit-planes (Eq. 6 gives {:.2}; {:.1} ms)",
+        det.n_window,
+        det.n_window_real,
+        det.n_window as f64 * det.tau_s * 1e3
+    );
+    println!(
+        "threshold T = {:.5} (Eq. 7), T_int = {} in units of 2^-{} (quantisation {:.2e})",
+        det.threshold,
+        det.threshold_int,
+        2 * det.kernel_shift as u32,
+        det.threshold_quantisation_abs
+    );
+    println!(
+        "H off: {:.4} ± {:.4}; H on: {:.4} ± {:.4} (normalised units)",
+        det.e_h_off, det.sd_h_off, det.e_h_on, det.sd_h_on
+    );
+    if let Some(pd) = &pd {
+        println!(
+            "detection probability of a molecule on for the whole window: {:.4} exact ({:.4} Gaussian)",
+            pd.detection, det.gaussian_detection_probability
+        );
+    }
+    if let Some(fa) = &fa {
+        println!(
+            "false alarms: {:.3e} per pixel-plane exact vs {:.3e} Gaussian ({}); {:.0}/s over {}x{} pixels at {:.0} planes/s",
+            fa.per_pixel_plane,
+            fa.gaussian_per_pixel_plane,
+            fa.ratio_to_gaussian.map_or("-".into(), |r| format!("{r:.2}x")),
+            fa.per_second,
+            w,
+            h,
+            rate
+        );
+    }
+    if let Some(l) = l_min {
+        println!(
+            "suggested L_min = {l} planes for <= {} false blinks/s over the field (bound; L_min = 1 is the paper's scheme)",
+            args.false_blinks_per_s
+        );
+    }
+    for n in notes {
+        println!("note: {n}");
+    }
+    Ok(())
 }

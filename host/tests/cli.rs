@@ -1,0 +1,251 @@
+//! The `smartagg` command end to end: simulate, aggregate with both engines,
+//! and the errors a user sees.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn smartagg(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smartagg"))
+        .args(args)
+        .output()
+        .expect("the smartagg binary runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = smartagg(args);
+    assert!(
+        out.status.success(),
+        "smartagg {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn err(args: &[&str]) -> String {
+    let out = smartagg(args);
+    assert!(!out.status.success(), "smartagg {args:?} should fail");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn p(dir: &Path, name: &str) -> String {
+    dir.join(name).to_str().unwrap().to_string()
+}
+
+#[test]
+fn params_json_reports_the_papers_window() {
+    let out = ok(&["params", "--preset", "spcimager", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    for key in [
+        "eta",
+        "background_rate_hz",
+        "flux_hz",
+        "tau_s",
+        "sigma_px",
+        "kernel_size",
+        "kernel_weights",
+        "n_window",
+        "threshold",
+        "threshold_int",
+    ] {
+        assert!(v.get(key).is_some(), "JSON lacks `{key}`");
+    }
+    let n = v["n_window"].as_u64().unwrap();
+    assert!((100..=110).contains(&n), "N = {n}");
+    let n60: serde_json::Value =
+        serde_json::from_str(&ok(&["params", "--objective", "60", "--json"])).unwrap();
+    assert!(n60["n_window"].as_u64().unwrap() < n);
+    assert!(err(&["params", "--preset", "emccd"]).contains("SPAD"));
+    assert!(err(&["params", "--preset", "nope"]).contains("unknown preset"));
+    assert!(err(&["params", "--objective", "100"]).contains("objective"));
+}
+
+#[test]
+fn golden_and_fast_engines_write_identical_packets() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = p(dir.path(), "rulers.spad");
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--scene",
+        "nanoruler",
+        "--field",
+        "48x40",
+        "--planes",
+        "3000",
+        "--mean-off-s",
+        "0.3",
+        "--seed",
+        "3",
+        "--out",
+        &rec,
+    ]);
+    assert!(dir.path().join("rulers.spad.truth.csv").exists());
+    let golden = p(dir.path(), "golden.rois");
+    let fast = p(dir.path(), "fast.rois");
+    let fast1 = p(dir.path(), "fast1.rois");
+    let summary = ok(&[
+        "aggregate",
+        &rec,
+        "--out",
+        &golden,
+        "--engine",
+        "golden",
+        "--quiet",
+    ]);
+    assert!(summary.contains("3000 planes"), "{summary}");
+    ok(&["aggregate", &rec, "--out", &fast, "--quiet"]);
+    ok(&[
+        "aggregate",
+        &rec,
+        "--out",
+        &fast1,
+        "--threads",
+        "1",
+        "--quiet",
+    ]);
+    let g = std::fs::read(&golden).unwrap();
+    assert!(g.len() > 100);
+    assert_eq!(g, std::fs::read(&fast).unwrap());
+    assert_eq!(g, std::fs::read(&fast1).unwrap());
+    let decoded = smartagg_model::packet::decode_all(&g);
+    assert!(!decoded.stats.any_loss());
+    let blinks = decoded
+        .packets
+        .iter()
+        .filter(|p| matches!(p.record, smartagg_model::record::Record::Blink(_)))
+        .count();
+    assert!(blinks >= 3, "the scene must blink: {blinks} blinks");
+}
+
+#[test]
+fn bad_recordings_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = p(dir.path(), "empty.spad");
+    std::fs::write(&empty, b"").unwrap();
+    assert!(err(&["aggregate", &empty, "--out", &p(dir.path(), "x.rois")]).contains("empty"));
+    let text = p(dir.path(), "notes.spad");
+    std::fs::write(
+        &text,
+        b"hello world, not a recording at all; long enough for a header....",
+    )
+    .unwrap();
+    assert!(
+        err(&["aggregate", &text, "--out", &p(dir.path(), "x.rois")])
+            .contains("not a .spad recording")
+    );
+    // Raw planes whose size is not a whole number of planes.
+    let raw = p(dir.path(), "raw.bin");
+    std::fs::write(&raw, vec![0u8; 8 * 8 / 8 * 3 + 5]).unwrap();
+    let e = err(&[
+        "aggregate",
+        &raw,
+        "--raw",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        &p(dir.path(), "x.rois"),
+        "--engine",
+        "golden",
+    ]);
+    assert!(e.contains("truncated inside plane 3"), "{e}");
+    assert!(err(&[
+        "aggregate",
+        &p(dir.path(), "missing.spad"),
+        "--out",
+        &p(dir.path(), "x.rois")
+    ])
+    .contains("missing.spad"));
+}
+
+#[test]
+fn calibration_masks_hot_pixels_in_aggregate() {
+    let dir = tempfile::tempdir().unwrap();
+    let dark = p(dir.path(), "dark.spad");
+    // A dark recording (no light, no molecules) with 3 % hot pixels.
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--scene",
+        "random",
+        "--density",
+        "0",
+        "--background",
+        "0",
+        "--hot-pixels",
+        "0.03",
+        "--field",
+        "24x20",
+        "--planes",
+        "60000",
+        "--seed",
+        "5",
+        "--out",
+        &dark,
+    ]);
+    let cal = p(dir.path(), "calib");
+    ok(&[
+        "calibrate",
+        "--dark",
+        &dark,
+        "--out",
+        &cal,
+        "--preset",
+        "spcimager",
+        "--quiet",
+    ]);
+    let rois = p(dir.path(), "x.rois");
+    let masked = p(dir.path(), "masked.rois");
+    ok(&["aggregate", &dark, "--out", &rois, "--quiet"]);
+    ok(&[
+        "aggregate",
+        &dark,
+        "--out",
+        &masked,
+        "--calibration",
+        &cal,
+        "--quiet",
+    ]);
+    let start = |path: &str| {
+        let d = smartagg_model::packet::decode_all(&std::fs::read(path).unwrap());
+        let blinks = d
+            .packets
+            .iter()
+            .filter(|p| matches!(p.record, smartagg_model::record::Record::Blink(_)))
+            .count();
+        match &d.packets[0].record {
+            smartagg_model::record::Record::Start(s) => (s.masked_pixels, blinks),
+            other => panic!("first record {other:?}"),
+        }
+    };
+    let (m0, b0) = start(&rois);
+    let (m1, b1) = start(&masked);
+    assert_eq!(m0, 0);
+    assert!(m1 >= 5, "hot pixels masked: {m1}");
+    assert!(
+        b0 > b1,
+        "hot pixels fire as false blinks unless masked: {b0} vs {b1}"
+    );
+    // A calibration of another size is refused.
+    let other = p(dir.path(), "other.spad");
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--scene",
+        "random",
+        "--density",
+        "0",
+        "--field",
+        "16x16",
+        "--planes",
+        "10",
+        "--out",
+        &other,
+    ]);
+    assert!(err(&["aggregate", &other, "--out", &rois, "--calibration", &cal]).contains("24x20"));
+}

@@ -1,0 +1,174 @@
+//! The fast engine must give exactly the golden pipeline's records.
+
+use proptest::prelude::*;
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::fast_engine::{fast_pipeline, run_parallel, ParallelError};
+use smartagg_model::hot_pixel_mask::HotPixelMask;
+use smartagg_model::pipeline::{run, run_with};
+use smartagg_model::plane::BitPlane;
+use smartagg_model::record::Record;
+
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        // splitmix64
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Background of probability `p` per pixel-plane plus Gaussian spots blinking
+/// with `q_peak` detection probability per plane at their centre.
+fn scene(
+    seed: u64,
+    w: usize,
+    h: usize,
+    planes: usize,
+    spots: usize,
+    p: f64,
+    q_peak: f64,
+) -> Vec<BitPlane> {
+    let mut r = Rng(seed);
+    let sp: Vec<(f64, f64, usize, usize)> = (0..spots)
+        .map(|_| {
+            let start = (r.next() % planes as u64) as usize;
+            let len = 1 + (r.next() % 300) as usize;
+            (r.unit() * w as f64, r.unit() * h as f64, start, start + len)
+        })
+        .collect();
+    (0..planes)
+        .map(|t| {
+            BitPlane::from_fn(w, h, |x, y| {
+                let mut q = p;
+                for &(sx, sy, a, b) in &sp {
+                    if (a..b).contains(&t) {
+                        let d2 = (x as f64 + 0.5 - sx).powi(2) + (y as f64 + 0.5 - sy).powi(2);
+                        q += q_peak * (-d2 / (2.0 * 1.5 * 1.5)).exp();
+                    }
+                }
+                r.unit() < q
+            })
+        })
+        .collect()
+}
+
+fn parallel(
+    cfg: PipelineConfig,
+    planes: Vec<BitPlane>,
+    threads: usize,
+    chunk: usize,
+) -> Vec<Record> {
+    let mut out = Vec::new();
+    run_parallel::<(), _, _>(cfg, planes.into_iter().map(Ok), threads, chunk, |r| {
+        out.push(r)
+    })
+    .unwrap();
+    out
+}
+
+/// k = 9 kernel for σ ≈ 1.5 px summing to 2^8, and a paper-like threshold.
+fn spcimager_like(w: usize, h: usize, n: u32) -> PipelineConfig {
+    let k1 = vec![2, 9, 26, 49, 84, 49, 26, 9, 2];
+    let mut c = PipelineConfig::new(w, h, n, k1, 8, 0);
+    // E(H_off) + 3 sd for p = 0.0118 (sum K^2 = 13380^2).
+    let p = 0.0118;
+    let mean = n as f64 * p * 65536.0;
+    let sd = (n as f64 * p * (1.0 - p) * 13380f64.powi(2)).sqrt();
+    c.threshold_int = (mean + 3.0 * sd).ceil() as u32;
+    c.roi_size = 9;
+    c
+}
+
+#[test]
+fn spcimager_like_field_matches_golden_single_and_parallel() {
+    let cfg = spcimager_like(64, 48, 108);
+    let planes = scene(7, 64, 48, 900, 12, 0.0118, 0.05);
+    let golden = run(cfg.clone(), planes.clone()).unwrap();
+    let blinks = golden
+        .iter()
+        .filter(|r| matches!(r, Record::Blink(_)))
+        .count();
+    assert!(
+        blinks >= 5,
+        "the scene must exercise the tracker: {blinks} blinks"
+    );
+    let fast = run_with(fast_pipeline(cfg.clone()).unwrap(), planes.clone()).unwrap();
+    assert_eq!(fast, golden);
+    for (threads, chunk) in [(1, 900), (2, 100), (3, 37), (2, 1)] {
+        assert_eq!(
+            parallel(cfg.clone(), planes.clone(), threads, chunk),
+            golden,
+            "threads {threads} chunk {chunk}"
+        );
+    }
+}
+
+#[test]
+fn saturated_planes_take_the_dense_path_and_match() {
+    let mut cfg = PipelineConfig::new(20, 10, 6, vec![1, 2, 1], 2, 30);
+    cfg.l_max = 20;
+    let planes: Vec<BitPlane> = (0..80)
+        .map(|t| {
+            if (10..50).contains(&t) {
+                BitPlane::ones(20, 10)
+            } else {
+                BitPlane::zeros(20, 10)
+            }
+        })
+        .collect();
+    let golden = run(cfg.clone(), planes.clone()).unwrap();
+    assert!(golden.iter().any(|r| matches!(r, Record::Blink(_))));
+    assert_eq!(
+        run_with(fast_pipeline(cfg.clone()).unwrap(), planes.clone()).unwrap(),
+        golden
+    );
+    assert_eq!(parallel(cfg, planes, 2, 7), golden);
+}
+
+#[test]
+fn source_errors_stop_the_parallel_run() {
+    let cfg = PipelineConfig::new(8, 8, 4, vec![1, 2, 1], 2, 8);
+    let src = (0..50).map(|t| {
+        if t == 30 {
+            Err("disk on fire")
+        } else {
+            Ok(BitPlane::zeros(8, 8))
+        }
+    });
+    let mut n = 0;
+    let e = run_parallel(cfg, src, 2, 4, |_| n += 1).unwrap_err();
+    assert!(matches!(e, ParallelError::Source("disk on fire")));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn fast_and_parallel_equal_golden_on_random_scenes(
+        seed in any::<u64>(), w in 3usize..24, h in 3usize..20, planes in 1usize..160, n in 1u32..20,
+        spots in 0usize..8, p in 0.0f64..0.08, thr in 1u32..400, slots in 1usize..6, l_min in 1u32..8,
+        threads in 1usize..4, chunk in 1usize..50, masked in 0usize..4, kernel in 0usize..3,
+    ) {
+        let (k1, shift) = [(vec![1u32, 2, 1], 2u8), (vec![1, 4, 6, 4, 1], 4), (vec![16], 4)][kernel].clone();
+        let mut cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
+        cfg.slots = slots;
+        cfg.l_min = l_min;
+        cfg.l_max = n.max(l_min).max(25);
+        cfg.roi_size = 5;
+        if masked > 0 {
+            let px: Vec<(usize, usize)> = (0..masked).map(|i| ((seed as usize >> (4 * i)) % w, (seed as usize >> (4 * i + 2)) % h)).collect();
+            cfg.hot_mask = Some(HotPixelMask::from_pixels(w, h, &px).0);
+        }
+        let stream = scene(seed, w, h, planes, spots, p, 0.6);
+        let golden = run(cfg.clone(), stream.clone()).unwrap();
+        let fast = run_with(fast_pipeline(cfg.clone()).unwrap(), stream.clone()).unwrap();
+        prop_assert_eq!(&fast, &golden);
+        prop_assert_eq!(&parallel(cfg, stream, threads, chunk), &golden);
+    }
+}
