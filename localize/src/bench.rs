@@ -268,6 +268,41 @@ pub fn score_frames(set: &FrameSet, estimator: Estimator, opts: &FitOptions) -> 
     summarise(&fits, &truth, &vars, seconds)
 }
 
+/// Fits per second on one core, robust to a shared machine: the set is
+/// fitted `repeats` times in batches of `batch` ROIs on the calling thread,
+/// each batch timed by thread CPU time; returns (median, best) over batches.
+pub fn one_core_rate(set: &FrameSet, estimator: Estimator, opts: &FitOptions, batch: usize, repeats: usize) -> (f64, f64) {
+    let s2 = set.side * set.side;
+    let maps = set.maps.as_ref();
+    let mut rates = Vec::new();
+    let mut sink = 0.0;
+    for _ in 0..repeats.max(1) {
+        for chunk in set.data.chunks(s2 * batch.max(1)) {
+            let t0 = CpuTimer::start();
+            let mut n = 0;
+            for roi in chunk.chunks_exact(s2) {
+                let view = RoiView {
+                    side: set.side,
+                    data: roi,
+                    maps,
+                };
+                sink += fit_roi(estimator, &view, opts).x;
+                n += 1;
+            }
+            let dt = t0.seconds();
+            if dt > 0.0 {
+                rates.push(n as f64 / dt);
+            }
+        }
+    }
+    std::hint::black_box(sink);
+    if rates.is_empty() {
+        return (0.0, 0.0);
+    }
+    rates.sort_by(|a, b| a.total_cmp(b));
+    (rates[rates.len() / 2], rates[rates.len() - 1])
+}
+
 /// Fits per second of an estimator on all cores (rayon), wall clock.
 pub fn throughput_parallel(set: &FrameSet, estimator: Estimator, opts: &FitOptions) -> f64 {
     let s2 = set.side * set.side;
