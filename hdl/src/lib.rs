@@ -33,10 +33,12 @@
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
+pub mod blink_tracker;
 pub mod bram;
 pub mod candidates;
 pub mod config;
 pub mod delay_line;
+pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
 pub mod rolling_count;
