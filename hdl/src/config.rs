@@ -383,7 +383,8 @@ impl BackHalfConfig {
                 return Err(invalid(field, v, "must be 2..=15"));
             }
         }
-        if self.output_fifo_log2 < 13 && (1usize << self.output_fifo_log2) < self.max_packet_bytes() + 22
+        if self.output_fifo_log2 < 13
+            && (1usize << self.output_fifo_log2) < self.max_packet_bytes() + 22
         {
             return Err(invalid(
                 "output_fifo_log2",
@@ -438,12 +439,14 @@ impl BackHalfConfig {
         self.front.half() + self.roi_half() + 5
     }
 
-    /// Sweep backlog bound: all M ROIs on the same R rows need R·M sweep
-    /// clocks while R rows bring R·W/P; the excess in rows, plus one.
+    /// Sweep backlog bound, rows: all M ROIs on the same R rows need
+    /// R·(M + 1) sweep clocks while R rows bring R·W/P word clocks (at the
+    /// full input rate); the tracker pauses M + 3 clocks at each plane's end;
+    /// plus one row of margin.
     pub fn default_row_slack(&self) -> usize {
         let wpr = self.front.words_per_row();
-        let excess = (self.roi_size * self.slots).saturating_sub(self.roi_size * wpr);
-        excess.div_ceil(wpr) + 1
+        let excess = (self.roi_size * (self.slots + 1)).saturating_sub(self.roi_size * wpr);
+        excess.div_ceil(wpr) + (self.slots + 3).div_ceil(wpr) + 1
     }
 
     /// Rows of the ROI row buffer (a ring).

@@ -56,7 +56,10 @@ pub struct Fifo<const DW: usize, const AW: usize> {
 impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
     /// A FIFO with its memory in block or distributed RAM.
     pub fn new(style: RamStyle) -> Self {
-        assert!(AW <= 15, "FIFO depth 2^{AW} does not fit the 16-bit pointers");
+        assert!(
+            AW <= 15,
+            "FIFO depth 2^{AW} does not fit the 16-bit pointers"
+        );
         Fifo {
             clock: Default::default(),
             restart: Default::default(),
@@ -82,7 +85,7 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
             consume: Default::default(),
             keep: Default::default(),
             issue: Default::default(),
-            depth: Constant::new(((1u64 << AW) as u64).to_bits()),
+            depth: Constant::new((1u64 << AW).to_bits()),
         }
     }
 }

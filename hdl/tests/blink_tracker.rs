@@ -102,7 +102,12 @@ fn blink(c: &Completed) -> Rec {
     let s = &c.segment;
     Rec::Blink {
         slot: c.slot as u8,
-        flags: s.end_flags | if s.continuation { flags::CONTINUATION } else { 0 },
+        flags: s.end_flags
+            | if s.continuation {
+                flags::CONTINUATION
+            } else {
+                0
+            },
         ax: s.anchor_x,
         ay: s.anchor_y,
         t_cross: s.t_cross,
@@ -417,7 +422,10 @@ fn run(pr: &Params) -> (usize, usize) {
         k += 1;
     }
     assert_eq!(k, exp.records.len(), "records missing at the end");
-    assert_eq!(counters, exp.counters, "blinks, unconfirmed, dropped, bridged, cuts");
+    assert_eq!(
+        counters, exp.counters,
+        "blinks, unconfirmed, dropped, bridged, cuts"
+    );
     if pr.room_rate >= 1.0 {
         assert_eq!(lost_total, 0);
     }

@@ -34,9 +34,16 @@ fn run(style: RamStyle, push_p: f64, pop_p: f64, seed: u64, min_popped: usize) {
         if u.out_valid.val() {
             assert_eq!(u.out_data.val().to_u64(), model[0].0, "cycle {cycle}");
         } else if let Some(&(_, at)) = model.front() {
-            assert!(cycle < at + 3, "head pushed at {at} still hidden at {cycle}");
+            assert!(
+                cycle < at + 3,
+                "head pushed at {at} still hidden at {cycle}"
+            );
         }
-        assert_eq!(u.count.val().to_u64() as usize, model.len(), "cycle {cycle}");
+        assert_eq!(
+            u.count.val().to_u64() as usize,
+            model.len(),
+            "cycle {cycle}"
+        );
         let accepted = push && u.room.val();
         if push && !accepted {
             refused = true;
@@ -56,7 +63,10 @@ fn run(style: RamStyle, push_p: f64, pop_p: f64, seed: u64, min_popped: usize) {
 
 #[test]
 fn fifo_equals_a_queue_at_full_rate_and_with_stalls() {
-    for (i, style) in [RamStyle::Block, RamStyle::Distributed].into_iter().enumerate() {
+    for (i, style) in [RamStyle::Block, RamStyle::Distributed]
+        .into_iter()
+        .enumerate()
+    {
         run(style, 0.5, 0.5, 1 + i as u64, 1000);
         run(style, 0.9, 0.3, 3 + i as u64, 700); // fills up: refusals
         run(style, 0.3, 0.95, 5 + i as u64, 700);
