@@ -41,6 +41,7 @@ pub mod delay_line;
 pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
+pub mod packetiser;
 pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod sim;
