@@ -271,7 +271,13 @@ pub fn score_frames(set: &FrameSet, estimator: Estimator, opts: &FitOptions) -> 
 /// Fits per second on one core, robust to a shared machine: the set is
 /// fitted `repeats` times in batches of `batch` ROIs on the calling thread,
 /// each batch timed by thread CPU time; returns (median, best) over batches.
-pub fn one_core_rate(set: &FrameSet, estimator: Estimator, opts: &FitOptions, batch: usize, repeats: usize) -> (f64, f64) {
+pub fn one_core_rate(
+    set: &FrameSet,
+    estimator: Estimator,
+    opts: &FitOptions,
+    batch: usize,
+    repeats: usize,
+) -> (f64, f64) {
     let s2 = set.side * set.side;
     let maps = set.maps.as_ref();
     let mut rates = Vec::new();
