@@ -90,7 +90,10 @@ impl FramePipeline {
         self.fit.validate()?;
         check_option("threshold-factor", self.threshold_factor, 0.0, 1e6)?;
         check_option("pixel-nm", self.pixel_nm, 1e-3, 1e6)?;
-        if self.roi_side < 3 || self.roi_side % 2 == 0 || self.roi_side > crate::psf::MAX_SIDE {
+        if self.roi_side < 3
+            || self.roi_side.is_multiple_of(2)
+            || self.roi_side > crate::psf::MAX_SIDE
+        {
             return Err(LocalizeError::InvalidOption {
                 name: "roi",
                 value: self.roi_side as f64,

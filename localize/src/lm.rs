@@ -857,6 +857,7 @@ fn run<M: PixelModel, A: Arith>(
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn finish<const P: usize, M: PixelModel, A: Arith>(
     prob: &Problem<M>,
     init: [f64; P],
