@@ -136,6 +136,7 @@ pub(crate) fn exp_nonpositive<A: Arith>(x: f64) -> f64 {
     const LN2_HI: f64 = 0.693_147_180_369_123_8;
     const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
     // max/min rather than clamp: clamp is not inlined into the AVX2 build.
+    #[allow(clippy::manual_clamp)]
     let x = x.max(-700.0).min(0.0);
     let t = A::madd(x, std::f64::consts::LOG2_E, SHIFT);
     let k = t - SHIFT;
@@ -179,7 +180,11 @@ pub(crate) fn ln_and_recip<A: Arith>(x: f64) -> (f64, f64) {
     let q = 1.0 / (x * den);
     let s = f * (q * x);
     let z = s * s;
-    let ln = A::madd(e, std::f64::consts::LN_2, 2.0 * s * estrin::<A, 7>(z, &LN_COEF));
+    let ln = A::madd(
+        e,
+        std::f64::consts::LN_2,
+        2.0 * s * estrin::<A, 7>(z, &LN_COEF),
+    );
     (ln, q * den)
 }
 

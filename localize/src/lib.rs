@@ -22,6 +22,13 @@
 //! localisation at sensor column `X` (pixels) is at `X · pixel_nm` nm with
 //! `X = roi_x0 + x_fit`.
 
+#![warn(missing_docs)]
+// Numeric kernels index several arrays by the same parameter or lane index,
+// as the formulas do; iterator rewrites would hide the maths.
+#![allow(clippy::needless_range_loop)]
+// `!(x > y)` is used on purpose: it is also true when x is NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod bench;
 pub mod centroid;
 pub mod crlb;

@@ -24,11 +24,11 @@
 //! Poisson `H` *is* the Fisher information of the fitted model, so the
 //! Cramér–Rao bound costs one 5×5 inversion.
 
-use crate::fit::{Fit, FitOptions, FitStatus, NoiseModel};
-use crate::linalg::{invert_spd, solve_spd};
-use crate::fastmath::{ln_and_recip, Arith, Plain};
 #[cfg(target_arch = "x86_64")]
 use crate::fastmath::Fused;
+use crate::fastmath::{ln_and_recip, Arith, Plain};
+use crate::fit::{Fit, FitOptions, FitStatus, NoiseModel};
+use crate::linalg::{invert_spd, solve_spd};
 use crate::psf::AxisTerms;
 use crate::roi::{PixelMaps, RoiView};
 
@@ -199,7 +199,11 @@ impl Layout {
     #[inline(always)]
     fn new(side: usize) -> Layout {
         let nb = (side * side).div_ceil(LANES) * LANES;
-        Layout { side, nb, np: nb + LANES }
+        Layout {
+            side,
+            nb,
+            np: nb + LANES,
+        }
     }
 }
 
@@ -241,7 +245,12 @@ fn return_scratch(s: Box<Scratch>) {
 /// values of [`initial_guess`] on the way. Errors: a non-finite pixel that
 /// is not ignored, or no counts at all.
 #[inline(always)]
-fn prepare<M: PixelModel>(data: &[f64], m: &M, lay: Layout, scratch: &mut [f64]) -> Result<[f64; 4], FitStatus> {
+fn prepare<M: PixelModel>(
+    data: &[f64],
+    m: &M,
+    lay: Layout,
+    scratch: &mut [f64],
+) -> Result<[f64; 4], FitStatus> {
     let np = lay.np;
     let side = lay.side;
     let n = side * side;
@@ -329,17 +338,20 @@ fn curvature_row<const P: usize, const R: usize, A: Arith>(
     if R >= P {
         return;
     }
-    let dr = &d[R * np..(R + 1) * np];
+    // Every load below is at `q·np + k` with `k + LANES ≤ nb ≤ np`, q < P.
+    assert!(nb.is_multiple_of(LANES) && nb <= np && w.len() >= nb && d.len() >= P * np);
     let mut acc = [[0.0; LANES]; P];
     let mut k = 0;
     while k < nb {
-        let (wk, drk) = (block(w, k), block(dr, k));
+        // SAFETY: checked by the assertion above.
+        let (wk, drk) = unsafe { (load(w, k), load(d, R * np + k)) };
         let mut wd = [0.0; LANES];
         for l in 0..LANES {
             wd[l] = wk[l] * drk[l];
         }
         for q in R..P {
-            let dq = block(&d[q * np..(q + 1) * np], k);
+            // SAFETY: as above.
+            let dq = unsafe { load(d, q * np + k) };
             for l in 0..LANES {
                 acc[q][l] = A::madd(wd[l], dq[l], acc[q][l]);
             }
@@ -356,6 +368,31 @@ fn curvature_row<const P: usize, const R: usize, A: Arith>(
 #[inline(always)]
 fn block(a: &[f64], k: usize) -> [f64; LANES] {
     block_of::<LANES>(a, k)
+}
+
+/// The `LANES` values of `a` from `k`, without a bounds check: the pixel
+/// passes check their whole index range once, up front, instead of once per
+/// load (bounds checks were a fifth of a fit's instructions).
+///
+/// # Safety
+/// `k + LANES <= a.len()`.
+#[inline(always)]
+unsafe fn load(a: &[f64], k: usize) -> [f64; LANES] {
+    debug_assert!(k + LANES <= a.len());
+    // SAFETY: in bounds by the caller's contract; [f64; LANES] has the
+    // alignment of f64 and no invalid bit patterns.
+    unsafe { a.as_ptr().add(k).cast::<[f64; LANES]>().read() }
+}
+
+/// Stores `LANES` values into `a` from `k`, without a bounds check.
+///
+/// # Safety
+/// `k + LANES <= a.len()`.
+#[inline(always)]
+unsafe fn store(a: &mut [f64], k: usize, v: [f64; LANES]) {
+    debug_assert!(k + LANES <= a.len());
+    // SAFETY: in bounds by the caller's contract.
+    unsafe { a.as_mut_ptr().add(k).cast::<[f64; LANES]>().write(v) }
 }
 
 /// The `W` values of `a` from `k` as an array (one bounds check).
@@ -445,11 +482,20 @@ impl<M: PixelModel> Problem<M> {
         lay: Layout,
     ) -> Eval<P> {
         let fit_sigma = P == 5;
-        let sigma = if fit_sigma { theta[P - 1] } else { self.sigma_fixed };
+        let sigma = if fit_sigma {
+            theta[P - 1]
+        } else {
+            self.sigma_fixed
+        };
         let side = lay.side;
         let np = lay.np;
         ax.compute_with::<A>(side, theta[0], sigma, fit_sigma);
         ay.compute_with::<A>(side, theta[1], sigma, fit_sigma);
+        // The loads and stores below are unchecked: their ranges are checked
+        // here, once. Pass 1 reads and writes `t·np + k0 .. + LANES` with
+        // `k0 + LANES ≤ nb ≤ np`; the tiles write `j·side + i0 .. + LANES`
+        // with `i0 < side`, which ends before `side² + LANES ≤ np`.
+        assert!(lay.nb.is_multiple_of(LANES) && lay.nb >= side * side && lay.nb + LANES <= np);
         let (inputs, rest) = scratch[..(INPUTS + TILES + 1 + P) * np].split_at_mut(INPUTS * np);
         let (tiles, outputs) = rest.split_at_mut(TILES * np);
         {
@@ -466,13 +512,17 @@ impl<M: PixelModel> Problem<M> {
                 for bi in 0..blocks {
                     let i0 = bi * LANES;
                     let q = j * side + i0;
-                    xe[q..q + LANES].copy_from_slice(&block(&ax.e, i0));
-                    xdc[q..q + LANES].copy_from_slice(&block(&ax.dc, i0));
-                    ye[q..q + LANES].copy_from_slice(&[ej; LANES]);
-                    ydc[q..q + LANES].copy_from_slice(&[dcj; LANES]);
-                    if fit_sigma {
-                        xds[q..q + LANES].copy_from_slice(&block(&ax.ds, i0));
-                        yds[q..q + LANES].copy_from_slice(&[dsj; LANES]);
+                    let (e, dc, ds) = (block(&ax.e, i0), block(&ax.dc, i0), block(&ax.ds, i0));
+                    // SAFETY: q + LANES ≤ side² + LANES ≤ np = len (asserted).
+                    unsafe {
+                        store(xe, q, e);
+                        store(xdc, q, dc);
+                        store(ye, q, [ej; LANES]);
+                        store(ydc, q, [dcj; LANES]);
+                        if fit_sigma {
+                            store(xds, q, ds);
+                            store(yds, q, [dsj; LANES]);
+                        }
                     }
                 }
             }
@@ -485,19 +535,26 @@ impl<M: PixelModel> Problem<M> {
         let mut g = [[0.0; LANES]; P];
         let mut k0 = 0;
         while k0 < lay.nb {
-            let data = block(dp, k0);
-            let (gain, offset) = if M::UNIFORM {
-                ([1.0; LANES], [0.0; LANES])
-            } else {
-                (block(gp, k0), block(op, k0))
+            // SAFETY: k0 + LANES ≤ nb ≤ np, each array np long (asserted).
+            let (data, gain, offset, used, ex, dcx, dsx, ey, dcy, dsy) = unsafe {
+                let (gain, offset) = if M::UNIFORM {
+                    ([1.0; LANES], [0.0; LANES])
+                } else {
+                    (load(gp, k0), load(op, k0))
+                };
+                (
+                    load(dp, k0),
+                    gain,
+                    offset,
+                    load(up, k0),
+                    load(tiles, k0),
+                    load(tiles, np + k0),
+                    load(tiles, 2 * np + k0),
+                    load(tiles, 3 * np + k0),
+                    load(tiles, 4 * np + k0),
+                    load(tiles, 5 * np + k0),
+                )
             };
-            let used = block(up, k0);
-            let ex = block(tiles, k0);
-            let dcx = block(tiles, np + k0);
-            let dsx = block(tiles, 2 * np + k0);
-            let ey = block(tiles, 3 * np + k0);
-            let dcy = block(tiles, 4 * np + k0);
-            let dsy = block(tiles, 5 * np + k0);
             let mut d = [[0.0; LANES]; P];
             let mut wv = [0.0; LANES];
             for l in 0..LANES {
@@ -524,10 +581,12 @@ impl<M: PixelModel> Problem<M> {
                 }
                 wv[l] = w * used[l];
             }
-            outputs[k0..k0 + LANES].copy_from_slice(&wv);
-            for p in 0..P {
-                let off = np + p * np + k0;
-                outputs[off..off + LANES].copy_from_slice(&d[p]);
+            // SAFETY: as the loads; outputs hold (1 + P) arrays of np.
+            unsafe {
+                store(outputs, k0, wv);
+                for p in 0..P {
+                    store(outputs, np + p * np + k0, d[p]);
+                }
             }
             k0 += LANES;
         }
@@ -640,6 +699,7 @@ impl<const P: usize, M: PixelModel, O: Objective, A: Arith> Evaluate<P> for Fram
 /// `v` limited to `[lo, hi]` (`lo ≤ hi`); `f64::clamp` is not inlined into
 /// the AVX2 build.
 #[inline(always)]
+#[allow(clippy::manual_clamp)]
 fn bound(v: f64, lo: f64, hi: f64) -> f64 {
     v.max(lo).min(hi)
 }
@@ -683,7 +743,8 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
         let mut held = [false; P];
         let mut any = false;
         for p in 0..P {
-            held[p] = (theta[p] <= lo[p] && delta[p] < 0.0) || (theta[p] >= hi[p] && delta[p] > 0.0);
+            held[p] =
+                (theta[p] <= lo[p] && delta[p] < 0.0) || (theta[p] >= hi[p] && delta[p] > 0.0);
             any |= held[p];
         }
         let mut g = cur.g;
@@ -736,7 +797,9 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
         let better = if exact {
             trial.ll >= cur.ll && trial.ll.is_finite()
         } else {
-            let gain: f64 = (0..P).map(|p| (next[p] - theta[p]) * (cur.g[p] + trial.g[p])).sum();
+            let gain: f64 = (0..P)
+                .map(|p| (next[p] - theta[p]) * (cur.g[p] + trial.g[p]))
+                .sum();
             gain >= 0.0 && gain.is_finite()
         };
         if better {
@@ -872,7 +935,13 @@ fn dispatch<A: Arith>(roi: &RoiView, opts: &FitOptions, kind: Kind) -> Fit {
 }
 
 #[inline(always)]
-fn run<M: PixelModel, A: Arith>(data: &[f64], side: usize, m: M, opts: &FitOptions, kind: Kind) -> Fit {
+fn run<M: PixelModel, A: Arith>(
+    data: &[f64],
+    side: usize,
+    m: M,
+    opts: &FitOptions,
+    kind: Kind,
+) -> Fit {
     let sigma0 = opts.sigma.value();
     if data.len() != side * side || side == 0 || side > crate::psf::MAX_SIDE {
         return Fit::failed(side, sigma0, FitStatus::NonFiniteInput);
@@ -891,14 +960,20 @@ fn run<M: PixelModel, A: Arith>(data: &[f64], side: usize, m: M, opts: &FitOptio
     let prob = Problem {
         side,
         model: m,
-        sigma_fixed: sigma0.max(1e-3).min(1e4),
+        sigma_fixed: bound(sigma0, 1e-3, 1e4),
     };
     let lay = Layout::new(side);
     let mut scratch = take_scratch(lay, 5);
     let fit = match prepare(data, &prob.model, lay, &mut scratch.buf) {
         Err(status) => Fit::failed(side, sigma0, status),
         Ok(init4) if opts.sigma.is_fitted() => {
-            let init = [init4[0], init4[1], init4[2], init4[3], sigma0.max(smin).min(smax)];
+            let init = [
+                init4[0],
+                init4[1],
+                init4[2],
+                init4[3],
+                sigma0.max(smin).min(smax),
+            ];
             let lo = [lo4[0], lo4[1], lo4[2], lo4[3], smin];
             let hi = [hi4[0], hi4[1], hi4[2], hi4[3], smax];
             finish::<5, M, A>(&prob, init, lo, hi, opts, kind, &mut scratch, lay)
@@ -910,6 +985,7 @@ fn run<M: PixelModel, A: Arith>(data: &[f64], side: usize, m: M, opts: &FitOptio
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn finish<const P: usize, M: PixelModel, A: Arith>(
     prob: &Problem<M>,
     init: [f64; P],
@@ -1017,40 +1093,4 @@ fn finish<const P: usize, M: PixelModel, A: Arith>(
         status,
         iterations: out.iterations,
     }
-}
-
-#[doc(hidden)]
-pub fn bench_evaluate(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -> f64 {
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn inner(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -> f64 {
-        let prob = Problem { side, model: Uniform, sigma_fixed: 1.5 };
-        let mut ax = AxisTerms::default();
-        let mut ay = AxisTerms::default();
-        let mut s = 0.0;
-        let lay = Layout::new(side);
-        let mut scratch = take_scratch(lay, 5);
-        let _ = prepare(data, &prob.model, lay, &mut scratch.buf);
-        for r in 0..reps {
-            let mut t = theta;
-            t[0] += r as f64 * 1e-9;
-            let e = prob.evaluate::<5, PoissonObjective, Fused, true>(&t, &mut ax, &mut ay, &mut scratch.buf, lay);
-            s += e.ll + e.h[1][2];
-        }
-        s
-    }
-    unsafe { inner(data, side, theta, reps) }
-}
-#[doc(hidden)]
-pub fn bench_axis(reps: usize) -> f64 {
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn inner(reps: usize) -> f64 {
-        let mut ax = AxisTerms::default();
-        let mut s = 0.0;
-        for r in 0..reps {
-            ax.compute_with::<Fused>(9, 4.5 + r as f64 * 1e-9, 1.5, true);
-            s += ax.e[3] + ax.ds[2];
-        }
-        s
-    }
-    unsafe { inner(reps) }
 }

@@ -65,14 +65,24 @@ fn csv_header_is_thunderstorm_exactly() {
 
 #[test]
 fn csv_errors_name_the_line() {
-    let e = CsvTable::read("\"id\",\"x [nm]\"\n1,2\n2,abc\n".as_bytes()).unwrap_err().to_string();
+    let e = CsvTable::read("\"id\",\"x [nm]\"\n1,2\n2,abc\n".as_bytes())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("line 3") && e.contains("abc"), "{e}");
-    let e = CsvTable::read("a,b\n1,2,3\n".as_bytes()).unwrap_err().to_string();
+    let e = CsvTable::read("a,b\n1,2,3\n".as_bytes())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("line 2"), "{e}");
     assert!(CsvTable::read("".as_bytes()).is_err());
     // ThunderSTORM 1.3 names the uncertainty column differently.
-    let t = CsvTable::read("\"id\",\"x [nm]\",\"y [nm]\",\"uncertainty_xy [nm]\"\n1,5,6,7\n".as_bytes()).unwrap();
-    assert_eq!(t.column(&["uncertainty [nm]", "uncertainty_xy [nm]"]), Some(3));
+    let t = CsvTable::read(
+        "\"id\",\"x [nm]\",\"y [nm]\",\"uncertainty_xy [nm]\"\n1,5,6,7\n".as_bytes(),
+    )
+    .unwrap();
+    assert_eq!(
+        t.column(&["uncertainty [nm]", "uncertainty_xy [nm]"]),
+        Some(3)
+    );
 }
 
 #[test]
@@ -86,14 +96,17 @@ fn merging_consecutive_frames_within_40_nm() {
         loc(2, 2000.0, 2000.0, 15.0), // another molecule
         loc(4, 1060.0, 990.0, 10.0),  // 50 nm from frame 3's: new track
         loc(6, 1010.0, 990.0, 10.0),  // after a gap: new track
-        failed,                        // never merged
+        failed,                       // never merged
     ];
     let (out, stats) = merge_consecutive(&locs, 40.0, 0);
     assert_eq!(stats.input, 7);
     assert_eq!(stats.output, 5);
     assert_eq!(stats.merged_tracks, 1);
     assert_eq!(stats.passed_failed, 1);
-    let m = out.iter().find(|l| l.detections == 3).expect("a 3-detection track");
+    let m = out
+        .iter()
+        .find(|l| l.detections == 3)
+        .expect("a 3-detection track");
     assert_eq!(m.frame, 1);
     // Inverse-variance weights 1/100, 1/400, 1/100.
     let w = [0.01, 0.0025, 0.01];
@@ -134,13 +147,20 @@ fn rendering_a_tiny_table() {
     };
     // Peak of a normalised Gaussian of σ = 1.6 px: ≈ 1/(2π·1.6²) per pixel.
     assert!(at(200.0, 150.0) > 0.04, "{}", at(200.0, 150.0));
-    assert!(at(240.0, 150.0) < 1e-6, "between the two: {}", at(240.0, 150.0));
+    assert!(
+        at(240.0, 150.0) < 1e-6,
+        "between the two: {}",
+        at(240.0, 150.0)
+    );
     let (png_bytes, bar) = to_png(&img, 0.5).unwrap();
     let dec = png::Decoder::new(Cursor::new(png_bytes));
     let mut reader = dec.read_info().unwrap();
     let mut buf = vec![0; reader.output_buffer_size()];
     let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!((info.width as usize, info.height as usize), (img.width, img.height));
+    assert_eq!(
+        (info.width as usize, info.height as usize),
+        (img.width, img.height)
+    );
     let px = |x: f64, y: f64| {
         let i = ((x - img.origin_x_nm) / img.pixel_nm) as usize;
         let j = ((y - img.origin_y_nm) / img.pixel_nm) as usize;
@@ -163,7 +183,9 @@ fn rendering_a_tiny_table() {
     let (png_bytes, bar) = to_png(&img, 0.5).unwrap();
     assert!(bar.label_drawn, "{bar:?}");
     assert!(bar.label.ends_with("nm") || bar.label.ends_with("µm"));
-    let mut reader = png::Decoder::new(Cursor::new(png_bytes)).read_info().unwrap();
+    let mut reader = png::Decoder::new(Cursor::new(png_bytes))
+        .read_info()
+        .unwrap();
     let mut buf = vec![0; reader.output_buffer_size()];
     reader.next_frame(&mut buf).unwrap();
     let (w, h) = (img.width, img.height);
@@ -172,13 +194,21 @@ fn rendering_a_tiny_table() {
     let x = w - margin - bar.length_px / 2;
     assert_eq!(buf[y * w + x], 255, "scale bar pixel");
     // Too large an image is refused with a clear error.
-    let far = [many[0], Point { x_nm: 1e9, ..many[0] }];
+    let far = [
+        many[0],
+        Point {
+            x_nm: 1e9,
+            ..many[0]
+        },
+    ];
     assert!(RenderOptions::covering(&far, 1.0, 2.0).is_err());
 }
 
 #[test]
 fn tiff_round_trip_and_bad_input() {
-    let pages: Vec<Vec<u32>> = (0..3).map(|p| (0..12).map(|i| (p * 100 + i) as u32).collect()).collect();
+    let pages: Vec<Vec<u32>> = (0..3)
+        .map(|p| (0..12).map(|i| (p * 100 + i) as u32).collect())
+        .collect();
     let mut buf = Cursor::new(Vec::new());
     assert!(write_stack(&mut buf, 4, 3, &pages).unwrap());
     let frames: Vec<_> = TiffStack::new(Cursor::new(buf.into_inner()), "mem")
@@ -194,7 +224,11 @@ fn tiff_round_trip_and_bad_input() {
     let big = vec![vec![70_000u32, 1, 2, 3]];
     let mut buf = Cursor::new(Vec::new());
     assert!(!write_stack(&mut buf, 2, 2, &big).unwrap());
-    let f = TiffStack::new(Cursor::new(buf.into_inner()), "mem").unwrap().next().unwrap().unwrap();
+    let f = TiffStack::new(Cursor::new(buf.into_inner()), "mem")
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap();
     assert_eq!(f.data[0], 70_000.0);
     // Not a TIFF: an error, not a panic.
     assert!(TiffStack::new(Cursor::new(b"hello, world".to_vec()), "junk").is_err());
@@ -230,7 +264,13 @@ fn roi_export_layouts() {
     assert_eq!((w, h), (5, 5));
     assert_eq!(pages[0][5..8], [4, 5, 6]);
     assert_eq!(pages[0][3], 0);
-    let (w, h, pages) = roi_pages(&rois, RoiLayout::Sensor { width: 8, height: 8 });
+    let (w, h, pages) = roi_pages(
+        &rois,
+        RoiLayout::Sensor {
+            width: 8,
+            height: 8,
+        },
+    );
     assert_eq!((w, h), (8, 8));
     // Column −1 is off the sensor: counts 1, 4, 7 dropped.
     assert_eq!(pages[0][2 * 8], 2);
@@ -241,11 +281,18 @@ fn roi_export_layouts() {
 #[test]
 fn frame_pipeline_finds_and_fits_molecules() {
     let (w, h) = (48, 40);
-    let truth = [(10.3, 12.7, 1500.0), (30.8, 9.4, 1500.0), (25.5, 30.2, 1500.0)];
+    let truth = [
+        (10.3, 12.7, 1500.0),
+        (30.8, 9.4, 1500.0),
+        (25.5, 30.2, 1500.0),
+    ];
     let mu = synth::expected_frame(w, h, &truth, 1.4, 10.0);
     let mut rng = rand::rngs::StdRng::seed_from_u64(9);
     // In ADU: offset 100, 2 e⁻ per ADU.
-    let raw: Vec<f64> = mu.iter().map(|&m| synth::poisson(&mut rng, m) / 2.0 + 100.0).collect();
+    let raw: Vec<f64> = mu
+        .iter()
+        .map(|&m| synth::poisson(&mut rng, m) / 2.0 + 100.0)
+        .collect();
     let p = FramePipeline {
         conversion: Conversion {
             offset_adu: 100.0,
@@ -262,13 +309,20 @@ fn frame_pipeline_finds_and_fits_molecules() {
         spad_planes: None,
     };
     let r = localize_frame(&p, &raw, w, h, 1).unwrap();
-    let ok: Vec<_> = r.localizations.iter().filter(|l| l.status.is_ok()).collect();
+    let ok: Vec<_> = r
+        .localizations
+        .iter()
+        .filter(|l| l.status.is_ok())
+        .collect();
     for &(x, y, _) in &truth {
         let best = ok
             .iter()
             .map(|l| ((l.x_nm - x * 100.0).powi(2) + (l.y_nm - y * 100.0).powi(2)).sqrt())
             .fold(f64::INFINITY, f64::min);
-        assert!(best < 15.0, "molecule at ({x}, {y}) missed: nearest {best} nm");
+        assert!(
+            best < 15.0,
+            "molecule at ({x}, {y}) missed: nearest {best} nm"
+        );
     }
     // Few false positives on a flat background.
     assert!(ok.len() <= 6, "{} localisations", ok.len());
@@ -276,6 +330,8 @@ fn frame_pipeline_finds_and_fits_molecules() {
         assert!(l.intensity > 0.0 && l.uncertainty_nm > 0.0);
     }
     // A frame smaller than the ROI is refused with a clear error.
-    let e = localize_frame(&p, &raw[..64], 8, 8, 1).unwrap_err().to_string();
+    let e = localize_frame(&p, &raw[..64], 8, 8, 1)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("smaller than the 9x9"), "{e}");
 }

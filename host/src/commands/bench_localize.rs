@@ -18,11 +18,13 @@
 
 use rand::SeedableRng;
 use smartagg_localize::bench::{
-    one_core_rate, score_frames, score_hot_pixels, score_spad, score_spad_hot_pixels, simulate_frames,
-    simulate_spad, throughput_parallel, FrameScenario, Score, SpadScenario,
+    one_core_rate, score_frames, score_hot_pixels, score_spad, score_spad_hot_pixels,
+    simulate_frames, simulate_spad, throughput_parallel, FrameScenario, Score, SpadScenario,
 };
 use smartagg_localize::spad::{fit_binomial, SpadEmitter, SpadRoi};
-use smartagg_localize::{lm, synth, Estimator, FitOptions, HotPixelMode, NoiseModel, PixelMaps, RoiView, SigmaMode};
+use smartagg_localize::{
+    lm, synth, Estimator, FitOptions, HotPixelMode, NoiseModel, PixelMaps, RoiView, SigmaMode,
+};
 use std::time::Instant;
 
 /// Arguments of `smartagg bench localize`.
@@ -74,7 +76,17 @@ fn row(label: &str, sigma: &str, rate: (f64, f64), s: &Score, pixel_nm: f64) {
 fn header() {
     println!(
         "  {:<22} {:<7} {:>10} {:>10}   {:>7} {:>6}  {:>7}   {:>6}   {:>6}  {:>6} {:>5}",
-        "estimator", "sigma", "fits/s med", "fits/s max", "RMSE px", "nm", "CRLB px", "ratio", "unc/R", "failed", "iter"
+        "estimator",
+        "sigma",
+        "fits/s med",
+        "fits/s max",
+        "RMSE px",
+        "nm",
+        "CRLB px",
+        "ratio",
+        "unc/R",
+        "failed",
+        "iter"
     );
 }
 
@@ -137,8 +149,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         let sset = simulate_spad(&spad);
         for (label, est, opts, sig) in [
-            ("spad-mle (SPAD blink)", Estimator::SpadMle, fixed(), "fixed"),
-            ("spad-mle (SPAD blink)", Estimator::SpadMle, fitted(), "fitted"),
+            (
+                "spad-mle (SPAD blink)",
+                Estimator::SpadMle,
+                fixed(),
+                "fixed",
+            ),
+            (
+                "spad-mle (SPAD blink)",
+                Estimator::SpadMle,
+                fitted(),
+                "fitted",
+            ),
             ("mle (SPAD blink)", Estimator::Mle, fitted(), "fitted"),
         ] {
             let s = score_spad(&sset, est, &opts);
@@ -159,7 +181,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     // 3. Camera noise models.
     println!();
-    println!("Camera noise models, MLE sigma fixed, 500 photons, 3 background photons/px ({} ROIs)", args.rois / 2);
+    println!(
+        "Camera noise models, MLE sigma fixed, 500 photons, 3 background photons/px ({} ROIs)",
+        args.rois / 2
+    );
     header();
     for (label, noise, var) in [
         ("mle emccd (F2 = 2)", NoiseModel::Emccd, 0.0),
@@ -174,7 +199,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut o = fixed();
         o.noise = noise;
         let s = score_frames(&set, Estimator::Mle, &o);
-        row(label, "fixed", (s.fits_per_s, s.fits_per_s), &s, args.pixel_nm);
+        row(
+            label,
+            "fixed",
+            (s.fits_per_s, s.fits_per_s),
+            &s,
+            args.pixel_nm,
+        );
     }
 
     // 4. Pile-up.
@@ -227,7 +258,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // 5. Hot pixels.
     println!();
     println!("Hot pixels masked by the pipeline (read 0): RMSE px when ignored vs interpolated, sigma fixed");
-    println!("  {:>8}  {:>24}  {:>24}", "fraction", "Poisson MLE (230 ph)", "SPAD binomial MLE");
+    println!(
+        "  {:>8}  {:>24}  {:>24}",
+        "fraction", "Poisson MLE (230 ph)", "SPAD binomial MLE"
+    );
     let spad = SpadScenario {
         side: 9,
         sigma: 1.5,

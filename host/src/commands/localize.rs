@@ -29,7 +29,10 @@ use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::spad::{fit_binomial, SpadRoi};
 use smartagg_localize::table::{LocTable, Localization};
 use smartagg_localize::tiffio::{self, RoiLayout, RoiPage};
-use smartagg_localize::{fit_roi, Estimator, FitOptions, FitStatus, HotPixelMode, NoiseModel, PixelMaps, RoiView, SigmaMode};
+use smartagg_localize::{
+    fit_roi, Estimator, FitOptions, FitStatus, HotPixelMode, NoiseModel, PixelMaps, RoiView,
+    SigmaMode,
+};
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::record::{flags as rflags, BlinkRecord, Record, StreamStart};
 use std::collections::BTreeMap;
@@ -187,7 +190,9 @@ fn setup(args: &Args) -> anyhow::Result<Setup> {
     if !(pixel_nm.is_finite() && pixel_nm > 0.0) {
         bail!("--pixel-nm must be a positive number of nanometres, got {pixel_nm}");
     }
-    let sigma_px = args.sigma.unwrap_or_else(|| preset.as_ref().map_or(1.6, |p| p.sigma_px()));
+    let sigma_px = args
+        .sigma
+        .unwrap_or_else(|| preset.as_ref().map_or(1.6, |p| p.sigma_px()));
     let noise = match args.noise {
         Some(NoiseArg::Poisson) => NoiseModel::Poisson,
         Some(NoiseArg::Emccd) => NoiseModel::Emccd,
@@ -218,7 +223,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(n) = args.threads {
         // Only the first call configures the global pool; later ones (tests
         // in one process) keep it.
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global();
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global();
     }
     let s = setup(&args)?;
     let started = Instant::now();
@@ -236,9 +243,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.drop_failed {
         table.rows.retain(|r| r.status.is_ok());
     }
-    let file = std::fs::File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let file = std::fs::File::create(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let mut w = std::io::BufWriter::new(file);
-    table.write_csv(&mut w).with_context(|| format!("writing {}", args.out.display()))?;
+    table
+        .write_csv(&mut w)
+        .with_context(|| format!("writing {}", args.out.display()))?;
     w.flush()?;
     let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
@@ -247,7 +257,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.out.display(),
         summary.join(", "),
         failed,
-        if args.drop_failed { "dropped" } else { "kept, flagged in fit_status" },
+        if args.drop_failed {
+            "dropped"
+        } else {
+            "kept, flagged in fit_status"
+        },
         fits,
         seconds,
         fits as f64 / seconds.max(1e-9)
@@ -261,7 +275,8 @@ fn is_tiff(path: &Path) -> anyhow::Result<bool> {
     let mut f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let mut magic = [0u8; 4];
     let n = f.read(&mut magic)?;
-    Ok(n == 4 && (magic == *b"II*\0" || magic == *b"MM\0*" || magic == *b"II+\0" || magic == *b"MM\0+"))
+    Ok(n == 4
+        && (magic == *b"II*\0" || magic == *b"MM\0*" || magic == *b"II+\0" || magic == *b"MM\0+"))
 }
 
 /// Reads the blink records of a packet stream, printing what the decoder
@@ -307,7 +322,9 @@ fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
     let est = args.estimator.estimator();
     let maps = match &args.calibration {
         None => None,
-        Some(dir) => match AnyCalibration::load(dir).with_context(|| format!("loading calibration {}", dir.display()))? {
+        Some(dir) => match AnyCalibration::load(dir)
+            .with_context(|| format!("loading calibration {}", dir.display()))?
+        {
             AnyCalibration::Spad(c) => {
                 let tau = start
                     .as_ref()
@@ -338,7 +355,9 @@ fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
             );
         }
     }
-    let sensor = start.as_ref().map(|st| (st.width as usize, st.height as usize));
+    let sensor = start
+        .as_ref()
+        .map(|st| (st.width as usize, st.height as usize));
     if sensor.is_none() {
         eprintln!("warning: no stream-start record: pixels off the right or bottom sensor edge cannot be told apart");
     }
@@ -388,8 +407,14 @@ fn fit_record(
 ) -> Localization {
     let side = rec.roi_size as usize;
     let (x0, y0) = (rec.roi_x0(), rec.roi_y0());
-    let extra = vec![rec.t_s as f64, rec.t_e as f64, rec.planes_summed as f64, rec.flags as f64];
-    let bad_shape = side == 0 || side > smartagg_localize::psf::MAX_SIDE || rec.counts.len() != side * side;
+    let extra = vec![
+        rec.t_s as f64,
+        rec.t_e as f64,
+        rec.planes_summed as f64,
+        rec.flags as f64,
+    ];
+    let bad_shape =
+        side == 0 || side > smartagg_localize::psf::MAX_SIDE || rec.counts.len() != side * side;
     if bad_shape {
         let mut l = Localization::from_fit(
             &smartagg_localize::Fit::failed(side.max(1), s.sigma_px, FitStatus::InconsistentCounts),
@@ -409,7 +434,8 @@ fn fit_record(
         for i in 0..side {
             let k = j * side + i;
             let (x, y) = (x0 + i as i32, y0 + j as i32);
-            let off = x < 0 || y < 0 || sensor.is_some_and(|(w, h)| x as usize >= w || y as usize >= h);
+            let off =
+                x < 0 || y < 0 || sensor.is_some_and(|(w, h)| x as usize >= w || y as usize >= h);
             if off {
                 pm.ignore[k] = true;
                 continue;
@@ -477,7 +503,12 @@ fn fit_record(
     l
 }
 
-fn export_tiff(path: &Path, rois: &[BlinkRecord], layout: LayoutArg, sensor: Option<(usize, usize)>) -> anyhow::Result<()> {
+fn export_tiff(
+    path: &Path,
+    rois: &[BlinkRecord],
+    layout: LayoutArg,
+    sensor: Option<(usize, usize)>,
+) -> anyhow::Result<()> {
     let pages: Vec<RoiPage> = rois
         .iter()
         .map(|r| RoiPage {
@@ -498,13 +529,26 @@ fn export_tiff(path: &Path, rois: &[BlinkRecord], layout: LayoutArg, sensor: Opt
     };
     let (w, h, data) = tiffio::roi_pages(&pages, layout);
     let out = tiffio::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let bits16 = tiffio::write_stack(out, w, h, &data).with_context(|| format!("writing {}", path.display()))?;
+    let bits16 = tiffio::write_stack(out, w, h, &data)
+        .with_context(|| format!("writing {}", path.display()))?;
     if layout == RoiLayout::Compact {
         let origins = PathBuf::from(format!("{}.origins.csv", path.display()));
         let mut f = std::io::BufWriter::new(std::fs::File::create(&origins)?);
-        writeln!(f, "\"page\",\"x0 [px]\",\"y0 [px]\",\"t_start [plane]\",\"t_end [plane]\",\"planes\"")?;
+        writeln!(
+            f,
+            "\"page\",\"x0 [px]\",\"y0 [px]\",\"t_start [plane]\",\"t_end [plane]\",\"planes\""
+        )?;
         for (i, r) in rois.iter().enumerate() {
-            writeln!(f, "{},{},{},{},{},{}", i + 1, r.roi_x0(), r.roi_y0(), r.t_s, r.t_e, r.planes_summed)?;
+            writeln!(
+                f,
+                "{},{},{},{},{},{}",
+                i + 1,
+                r.roi_x0(),
+                r.roi_y0(),
+                r.t_s,
+                r.t_e,
+                r.planes_summed
+            )?;
         }
         f.flush()?;
         eprintln!(
@@ -517,7 +561,11 @@ fn export_tiff(path: &Path, rois: &[BlinkRecord], layout: LayoutArg, sensor: Opt
             origins.display()
         );
     } else {
-        eprintln!("{} sensor-sized pages written to {}", rois.len(), path.display());
+        eprintln!(
+            "{} sensor-sized pages written to {}",
+            rois.len(),
+            path.display()
+        );
     }
     Ok(())
 }
@@ -542,7 +590,9 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
     let read_noise = args.read_noise_e.unwrap_or(p_read);
     let calibration = match &args.calibration {
         None => None,
-        Some(dir) => match AnyCalibration::load(dir).with_context(|| format!("loading calibration {}", dir.display()))? {
+        Some(dir) => match AnyCalibration::load(dir)
+            .with_context(|| format!("loading calibration {}", dir.display()))?
+        {
             AnyCalibration::Frame(f) => Some(f),
             AnyCalibration::Spad(_) => bail!(
                 "{} is a SPAD calibration; frames need an EMCCD or sCMOS calibration",
@@ -562,9 +612,9 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
     // Frames are read one at a time and fitted in parallel batches.
     let mut batch = Vec::new();
     let flush = |batch: &mut Vec<(u64, smartagg_localize::tiffio::Frame)>,
-                     p: &FramePipeline,
-                     rows: &mut Vec<Localization>,
-                     candidates: &mut usize|
+                 p: &FramePipeline,
+                 rows: &mut Vec<Localization>,
+                 candidates: &mut usize|
      -> anyhow::Result<()> {
         let results: Vec<_> = batch
             .par_iter()
@@ -582,7 +632,16 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
         let mut frame = frame?;
         frames += 1;
         if pipeline.is_none() {
-            pipeline = Some(frame_pipeline(args, s, est, conversion, read_noise, roi, calibration.as_ref(), &frame)?);
+            pipeline = Some(frame_pipeline(
+                args,
+                s,
+                est,
+                conversion,
+                read_noise,
+                roi,
+                calibration.as_ref(),
+                &frame,
+            )?);
         }
         let p = pipeline.as_ref().expect("set above");
         if let Some(c) = &calibration {
@@ -597,7 +656,10 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
             }
             // Per-pixel conversion: (ADU − offset) / (ADU per electron).
             for (k, v) in frame.data.iter_mut().enumerate() {
-                let gain = c.gain_adu_per_e.as_ref().map_or(1.0 / (conversion.e_per_adu / conversion.em_gain), |g| g[k]);
+                let gain = c
+                    .gain_adu_per_e
+                    .as_ref()
+                    .map_or(1.0 / (conversion.e_per_adu / conversion.em_gain), |g| g[k]);
                 *v = (*v - c.offset_adu[k]) / gain.max(1e-12);
             }
         }
@@ -772,11 +834,13 @@ mod tests {
         let mut enc = Encoder::new();
         let mut bytes = Vec::new();
         enc.push(&Record::Start(start()), &mut bytes).unwrap();
-        enc.push(&Record::Blink(record(0, 20, 30, blink(0.3))), &mut bytes).unwrap();
+        enc.push(&Record::Blink(record(0, 20, 30, blink(0.3))), &mut bytes)
+            .unwrap();
         let mut edge = record(1, 2, 10, blink(-0.2));
         edge.flags = rflags::EDGE;
         enc.push(&Record::Blink(edge), &mut bytes).unwrap();
-        enc.push(&Record::Blink(record(2, 40, 20, vec![0; 81])), &mut bytes).unwrap();
+        enc.push(&Record::Blink(record(2, 40, 20, vec![0; 81])), &mut bytes)
+            .unwrap();
         std::fs::write(&input, &bytes).unwrap();
 
         let (st, rois) = read_stream(&input).unwrap();
@@ -787,19 +851,36 @@ mod tests {
         let mut a = args(&input, &out);
         a.export_tiff = Some(dir.path().join("rois.tif"));
         run(a).unwrap();
-        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(std::fs::File::open(&out).unwrap())).unwrap();
+        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+            std::fs::File::open(&out).unwrap(),
+        ))
+        .unwrap();
         assert_eq!(t.rows.len(), 3, "the zero-photon ROI is kept, flagged");
-        let (x, st) = (t.column(&["x [nm]"]).unwrap(), t.column(&["fit_status"]).unwrap());
+        let (x, st) = (
+            t.column(&["x [nm]"]).unwrap(),
+            t.column(&["fit_status"]).unwrap(),
+        );
         // First blink: anchor 20 → ROI origin 16; 16 + 4.5 + 0.3 px at 50 nm.
-        assert!((t.rows[0][x] - (16.0 + 4.8) * 50.0).abs() < 3.0, "{}", t.rows[0][x]);
+        assert!(
+            (t.rows[0][x] - (16.0 + 4.8) * 50.0).abs() < 3.0,
+            "{}",
+            t.rows[0][x]
+        );
         assert_eq!(t.rows[0][st], 0.0);
         // Second: origin x = −2, two columns off the sensor ignored.
-        assert!((t.rows[1][x] - (-2.0 + 4.3) * 50.0).abs() < 5.0, "{}", t.rows[1][x]);
+        assert!(
+            (t.rows[1][x] - (-2.0 + 4.3) * 50.0).abs() < 5.0,
+            "{}",
+            t.rows[1][x]
+        );
         assert_eq!(t.rows[2][st], FitStatus::NoSignal.code() as f64);
         let ts = t.column(&["t_start [plane]"]).unwrap();
         assert_eq!(t.rows[0][ts], 946.0);
         // The ROI stack opens as three 9×9 pages.
-        let pages: Vec<_> = tiffio::open_stack(&dir.path().join("rois.tif")).unwrap().collect::<Result<_, _>>().unwrap();
+        let pages: Vec<_> = tiffio::open_stack(&dir.path().join("rois.tif"))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
         assert_eq!(pages.len(), 3);
         assert_eq!(pages[0].data.len(), 81);
         assert!(dir.path().join("rois.tif.origins.csv").exists());
@@ -809,7 +890,10 @@ mod tests {
         a.drop_failed = true;
         a.estimator = EstimatorArg::Mle;
         run(a).unwrap();
-        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(std::fs::File::open(&out).unwrap())).unwrap();
+        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+            std::fs::File::open(&out).unwrap(),
+        ))
+        .unwrap();
         assert_eq!(t.rows.len(), 2);
     }
 
@@ -818,11 +902,19 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let junk = dir.path().join("junk.rois");
         std::fs::write(&junk, b"this is not a packet stream at all").unwrap();
-        let e = run(args(&junk, &dir.path().join("o.csv"))).unwrap_err().to_string();
-        assert!(e.contains("neither a blink-ROI packet stream nor a TIFF"), "{e}");
-        let e = run(args(&dir.path().join("missing.rois"), &dir.path().join("o.csv")))
+        let e = run(args(&junk, &dir.path().join("o.csv")))
             .unwrap_err()
             .to_string();
+        assert!(
+            e.contains("neither a blink-ROI packet stream nor a TIFF"),
+            "{e}"
+        );
+        let e = run(args(
+            &dir.path().join("missing.rois"),
+            &dir.path().join("o.csv"),
+        ))
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("missing.rois"), "{e}");
         let mut a = args(&junk, &dir.path().join("o.csv"));
         a.pixel_nm = None;
@@ -862,7 +954,10 @@ mod tests {
         a.e_per_adu = Some(2.0);
         a.merge_nm = Some(40.0);
         run(a).unwrap();
-        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(std::fs::File::open(&out).unwrap())).unwrap();
+        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+            std::fs::File::open(&out).unwrap(),
+        ))
+        .unwrap();
         let det = t.column(&["detections"]).unwrap();
         let st = t.column(&["fit_status"]).unwrap();
         let ok: Vec<_> = t.rows.iter().filter(|r| r[st] == 0.0).collect();

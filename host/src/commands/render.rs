@@ -40,20 +40,31 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let file = std::fs::File::open(&args.table).with_context(|| format!("opening {}", args.table.display()))?;
-    let t = CsvTable::read(std::io::BufReader::new(file)).with_context(|| format!("reading {}", args.table.display()))?;
+    let file = std::fs::File::open(&args.table)
+        .with_context(|| format!("opening {}", args.table.display()))?;
+    let t = CsvTable::read(std::io::BufReader::new(file))
+        .with_context(|| format!("reading {}", args.table.display()))?;
     let col = |names: &[&str]| -> anyhow::Result<usize> {
         t.column(names).with_context(|| {
             format!(
                 "{} has no column {} (columns: {})",
                 args.table.display(),
-                names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(" or "),
+                names
+                    .iter()
+                    .map(|n| format!("\"{n}\""))
+                    .collect::<Vec<_>>()
+                    .join(" or "),
                 t.columns.join(", ")
             )
         })
     };
     let (cx, cy) = (col(&["x [nm]"])?, col(&["y [nm]"])?);
-    let cu = col(&["uncertainty [nm]", "uncertainty_xy [nm]", "uncertainty_xy", "uncertainty"])?;
+    let cu = col(&[
+        "uncertainty [nm]",
+        "uncertainty_xy [nm]",
+        "uncertainty_xy",
+        "uncertainty",
+    ])?;
     let cs = t.column(&["fit_status"]);
     let mut points = Vec::with_capacity(t.rows.len());
     let (mut failed, mut unusable) = (0usize, 0usize);
@@ -76,7 +87,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         points.push(p);
     }
     if points.is_empty() {
-        bail!("{}: no localisation to render ({} failed fits left out)", args.table.display(), failed);
+        bail!(
+            "{}: no localisation to render ({} failed fits left out)",
+            args.table.display(),
+            failed
+        );
     }
     let opts = RenderOptions::covering(&points, args.pixel_nm, args.min_sigma_nm)?;
     let (img, skipped) = render(&points, &opts)?;
@@ -92,11 +107,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "32-bit float density".to_string()
     } else {
         let (bytes, bar) = to_png(&img, args.saturate)?;
-        std::fs::write(&args.out, bytes).with_context(|| format!("writing {}", args.out.display()))?;
+        std::fs::write(&args.out, bytes)
+            .with_context(|| format!("writing {}", args.out.display()))?;
         format!(
             "8-bit PNG, scale bar {}{}",
             bar.label,
-            if bar.label_drawn { "" } else { " (label too large for the image, bar only)" }
+            if bar.label_drawn {
+                ""
+            } else {
+                " (label too large for the image, bar only)"
+            }
         )
     };
     println!(
@@ -147,7 +167,12 @@ mod tests {
         let mut buf = vec![0; reader.output_buffer_size()];
         let info = reader.next_frame(&mut buf).unwrap();
         // The failed fit at (900, 900) is left out: the image ends well before it.
-        assert!(info.width < 60 && info.height < 60, "{}x{}", info.width, info.height);
+        assert!(
+            info.width < 60 && info.height < 60,
+            "{}x{}",
+            info.width,
+            info.height
+        );
         let tif = dir.path().join("img.tif");
         run(Args {
             table,
