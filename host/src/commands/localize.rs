@@ -289,11 +289,8 @@ pub fn read_stream(path: &Path) -> anyhow::Result<(Option<StreamStart>, Vec<Blin
     let mut rois = Vec::new();
     for p in decoded.packets {
         match p.record {
-            Record::Start(s) => {
-                if start.is_none() {
-                    start = Some(s);
-                }
-            }
+            // The first stream-start record describes the sensor.
+            Record::Start(s) if start.is_none() => start = Some(s),
             Record::Blink(b) => rois.push(b),
             _ => {}
         }
