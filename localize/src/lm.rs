@@ -14,15 +14,23 @@
 //! weighted derivatives; the second sums the curvature a few entries at a
 //! time (so that the accumulators stay in registers). Work arrays live in a
 //! per-thread scratch buffer allocated once: nothing is allocated per fit.
+//! Blocks are loaded without per-load bounds checks, their whole index range
+//! being asserted once per pass (bounds checks were a fifth of a fit's
+//! instructions); on x86-64 the fit is also compiled for AVX2+FMA and that
+//! build is chosen at run time.
+//!
 //! The step solves `(H + λ diag H) δ = ∇` (Fisher scoring damped à la
-//! Marquardt); a step is kept only if the objective does not decrease. When
-//! the Newton decrement `δᵀ∇` falls below 0.05 (log-likelihood units: the
-//! step is below 0.22 standard deviation in every parameter, where the
-//! quadratic model is accurate) the fit takes that last step unchecked and
-//! stops; `smartagg bench localize` shows the RMSE unchanged to 0.1 % against
-//! a 5× tighter rule, with a fifth fewer iterations. At convergence the
-//! Poisson `H` *is* the Fisher information of the fitted model, so the
-//! Cramér–Rao bound costs one 5×5 inversion.
+//! Marquardt); a step is kept only if the objective does not decrease —
+//! judged, once the step is within about one standard deviation (Newton
+//! decrement below 1), by the trapezoid rule on the gradients, which needs
+//! no logarithms. When the Newton decrement `δᵀ∇` falls below 0.05
+//! (log-likelihood units: the step is below 0.22 standard deviation in every
+//! parameter, where the quadratic model is accurate) the fit takes that last
+//! step unchecked and stops. Measured on 20 000 ROIs (230 photons, σ
+//! fitted): RMSE/CRLB 1.018 against 1.020 with a 5× tighter rule, for a fifth
+//! fewer iterations. At convergence the Poisson `H` *is* the Fisher
+//! information of the fitted model, so the Cramér–Rao bound costs one 5×5
+//! inversion.
 
 #[cfg(target_arch = "x86_64")]
 use crate::fastmath::Fused;
