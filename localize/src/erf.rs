@@ -105,7 +105,6 @@ mod tests {
     use super::*;
 
     /// (z, erf z, erfc z) to 20 digits, computed with 40-digit arithmetic (mpmath).
-    #[allow(clippy::excessive_precision)]
     const REF: [(f64, f64, f64); 19] = [
         (-3.0, -0.999_977_909_503_001_4, 1.999_977_909_503_001_4),
         (-1.5, -0.966_105_146_475_310_7, 1.966_105_146_475_310_7),

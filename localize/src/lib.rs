@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # smartagg-localize — molecule positions from ROIs and frames
 //!
 //! Turns each aggregated blink ROI (or each EMCCD/sCMOS/fixed-aggregation
@@ -22,12 +23,13 @@
 //! localisation at sensor column `X` (pixels) is at `X · pixel_nm` nm with
 //! `X = roi_x0 + x_fit`.
 
-#![warn(missing_docs)]
-// Numeric kernels index several arrays by the same parameter or lane index,
-// as the formulas do; iterator rewrites would hide the maths.
+// Numeric kernels index several parallel arrays (Jacobian, Hessian, parameter
+// vectors) by parameter number: index loops are the clearer form there.
 #![allow(clippy::needless_range_loop)]
-// `!(x > y)` is used on purpose: it is also true when x is NaN.
+// `!(x > y)` is deliberate where a NaN must take the "bad" branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Reference values of erf are written with every digit the tables give.
+#![allow(clippy::excessive_precision)]
 
 pub mod bench;
 pub mod centroid;

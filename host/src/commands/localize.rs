@@ -289,7 +289,7 @@ pub fn read_stream(path: &Path) -> anyhow::Result<(Option<StreamStart>, Vec<Blin
     let mut rois = Vec::new();
     for p in decoded.packets {
         match p.record {
-            // The first stream-start record describes the sensor.
+            // The first stream start describes the stream.
             Record::Start(s) if start.is_none() => start = Some(s),
             Record::Blink(b) => rois.push(b),
             _ => {}
