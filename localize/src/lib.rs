@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # smartagg-localize — molecule positions from ROIs and frames
 //!
 //! Turns each aggregated blink ROI (or each EMCCD/sCMOS/fixed-aggregation

@@ -14,13 +14,23 @@
 //! weighted derivatives; the second sums the curvature a few entries at a
 //! time (so that the accumulators stay in registers). Work arrays live in a
 //! per-thread scratch buffer allocated once: nothing is allocated per fit.
+//! Blocks are loaded without per-load bounds checks, their whole index range
+//! being asserted once per pass (bounds checks were a fifth of a fit's
+//! instructions); on x86-64 the fit is also compiled for AVX2+FMA and that
+//! build is chosen at run time.
+//!
 //! The step solves `(H + λ diag H) δ = ∇` (Fisher scoring damped à la
-//! Marquardt); a step is kept only if the objective does not decrease. When
-//! the Newton decrement `δᵀ∇` falls below 0.01 (log-likelihood units: the
-//! step is below 0.1 standard deviation in every parameter) the fit takes
-//! that last step unchecked and stops. At convergence the Poisson `H` *is*
-//! the Fisher information of the fitted model, so the Cramér–Rao bound costs
-//! one 5×5 inversion.
+//! Marquardt); a step is kept only if the objective does not decrease —
+//! judged, once the step is within about one standard deviation (Newton
+//! decrement below 1), by the trapezoid rule on the gradients, which needs
+//! no logarithms. When the Newton decrement `δᵀ∇` falls below 0.05
+//! (log-likelihood units: the step is below 0.22 standard deviation in every
+//! parameter, where the quadratic model is accurate) the fit takes that last
+//! step unchecked and stops. Measured on 20 000 ROIs (230 photons, σ
+//! fitted): RMSE/CRLB 1.018 against 1.020 with a 5× tighter rule, for a fifth
+//! fewer iterations. At convergence the Poisson `H` *is* the Fisher
+//! information of the fitted model, so the Cramér–Rao bound costs one 5×5
+//! inversion.
 
 #[cfg(target_arch = "x86_64")]
 use crate::fastmath::Fused;
@@ -34,7 +44,7 @@ use crate::roi::{PixelMaps, RoiView};
 /// when background and dark counts are zero).
 const MU_FLOOR: f64 = 1e-12;
 /// Newton decrement at which the fit takes its last step and stops.
-const DECREMENT_TOL: f64 = 1e-2;
+const DECREMENT_TOL: f64 = 5e-2;
 /// Newton decrement below which steps are judged by the trapezoid rule on
 /// the gradients instead of by the objective.
 const TRAPEZOID_LIMIT: f64 = 1.0;
@@ -42,6 +52,9 @@ const TRAPEZOID_LIMIT: f64 = 1.0;
 /// Per-pixel knowledge seen by the fit loop; the uniform version compiles to
 /// constants.
 pub(crate) trait PixelModel {
+    /// Gain 1, no offset or shift, nothing ignored: lets the fit loop skip
+    /// the per-pixel factors.
+    const UNIFORM: bool;
     fn gain(&self, k: usize) -> f64;
     /// Added to μ (dark counts, sCMOS read variance).
     fn offset(&self, k: usize) -> f64;
@@ -53,6 +66,7 @@ pub(crate) trait PixelModel {
 pub(crate) struct Uniform;
 
 impl PixelModel for Uniform {
+    const UNIFORM: bool = true;
     #[inline(always)]
     fn gain(&self, _k: usize) -> f64 {
         1.0
@@ -77,6 +91,7 @@ pub(crate) struct Mapped<'a> {
 }
 
 impl PixelModel for Mapped<'_> {
+    const UNIFORM: bool = false;
     #[inline(always)]
     fn gain(&self, k: usize) -> f64 {
         self.maps.gain[k]
@@ -162,10 +177,17 @@ pub(crate) struct Eval<const P: usize> {
 /// Pixels per vectorised block (four f64 lanes: one AVX2 register).
 const LANES: usize = 4;
 
+/// A thread's work space: the pixel arrays and the 1-D terms of both axes,
+/// allocated once per thread and reused by every fit (nothing is allocated
+/// or cleared per fit).
+struct Scratch {
+    buf: Vec<f64>,
+    ax: AxisTerms,
+    ay: AxisTerms,
+}
+
 thread_local! {
-    /// Per-thread work arrays of the pixel passes (weights and derivatives),
-    /// grown once to the largest ROI seen.
-    static SCRATCH: std::cell::Cell<Vec<f64>> = const { std::cell::Cell::new(Vec::new()) };
+    static SCRATCH: std::cell::Cell<Option<Box<Scratch>>> = const { std::cell::Cell::new(None) };
 }
 
 /// Layout of the pixel arrays: the ROI's pixels row-major and flat, padded
@@ -173,16 +195,22 @@ thread_local! {
 #[derive(Clone, Copy)]
 struct Layout {
     side: usize,
-    /// Entries per array, `side²` rounded up to a multiple of [`LANES`].
+    /// Entries visited, `side²` rounded up to a multiple of [`LANES`].
+    nb: usize,
+    /// Entries per array: `nb` plus one block of slack, so that rows of
+    /// tiles can be written in whole blocks (a row's last block spills into
+    /// the next row, which is written after it, or into the slack).
     np: usize,
 }
 
 impl Layout {
     #[inline(always)]
     fn new(side: usize) -> Layout {
+        let nb = (side * side).div_ceil(LANES) * LANES;
         Layout {
             side,
-            np: (side * side).div_ceil(LANES) * LANES,
+            nb,
+            np: nb + LANES,
         }
     }
 }
@@ -193,43 +221,80 @@ const INPUTS: usize = 4;
 /// `Ex, ∂Ex/∂x, ∂Ex/∂σ` and row terms `Ey, ∂Ey/∂y, ∂Ey/∂σ` of every pixel.
 const TILES: usize = 6;
 
-/// Borrows this thread's scratch buffer, sized for the input arrays and the
-/// `1 + params` output arrays (weights, derivatives) of [`Layout`]. Give it
-/// back with [`return_scratch`]. (No closure runs the fit: closures would not
-/// inherit the AVX2 build.)
+/// Borrows this thread's scratch, with room for the input arrays, tiles and
+/// the `1 + params` output arrays (weights, derivatives) of [`Layout`]. Give
+/// it back with [`return_scratch`]. (No closure runs the fit: closures would
+/// not inherit the AVX2 build.)
 #[inline(always)]
-fn take_scratch(lay: Layout, params: usize) -> Vec<f64> {
-    let mut buf = SCRATCH.with(|c| c.take());
+fn take_scratch(lay: Layout, params: usize) -> Box<Scratch> {
+    let mut s = SCRATCH.with(|c| c.take()).unwrap_or_else(|| {
+        Box::new(Scratch {
+            buf: Vec::new(),
+            ax: AxisTerms::default(),
+            ay: AxisTerms::default(),
+        })
+    });
     let need = lay.np * (INPUTS + TILES + 1 + params);
-    if buf.len() < need {
-        buf.resize(need, 0.0);
+    if s.buf.len() < need {
+        s.buf.resize(need, 0.0);
     }
-    buf
+    s
 }
 
 #[inline(always)]
-fn return_scratch(buf: Vec<f64>) {
-    SCRATCH.with(|c| c.set(buf));
+fn return_scratch(s: Box<Scratch>) {
+    SCRATCH.with(|c| c.set(Some(s)));
 }
 
-/// Copies the ROI into the input arrays once per fit: data plus shift (0
+/// Copies the ROI into the input arrays once per fit — data plus shift (0
 /// where ignored: NaN in an ignored pixel never reaches a sum), gain,
 /// offset, and use (1 or 0); padding lanes get use 0 and a harmless μ > 0,
-/// and the padding of the tile arrays is zeroed.
+/// and the padding of the tile arrays is zeroed — and computes the starting
+/// values of [`initial_guess`] on the way. Errors: a non-finite pixel that
+/// is not ignored, or no counts at all.
 #[inline(always)]
-fn prepare<M: PixelModel>(data: &[f64], m: &M, lay: Layout, scratch: &mut [f64]) {
+fn prepare<M: PixelModel>(
+    data: &[f64],
+    m: &M,
+    lay: Layout,
+    scratch: &mut [f64],
+) -> Result<[f64; 4], FitStatus> {
     let np = lay.np;
-    let n = lay.side * lay.side;
+    let side = lay.side;
+    let n = side * side;
     let (dp, rest) = scratch[..(INPUTS + TILES) * np].split_at_mut(np);
     let (gp, rest) = rest.split_at_mut(np);
     let (op, rest) = rest.split_at_mut(np);
     let (up, tiles) = rest.split_at_mut(np);
-    for k in 0..n {
-        let used = !m.ignored(k);
-        dp[k] = if used { data[k] + m.shift(k) } else { 0.0 };
-        gp[k] = m.gain(k);
-        op[k] = m.offset(k);
-        up[k] = if used { 1.0 } else { 0.0 };
+    let data = &data[..n];
+    let (mut border_sum, mut border_n, mut total, mut valid) = (0.0, 0usize, 0.0, 0usize);
+    let mut finite = true;
+    for j in 0..side {
+        let edge_row = j == 0 || j + 1 == side;
+        for i in 0..side {
+            let k = j * side + i;
+            let used = !m.ignored(k);
+            let v = data[k];
+            finite &= !used || v.is_finite();
+            dp[k] = if used { v + m.shift(k) } else { 0.0 };
+            gp[k] = m.gain(k);
+            op[k] = m.offset(k);
+            up[k] = if used { 1.0 } else { 0.0 };
+            if used {
+                total += v.max(0.0);
+                valid += 1;
+                if edge_row || i == 0 || i + 1 == side {
+                    border_sum += (dp[k] - op[k]) / gp[k];
+                    border_n += 1;
+                }
+            }
+        }
+    }
+    if !finite {
+        return Err(FitStatus::NonFiniteInput);
+    }
+    if valid == 0 || !(total > 0.0) {
+        return Err(FitStatus::NoSignal);
     }
     dp[n..].fill(0.0);
     gp[n..].fill(1.0);
@@ -238,31 +303,63 @@ fn prepare<M: PixelModel>(data: &[f64], m: &M, lay: Layout, scratch: &mut [f64])
     for t in 0..TILES {
         tiles[t * np + n..(t + 1) * np].fill(0.0);
     }
+    let b = if border_n > 0 {
+        (border_sum / border_n as f64).max(0.0)
+    } else {
+        0.0
+    };
+    let (mut sx, mut sy, mut s, mut net) = (0.0, 0.0, 0.0, 0.0);
+    for j in 0..side {
+        let mut row = 0.0;
+        for i in 0..side {
+            let k = j * side + i;
+            let v = if M::UNIFORM {
+                dp[k] - b
+            } else {
+                ((dp[k] - op[k]) / gp[k] - b) * up[k]
+            };
+            net += v;
+            let w = v.max(0.0);
+            row += w;
+            sx += w * (i as f64 + 0.5);
+        }
+        s += row;
+        sy += row * (j as f64 + 0.5);
+    }
+    let c = side as f64 / 2.0;
+    let (x, y) = if s > 0.0 { (sx / s, sy / s) } else { (c, c) };
+    Ok([x, y, net.max(0.5 * s).max(1.0), b])
 }
 
 /// Row `R` of the curvature, `h[R][q] = Σ_k w_k d_R,k d_q,k` for `q ≥ R`
-/// (mirrored), over padded pixel arrays `w` and `d` (P arrays of `np`).
+/// (mirrored), over the first `nb` entries of the pixel arrays `w` and `d`
+/// (P arrays of stride `np`). One sweep per row, the row a compile-time
+/// constant so that its accumulators are unrolled into registers.
 #[inline(always)]
 fn curvature_row<const P: usize, const R: usize, A: Arith>(
     w: &[f64],
     d: &[f64],
+    nb: usize,
     np: usize,
     h: &mut [[f64; P]; P],
 ) {
     if R >= P {
         return;
     }
-    let dr = &d[R * np..(R + 1) * np];
+    // Every load below is at `q·np + k` with `k + LANES ≤ nb ≤ np`, q < P.
+    assert!(nb.is_multiple_of(LANES) && nb <= np && w.len() >= nb && d.len() >= P * np);
     let mut acc = [[0.0; LANES]; P];
     let mut k = 0;
-    while k < np {
-        let (wk, drk) = (block(w, k), block(dr, k));
+    while k < nb {
+        // SAFETY: checked by the assertion above.
+        let (wk, drk) = unsafe { (load(w, k), load(d, R * np + k)) };
         let mut wd = [0.0; LANES];
         for l in 0..LANES {
             wd[l] = wk[l] * drk[l];
         }
         for q in R..P {
-            let dq = block(&d[q * np..(q + 1) * np], k);
+            // SAFETY: as above.
+            let dq = unsafe { load(d, q * np + k) };
             for l in 0..LANES {
                 acc[q][l] = A::madd(wd[l], dq[l], acc[q][l]);
             }
@@ -279,6 +376,31 @@ fn curvature_row<const P: usize, const R: usize, A: Arith>(
 #[inline(always)]
 fn block(a: &[f64], k: usize) -> [f64; LANES] {
     block_of::<LANES>(a, k)
+}
+
+/// The `LANES` values of `a` from `k`, without a bounds check: the pixel
+/// passes check their whole index range once, up front, instead of once per
+/// load (bounds checks were a fifth of a fit's instructions).
+///
+/// # Safety
+/// `k + LANES <= a.len()`.
+#[inline(always)]
+unsafe fn load(a: &[f64], k: usize) -> [f64; LANES] {
+    debug_assert!(k + LANES <= a.len());
+    // SAFETY: in bounds by the caller's contract; [f64; LANES] has the
+    // alignment of f64 and no invalid bit patterns.
+    unsafe { a.as_ptr().add(k).cast::<[f64; LANES]>().read() }
+}
+
+/// Stores `LANES` values into `a` from `k`, without a bounds check.
+///
+/// # Safety
+/// `k + LANES <= a.len()`.
+#[inline(always)]
+unsafe fn store(a: &mut [f64], k: usize, v: [f64; LANES]) {
+    debug_assert!(k + LANES <= a.len());
+    // SAFETY: in bounds by the caller's contract.
+    unsafe { a.as_mut_ptr().add(k).cast::<[f64; LANES]>().write(v) }
 }
 
 /// The `W` values of `a` from `k` as an array (one bounds check).
@@ -377,6 +499,11 @@ impl<M: PixelModel> Problem<M> {
         let np = lay.np;
         ax.compute_with::<A>(side, theta[0], sigma, fit_sigma);
         ay.compute_with::<A>(side, theta[1], sigma, fit_sigma);
+        // The loads and stores below are unchecked: their ranges are checked
+        // here, once. Pass 1 reads and writes `t·np + k0 .. + LANES` with
+        // `k0 + LANES ≤ nb ≤ np`; the tiles write `j·side + i0 .. + LANES`
+        // with `i0 < side`, which ends before `side² + LANES ≤ np`.
+        assert!(lay.nb.is_multiple_of(LANES) && lay.nb >= side * side && lay.nb + LANES <= np);
         let (inputs, rest) = scratch[..(INPUTS + TILES + 1 + P) * np].split_at_mut(INPUTS * np);
         let (tiles, outputs) = rest.split_at_mut(TILES * np);
         {
@@ -385,15 +512,26 @@ impl<M: PixelModel> Problem<M> {
             let (xds, t) = t.split_at_mut(np);
             let (ye, t) = t.split_at_mut(np);
             let (ydc, yds) = t.split_at_mut(np);
+            // Whole blocks of four (fixed-size copies, no library memcpy);
+            // rows in increasing order so that a spill is overwritten.
+            let blocks = side.div_ceil(LANES);
             for j in 0..side {
-                let r = j * side..(j + 1) * side;
-                xe[r.clone()].copy_from_slice(&ax.e[..side]);
-                xdc[r.clone()].copy_from_slice(&ax.dc[..side]);
-                ye[r.clone()].fill(ay.e[j]);
-                ydc[r.clone()].fill(ay.dc[j]);
-                if fit_sigma {
-                    xds[r.clone()].copy_from_slice(&ax.ds[..side]);
-                    yds[r].fill(ay.ds[j]);
+                let (ej, dcj, dsj) = (ay.e[j], ay.dc[j], ay.ds[j]);
+                for bi in 0..blocks {
+                    let i0 = bi * LANES;
+                    let q = j * side + i0;
+                    let (e, dc, ds) = (block(&ax.e, i0), block(&ax.dc, i0), block(&ax.ds, i0));
+                    // SAFETY: q + LANES ≤ side² + LANES ≤ np = len (asserted).
+                    unsafe {
+                        store(xe, q, e);
+                        store(xdc, q, dc);
+                        store(ye, q, [ej; LANES]);
+                        store(ydc, q, [dcj; LANES]);
+                        if fit_sigma {
+                            store(xds, q, ds);
+                            store(yds, q, [dsj; LANES]);
+                        }
+                    }
                 }
             }
         }
@@ -404,17 +542,27 @@ impl<M: PixelModel> Problem<M> {
         let mut ll = [0.0; LANES];
         let mut g = [[0.0; LANES]; P];
         let mut k0 = 0;
-        while k0 < np {
-            let data = block(dp, k0);
-            let gain = block(gp, k0);
-            let offset = block(op, k0);
-            let used = block(up, k0);
-            let ex = block(tiles, k0);
-            let dcx = block(tiles, np + k0);
-            let dsx = block(tiles, 2 * np + k0);
-            let ey = block(tiles, 3 * np + k0);
-            let dcy = block(tiles, 4 * np + k0);
-            let dsy = block(tiles, 5 * np + k0);
+        while k0 < lay.nb {
+            // SAFETY: k0 + LANES ≤ nb ≤ np, each array np long (asserted).
+            let (data, gain, offset, used, ex, dcx, dsx, ey, dcy, dsy) = unsafe {
+                let (gain, offset) = if M::UNIFORM {
+                    ([1.0; LANES], [0.0; LANES])
+                } else {
+                    (load(gp, k0), load(op, k0))
+                };
+                (
+                    load(dp, k0),
+                    gain,
+                    offset,
+                    load(up, k0),
+                    load(tiles, k0),
+                    load(tiles, np + k0),
+                    load(tiles, 2 * np + k0),
+                    load(tiles, 3 * np + k0),
+                    load(tiles, 4 * np + k0),
+                    load(tiles, 5 * np + k0),
+                )
+            };
             let mut d = [[0.0; LANES]; P];
             let mut wv = [0.0; LANES];
             for l in 0..LANES {
@@ -441,22 +589,22 @@ impl<M: PixelModel> Problem<M> {
                 }
                 wv[l] = w * used[l];
             }
-            outputs[k0..k0 + LANES].copy_from_slice(&wv);
-            for p in 0..P {
-                let off = np + p * np + k0;
-                outputs[off..off + LANES].copy_from_slice(&d[p]);
+            // SAFETY: as the loads; outputs hold (1 + P) arrays of np.
+            unsafe {
+                store(outputs, k0, wv);
+                for p in 0..P {
+                    store(outputs, np + p * np + k0, d[p]);
+                }
             }
             k0 += LANES;
         }
         let (w, d) = outputs.split_at(np);
         let mut h = [[0.0; P]; P];
-        // One sweep per curvature row, the row index a compile-time constant
-        // so that its accumulators are unrolled into registers.
-        curvature_row::<P, 0, A>(w, d, np, &mut h);
-        curvature_row::<P, 1, A>(w, d, np, &mut h);
-        curvature_row::<P, 2, A>(w, d, np, &mut h);
-        curvature_row::<P, 3, A>(w, d, np, &mut h);
-        curvature_row::<P, 4, A>(w, d, np, &mut h);
+        curvature_row::<P, 0, A>(w, d, lay.nb, np, &mut h);
+        curvature_row::<P, 1, A>(w, d, lay.nb, np, &mut h);
+        curvature_row::<P, 2, A>(w, d, lay.nb, np, &mut h);
+        curvature_row::<P, 3, A>(w, d, lay.nb, np, &mut h);
+        curvature_row::<P, 4, A>(w, d, lay.nb, np, &mut h);
         let mut out = Eval {
             ll: if OBJECTIVE { lane_sum(&ll) } else { f64::NAN },
             g: [0.0; P],
@@ -524,8 +672,8 @@ impl<const P: usize, F: FnMut(&[f64; P]) -> Eval<P>> Evaluate<P> for F {
 /// The frame model with one objective.
 struct FrameEval<'p, M, O, A> {
     prob: &'p Problem<M>,
-    ax: AxisTerms,
-    ay: AxisTerms,
+    ax: &'p mut AxisTerms,
+    ay: &'p mut AxisTerms,
     scratch: &'p mut [f64],
     layout: Layout,
     kind: std::marker::PhantomData<(O, A)>,
@@ -536,21 +684,11 @@ impl<const P: usize, M: PixelModel, O: Objective, A: Arith> Evaluate<P> for Fram
     fn eval(&mut self, theta: &[f64; P], objective: bool) -> Eval<P> {
         // The least-squares objective costs nothing extra: always computed.
         if objective || O::LEAST_SQUARES {
-            self.prob.evaluate::<P, O, A, true>(
-                theta,
-                &mut self.ax,
-                &mut self.ay,
-                self.scratch,
-                self.layout,
-            )
+            self.prob
+                .evaluate::<P, O, A, true>(theta, self.ax, self.ay, self.scratch, self.layout)
         } else {
-            self.prob.evaluate::<P, O, A, false>(
-                theta,
-                &mut self.ax,
-                &mut self.ay,
-                self.scratch,
-                self.layout,
-            )
+            self.prob
+                .evaluate::<P, O, A, false>(theta, self.ax, self.ay, self.scratch, self.layout)
         }
     }
     #[inline(always)]
@@ -566,6 +704,14 @@ impl<const P: usize, M: PixelModel, O: Objective, A: Arith> Evaluate<P> for Fram
     }
 }
 
+/// `v` limited to `[lo, hi]` (`lo ≤ hi`); `f64::clamp` is not inlined into
+/// the AVX2 build.
+#[inline(always)]
+#[allow(clippy::manual_clamp)]
+fn bound(v: f64, lo: f64, hi: f64) -> f64 {
+    v.max(lo).min(hi)
+}
+
 /// Maximises an objective from `init` within `[lo, hi]`.
 #[inline(always)]
 pub(crate) fn levenberg_marquardt<const P: usize>(
@@ -577,7 +723,7 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
 ) -> LmOutcome<P> {
     let mut theta = init;
     for p in 0..P {
-        theta[p] = theta[p].clamp(lo[p], hi[p]);
+        theta[p] = bound(theta[p], lo[p], hi[p]);
     }
     let mut cur = evaluator.eval(&theta, true);
     let mut lambda = 1e-3;
@@ -638,14 +784,14 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
             // standard deviation: take it without checking (the quadratic
             // model is accurate there) and stop.
             for p in 0..P {
-                theta[p] = (theta[p] + delta[p]).clamp(lo[p], hi[p]);
+                theta[p] = bound(theta[p] + delta[p], lo[p], hi[p]);
             }
             converged = true;
             break;
         }
         let mut next = theta;
         for p in 0..P {
-            next[p] = (theta[p] + delta[p]).clamp(lo[p], hi[p]);
+            next[p] = bound(theta[p] + delta[p], lo[p], hi[p]);
         }
         // Far from the optimum compare objectives; near it (the step within
         // about one standard deviation) the quadratic model is accurate and
@@ -808,12 +954,6 @@ fn run<M: PixelModel, A: Arith>(
     if data.len() != side * side || side == 0 || side > crate::psf::MAX_SIDE {
         return Fit::failed(side, sigma0, FitStatus::NonFiniteInput);
     }
-    if has_non_finite(data, &m) {
-        return Fit::failed(side, sigma0, FitStatus::NonFiniteInput);
-    }
-    let Some(init4) = initial_guess(data, side, &m) else {
-        return Fit::failed(side, sigma0, FitStatus::NoSignal);
-    };
     let r = side as f64;
     let smax = opts.sigma_max.min(r);
     let smin = opts.sigma_min.min(smax);
@@ -828,32 +968,28 @@ fn run<M: PixelModel, A: Arith>(
     let prob = Problem {
         side,
         model: m,
-        sigma_fixed: sigma0.clamp(1e-3, 1e4),
+        sigma_fixed: bound(sigma0, 1e-3, 1e4),
     };
-    if opts.sigma.is_fitted() {
-        let init = [
-            init4[0],
-            init4[1],
-            init4[2],
-            init4[3],
-            sigma0.clamp(smin, smax),
-        ];
-        let lo = [lo4[0], lo4[1], lo4[2], lo4[3], smin];
-        let hi = [hi4[0], hi4[1], hi4[2], hi4[3], smax];
-        let lay = Layout::new(side);
-        let mut scratch = take_scratch(lay, 5);
-        prepare(data, &prob.model, lay, &mut scratch);
-        let fit = finish::<5, M, A>(&prob, init, lo, hi, opts, kind, &mut scratch, lay);
-        return_scratch(scratch);
-        fit
-    } else {
-        let lay = Layout::new(side);
-        let mut scratch = take_scratch(lay, 4);
-        prepare(data, &prob.model, lay, &mut scratch);
-        let fit = finish::<4, M, A>(&prob, init4, lo4, hi4, opts, kind, &mut scratch, lay);
-        return_scratch(scratch);
-        fit
-    }
+    let lay = Layout::new(side);
+    let mut scratch = take_scratch(lay, 5);
+    let fit = match prepare(data, &prob.model, lay, &mut scratch.buf) {
+        Err(status) => Fit::failed(side, sigma0, status),
+        Ok(init4) if opts.sigma.is_fitted() => {
+            let init = [
+                init4[0],
+                init4[1],
+                init4[2],
+                init4[3],
+                sigma0.max(smin).min(smax),
+            ];
+            let lo = [lo4[0], lo4[1], lo4[2], lo4[3], smin];
+            let hi = [hi4[0], hi4[1], hi4[2], hi4[3], smax];
+            finish::<5, M, A>(&prob, init, lo, hi, opts, kind, &mut scratch, lay)
+        }
+        Ok(init4) => finish::<4, M, A>(&prob, init4, lo4, hi4, opts, kind, &mut scratch, lay),
+    };
+    return_scratch(scratch);
+    fit
 }
 
 #[inline(always)]
@@ -865,16 +1001,17 @@ fn finish<const P: usize, M: PixelModel, A: Arith>(
     hi: [f64; P],
     opts: &FitOptions,
     kind: Kind,
-    scratch: &mut [f64],
+    scratch: &mut Scratch,
     layout: Layout,
 ) -> Fit {
+    let Scratch { buf, ax, ay } = scratch;
     let out = match kind {
         Kind::Mle => levenberg_marquardt(
             &mut FrameEval::<M, PoissonObjective, A> {
                 prob,
-                ax: AxisTerms::default(),
-                ay: AxisTerms::default(),
-                scratch,
+                ax,
+                ay,
+                scratch: buf,
                 layout,
                 kind: std::marker::PhantomData,
             },
@@ -886,9 +1023,9 @@ fn finish<const P: usize, M: PixelModel, A: Arith>(
         Kind::Lsq => levenberg_marquardt(
             &mut FrameEval::<M, LsqObjective, A> {
                 prob,
-                ax: AxisTerms::default(),
-                ay: AxisTerms::default(),
-                scratch,
+                ax,
+                ay,
+                scratch: buf,
                 layout,
                 kind: std::marker::PhantomData,
             },
@@ -964,50 +1101,4 @@ fn finish<const P: usize, M: PixelModel, A: Arith>(
         status,
         iterations: out.iterations,
     }
-}
-
-#[doc(hidden)]
-pub fn bench_evaluate(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -> f64 {
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn inner(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -> f64 {
-        let prob = Problem {
-            side,
-            model: Uniform,
-            sigma_fixed: 1.5,
-        };
-        let mut ax = AxisTerms::default();
-        let mut ay = AxisTerms::default();
-        let mut s = 0.0;
-        let lay = Layout::new(side);
-        let mut scratch = take_scratch(lay, 5);
-        prepare(data, &prob.model, lay, &mut scratch);
-        for r in 0..reps {
-            let mut t = theta;
-            t[0] += r as f64 * 1e-9;
-            let e = prob.evaluate::<5, PoissonObjective, Fused, true>(
-                &t,
-                &mut ax,
-                &mut ay,
-                &mut scratch,
-                lay,
-            );
-            s += e.ll + e.h[1][2];
-        }
-        s
-    }
-    unsafe { inner(data, side, theta, reps) }
-}
-#[doc(hidden)]
-pub fn bench_axis(reps: usize) -> f64 {
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn inner(reps: usize) -> f64 {
-        let mut ax = AxisTerms::default();
-        let mut s = 0.0;
-        for r in 0..reps {
-            ax.compute_with::<Fused>(9, 4.5 + r as f64 * 1e-9, 1.5, true);
-            s += ax.e[3] + ax.ds[2];
-        }
-        s
-    }
-    unsafe { inner(reps) }
 }

@@ -299,3 +299,42 @@ fn non_finite_input() {
         assert!((f.x - 4.5).abs() < 1.0);
     }
 }
+
+#[test]
+fn fits_do_not_depend_on_earlier_fits_on_the_thread() {
+    // The fit's work space is reused per thread; a fit must not see what an
+    // earlier fit of another ROI size left in it.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let rois: Vec<(usize, Vec<f64>)> = [11usize, 5, 9, 7, 13, 9, 6]
+        .into_iter()
+        .map(|side| {
+            let c = side as f64 / 2.0;
+            let em = Emitter {
+                x: c + 0.3,
+                y: c - 0.2,
+                sigma: 1.3,
+                photons: 800.0,
+                background: 4.0,
+            };
+            (side, synth::poisson_roi(&mut rng, side, &em, None))
+        })
+        .collect();
+    for opts in all_options() {
+        for est in [Estimator::Lsq, Estimator::Mle] {
+            let here: Vec<Fit> = rois
+                .iter()
+                .map(|(side, d)| fit_roi(est, &RoiView::new(*side, d, None).unwrap(), &opts))
+                .collect();
+            for ((side, d), f) in rois.iter().zip(&here) {
+                let (side, d) = (*side, d.clone());
+                let fresh = std::thread::spawn(move || {
+                    fit_roi(est, &RoiView::new(side, &d, None).unwrap(), &opts)
+                })
+                .join()
+                .unwrap();
+                assert_eq!(&fresh, f, "{est:?} side {side}");
+                assert!(f.status.is_ok(), "{est:?} side {side}: {f:?}");
+            }
+        }
+    }
+}
