@@ -34,6 +34,8 @@ enum Command {
     Localize(commands::localize::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
     Render(commands::render::Args),
+    /// Reproduce the paper's simulation study (Fig. 4, Fig. 8) and beyond: CSV, PNG, Markdown.
+    Study(commands::study::Args),
     /// Measure speed and accuracy (figures printed, nothing asserted).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -58,6 +60,7 @@ fn main() {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Localize(a) => commands::localize::run(a),
         Command::Render(a) => commands::render::run(a),
+        Command::Study(a) => commands::study::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),

@@ -103,12 +103,21 @@ pub fn run_item(
         let methods: Vec<Method> = schemes.iter().map(|&s| plan.schemes[s].method).collect();
         let fit_sigma = plan.options.fit_sigma;
         if config.is_spad() {
-            let smart = methods.iter().any(|m| {
+            let spad = setup.spad.as_ref().expect("SPAD setup");
+            let want_main = methods.iter().any(|m| {
                 matches!(
                     m,
                     Method::Smart | Method::SmartSpadMle | Method::Estimator(_)
                 )
             });
+            let want_paper = methods.contains(&Method::SmartLmin1);
+            let mut pipelines = Vec::new();
+            if want_main {
+                pipelines.push(spad.1.clone());
+            }
+            if want_paper {
+                pipelines.push(setup.paper.clone().expect("SPAD setup"));
+            }
             let frames = methods.iter().any(|m| {
                 matches!(
                     m,
@@ -119,45 +128,53 @@ pub fn run_item(
                 Axis::HotPercent => Some(plan.points[point] / 100.0),
                 Axis::BlinkMs => None,
             };
-            let data = record_spad(setup, &blinks, timeline.end_s, seed, smart, frames, hot)?;
+            let data = record_spad(
+                setup,
+                &blinks,
+                timeline.end_s,
+                seed,
+                &pipelines,
+                frames,
+                hot,
+            )?;
+            let main = if want_main { &data.records[0][..] } else { &[] };
+            let paper = if want_paper {
+                &data.records[pipelines.len() - 1][..]
+            } else {
+                &[]
+            };
             timings.push(Timing {
                 stage: format!("simulate {}", config.key),
                 count: data.planes,
                 seconds: data.simulate_s,
             });
-            if smart {
+            if !pipelines.is_empty() {
                 timings.push(Timing {
                     stage: format!("pipeline {}", config.key),
                     count: data.planes,
                     seconds: data.pipeline_s,
                 });
             }
-            let records = data.records.len() as u32;
             for &s in &schemes {
                 let m = plan.schemes[s].method;
                 let o = match m {
-                    Method::Smart => {
+                    Method::Smart | Method::SmartLmin1 => {
+                        let recs = if m == Method::Smart { main } else { paper };
                         let a = Instant::now();
                         let opts = fit_options(setup.sigma_px, fit_sigma, NoiseModel::Poisson);
-                        let r = localize_records(
-                            setup,
-                            &data.records,
-                            &truth,
-                            radius,
-                            |roi, _, maps| {
-                                fit_roi(
-                                    smartagg_localize::Estimator::Mle,
-                                    &roi_view(roi, maps),
-                                    &opts,
-                                )
-                            },
-                        );
+                        let r = localize_records(setup, recs, &truth, radius, |roi, _, maps| {
+                            fit_roi(
+                                smartagg_localize::Estimator::Mle,
+                                &roi_view(roi, maps),
+                                &opts,
+                            )
+                        });
                         timings.push(Timing {
                             stage: format!("fit {}", plan.schemes[s].id),
                             count: r.fitted as u64,
                             seconds: a.elapsed().as_secs_f64(),
                         });
-                        outcome(&truth, &r.locs, radius, records, r.failed)
+                        outcome(&truth, &r.locs, radius, recs.len() as u32, r.failed)
                     }
                     Method::SmartCrlb => crlb_outcome(setup, &blinks, fit_sigma),
                     Method::SmartSpadMle | Method::Estimator(_) => {
@@ -172,19 +189,15 @@ pub fn run_item(
                             }
                         };
                         let a = Instant::now();
-                        let r = localize_records(
-                            setup,
-                            &data.records,
-                            &truth,
-                            radius,
-                            |roi, rec, maps| estimate(est, setup.sigma_px, roi, rec, maps),
-                        );
+                        let r = localize_records(setup, main, &truth, radius, |roi, rec, maps| {
+                            estimate(est, setup.sigma_px, roi, rec, maps)
+                        });
                         timings.push(Timing {
                             stage: format!("fit {}", plan.schemes[s].id),
                             count: r.fitted as u64,
                             seconds: a.elapsed().as_secs_f64(),
                         });
-                        outcome(&truth, &r.locs, radius, records, r.failed)
+                        outcome(&truth, &r.locs, radius, main.len() as u32, r.failed)
                     }
                     Method::Fixed | Method::HotIgnore | Method::HotInterpolate => {
                         let mut fitter = FrameFitter::new(fit_options(

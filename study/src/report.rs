@@ -333,12 +333,15 @@ fn markdown(
     let _ = writeln!(m, "{provenance}\n");
     let _ = writeln!(
         m,
-        "{} blinks per point in work items of {} (seed {}, {} bootstrap resamples{}); sigma {}.\n",
+        "{} blinks per point in work items of {} (seed {}, {} bootstrap resamples{}); L_min {}{}; frame threshold {}; sigma {}.\n",
         o.blinks_per_point,
         o.block,
         o.seed,
         o.bootstrap,
         if o.quick { ", --quick" } else { "" },
+        o.l_min,
+        o.r_assoc.map_or(String::new(), |r| format!(", r_assoc {r}")),
+        o.frame_threshold,
         if o.fit_sigma {
             "fitted (ThunderSTORM's default)"
         } else {
@@ -507,10 +510,10 @@ fn localizer_table(m: &mut String, plan: &Plan, s: &Summary) {
     }
 }
 
-const METHOD_TEXT: &str = "- **Scene** (paper §4): one molecule on at a time at a random position (3 sigma from the edges) in the camera's study field, 50,000 photons/s, 70,000 background photons/s/um^2, every blink exactly the point's duration, gaps of 10 ms + Exp(40 ms). Every configuration of a point sees the same blinks (same times, same relative positions) as explicit blinks of the scene simulator, each with its own photon noise.
-- **Smart aggregation**: the model's pipeline (fast engine, byte-identical to the golden one) on the simulated bit-planes; its records go through the packetiser and the packet decoder; each ROI is fitted (Poisson MLE; and the SPAD binomial MLE with the record's on/off split where shown).
-- **Frame detection**: B-spline wavelet (ThunderSTORM's default), 8-neighbour local maxima of the second wavelet level above 1.5 std of the first; Poisson MLE of a 9x9 ROI (EMCCD: F^2 = 2 in the bound; sCMOS: per-pixel read variance).
-- **CRLB reference**: per blink, the SPAD binomial Cramér–Rao bound at its true position for an ideal aggregation of exactly its on-planes (no off-plane), in a 9x9 ROI centred on its pixel, sigma as fitted; the curve is sqrt(mean(var_x + var_y)).
+const METHOD_TEXT: &str = "- **Scene** (paper §4): one molecule on at a time at a random position (3 sigma from the edges) in the camera's study field, 50,000 photons/s, 70,000 background photons/s/um^2, every blink exactly the point's duration, gaps of 10 ms + Exp(40 ms). Every configuration of a point sees the same blinks (same times, same relative positions) as explicit blinks of the scene simulator, each camera with its own photon noise; each work item is one continuous recording per configuration.
+- **Smart aggregation**: the model's pipeline (its fast engine, proven byte-identical to the golden pipeline by the model's tests) on the simulated bit-planes, N, T_int and kernel from the paper's statistics; its records go through the packetiser and the packet decoder (any loss is an error); each ROI is fitted with the Poisson MLE (and the SPAD binomial MLE with the record's on/off split where shown). L_min comes from the model's false-alarm statistics (1 false blink/s over the study field) unless set; `smart, L_min = 1 (paper)` is the paper's literal scheme on the same bit-planes. Records whose summed planes and ROI cannot reach any blink are false positives whatever their fit and are not fitted.
+- **Frame detection** (fixed SPAD frames, EMCCD, sCMOS, hot-pixel frames): B-spline wavelet (ThunderSTORM's default), 8-neighbour local maxima of the second wavelet level above the frame threshold times the std of the first; Poisson MLE of a 9x9 ROI (EMCCD: F^2 = 2 in the bound; sCMOS: per-pixel read variance). Hot pixels (known map) are interpolated for detection, then ignored or interpolated in the fit.
+- **CRLB reference** (dashed): per blink, the SPAD binomial Cramér–Rao bound at its true position for an ideal aggregation of exactly its on-planes (no off-plane), in a 9x9 ROI centred on its pixel, sigma fixed or fitted as the fits; the curve is sqrt(mean(var_x + var_y)).
 ";
 
 /// Colour of configuration `c`.
@@ -545,6 +548,16 @@ fn scheme_colour(plan: &Plan, i: usize) -> RGBColor {
     }
 }
 
+/// Marker of a method: 0 circle, 1 triangle, 2 cross.
+fn marker(m: Method) -> u8 {
+    match m {
+        Method::SmartSpadMle | Method::FramesMerged | Method::HotInterpolate => 1,
+        Method::SmartLmin1 => 2,
+        Method::Estimator(e) => (e as u8) % 3,
+        _ => 0,
+    }
+}
+
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> StudyError {
     StudyError::Plot {
         path: path.to_path_buf(),
@@ -573,9 +586,10 @@ pub fn plot(path: &Path, plan: &Plan, s: &Summary) -> Result<(), StudyError> {
     } else {
         10.0
     };
-    let root = BitMapBackend::new(path, (1100, 700)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1100, 740)).into_drawing_area();
+    let (plot_area, foot) = root.split_vertically(705);
     root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
+    let mut chart = ChartBuilder::on(&plot_area)
         .caption(plan.study.title(), ("sans-serif", 24))
         .margin(15)
         .x_label_area_size(50)
@@ -642,27 +656,69 @@ pub fn plot(path: &Path, plan: &Plan, s: &Summary) -> Result<(), StudyError> {
                     }
                 }
                 if let Some(y) = y {
-                    chart
-                        .draw_series(std::iter::once(Circle::new(
-                            (x, y.min(ymax)),
-                            4,
+                    let at = (x, y.min(ymax));
+                    let drawn = match marker(sc.method) {
+                        1 => chart.draw_series(std::iter::once(TriangleMarker::new(
+                            at,
+                            6,
                             col.filled(),
-                        )))
-                        .map_err(|e| plot_err(path, e))?;
+                        ))),
+                        2 => chart.draw_series(std::iter::once(Cross::new(
+                            at,
+                            5,
+                            col.stroke_width(2),
+                        ))),
+                        _ => chart.draw_series(std::iter::once(Circle::new(at, 4, col.filled()))),
+                    };
+                    drawn.map_err(|e| plot_err(path, e))?;
                 }
             }
         }
         let reference = sc.method.is_reference();
+        let mk = marker(sc.method);
         chart
             .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
             .map_err(|e| plot_err(path, e))?
             .label(sc.label.clone())
             .legend(move |(x, y)| {
-                if reference {
-                    PathElement::new(vec![(x, y), (x + 8, y)], col.stroke_width(2))
+                let style = col.stroke_width(2);
+                let (seg1, seg2) = if reference {
+                    (vec![(0, 0), (7, 0)], vec![(13, 0), (20, 0)])
                 } else {
-                    PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2))
-                }
+                    (vec![(0, 0), (20, 0)], vec![(20, 0), (20, 0)])
+                };
+                let shape: Vec<(i32, i32)> = match (reference, mk) {
+                    (true, _) => Vec::new(),
+                    (false, 1) => vec![(10, -5), (15, 4), (5, 4)],
+                    (false, 2) => vec![
+                        (8, -5),
+                        (12, -5),
+                        (12, -2),
+                        (15, -2),
+                        (15, 2),
+                        (12, 2),
+                        (12, 5),
+                        (8, 5),
+                        (8, 2),
+                        (5, 2),
+                        (5, -2),
+                        (8, -2),
+                    ],
+                    _ => vec![
+                        (8, -4),
+                        (12, -4),
+                        (14, -2),
+                        (14, 2),
+                        (12, 4),
+                        (8, 4),
+                        (6, 2),
+                        (6, -2),
+                    ],
+                };
+                EmptyElement::at((x, y))
+                    + PathElement::new(seg1, style)
+                    + PathElement::new(seg2, style)
+                    + Polygon::new(shape, col.filled())
             });
     }
     chart
@@ -673,14 +729,14 @@ pub fn plot(path: &Path, plan: &Plan, s: &Summary) -> Result<(), StudyError> {
         .label_font(("sans-serif", 14))
         .draw()
         .map_err(|e| plot_err(path, e))?;
-    root.draw(&Text::new(
+    foot.draw(&Text::new(
         format!(
-            "dotted: detection < {:.0} %; dashed: Cramér–Rao bound; bars: 95 % bootstrap CI; match radius {} nm",
+            "dotted segments: detection rate below {:.0} %;  dashed: Cramér–Rao bound;  bars: 95 % bootstrap CI;  localisations beyond {} nm of the truth are false",
             DOTTED_BELOW * 100.0,
             plan.options.match_radius_nm
         ),
-        (80, 680),
-        ("sans-serif", 13),
+        (70, 8),
+        ("sans-serif", 14),
     ))
     .map_err(|e| plot_err(path, e))?;
     root.present().map_err(|e| plot_err(path, e))?;

@@ -13,9 +13,10 @@
 
 use crate::error::StudyError;
 use crate::frames::FrameMaps;
-use crate::spec::{FIXED_FRAME_PLANES, ROI_SIDE};
+use crate::spec::{LMin, FIXED_FRAME_PLANES, ROI_SIDE};
 use crate::timeline::BlinkNm;
 use smartagg_model::config::PipelineConfig;
+use smartagg_model::false_alarm::l_min_for_target;
 use smartagg_model::fast_engine::fast_pipeline;
 use smartagg_model::packet::decode_all;
 use smartagg_model::packetiser::encode_stream;
@@ -42,6 +43,8 @@ pub struct Setup {
     pub margin_nm: f64,
     /// SPAD only: the paper's statistics and the pipeline configuration.
     pub spad: Option<(Detection, PipelineConfig)>,
+    /// SPAD only: the same pipeline with the paper's literal `L_min = 1`.
+    pub paper: Option<PipelineConfig>,
 }
 
 impl Setup {
@@ -80,26 +83,46 @@ impl Setup {
             pixel_nm,
             sigma_px,
             margin_nm,
+            paper: spad.as_ref().map(|(_, c)| c.clone()),
             spad,
         })
     }
 
-    /// The same setup with the pipeline's `L_min` and association radius
-    /// overridden where given.
-    pub fn with_pipeline(
-        mut self,
-        l_min: Option<u32>,
-        r_assoc: Option<u32>,
-    ) -> Result<Setup, StudyError> {
-        if let Some((_, cfg)) = self.spad.as_mut() {
-            if let Some(l) = l_min {
-                cfg.l_min = l;
-                cfg.l_max = cfg.l_max.max(l);
-            }
+    /// The same setup with the pipeline's `L_min` (a number of planes, or
+    /// from the false-alarm statistics for the study field) and association
+    /// radius; [`Setup::paper`] keeps the same pipeline with `L_min = 1`.
+    pub fn with_pipeline(mut self, l_min: LMin, r_assoc: Option<u32>) -> Result<Setup, StudyError> {
+        let field = self.field;
+        if let Some((det, cfg)) = self.spad.as_mut() {
+            let l = match l_min {
+                LMin::Planes(l) => l,
+                LMin::Auto { false_blinks_per_s } => {
+                    let rate = 1.0 / self.preset.period_s();
+                    l_min_for_target(
+                        &det.kernel(),
+                        det.n_window,
+                        det.p_off,
+                        det.threshold_int,
+                        field as u64 * field as u64,
+                        rate,
+                        false_blinks_per_s,
+                    )
+                    .map_err(|e| StudyError::Option {
+                        name: "l-min",
+                        why: format!("L_min from the false-alarm statistics: {e}"),
+                    })?
+                }
+            };
+            cfg.l_min = l;
+            cfg.l_max = cfg.l_max.max(l);
             if let Some(r) = r_assoc {
                 cfg.r_assoc = r;
             }
             cfg.validate()?;
+            self.paper = Some(PipelineConfig {
+                l_min: 1,
+                ..cfg.clone()
+            });
         }
         Ok(self)
     }
@@ -143,31 +166,59 @@ impl Setup {
 /// What a SPAD recording gave.
 #[derive(Debug, Clone, Default)]
 pub struct SpadData {
-    /// Blink records decoded from the packet stream, in stream order.
-    pub records: Vec<BlinkRecord>,
+    /// Per pipeline asked for: the blink records decoded from its packet
+    /// stream, in stream order.
+    pub records: Vec<Vec<BlinkRecord>>,
     /// Fixed frames: counts of consecutive 500-plane groups, raster order.
     pub frames: Vec<Vec<u32>>,
     /// The hot-pixel map of the simulated camera.
     pub hot: Vec<bool>,
     /// Bit-planes simulated.
     pub planes: u64,
-    /// Packet bytes of the smart-aggregation stream.
+    /// Packet bytes of the smart-aggregation streams.
     pub packet_bytes: u64,
     /// Wall time in the scene simulator, s.
     pub simulate_s: f64,
-    /// Wall time in the pipeline, packetiser and decoder, s.
+    /// Wall time in the pipelines, packetiser and decoder, s.
     pub pipeline_s: f64,
 }
 
+/// The blink records of a finished stream, through the packet path: every
+/// record is encoded by the packetiser and decoded back; any loss is an error.
+fn through_packets(records: &[Record]) -> Result<(Vec<BlinkRecord>, u64), StudyError> {
+    let bytes = encode_stream(records)?;
+    let decoded = decode_all(&bytes);
+    if decoded.stats.any_loss() {
+        return Err(StudyError::PacketLoss(decoded.stats.to_string()));
+    }
+    if decoded.packets.len() != records.len() {
+        return Err(StudyError::PacketLoss(format!(
+            "{} records encoded, {} decoded",
+            records.len(),
+            decoded.packets.len()
+        )));
+    }
+    let blinks = decoded
+        .packets
+        .into_iter()
+        .filter_map(|p| match p.record {
+            Record::Blink(b) => Some(b),
+            _ => None,
+        })
+        .collect();
+    Ok((blinks, bytes.len() as u64))
+}
+
 /// Simulates `end_s` of bit-planes of `setup` watching `blinks` (seeded
-/// with `seed`), running smart aggregation when `smart` and summing fixed
-/// frames when `frames`. `hot_fraction` overrides the camera's hot pixels.
+/// with `seed`), running every pipeline of `pipelines` on the same
+/// bit-planes and summing fixed frames when `frames`. `hot_fraction`
+/// overrides the camera's hot pixels.
 pub fn record_spad(
     setup: &Setup,
     blinks: &[BlinkNm],
     end_s: f64,
     seed: u64,
-    smart: bool,
+    pipelines: &[PipelineConfig],
     frames: bool,
     hot_fraction: Option<f64>,
 ) -> Result<SpadData, StudyError> {
@@ -184,16 +235,11 @@ pub fn record_spad(
     let mut simulate_s = t0.elapsed().as_secs_f64();
     let planes = (end_s / camera.plane_period_s).round() as u64;
     let n_px = (setup.field * setup.field) as usize;
-    let (_, cfg) = setup.spad.as_ref().expect("SPAD setup has a pipeline");
-    let mut pipe = if smart {
-        Some(fast_pipeline(cfg.clone())?)
-    } else {
-        None
-    };
-    let mut records: Vec<Record> = Vec::new();
-    if let Some(p) = &pipe {
-        records.push(p.start_record());
-    }
+    let mut pipes = pipelines
+        .iter()
+        .map(|c| fast_pipeline(c.clone()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut streams: Vec<Vec<Record>> = pipes.iter().map(|p| vec![p.start_record()]).collect();
     let mut pipeline_s = 0.0;
     let mut out_frames = Vec::new();
     let mut acc = vec![0u32; n_px];
@@ -202,8 +248,10 @@ pub fn record_spad(
         let plane = sim.next_plane();
         let b = Instant::now();
         simulate_s += (b - a).as_secs_f64();
-        if let Some(p) = pipe.as_mut() {
-            records.extend(p.push_plane(&plane)?);
+        if !pipes.is_empty() {
+            for (p, out) in pipes.iter_mut().zip(streams.iter_mut()) {
+                out.extend(p.push_plane(&plane)?);
+            }
             pipeline_s += b.elapsed().as_secs_f64();
         }
         if frames {
@@ -229,33 +277,14 @@ pub fn record_spad(
         simulate_s,
         ..Default::default()
     };
-    if let Some(mut p) = pipe {
-        let a = Instant::now();
-        records.extend(p.finish());
-        let bytes = encode_stream(&records)?;
-        let decoded = decode_all(&bytes);
-        if decoded.stats.any_loss() {
-            return Err(StudyError::PacketLoss(decoded.stats.to_string()));
-        }
-        if decoded.packets.len() != records.len() {
-            return Err(StudyError::PacketLoss(format!(
-                "{} records encoded, {} decoded",
-                records.len(),
-                decoded.packets.len()
-            )));
-        }
-        data.packet_bytes = bytes.len() as u64;
-        data.records = decoded
-            .packets
-            .into_iter()
-            .filter_map(|p| match p.record {
-                Record::Blink(b) => Some(b),
-                _ => None,
-            })
-            .collect();
-        pipeline_s += a.elapsed().as_secs_f64();
+    let a = Instant::now();
+    for (mut p, mut out) in pipes.into_iter().zip(streams) {
+        out.extend(p.finish());
+        let (recs, bytes) = through_packets(&out)?;
+        data.records.push(recs);
+        data.packet_bytes += bytes;
     }
-    data.pipeline_s = pipeline_s;
+    data.pipeline_s = pipeline_s + a.elapsed().as_secs_f64();
     Ok(data)
 }
 
@@ -342,12 +371,13 @@ mod tests {
         let s = Setup::new(PresetName::Spcimager, 150).unwrap();
         let t = Timeline::one_at_a_time(3, 3, 0.08);
         let blinks = place(&t.blinks, s.field_nm(), s.margin_nm);
-        let d = record_spad(&s, &blinks, t.end_s, 11, true, true, None).unwrap();
+        let cfg = s.spad.as_ref().unwrap().1.clone();
+        let d = record_spad(&s, &blinks, t.end_s, 11, &[cfg], true, None).unwrap();
         assert_eq!(d.planes, (t.end_s / 1e-4).round() as u64);
         assert_eq!(d.frames.len() as u64, d.planes / 500);
         assert!(d.packet_bytes > 0);
         for b in &blinks {
-            let near = d.records.iter().any(|r| {
+            let near = d.records[0].iter().any(|r| {
                 let first = (r.t_drop + 1 - r.planes_summed as u64) as f64 * 1e-4;
                 let last = (r.t_drop + 1) as f64 * 1e-4;
                 let (ax, ay) = (

@@ -98,14 +98,64 @@ pub struct StudyOptions {
     /// Explicit x values (blink durations in ms, or hot-pixel percentages)
     /// instead of the study's defaults.
     pub points: Option<Vec<f64>>,
-    /// Pipeline override: planes a track must stay on to be confirmed
-    /// (default 1, the paper's scheme for one molecule in a small field).
-    pub l_min: Option<u32>,
+    /// Planes a track must stay on to be confirmed. Default: from the
+    /// model's false-alarm statistics at 1 false blink/s over the study field
+    /// (the paper's literal `L_min = 1` is the `smart, L_min = 1` curve of
+    /// `smart-vs-fixed`, or `--l-min 1`).
+    pub l_min: LMin,
     /// Pipeline override: association radius, pixels (default: the model's 1).
     pub r_assoc: Option<u32>,
     /// Frame detection threshold in units of std of the first wavelet level
     /// (ThunderSTORM-like default 1.5).
     pub frame_threshold: f64,
+}
+
+/// The pipeline's confirmation length L_min.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LMin {
+    /// A fixed number of planes (1 = the paper: every crossing is a blink).
+    Planes(u32),
+    /// From the model's false-alarm statistics
+    /// (`false_alarm::l_min_for_target`): the smallest L_min whose bounded
+    /// false-blink rate over the study field is at most this many per second.
+    Auto {
+        /// Tolerated false blinks per second over the field.
+        false_blinks_per_s: f64,
+    },
+}
+
+impl LMin {
+    /// Parses `auto` (1 false blink/s), `auto:RATE`, or a number of planes.
+    pub fn parse(s: &str) -> Result<LMin, StudyError> {
+        let bad = || StudyError::Option {
+            name: "l-min",
+            why: format!(
+                "`{s}`: expected a number of planes, `auto` or `auto:RATE` (false blinks/s)"
+            ),
+        };
+        if s == "auto" {
+            return Ok(LMin::Auto {
+                false_blinks_per_s: 1.0,
+            });
+        }
+        if let Some(r) = s.strip_prefix("auto:") {
+            let v: f64 = r.parse().map_err(|_| bad())?;
+            return Ok(LMin::Auto {
+                false_blinks_per_s: v,
+            });
+        }
+        s.parse().map(LMin::Planes).map_err(|_| bad())
+    }
+}
+
+impl std::fmt::Display for LMin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LMin::Planes(n) => write!(f, "{n}"),
+            LMin::Auto { false_blinks_per_s } => write!(f, "auto:{false_blinks_per_s}"),
+        }
+    }
 }
 
 /// Default blinks per point (the paper's 500).
@@ -134,7 +184,9 @@ impl Default for StudyOptions {
             fit_sigma: true,
             match_radius_nm: DEFAULT_MATCH_RADIUS_NM,
             points: None,
-            l_min: None,
+            l_min: LMin::Auto {
+                false_blinks_per_s: 1.0,
+            },
             r_assoc: None,
             frame_threshold: 1.5,
         }
@@ -168,8 +220,17 @@ impl StudyOptions {
                 "must be a positive multiple of the noise std",
             );
         }
-        if self.l_min == Some(0) {
-            return bad("l-min", "must be at least 1 plane");
+        match self.l_min {
+            LMin::Planes(0) => return bad("l-min", "must be at least 1 plane"),
+            LMin::Auto { false_blinks_per_s }
+                if !(false_blinks_per_s.is_finite() && false_blinks_per_s > 0.0) =>
+            {
+                return bad(
+                    "l-min",
+                    "the false-blink target must be a positive rate per second",
+                )
+            }
+            _ => {}
         }
         if self.r_assoc.is_some_and(|r| r > 16) {
             return bad("r-assoc", "must be 0..=16 pixels");
@@ -197,6 +258,9 @@ pub enum Method {
     Smart,
     /// SPAD: the same ROIs, SPAD binomial MLE with the record's on/off split.
     SmartSpadMle,
+    /// SPAD: the pipeline with the paper's literal `L_min = 1` on the same
+    /// bit-planes, Poisson MLE.
+    SmartLmin1,
     /// Reference: the Cramér–Rao bound (binomial, true on/off split, true
     /// position) of every matched smart ROI; its "error" is √(mean bound).
     SmartCrlb,
@@ -261,6 +325,7 @@ impl Method {
             Method::Fixed => "fixed",
             Method::Smart => "smart",
             Method::SmartSpadMle => "smart-spad-mle",
+            Method::SmartLmin1 => "smart-lmin1",
             Method::SmartCrlb => "smart-crlb",
             Method::Frames => "frames",
             Method::FramesMerged => "frames-merged",
@@ -281,7 +346,8 @@ impl Method {
             Method::Fixed => "fixed 50 ms",
             Method::Smart => "smart",
             Method::SmartSpadMle => "smart, SPAD MLE",
-            Method::SmartCrlb => "CRLB (smart ROI)",
+            Method::SmartLmin1 => "smart, L_min = 1 (paper)",
+            Method::SmartCrlb => "CRLB",
             Method::Frames => "50 ms frames",
             Method::FramesMerged => "merged",
             Method::HotIgnore => "ignore",
@@ -410,7 +476,7 @@ pub const QUICK_DURATIONS_MS: [f64; 3] = [20.0, 50.0, 100.0];
 /// Hot-pixel percentages of the full run.
 pub const HOT_PERCENT: [f64; 9] = [0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0, 17.5, 20.0];
 /// Hot-pixel percentages of `--quick` runs.
-pub const QUICK_HOT_PERCENT: [f64; 3] = [0.0, 10.0, 20.0];
+pub const QUICK_HOT_PERCENT: [f64; 4] = [0.0, 5.0, 10.0, 20.0];
 
 impl Plan {
     /// The plan of `study` with `options`.
@@ -426,7 +492,13 @@ impl Plan {
             StudyName::SmartVsFixed => (
                 Axis::BlinkMs,
                 vec![spc150],
-                vec![(0, Fixed), (0, Smart), (0, SmartSpadMle), (0, SmartCrlb)],
+                vec![
+                    (0, Fixed),
+                    (0, Smart),
+                    (0, SmartSpadMle),
+                    (0, SmartLmin1),
+                    (0, SmartCrlb),
+                ],
             ),
             StudyName::FutureSpad => (
                 Axis::BlinkMs,
@@ -541,6 +613,18 @@ impl Plan {
                     "smart / CRLB",
                     "spcimager-150x/smart",
                     "spcimager-150x/smart-crlb",
+                    None,
+                ),
+                ratio(
+                    "smart L_min = 1 / smart",
+                    "spcimager-150x/smart-lmin1",
+                    "spcimager-150x/smart",
+                    None,
+                ),
+                ratio(
+                    "fixed / smart L_min = 1",
+                    "spcimager-150x/fixed",
+                    "spcimager-150x/smart-lmin1",
                     None,
                 ),
             ],
