@@ -1,7 +1,50 @@
-//! Gateware of the smart-aggregation pipeline (rust-hdl, XEM6310).
+//! # smartagg-hdl — gateware of the smart-aggregation pipeline (rust-hdl 0.46)
 //!
-//! Not built yet: the blocks arrive with the gateware issue. Each stage will
-//! live in the file named like its twin in `model/src/`.
+//! Phase 1 of the gateware: the streaming front half — hot-pixel mask, delay
+//! line, rolling count, spatial filter, threshold and candidates — as rust-hdl blocks, each
+//! in the file named like its twin in `model/src/`, each simulated against
+//! that model stage bit for bit (`hdl/tests/`), plus Verilog generation,
+//! Verilator lint and a yosys Spartan-6 resource report ([`synth`]).
+//!
+//! ## Stream and throughput
+//! Pixels arrive in raster order, P per clock, with `valid` (stalls allowed at
+//! any clock), `sop` (first word of a plane) and `flush` (see [`stream`]).
+//! The core runs on the FrontPanel host-interface clock, 100.8 MHz, with
+//! **P = 16**: a 320×240 plane is 4,800 words, 10,000 planes/s need
+//! 48.0 Mword/s = 47.6 % of the clock, leaving 52 % for DDR2 refresh, host
+//! stalls and the delay line's DDR2 traffic (≥ 25 % required; P = 8 would
+//! leave 5 %). The pipeline itself never inserts a bubble: one word in per
+//! clock sustained, so the figure above is also its cycles per plane.
+//!
+//! ## Blocks (order of work of `model/src/pipeline.rs`, stages 0–4)
+//! * [`hot_pixel_mask::HotPixelMask`]: `B AND NOT mask`, the mask a W·H-bit
+//!   memory loaded before the stream;
+//! * [`delay_line::DelayLine`]: block-RAM ring of N_max planes, runtime N,
+//!   zero for t < N (a saturating plane count), read-first `B_{t−N}` beside
+//!   `B_t`; numbers the words (column, row, index);
+//! * [`rolling_count::RollingCount`]: W·H counters in block RAM, one memory
+//!   per lane, read-modify-write `S += b_new − b_old`;
+//! * [`spatial_filter::SpatialFilter`]: vertical pass first (k − 1 line
+//!   buffers of counts), then horizontal; pre-added symmetric taps and
+//!   shift-and-add constant multipliers; zero padding on all four edges;
+//! * [`threshold::Threshold`] and [`candidates::Candidates`]: `H ≥ T_int` and
+//!   the 3×3 maximum with the model's raster tie rule, two line buffers of H;
+//! * [`front_half`]: the chain, its configurations and its Verilog.
+//!
+//! Widths are const generics checked against [`config::GatewareConfig`].
+
+pub mod bram;
+pub mod candidates;
+pub mod config;
+pub mod delay_line;
+pub mod front_half;
+pub mod hot_pixel_mask;
+pub mod rolling_count;
+pub mod sim;
+pub mod spatial_filter;
+pub mod stream;
+pub mod synth;
+pub mod threshold;
 
 /// The model crate this gateware mirrors.
 pub use smartagg_model as model;

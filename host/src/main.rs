@@ -3,8 +3,10 @@
 
 use clap::{Parser, Subcommand};
 
+mod calibration;
 mod commands;
 mod setup;
+mod transport;
 
 /// Smart aggregation of binary SPAD bit-planes for single-molecule localisation.
 ///
@@ -32,8 +34,12 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Localise molecules in blink-ROI packets (.rois) or a TIFF frame stack; ThunderSTORM CSV out.
     Localize(commands::localize::Args),
+    /// Receive the blink-ROI packet stream from a board, a file or the co-simulation into a .rois file.
+    Download(commands::download::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
     Render(commands::render::Args),
+    /// Calibrate a camera from its own recordings: DCR map, hot pixels, PRNU (SPAD); offset, gain, read noise (EMCCD, sCMOS).
+    Calibrate(commands::calibrate::Args),
     /// Reproduce the paper's simulation study (Fig. 4, Fig. 8) and beyond: CSV, PNG, Markdown.
     Study(commands::study::Args),
     /// Measure speed and accuracy (figures printed, nothing asserted).
@@ -60,6 +66,8 @@ fn main() {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Localize(a) => commands::localize::run(a),
         Command::Render(a) => commands::render::run(a),
+        Command::Calibrate(a) => commands::calibrate::run(a),
+        Command::Download(a) => commands::download::run(a),
         Command::Study(a) => commands::study::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),

@@ -42,6 +42,29 @@ pub struct PipelineArgs {
     /// Association radius, pixels (Chebyshev).
     #[arg(long, default_value_t = 1)]
     pub r_assoc: u32,
+    /// Calibration folder (`smartagg calibrate`): its hot pixels, judged
+    /// against this run's N and T_int, are masked (read as 0).
+    #[arg(long)]
+    pub calibration: Option<std::path::PathBuf>,
+}
+
+impl Default for PipelineArgs {
+    /// The command-line defaults: SPCImager at 150x, the paper's L_min = 1.
+    fn default() -> PipelineArgs {
+        PipelineArgs {
+            preset: "spcimager".into(),
+            objective: 150,
+            flux: None,
+            n_window: None,
+            threshold_int: None,
+            l_min: 1,
+            l_max: smartagg_model::config::DEFAULT_L_MAX,
+            slots: smartagg_model::config::DEFAULT_SLOTS,
+            roi: None,
+            r_assoc: 1,
+            calibration: None,
+        }
+    }
 }
 
 /// Options for headerless recordings.
@@ -128,6 +151,26 @@ pub fn pipeline_config(
         cfg.roi_size = r;
     }
     cfg.plane_period_ns = u32::try_from(plane_period_ns).context("plane period above 4.29 s")?;
+    if let Some(path) = &args.calibration {
+        let cal = crate::calibration::Calibration::load(path)?;
+        anyhow::ensure!(
+            (cal.width, cal.height) == (width, height),
+            "calibration {} is for {}x{} pixels, the recording has {}x{}",
+            path.display(),
+            cal.width,
+            cal.height,
+            width,
+            height
+        );
+        let criterion = cal.hot_criterion.with_threshold(n, threshold as u64)?;
+        let mask = cal.hot_mask_for(&criterion);
+        eprintln!(
+            "calibration {}: {} hot pixels masked (dark counts alone would reach T_int = {threshold} with N = {n})",
+            path.display(),
+            mask.count()
+        );
+        cfg.hot_mask = Some(mask);
+    }
     cfg.validate()?;
     Ok(cfg)
 }

@@ -160,3 +160,92 @@ fn bad_recordings_give_clear_errors() {
     ])
     .contains("missing.spad"));
 }
+
+#[test]
+fn calibration_masks_hot_pixels_in_aggregate() {
+    let dir = tempfile::tempdir().unwrap();
+    let dark = p(dir.path(), "dark.spad");
+    // A dark recording (no light, no molecules) with 3 % hot pixels.
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--scene",
+        "random",
+        "--density",
+        "0",
+        "--background",
+        "0",
+        "--hot-pixels",
+        "0.03",
+        "--field",
+        "24x20",
+        "--planes",
+        "60000",
+        "--seed",
+        "5",
+        "--out",
+        &dark,
+    ]);
+    let cal = p(dir.path(), "calib");
+    ok(&[
+        "calibrate",
+        "--dark",
+        &dark,
+        "--out",
+        &cal,
+        "--preset",
+        "spcimager",
+        "--quiet",
+    ]);
+    let rois = p(dir.path(), "x.rois");
+    let masked = p(dir.path(), "masked.rois");
+    ok(&["aggregate", &dark, "--out", &rois, "--quiet"]);
+    ok(&[
+        "aggregate",
+        &dark,
+        "--out",
+        &masked,
+        "--calibration",
+        &cal,
+        "--quiet",
+    ]);
+    let start = |path: &str| {
+        let d = smartagg_model::packet::decode_all(&std::fs::read(path).unwrap());
+        let blinks = d
+            .packets
+            .iter()
+            .filter(|p| matches!(p.record, smartagg_model::record::Record::Blink(_)))
+            .count();
+        match &d.packets[0].record {
+            smartagg_model::record::Record::Start(s) => (s.masked_pixels, blinks),
+            other => panic!("first record {other:?}"),
+        }
+    };
+    let (m0, b0) = start(&rois);
+    let (m1, b1) = start(&masked);
+    assert_eq!(m0, 0);
+    assert!(m1 >= 5, "hot pixels masked: {m1}");
+    assert!(
+        b0 > b1,
+        "hot pixels fire as false blinks unless masked: {b0} vs {b1}"
+    );
+    // A calibration of another size is refused.
+    let other = p(dir.path(), "other.spad");
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--scene",
+        "random",
+        "--density",
+        "0",
+        "--field",
+        "16x16",
+        "--planes",
+        "10",
+        "--out",
+        &other,
+    ]);
+    assert!(err(&["aggregate", &other, "--out", &rois, "--calibration", &cal]).contains("24x20"));
+}

@@ -62,12 +62,10 @@ pub fn crlb_frame(
     noise: NoiseModel,
     fit_sigma: bool,
 ) -> Option<Crlb> {
-    let empty: [f64; 0] = [];
     let f2 = noise.excess_noise();
     match maps {
         None => bound(
             &Problem {
-                data: &empty,
                 side,
                 model: Uniform,
                 sigma_fixed: em.sigma,
@@ -78,7 +76,6 @@ pub fn crlb_frame(
         ),
         Some(maps) => bound(
             &Problem {
-                data: &empty,
                 side,
                 model: Mapped {
                     maps,

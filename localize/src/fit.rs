@@ -12,8 +12,8 @@ use serde::{Deserialize, Serialize};
 pub enum FitStatus {
     /// Converged inside the ROI with a finite Cramér–Rao bound.
     Ok = 0,
-    /// No photons above background (zero-photon ROI, or the fitted intensity
-    /// collapsed to its lower bound).
+    /// No photons above background: a zero-photon ROI, a fitted intensity
+    /// at its lower bound, or one below its own standard deviation.
     NoSignal = 1,
     /// Stopped at the iteration limit.
     NotConverged = 2,

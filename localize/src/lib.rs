@@ -22,19 +22,27 @@
 //! localisation at sensor column `X` (pixels) is at `X · pixel_nm` nm with
 //! `X = roi_x0 + x_fit`.
 
+pub mod bench;
 pub mod centroid;
 pub mod crlb;
 pub mod erf;
 pub mod error;
+pub(crate) mod fastmath;
 pub mod fit;
+pub mod frames;
 pub mod linalg;
 pub mod lm;
+pub mod merge;
 pub mod psf;
+pub mod render;
 pub mod roi;
 pub mod spad;
 pub mod synth;
+pub mod table;
+pub mod tiffio;
 
 pub use error::LocalizeError;
 pub use fit::{fit_roi, Estimator, Fit, FitOptions, FitStatus, NoiseModel, SigmaMode};
 pub use roi::{HotPixelMode, PixelMaps, RoiView};
 pub use spad::{fit_binomial, SpadRoi};
+pub use table::{LocTable, Localization};

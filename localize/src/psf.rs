@@ -6,7 +6,7 @@
 //! lands in pixel `(i, j)` is `Ex_i · Ey_j`, a product of two 1-D integrals,
 //! so a whole `R × R` ROI costs `2 (R + 1)` erf evaluations, not `R²`.
 
-use crate::erf::erfc_nonneg_with_gauss;
+use crate::fastmath::{erfc_nonneg, exp_nonpositive, Arith, Plain};
 
 /// Largest ROI side the fitters accept (their work arrays live on the stack).
 pub const MAX_SIDE: usize = 64;
@@ -41,53 +41,111 @@ impl Default for AxisTerms {
 impl AxisTerms {
     /// Fills the terms for `n ≤ MAX_SIDE` pixels, centre `c` (pixels) and
     /// width `sigma > 0` (pixels). `with_sigma` also fills `ds`.
-    #[inline(always)]
     pub fn compute(&mut self, n: usize, c: f64, sigma: f64, with_sigma: bool) {
+        self.compute_with::<Plain>(n, c, sigma, with_sigma);
+    }
+
+    /// [`AxisTerms::compute`] with the fit's arithmetic.
+    #[inline(always)]
+    pub(crate) fn compute_with<A: Arith>(&mut self, n: usize, c: f64, sigma: f64, with_sigma: bool) {
         debug_assert!(n <= MAX_SIDE && sigma > 0.0);
         self.n = n;
         let inv = std::f64::consts::FRAC_1_SQRT_2 / sigma;
         let pdf_scale = FRAC_1_SQRT_2PI / sigma;
         let inv_sigma = 1.0 / sigma;
-        // State at the previous edge: tail mass beyond it (on its own side of
-        // the centre), whether it lies right of the centre, pdf and u·pdf.
-        let mut prev_tail = 0.0;
-        let mut prev_right = false;
-        let mut prev_pdf = 0.0;
-        let mut prev_updf = 0.0;
-        for edge in 0..=n {
-            let u = edge as f64 - c;
-            let z = u * inv;
-            let a = z.abs();
-            let (g, tail) = if a < 27.0 {
-                let g = (-a * a).exp();
-                (g, 0.5 * erfc_nonneg_with_gauss(a, g))
+        // Pixels in blocks of four (fixed-size arrays: the lanes vectorise).
+        // Block b needs edges 4b..4b+4: its own four lower edges and the
+        // first edge of the next block, passed along in registers rather than
+        // through memory. Lanes past `n` (up to the next multiple of four)
+        // get the masses of virtual pixels beyond the ROI: finite, and masked
+        // out by the fits.
+        assert!(n <= MAX_SIDE);
+        let mut lower = edge_block::<A>(0, c, inv, pdf_scale);
+        for blk in 0..n.div_ceil(4) {
+            // The next block's first edge is needed only if it bounds a real
+            // pixel; otherwise it would serve virtual pixels alone.
+            let next = if 4 * (blk + 1) <= n {
+                edge_block::<A>(blk + 1, c, inv, pdf_scale)
             } else {
-                (0.0, 0.0)
+                EdgeBlock::default()
             };
-            let right = z >= 0.0;
-            let pdf = g * pdf_scale;
-            let updf = u * pdf;
-            if edge > 0 {
-                let i = edge - 1;
-                // Mass in [u_prev, u] without cancelling two numbers near 1.
-                let mass = match (prev_right, right) {
-                    (true, true) => prev_tail - tail,
-                    (false, false) => tail - prev_tail,
-                    _ => 1.0 - prev_tail - tail,
+            let t1 = shift_in(&lower.tail, &next.tail);
+            let r1 = shift_in(&lower.right, &next.right);
+            let p1 = shift_in(&lower.pdf, &next.pdf);
+            let u1 = shift_in(&lower.updf, &next.updf);
+            let (t0, r0, p0, u0) = (lower.tail, lower.right, lower.pdf, lower.updf);
+            let mut e = [0.0; 4];
+            let mut dc = [0.0; 4];
+            let mut ds = [0.0; 4];
+            for l in 0..4 {
+                // Mass in [u_i, u_{i+1}] without cancelling two numbers near
+                // 1: both edges right of the centre, both left, or straddling.
+                let both_right = t0[l] - t1[l];
+                let both_left = t1[l] - t0[l];
+                let straddle = 1.0 - t0[l] - t1[l];
+                let mass = if r0[l] > 0.5 {
+                    both_right
+                } else if r1[l] < 0.5 {
+                    both_left
+                } else {
+                    straddle
                 };
-                self.e[i] = mass.max(0.0);
-                self.dc[i] = prev_pdf - pdf;
-                if with_sigma {
-                    self.ds[i] = (prev_updf - updf) * inv_sigma;
-                }
+                e[l] = mass.max(0.0);
+                dc[l] = p0[l] - p1[l];
+                ds[l] = (u0[l] - u1[l]) * inv_sigma;
             }
-            prev_tail = tail;
-            prev_right = right;
-            prev_pdf = pdf;
-            prev_updf = updf;
+            let i0 = 4 * blk;
+            self.e[i0..i0 + 4].copy_from_slice(&e);
+            self.dc[i0..i0 + 4].copy_from_slice(&dc);
+            if with_sigma {
+                self.ds[i0..i0 + 4].copy_from_slice(&ds);
+            }
+            lower = next;
         }
     }
 }
+
+/// Values at edges `4 blk .. 4 blk + 4` for centre `c`, `inv = 1/(σ√2)`,
+/// `pdf_scale = 1/(σ√2π)`. Computed for every lane then selected
+/// (branch-free); beyond |z| = 26 erfc < 1e-295 counts as zero.
+#[inline(always)]
+fn edge_block<A: Arith>(blk: usize, c: f64, inv: f64, pdf_scale: f64) -> EdgeBlock {
+    let mut out = EdgeBlock::default();
+    for l in 0..4 {
+        let u = (4 * blk + l) as f64 - c;
+        let z = u * inv;
+        let a = z.abs();
+        let inside = a < 26.0;
+        let g0 = exp_nonpositive::<A>(-a * a);
+        let t0 = 0.5 * erfc_nonneg::<A>(a.min(26.0), g0);
+        let g = if inside { g0 } else { 0.0 };
+        out.tail[l] = if inside { t0 } else { 0.0 };
+        out.right[l] = if z >= 0.0 { 1.0 } else { 0.0 };
+        out.pdf[l] = g * pdf_scale;
+        out.updf[l] = u * out.pdf[l];
+    }
+    out
+}
+
+/// `[a1, a2, a3, b0]`: the upper edges of a block of pixels.
+#[inline(always)]
+fn shift_in(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
+    [a[1], a[2], a[3], b[0]]
+}
+
+/// Values at four consecutive pixel edges.
+#[derive(Clone, Copy, Default)]
+struct EdgeBlock {
+    /// Tail mass beyond the edge, on its side of the centre.
+    tail: [f64; 4],
+    /// 1 if the edge is right of the centre, else 0.
+    right: [f64; 4],
+    /// Gaussian pdf at the edge.
+    pdf: [f64; 4],
+    /// Offset from the centre times the pdf.
+    updf: [f64; 4],
+}
+
 
 /// The expected photon fraction of every pixel of an `side × side` ROI for an
 /// emitter at `(x, y)` with width `sigma` (row-major).

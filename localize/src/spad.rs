@@ -390,7 +390,7 @@ fn solve<const P: usize>(
     let (non, noff) = (n_on as f64, n_off as f64);
     let mut ax = AxisTerms::default();
     let mut ay = AxisTerms::default();
-    let evaluate = |theta: &[f64; P]| -> Eval<P> {
+    let mut evaluate = |theta: &[f64; P]| -> Eval<P> {
         let mut ll = 0.0;
         let mut g = [0.0; P];
         let mut h = [[0.0; P]; P];
@@ -430,14 +430,16 @@ fn solve<const P: usize>(
         }
         Eval { ll, g, h }
     };
-    let out = levenberg_marquardt(evaluate, init, lo, hi, opts.max_iterations, |_| 1.0);
+    let out = levenberg_marquardt(&mut evaluate, init, lo, hi, opts.max_iterations);
     let th = out.theta;
     let cov = invert_spd(&out.eval.h);
     let r = side as f64;
     let mut status = FitStatus::Ok;
     if !out.converged {
         status = FitStatus::NotConverged;
-    } else if th[2] <= lo[2] * 1.000_001 {
+    } else if th[2] <= lo[2] * 1.000_001 || cov.is_some_and(|c| th[2] < c[2][2].sqrt()) {
+        // No emitter, or one not distinguishable from zero at one standard
+        // deviation.
         status = FitStatus::NoSignal;
     } else if th[0] < -0.5 || th[1] < -0.5 || th[0] > r + 0.5 || th[1] > r + 0.5 {
         status = FitStatus::OutsideRoi;

@@ -4,13 +4,14 @@
 
 use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
-use crate::matching::{merge_consecutive, outcome, BlinkOutcome, Loc, SchemeOutcome, Truth};
+use crate::matching::{outcome, BlinkOutcome, Loc, SchemeOutcome, Truth};
 use crate::sim::{record_frames, record_spad, Setup};
 use crate::spec::{Axis, Estimator, Method, Plan, MERGE_RADIUS_NM};
 use crate::timeline::{derive_seed, key_hash, place, BlinkNm, Timeline, FRAME_S};
+use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::spad::{crlb_binomial, SpadEmitter};
 use smartagg_localize::{
-    fit_binomial, fit_roi, Fit, HotPixelMode, NoiseModel, PixelMaps, RoiView, SpadRoi,
+    fit_binomial, fit_roi, Fit, HotPixelMode, Localization, NoiseModel, PixelMaps, RoiView, SpadRoi,
 };
 use smartagg_model::params::Camera;
 use smartagg_model::record::{flags, BlinkRecord};
@@ -225,14 +226,13 @@ pub fn run_item(
                             .iter()
                             .map(|f| f.iter().map(|&c| c as f64).collect())
                             .collect();
-                        let (locs, _, failed) = localize_frames(setup, &fitter, &frames, &maps);
+                        let all = localize_frames(setup, &fitter, &frames, &maps)?;
                         timings.push(Timing {
                             stage: format!("fit {}", plan.schemes[s].id),
-                            count: locs.len() as u64 + failed as u64,
+                            count: all.len() as u64,
                             seconds: a.elapsed().as_secs_f64(),
                         });
-                        let detections = locs.len() as u32 + failed;
-                        outcome(&truth, &locs, radius, detections, failed)
+                        frame_outcome(&truth, &all, radius)
                     }
                     Method::Frames | Method::FramesMerged => {
                         unreachable!("frame-camera method on a SPAD configuration")
@@ -254,27 +254,19 @@ pub fn run_item(
             let mut fitter = FrameFitter::new(fit_options(setup.sigma_px, fit_sigma, noise));
             fitter.threshold_factor = plan.options.frame_threshold;
             let a = Instant::now();
-            let (locs, frame_idx, failed) =
-                localize_frames(setup, &fitter, &data.frames, &data.maps);
+            let all = localize_frames(setup, &fitter, &data.frames, &data.maps)?;
             timings.push(Timing {
                 stage: format!("fit {}", config.key),
-                count: locs.len() as u64 + failed as u64,
+                count: all.len() as u64,
                 seconds: a.elapsed().as_secs_f64(),
             });
             for &s in &schemes {
                 let o = match plan.schemes[s].method {
-                    Method::Frames => {
-                        outcome(&truth, &locs, radius, locs.len() as u32 + failed, failed)
-                    }
+                    Method::Frames => frame_outcome(&truth, &all, radius),
                     Method::FramesMerged => {
-                        let merged = merge_consecutive(&locs, &frame_idx, MERGE_RADIUS_NM);
-                        outcome(
-                            &truth,
-                            &merged,
-                            radius,
-                            merged.len() as u32 + failed,
-                            failed,
-                        )
+                        // Failed fits pass through unmerged (and stay failed).
+                        let (merged, _) = merge_consecutive(&all, MERGE_RADIUS_NM, 0);
+                        frame_outcome(&truth, &merged, radius)
                     }
                     other => unreachable!("{other:?} on a frame camera"),
                 };
@@ -427,33 +419,40 @@ fn estimate(
     }
 }
 
-/// Localises frames (frame `k` exposes `[k·50 ms, (k+1)·50 ms)`): the
-/// localisations, their frame indices and the failed fits.
+/// Localises frames: every candidate of every frame (failed fits flagged),
+/// frame `k` (0-based) written as `k + 1` (ThunderSTORM's 1-based frames).
 fn localize_frames(
     setup: &Setup,
     fitter: &FrameFitter,
     frames: &[Vec<f64>],
     maps: &FrameMaps,
-) -> (Vec<Loc>, Vec<u64>, u32) {
+) -> Result<Vec<Localization>, StudyError> {
     let w = setup.field as usize;
-    let mut locs = Vec::new();
-    let mut idx = Vec::new();
-    let mut failed = 0;
+    let mut all = Vec::new();
     for (k, f) in frames.iter().enumerate() {
-        let (fits, bad) = fitter.localize(f, w, w, maps);
-        failed += bad;
-        for ft in fits {
-            locs.push(Loc {
-                x_nm: ft.x_px * setup.pixel_nm,
-                y_nm: ft.y_px * setup.pixel_nm,
-                t0_s: k as f64 * FRAME_S,
-                t1_s: (k + 1) as f64 * FRAME_S,
-                photons: ft.photons,
-            });
-            idx.push(k as u64);
-        }
+        all.extend(fitter.localize(f, w, w, maps, setup.pixel_nm, k as u64 + 1)?);
     }
-    (locs, idx, failed)
+    Ok(all)
+}
+
+/// The outcome of frame localisations: frame `f` (1-based) exposes
+/// `[(f − 1)·50 ms, f·50 ms)`; a merged localisation of `d` detections in
+/// consecutive frames spans `d` frames. Every candidate is a detection;
+/// failed fits give no localisation.
+fn frame_outcome(truth: &[Truth], all: &[Localization], radius: f64) -> SchemeOutcome {
+    let locs: Vec<Loc> = all
+        .iter()
+        .filter(|l| l.status.is_ok())
+        .map(|l| Loc {
+            x_nm: l.x_nm,
+            y_nm: l.y_nm,
+            t0_s: (l.frame - 1) as f64 * FRAME_S,
+            t1_s: (l.frame - 1 + l.detections.max(1) as u64) as f64 * FRAME_S,
+            photons: l.intensity,
+        })
+        .collect();
+    let failed = (all.len() - locs.len()) as u32;
+    outcome(truth, &locs, radius, all.len() as u32, failed)
 }
 
 /// The reference: for every blink, the Cramér–Rao bound (`var_x + var_y`,

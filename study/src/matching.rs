@@ -21,7 +21,7 @@ pub struct Loc {
     pub t0_s: f64,
     /// End of the data it came from, s (exclusive).
     pub t1_s: f64,
-    /// Fitted photons (detections), used to weight merged positions.
+    /// Fitted photons (detections).
     pub photons: f64,
 }
 
@@ -123,106 +123,6 @@ pub fn outcome(
     out
 }
 
-/// Merges localisations of consecutive frames (the paper's merging, as in
-/// ThunderSTORM with zero off-frames): a localisation of frame k + 1 within
-/// `radius_nm` of a chain that has a member in frame k joins it (the nearest
-/// chain; a chain takes at most one localisation per frame). A chain becomes
-/// one localisation at the photon-weighted mean position (plain mean if no
-/// photons), spanning the union of its frames.
-///
-/// `frames[i]` is the frame index of `locs[i]`; frames must be ascending.
-pub fn merge_consecutive(locs: &[Loc], frames: &[u64], radius_nm: f64) -> Vec<Loc> {
-    assert_eq!(locs.len(), frames.len(), "one frame index per localisation");
-    let r2 = radius_nm * radius_nm;
-    struct Chain {
-        members: Vec<usize>,
-        last_frame: u64,
-        last: Loc,
-    }
-    let mut chains: Vec<Chain> = Vec::new();
-    // Chains that ended in the previous frame and can still be extended.
-    let mut open: Vec<usize> = Vec::new();
-    let mut i = 0;
-    while i < locs.len() {
-        let f = frames[i];
-        let mut j = i;
-        while j < locs.len() && frames[j] == f {
-            j += 1;
-        }
-        let candidates: Vec<usize> = open
-            .iter()
-            .copied()
-            .filter(|&c| chains[c].last_frame + 1 == f)
-            .collect();
-        let mut taken = vec![false; candidates.len()];
-        let mut next_open = Vec::new();
-        for k in i..j {
-            let l = locs[k];
-            let mut best: Option<(usize, f64)> = None;
-            for (ci, &c) in candidates.iter().enumerate() {
-                if taken[ci] {
-                    continue;
-                }
-                let p = chains[c].last;
-                let d2 = (l.x_nm - p.x_nm).powi(2) + (l.y_nm - p.y_nm).powi(2);
-                if d2 <= r2 && best.is_none_or(|(_, bd)| d2 < bd) {
-                    best = Some((ci, d2));
-                }
-            }
-            let c = match best {
-                Some((ci, _)) => {
-                    taken[ci] = true;
-                    let c = candidates[ci];
-                    chains[c].members.push(k);
-                    chains[c].last_frame = f;
-                    chains[c].last = l;
-                    c
-                }
-                None => {
-                    chains.push(Chain {
-                        members: vec![k],
-                        last_frame: f,
-                        last: l,
-                    });
-                    chains.len() - 1
-                }
-            };
-            next_open.push(c);
-        }
-        open = next_open;
-        i = j;
-    }
-    chains
-        .iter()
-        .map(|c| {
-            let w: f64 = c.members.iter().map(|&k| locs[k].photons.max(0.0)).sum();
-            let n = c.members.len() as f64;
-            let wt = |k: usize| {
-                if w > 0.0 {
-                    locs[k].photons.max(0.0) / w
-                } else {
-                    1.0 / n
-                }
-            };
-            Loc {
-                x_nm: c.members.iter().map(|&k| wt(k) * locs[k].x_nm).sum(),
-                y_nm: c.members.iter().map(|&k| wt(k) * locs[k].y_nm).sum(),
-                t0_s: c
-                    .members
-                    .iter()
-                    .map(|&k| locs[k].t0_s)
-                    .fold(f64::INFINITY, f64::min),
-                t1_s: c
-                    .members
-                    .iter()
-                    .map(|&k| locs[k].t1_s)
-                    .fold(f64::NEG_INFINITY, f64::max),
-                photons: c.members.iter().map(|&k| locs[k].photons).sum(),
-            }
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -291,26 +191,5 @@ mod tests {
         assert_eq!(o.blinks[0], BlinkOutcome::default());
         assert_eq!(o.blinks[1].matches, 1);
         assert_eq!(o.false_pos, 0);
-    }
-
-    #[test]
-    fn consecutive_frames_merge_within_radius_only() {
-        let mut a = loc(500.0, 500.0, 0.00, 0.05);
-        a.photons = 300.0;
-        let mut b = loc(530.0, 500.0, 0.05, 0.10);
-        b.photons = 100.0;
-        let c = loc(580.0, 500.0, 0.10, 0.15); // 50 nm from b: new chain
-        let d = loc(500.0, 500.0, 0.20, 0.25); // frame 4, gap at frame 3: new chain
-        let merged = merge_consecutive(&[a, b, c, d], &[0, 1, 2, 4], 40.0);
-        assert_eq!(merged.len(), 3);
-        assert!((merged[0].x_nm - 507.5).abs() < 1e-9, "{:?}", merged[0]);
-        assert_eq!(merged[0].t0_s, 0.0);
-        assert_eq!(merged[0].t1_s, 0.10);
-        assert_eq!(merged[0].photons, 400.0);
-        assert_eq!(merged[1].x_nm, 580.0);
-        assert_eq!(merged[2].t0_s, 0.20);
-        // Two localisations in one frame never join each other.
-        let m = merge_consecutive(&[a, a], &[0, 0], 40.0);
-        assert_eq!(m.len(), 2);
     }
 }

@@ -49,7 +49,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("opening recording {}", args.recording.display()))?;
     let reader = setup::open_recording(BufReader::with_capacity(1 << 20, file), &args.raw)
         .with_context(|| format!("reading {}", args.recording.display()))?;
-    let header = reader.header().clone();
+    let header = *reader.header();
     let cfg = setup::pipeline_config(
         &args.pipeline,
         header.width,

@@ -231,7 +231,7 @@ fn stream(
             return None;
         }
         done += 1;
-        if done % report_every == 0 {
+        if done.is_multiple_of(report_every) {
             let s = t.elapsed().as_secs_f64();
             println!(
                 "{:>12} {:>10.1} {:>12.0} {:>10.1}",

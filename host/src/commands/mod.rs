@@ -4,6 +4,8 @@ pub mod aggregate;
 pub mod bench_aggregate;
 pub mod bench_localize;
 pub mod bench_simulate;
+pub mod calibrate;
+pub mod download;
 pub mod localize;
 pub mod params;
 pub mod presets;

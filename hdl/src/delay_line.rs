@@ -1,0 +1,181 @@
+//! Stage 1a — the N-plane delay line in block RAM (phase 1; the DDR2 version
+//! for large N follows the same interface).
+//!
+//! The entry of the pipeline: takes the live bit-plane stream (P bits per
+//! word, `valid`, `sop`, `flush`), numbers its words, and returns beside each
+//! live word `B_t` the word of the same pixels N planes ago, `B_{t−N}`, read
+//! from the memory slot it overwrites (read-first). N is a runtime register
+//! (1 ≤ N ≤ N_max), taken at `restart`. Planes before the stream are zero as
+//! in the model ([`smartagg_model::delay_line`]): a saturating plane count
+//! forces the output to zero for `t < N`, so whatever the memory held before
+//! (power-up garbage, an earlier stream) never leaks out.
+//!
+//! Memory: N_max slots of `W·H/P` words, slot `t mod N` for plane t.
+//! Latency: one clock (the registered read).
+
+use crate::bram::{Bram, RamStyle};
+use crate::config::{GatewareConfig, GatewareError};
+use crate::stream::RasterPosition;
+use rust_hdl::prelude::*;
+
+/// Block-RAM delay line of up to N_max planes of P-pixel words.
+/// `P`: pixels per clock; `AW`: address bits of N_max planes; `NW`: bits of N.
+#[derive(LogicBlock)]
+pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: forget all planes, take `n_window`.
+    pub restart: Signal<In, Bit>,
+    /// Window N (1..=N_max), used from the next `restart` on.
+    pub n_window: Signal<In, Bits<NW>>,
+    /// Input word present.
+    pub valid: Signal<In, Bit>,
+    /// First word of a plane.
+    pub sop: Signal<In, Bit>,
+    /// Word of a flush plane (not stored).
+    pub flush: Signal<In, Bit>,
+    /// Live pixels `B_t`, pixel i of the word in bit i.
+    pub live: Signal<In, Bits<P>>,
+    /// Output word present.
+    pub out_valid: Signal<Out, Bit>,
+    /// Output of a flush plane.
+    pub out_flush: Signal<Out, Bit>,
+    /// Word column.
+    pub out_x: Signal<Out, Bits<16>>,
+    /// Row.
+    pub out_y: Signal<Out, Bits<16>>,
+    /// Word index within the plane.
+    pub out_idx: Signal<Out, Bits<32>>,
+    /// `B_t`.
+    pub out_live: Signal<Out, Bits<P>>,
+    /// `B_{t−N}` (zero for t < N and for flush words).
+    pub out_delayed: Signal<Out, Bits<P>>,
+    pos: RasterPosition,
+    mem: Bram<P, AW>,
+    n_reg: DFF<Bits<NW>>,
+    planes: DFF<Bits<NW>>,
+    slot: DFF<Bits<NW>>,
+    base: DFF<Bits<AW>>,
+    zero: DFF<Bit>,
+    slot_now: Signal<Local, Bits<NW>>,
+    base_now: Signal<Local, Bits<AW>>,
+    zero_now: Signal<Local, Bit>,
+    v1: DFF<Bit>,
+    f1: DFF<Bit>,
+    x1: DFF<Bits<16>>,
+    y1: DFF<Bits<16>>,
+    i1: DFF<Bits<32>>,
+    live1: DFF<Bits<P>>,
+    zero1: DFF<Bit>,
+    words_per_plane: Constant<Bits<AW>>,
+}
+
+impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
+    /// The delay line of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &GatewareConfig) -> Result<Self, GatewareError> {
+        cfg.validate()?;
+        GatewareConfig::check_width("DelayLine", "P", P, cfg.pixels_per_clock)?;
+        GatewareConfig::check_width("DelayLine", "AW", AW, cfg.delay_addr_bits())?;
+        GatewareConfig::check_width("DelayLine", "NW", NW, cfg.count_bits())?;
+        let wpp = cfg.words_per_plane();
+        Ok(DelayLine {
+            clock: Default::default(),
+            restart: Default::default(),
+            n_window: Default::default(),
+            valid: Default::default(),
+            sop: Default::default(),
+            flush: Default::default(),
+            live: Default::default(),
+            out_valid: Default::default(),
+            out_flush: Default::default(),
+            out_x: Default::default(),
+            out_y: Default::default(),
+            out_idx: Default::default(),
+            out_live: Default::default(),
+            out_delayed: Default::default(),
+            pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
+            mem: Bram::new(cfg.n_max as usize * wpp, RamStyle::Block),
+            n_reg: Default::default(),
+            planes: Default::default(),
+            slot: Default::default(),
+            base: Default::default(),
+            zero: Default::default(),
+            slot_now: Default::default(),
+            base_now: Default::default(),
+            zero_now: Default::default(),
+            v1: Default::default(),
+            f1: Default::default(),
+            x1: Default::default(),
+            y1: Default::default(),
+            i1: Default::default(),
+            live1: Default::default(),
+            zero1: Default::default(),
+            words_per_plane: Constant::new((wpp as u64).to_bits()),
+        })
+    }
+}
+
+impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW, NW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, n_reg, planes, slot, base, zero, v1, f1, x1, y1, i1, live1, zero1);
+        self.pos.clock.next = self.clock.val();
+        self.pos.valid.next = self.valid.val();
+        self.pos.sop.next = self.sop.val();
+        self.mem.clock.next = self.clock.val();
+
+        // Slot of the present plane: advanced at each stored plane's start.
+        self.slot_now.next = self.slot.q.val();
+        self.base_now.next = self.base.q.val();
+        self.zero_now.next = self.zero.q.val();
+        if self.valid.val() & self.sop.val() & !self.flush.val() {
+            self.zero_now.next = self.planes.q.val() < self.n_reg.q.val();
+            if self.planes.q.val() < self.n_reg.q.val() {
+                self.planes.d.next = self.planes.q.val() + 1;
+            }
+            // Plane 0 of the stream, or the wrap of the ring of N slots.
+            if (self.planes.q.val() == 0) | (self.slot.q.val() == self.n_reg.q.val() - 1) {
+                self.slot_now.next = 0.into();
+                self.base_now.next = 0.into();
+            } else {
+                self.slot_now.next = self.slot.q.val() + 1;
+                self.base_now.next = self.base.q.val() + self.words_per_plane.val();
+            }
+            self.slot.d.next = self.slot_now.val();
+            self.base.d.next = self.base_now.val();
+            self.zero.d.next = self.zero_now.val();
+        }
+
+        // Read B_{t−N} from the word that B_t overwrites (read-first).
+        self.mem.read_address.next = self.base_now.val() + bit_cast::<AW, 32>(self.pos.idx.val());
+        self.mem.write_address.next = self.base_now.val() + bit_cast::<AW, 32>(self.pos.idx.val());
+        self.mem.write_data.next = self.live.val();
+        self.mem.write_enable.next = self.valid.val() & !self.flush.val();
+
+        self.v1.d.next = self.valid.val();
+        if self.valid.val() {
+            self.f1.d.next = self.flush.val();
+            self.x1.d.next = self.pos.x.val();
+            self.y1.d.next = self.pos.y.val();
+            self.i1.d.next = self.pos.idx.val();
+            self.live1.d.next = self.live.val();
+            self.zero1.d.next = self.zero_now.val() | self.flush.val();
+        }
+        if self.restart.val() {
+            self.n_reg.d.next = self.n_window.val();
+            self.planes.d.next = 0.into();
+            self.v1.d.next = false;
+        }
+
+        self.out_valid.next = self.v1.q.val();
+        self.out_flush.next = self.f1.q.val();
+        self.out_x.next = self.x1.q.val();
+        self.out_y.next = self.y1.q.val();
+        self.out_idx.next = self.i1.q.val();
+        self.out_live.next = self.live1.q.val();
+        self.out_delayed.next = self.mem.read_data.val();
+        if self.zero1.q.val() {
+            self.out_delayed.next = 0.into();
+        }
+    }
+}

@@ -1,0 +1,325 @@
+//! The streaming front half: rolling count → spatial filter → threshold and
+//! candidates, fed by a delay line, and its Verilog.
+//!
+//! [`FrontHalf`] takes the live and the delayed stream side by side (the
+//! interface the DDR2 delay line of phase 2 will feed); [`FrontHalfBram`]
+//! puts the block-RAM [`DelayLine`] in front of it (configurations whose N_max
+//! planes fit block RAM). Type aliases name the generated configurations.
+
+use crate::candidates::Candidates;
+use crate::config::{GatewareConfig, GatewareError};
+use crate::delay_line::DelayLine;
+use crate::hot_pixel_mask::HotPixelMask;
+use crate::rolling_count::RollingCount;
+use crate::spatial_filter::SpatialFilter;
+use crate::stream::lanes;
+use rust_hdl::prelude::*;
+
+/// Rolling count, filter and candidates on P pixels per clock.
+#[derive(LogicBlock)]
+pub struct FrontHalf<
+    const P: usize,
+    const CW: usize,
+    const CAW: usize,
+    const VW: usize,
+    const HW: usize,
+    const LAW: usize,
+> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start.
+    pub restart: Signal<In, Bit>,
+    /// T_int register.
+    pub threshold: Signal<In, Bits<HW>>,
+    /// Input word present.
+    pub valid: Signal<In, Bit>,
+    /// Word of a flush plane.
+    pub flush: Signal<In, Bit>,
+    /// Word column.
+    pub x: Signal<In, Bits<16>>,
+    /// Row.
+    pub y: Signal<In, Bits<16>>,
+    /// Word index within the plane.
+    pub idx: Signal<In, Bits<32>>,
+    /// `B_t`.
+    pub live: Signal<In, Bits<P>>,
+    /// `B_{t−N}`.
+    pub delayed: Signal<In, Bits<P>>,
+    /// Output word present.
+    pub out_valid: Signal<Out, Bit>,
+    /// Output of a flush plane.
+    pub out_flush: Signal<Out, Bit>,
+    /// Output word column.
+    pub out_x: Signal<Out, Bits<16>>,
+    /// Output row.
+    pub out_y: Signal<Out, Bits<16>>,
+    /// `H ≥ T_int` per pixel.
+    pub above: Vec<Signal<Out, Bit>>,
+    /// Candidate per pixel.
+    pub candidate: Vec<Signal<Out, Bit>>,
+    count: RollingCount<P, CW, CAW>,
+    filter: SpatialFilter<CW, VW, HW, LAW>,
+    cands: Candidates<HW, LAW>,
+}
+
+impl<
+        const P: usize,
+        const CW: usize,
+        const CAW: usize,
+        const VW: usize,
+        const HW: usize,
+        const LAW: usize,
+    > FrontHalf<P, CW, CAW, VW, HW, LAW>
+{
+    /// The front half of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &GatewareConfig) -> Result<Self, GatewareError> {
+        Ok(FrontHalf {
+            clock: Default::default(),
+            restart: Default::default(),
+            threshold: Default::default(),
+            valid: Default::default(),
+            flush: Default::default(),
+            x: Default::default(),
+            y: Default::default(),
+            idx: Default::default(),
+            live: Default::default(),
+            delayed: Default::default(),
+            out_valid: Default::default(),
+            out_flush: Default::default(),
+            out_x: Default::default(),
+            out_y: Default::default(),
+            above: lanes(P),
+            candidate: lanes(P),
+            count: RollingCount::new(cfg)?,
+            filter: SpatialFilter::new(cfg)?,
+            cands: Candidates::new(cfg)?,
+        })
+    }
+}
+
+impl<
+        const P: usize,
+        const CW: usize,
+        const CAW: usize,
+        const VW: usize,
+        const HW: usize,
+        const LAW: usize,
+    > Logic for FrontHalf<P, CW, CAW, VW, HW, LAW>
+{
+    #[hdl_gen]
+    fn update(&mut self) {
+        clock!(self, clock, count, filter, cands);
+        self.count.restart.next = self.restart.val();
+        self.filter.restart.next = self.restart.val();
+        self.cands.restart.next = self.restart.val();
+        self.cands.threshold.next = self.threshold.val();
+        self.count.valid.next = self.valid.val();
+        self.count.flush.next = self.flush.val();
+        self.count.x.next = self.x.val();
+        self.count.y.next = self.y.val();
+        self.count.idx.next = self.idx.val();
+        self.count.live.next = self.live.val();
+        self.count.delayed.next = self.delayed.val();
+        self.filter.valid.next = self.count.out_valid.val();
+        self.filter.flush.next = self.count.out_flush.val();
+        self.filter.x.next = self.count.out_x.val();
+        self.filter.y.next = self.count.out_y.val();
+        for i in 0..P {
+            self.filter.counts[i].next = self.count.counts[i].val();
+        }
+        self.cands.valid.next = self.filter.out_valid.val();
+        self.cands.flush.next = self.filter.out_flush.val();
+        self.cands.x.next = self.filter.out_x.val();
+        self.cands.y.next = self.filter.out_y.val();
+        for i in 0..P {
+            self.cands.filtered[i].next = self.filter.filtered[i].val();
+            self.above[i].next = self.cands.above[i].val();
+            self.candidate[i].next = self.cands.candidate[i].val();
+        }
+        self.out_valid.next = self.cands.out_valid.val();
+        self.out_flush.next = self.cands.out_flush.val();
+        self.out_x.next = self.cands.out_x.val();
+        self.out_y.next = self.cands.out_y.val();
+    }
+}
+
+/// The front half behind the hot-pixel mask and a block-RAM delay line: the
+/// whole phase-1 pipeline from the raw bit-plane stream to above-threshold
+/// bits and candidates.
+#[derive(LogicBlock)]
+pub struct FrontHalfBram<
+    const P: usize,
+    const DAW: usize,
+    const CW: usize,
+    const CAW: usize,
+    const VW: usize,
+    const HW: usize,
+    const LAW: usize,
+> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: takes `n_window`, forgets all planes.
+    pub restart: Signal<In, Bit>,
+    /// N register (1..=N_max).
+    pub n_window: Signal<In, Bits<CW>>,
+    /// Mask load strobe (before the stream starts).
+    pub load: Signal<In, Bit>,
+    /// Mask word index.
+    pub load_address: Signal<In, Bits<CAW>>,
+    /// Mask word: bit i = pixel i is hot.
+    pub load_data: Signal<In, Bits<P>>,
+    /// T_int register.
+    pub threshold: Signal<In, Bits<HW>>,
+    /// Input word present.
+    pub valid: Signal<In, Bit>,
+    /// First word of a plane.
+    pub sop: Signal<In, Bit>,
+    /// Word of a flush plane.
+    pub flush: Signal<In, Bit>,
+    /// `B_t`, pixel i of the word in bit i.
+    pub live: Signal<In, Bits<P>>,
+    /// Output word present.
+    pub out_valid: Signal<Out, Bit>,
+    /// Output of a flush plane.
+    pub out_flush: Signal<Out, Bit>,
+    /// Output word column.
+    pub out_x: Signal<Out, Bits<16>>,
+    /// Output row.
+    pub out_y: Signal<Out, Bits<16>>,
+    /// `H ≥ T_int` per pixel.
+    pub above: Vec<Signal<Out, Bit>>,
+    /// Candidate per pixel.
+    pub candidate: Vec<Signal<Out, Bit>>,
+    mask: HotPixelMask<P, CAW>,
+    delay: DelayLine<P, DAW, CW>,
+    front: FrontHalf<P, CW, CAW, VW, HW, LAW>,
+}
+
+impl<
+        const P: usize,
+        const DAW: usize,
+        const CW: usize,
+        const CAW: usize,
+        const VW: usize,
+        const HW: usize,
+        const LAW: usize,
+    > FrontHalfBram<P, DAW, CW, CAW, VW, HW, LAW>
+{
+    /// The pipeline of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &GatewareConfig) -> Result<Self, GatewareError> {
+        Ok(FrontHalfBram {
+            clock: Default::default(),
+            restart: Default::default(),
+            n_window: Default::default(),
+            load: Default::default(),
+            load_address: Default::default(),
+            load_data: Default::default(),
+            threshold: Default::default(),
+            valid: Default::default(),
+            sop: Default::default(),
+            flush: Default::default(),
+            live: Default::default(),
+            out_valid: Default::default(),
+            out_flush: Default::default(),
+            out_x: Default::default(),
+            out_y: Default::default(),
+            above: lanes(P),
+            candidate: lanes(P),
+            mask: HotPixelMask::new(cfg)?,
+            delay: DelayLine::new(cfg)?,
+            front: FrontHalf::new(cfg)?,
+        })
+    }
+}
+
+impl<
+        const P: usize,
+        const DAW: usize,
+        const CW: usize,
+        const CAW: usize,
+        const VW: usize,
+        const HW: usize,
+        const LAW: usize,
+    > Logic for FrontHalfBram<P, DAW, CW, CAW, VW, HW, LAW>
+{
+    #[hdl_gen]
+    fn update(&mut self) {
+        clock!(self, clock, mask, delay, front);
+        self.mask.load.next = self.load.val();
+        self.mask.load_address.next = self.load_address.val();
+        self.mask.load_data.next = self.load_data.val();
+        self.mask.valid.next = self.valid.val();
+        self.mask.sop.next = self.sop.val();
+        self.mask.flush.next = self.flush.val();
+        self.mask.live.next = self.live.val();
+        self.delay.restart.next = self.restart.val();
+        self.front.restart.next = self.restart.val();
+        self.delay.n_window.next = self.n_window.val();
+        self.front.threshold.next = self.threshold.val();
+        self.delay.valid.next = self.mask.out_valid.val();
+        self.delay.sop.next = self.mask.out_sop.val();
+        self.delay.flush.next = self.mask.out_flush.val();
+        self.delay.live.next = self.mask.out_live.val();
+        self.front.valid.next = self.delay.out_valid.val();
+        self.front.flush.next = self.delay.out_flush.val();
+        self.front.x.next = self.delay.out_x.val();
+        self.front.y.next = self.delay.out_y.val();
+        self.front.idx.next = self.delay.out_idx.val();
+        self.front.live.next = self.delay.out_live.val();
+        self.front.delayed.next = self.delay.out_delayed.val();
+        for i in 0..P {
+            self.above[i].next = self.front.above[i].val();
+            self.candidate[i].next = self.front.candidate[i].val();
+        }
+        self.out_valid.next = self.front.out_valid.val();
+        self.out_flush.next = self.front.out_flush.val();
+        self.out_x.next = self.front.out_x.val();
+        self.out_y.next = self.front.out_y.val();
+    }
+}
+
+/// The small test configuration: 16×6 pixels, P = 4, k1 = [1 4 6 4 1]
+/// (a = 4), N_max = 7.
+pub fn test_config() -> GatewareConfig {
+    GatewareConfig {
+        width: 16,
+        height: 6,
+        pixels_per_clock: 4,
+        n_max: 7,
+        kernel: vec![1, 4, 6, 4, 1],
+        kernel_shift: 4,
+    }
+}
+
+/// [`FrontHalfBram`] of [`test_config`].
+pub type TestFrontHalf = FrontHalfBram<4, 8, 3, 5, 7, 11, 2>;
+
+/// The SPCImager at 150× (320×240, P = 16, N_max = 128 ≥ N ≈ 108): k = 9,
+/// a = 8, k1 the pixel-integrated Gaussian of σ = 1.514 px scaled to 2^8
+/// (computed by `examples/resources.rs`; the model's kernel module will
+/// define the official rounding).
+pub fn spcimager150_config() -> GatewareConfig {
+    GatewareConfig {
+        width: 320,
+        height: 240,
+        pixels_per_clock: 16,
+        n_max: 128,
+        kernel: vec![2, 10, 29, 54, 66, 54, 29, 10, 2],
+        kernel_shift: 8,
+    }
+}
+
+/// [`FrontHalf`] for the SPCImager at 150× (320×240, P = 16, N_max = 128,
+/// k = 9, a = 8): the delay line (128 planes, 9.8 Mbit) goes to DDR2.
+pub type Spcimager150FrontHalf = FrontHalf<16, 8, 13, 16, 24, 5>;
+
+/// Verilog of a block (top module `top`), after rust-hdl's design checks.
+pub fn verilog<B: Block>(mut block: B) -> String {
+    block.connect_all();
+    generate_verilog(&block)
+}
+
+/// Verilog of the test configuration's whole front half.
+pub fn test_front_half_verilog() -> Result<String, GatewareError> {
+    Ok(verilog(TestFrontHalf::new(&test_config())?))
+}

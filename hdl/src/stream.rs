@@ -1,0 +1,396 @@
+//! The pixel stream and the small blocks every stage shares.
+//!
+//! **Stream.** Words of P pixels arrive in raster order with a `valid`
+//! strobe; stalls (valid low) may occur at any clock and the pipeline has no
+//! back-pressure: every stage takes a word whenever one is valid. The entry
+//! stage ([`crate::delay_line`]) turns the start-of-plane marker `sop` into an
+//! explicit position; from there on every word carries its word column `x`,
+//! its row `y` and a `flush` flag.
+//!
+//! **Flush planes.** The spatial filter and the 3×3 candidate window emit row
+//! y of a plane only when row `y + c` (resp. `y + 1`) arrives, so the last
+//! rows of a plane come out while the next plane streams in. At stream end the
+//! source sends one *flush plane* (`flush` high on each of its words): it
+//! pushes the tail of the last plane out, touches neither the delay line nor
+//! the counters, and its own outputs carry `flush` so consumers drop them.
+
+use rust_hdl::prelude::*;
+
+/// Position of the word at the input: from `sop` and the plane geometry.
+#[derive(LogicBlock)]
+pub struct RasterPosition {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// A word is present.
+    pub valid: Signal<In, Bit>,
+    /// The word is the first of a plane.
+    pub sop: Signal<In, Bit>,
+    /// Word column of the present word.
+    pub x: Signal<Out, Bits<16>>,
+    /// Row of the present word.
+    pub y: Signal<Out, Bits<16>>,
+    /// Word index within the plane.
+    pub idx: Signal<Out, Bits<32>>,
+    next_x: DFF<Bits<16>>,
+    next_y: DFF<Bits<16>>,
+    next_idx: DFF<Bits<32>>,
+    cur_x: Signal<Local, Bits<16>>,
+    cur_y: Signal<Local, Bits<16>>,
+    cur_idx: Signal<Local, Bits<32>>,
+    last_x: Constant<Bits<16>>,
+    last_y: Constant<Bits<16>>,
+}
+
+impl RasterPosition {
+    /// Position counter for planes of `words_per_row × height` words.
+    pub fn new(words_per_row: usize, height: usize) -> Self {
+        RasterPosition {
+            clock: Default::default(),
+            valid: Default::default(),
+            sop: Default::default(),
+            x: Default::default(),
+            y: Default::default(),
+            idx: Default::default(),
+            next_x: Default::default(),
+            next_y: Default::default(),
+            next_idx: Default::default(),
+            cur_x: Default::default(),
+            cur_y: Default::default(),
+            cur_idx: Default::default(),
+            last_x: Constant::new((words_per_row as u64 - 1).to_bits()),
+            last_y: Constant::new((height as u64 - 1).to_bits()),
+        }
+    }
+}
+
+impl Logic for RasterPosition {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, next_x, next_y, next_idx);
+        self.cur_x.next = self.next_x.q.val();
+        self.cur_y.next = self.next_y.q.val();
+        self.cur_idx.next = self.next_idx.q.val();
+        if self.sop.val() {
+            self.cur_x.next = 0.into();
+            self.cur_y.next = 0.into();
+            self.cur_idx.next = 0.into();
+        }
+        if self.valid.val() {
+            self.next_idx.d.next = self.cur_idx.val() + 1;
+            self.next_x.d.next = self.cur_x.val() + 1;
+            if self.cur_x.val() == self.last_x.val() {
+                self.next_x.d.next = 0.into();
+                self.next_y.d.next = self.cur_y.val() + 1;
+                if self.cur_y.val() == self.last_y.val() {
+                    self.next_y.d.next = 0.into();
+                    self.next_idx.d.next = 0.into();
+                }
+            }
+        }
+        self.x.next = self.cur_x.val();
+        self.y.next = self.cur_y.val();
+        self.idx.next = self.cur_idx.val();
+    }
+}
+
+/// Row skew: a stage that emits row `y − s` when row `y` arrives. Words of
+/// rows `y < s` belong to the *previous* plane (row `y + H − s`); they are
+/// valid only if there was a previous plane, and carry its flush flag.
+#[derive(LogicBlock)]
+pub struct RowSkew {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Clears the plane history (stream start).
+    pub restart: Signal<In, Bit>,
+    /// Input word present.
+    pub valid: Signal<In, Bit>,
+    /// Input word is of a flush plane.
+    pub flush: Signal<In, Bit>,
+    /// Input word column.
+    pub x: Signal<In, Bits<16>>,
+    /// Input row.
+    pub y: Signal<In, Bits<16>>,
+    /// An output row is due.
+    pub out_valid: Signal<Out, Bit>,
+    /// The output row belongs to a flush plane.
+    pub out_flush: Signal<Out, Bit>,
+    /// Output row.
+    pub out_y: Signal<Out, Bits<16>>,
+    started: DFF<Bit>,
+    cur_flush: DFF<Bit>,
+    prev_started: DFF<Bit>,
+    prev_flush: DFF<Bit>,
+    sop: Signal<Local, Bit>,
+    lag: Constant<Bits<16>>,
+    wrap: Constant<Bits<16>>,
+}
+
+impl RowSkew {
+    /// A skew of `skew < height` rows on planes of `height` rows.
+    pub fn new(skew: usize, height: usize) -> Self {
+        assert!(skew < height);
+        RowSkew {
+            clock: Default::default(),
+            restart: Default::default(),
+            valid: Default::default(),
+            flush: Default::default(),
+            x: Default::default(),
+            y: Default::default(),
+            out_valid: Default::default(),
+            out_flush: Default::default(),
+            out_y: Default::default(),
+            started: Default::default(),
+            cur_flush: Default::default(),
+            prev_started: Default::default(),
+            prev_flush: Default::default(),
+            sop: Default::default(),
+            lag: Constant::new((skew as u64).to_bits()),
+            wrap: Constant::new(((height - skew) as u64).to_bits()),
+        }
+    }
+}
+
+impl Logic for RowSkew {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, started, cur_flush, prev_started, prev_flush);
+        self.sop.next = self.valid.val() & (self.x.val() == 0) & (self.y.val() == 0);
+        if self.sop.val() {
+            self.started.d.next = true;
+            self.cur_flush.d.next = self.flush.val();
+            self.prev_started.d.next = self.started.q.val();
+            self.prev_flush.d.next = self.cur_flush.q.val();
+        }
+        if self.y.val() >= self.lag.val() {
+            self.out_y.next = self.y.val() - self.lag.val();
+            self.out_valid.next = self.valid.val();
+            self.out_flush.next = self.flush.val();
+        } else {
+            self.out_y.next = self.y.val() + self.wrap.val();
+            if self.sop.val() {
+                self.out_valid.next = self.valid.val() & self.started.q.val();
+                self.out_flush.next = self.cur_flush.q.val();
+            } else {
+                self.out_valid.next = self.valid.val() & self.prev_started.q.val();
+                self.out_flush.next = self.prev_flush.q.val();
+            }
+        }
+        if self.restart.val() {
+            self.started.d.next = false;
+            self.prev_started.d.next = false;
+        }
+    }
+}
+
+/// Horizontal context: holds the last two words and, when the next word
+/// arrives, emits the current word's P lanes with `ctx` lanes of context on
+/// each side (zero beyond the row ends) — `P + 2·ctx` lanes, registered.
+/// The word of a row end is emitted when any following word arrives.
+#[derive(LogicBlock)]
+pub struct WordWindow<const DW: usize> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Drops the held word (stream start).
+    pub restart: Signal<In, Bit>,
+    /// Input word present.
+    pub valid: Signal<In, Bit>,
+    /// Input is of a flush plane.
+    pub flush: Signal<In, Bit>,
+    /// Input word column.
+    pub x: Signal<In, Bits<16>>,
+    /// Input row.
+    pub y: Signal<In, Bits<16>>,
+    /// Input lanes (P).
+    pub lanes: Vec<Signal<In, Bits<DW>>>,
+    /// Output word present.
+    pub out_valid: Signal<Out, Bit>,
+    /// Output of a flush plane.
+    pub out_flush: Signal<Out, Bit>,
+    /// Output word column.
+    pub out_x: Signal<Out, Bits<16>>,
+    /// Output row.
+    pub out_y: Signal<Out, Bits<16>>,
+    /// Window lanes `P + 2·ctx`: lane `ctx + i` is pixel i of the word.
+    pub win: Vec<Signal<Out, Bits<DW>>>,
+    cur: Vec<DFF<Bits<DW>>>,
+    prev: Vec<DFF<Bits<DW>>>,
+    win_q: Vec<DFF<Bits<DW>>>,
+    cur_valid: DFF<Bit>,
+    cur_flush: DFF<Bit>,
+    cur_x: DFF<Bits<16>>,
+    cur_y: DFF<Bits<16>>,
+    o_valid: DFF<Bit>,
+    o_flush: DFF<Bit>,
+    o_x: DFF<Bits<16>>,
+    o_y: DFF<Bits<16>>,
+    last_x: Constant<Bits<16>>,
+    _p: usize,
+    _ctx: usize,
+}
+
+impl<const DW: usize> WordWindow<DW> {
+    /// A window over words of `p` lanes, `ctx ≤ p` lanes of context, rows of
+    /// `words_per_row` words.
+    pub fn new(p: usize, ctx: usize, words_per_row: usize) -> Self {
+        assert!(ctx <= p);
+        let n = p + 2 * ctx;
+        WordWindow {
+            clock: Default::default(),
+            restart: Default::default(),
+            valid: Default::default(),
+            flush: Default::default(),
+            x: Default::default(),
+            y: Default::default(),
+            lanes: lanes(p),
+            out_valid: Default::default(),
+            out_flush: Default::default(),
+            out_x: Default::default(),
+            out_y: Default::default(),
+            win: lanes(n),
+            cur: lanes(p),
+            prev: lanes(p),
+            win_q: lanes(n),
+            cur_valid: Default::default(),
+            cur_flush: Default::default(),
+            cur_x: Default::default(),
+            cur_y: Default::default(),
+            o_valid: Default::default(),
+            o_flush: Default::default(),
+            o_x: Default::default(),
+            o_y: Default::default(),
+            last_x: Constant::new((words_per_row as u64 - 1).to_bits()),
+            _p: p,
+            _ctx: ctx,
+        }
+    }
+}
+
+impl<const DW: usize> Logic for WordWindow<DW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, cur_valid, cur_flush, cur_x, cur_y, o_flush, o_x, o_y);
+        self.o_valid.clock.next = self.clock.val();
+        self.o_valid.d.next = false;
+        for i in 0..self._p {
+            self.cur[i].clock.next = self.clock.val();
+            self.prev[i].clock.next = self.clock.val();
+            self.cur[i].d.next = self.cur[i].q.val();
+            self.prev[i].d.next = self.prev[i].q.val();
+        }
+        for i in 0..(self._p + 2 * self._ctx) {
+            self.win_q[i].clock.next = self.clock.val();
+            self.win_q[i].d.next = self.win_q[i].q.val();
+            self.win[i].next = self.win_q[i].q.val();
+        }
+        if self.valid.val() {
+            self.cur_valid.d.next = true;
+            self.cur_flush.d.next = self.flush.val();
+            self.cur_x.d.next = self.x.val();
+            self.cur_y.d.next = self.y.val();
+            for i in 0..self._p {
+                self.cur[i].d.next = self.lanes[i].val();
+                self.prev[i].d.next = self.cur[i].q.val();
+            }
+            if self.cur_valid.q.val() {
+                self.o_valid.d.next = true;
+                self.o_flush.d.next = self.cur_flush.q.val();
+                self.o_x.d.next = self.cur_x.q.val();
+                self.o_y.d.next = self.cur_y.q.val();
+                // One-value loops name generation-time constants (P, ctx)
+                // for rust-hdl's index expressions.
+                for pp in self._p..(self._p + 1) {
+                    for cc in self._ctx..(self._ctx + 1) {
+                        for i in 0..self._ctx {
+                            self.win_q[i].d.next = 0.into();
+                            if self.cur_x.q.val() != 0 {
+                                self.win_q[i].d.next = self.prev[i + pp - cc].q.val();
+                            }
+                        }
+                        for i in 0..self._p {
+                            self.win_q[i + cc].d.next = self.cur[i].q.val();
+                        }
+                        for i in 0..self._ctx {
+                            self.win_q[i + cc + pp].d.next = 0.into();
+                            if self.cur_x.q.val() != self.last_x.val() {
+                                self.win_q[i + cc + pp].d.next = self.lanes[i].val();
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if self.restart.val() {
+            self.cur_valid.d.next = false;
+        }
+        self.out_valid.next = self.o_valid.q.val();
+        self.out_flush.next = self.o_flush.q.val();
+        self.out_x.next = self.o_x.q.val();
+        self.out_y.next = self.o_y.q.val();
+    }
+}
+
+/// `n` default-constructed lanes (signals or registers).
+pub fn lanes<T: Default>(n: usize) -> Vec<T> {
+    (0..n).map(|_| T::default()).collect()
+}
+
+/// One pipeline register of a word's tag: valid, flush, column, row.
+#[derive(LogicBlock, Default)]
+pub struct TagReg {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Clears `valid` (stream start).
+    pub restart: Signal<In, Bit>,
+    /// Word present.
+    pub valid: Signal<In, Bit>,
+    /// Flush plane.
+    pub flush: Signal<In, Bit>,
+    /// Word column.
+    pub x: Signal<In, Bits<16>>,
+    /// Row.
+    pub y: Signal<In, Bits<16>>,
+    /// `valid`, one clock later.
+    pub out_valid: Signal<Out, Bit>,
+    /// `flush`, one clock later.
+    pub out_flush: Signal<Out, Bit>,
+    /// `x`, one clock later.
+    pub out_x: Signal<Out, Bits<16>>,
+    /// `y`, one clock later.
+    pub out_y: Signal<Out, Bits<16>>,
+    v: DFF<Bit>,
+    f: DFF<Bit>,
+    xr: DFF<Bits<16>>,
+    yr: DFF<Bits<16>>,
+}
+
+impl Logic for TagReg {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, v, f, xr, yr);
+        self.v.d.next = self.valid.val() & !self.restart.val();
+        self.f.d.next = self.flush.val();
+        self.xr.d.next = self.x.val();
+        self.yr.d.next = self.y.val();
+        self.out_valid.next = self.v.q.val();
+        self.out_flush.next = self.f.q.val();
+        self.out_x.next = self.xr.q.val();
+        self.out_y.next = self.yr.q.val();
+    }
+}
+
+/// Zero-extends (or truncates) A bits to B bits: a wire, as a block because
+/// rust-hdl cannot cast an indexed signal inside a loop.
+#[derive(LogicBlock, Default)]
+pub struct Widen<const A: usize, const B: usize> {
+    /// Input.
+    pub x: Signal<In, Bits<A>>,
+    /// Output.
+    pub y: Signal<Out, Bits<B>>,
+}
+
+impl<const A: usize, const B: usize> Logic for Widen<A, B> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        self.y.next = bit_cast::<B, A>(self.x.val());
+    }
+}

@@ -1,0 +1,185 @@
+//! Tool helpers: Verilator lint and a yosys `synth_xilinx -family xc6s`
+//! resource report of generated Verilog.
+//!
+//! Both tools are required: a missing tool is an error that says how to
+//! install it, never a skipped check.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use thiserror::Error;
+
+/// Why a tool run failed.
+#[derive(Debug, Error)]
+pub enum ToolError {
+    /// The tool is not installed.
+    #[error("`{tool}` is not installed or not on PATH ({source}); install it, e.g. `apt-get install -y verilator yosys`")]
+    Missing {
+        /// Tool name.
+        tool: &'static str,
+        /// The spawn error.
+        source: std::io::Error,
+    },
+    /// A file could not be written.
+    #[error("writing {path}: {source}")]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The tool ran and reported problems.
+    #[error("`{tool}` failed (exit {code:?}):\n{output}")]
+    Failed {
+        /// Tool name.
+        tool: &'static str,
+        /// Exit code.
+        code: Option<i32>,
+        /// Its output (stdout and stderr).
+        output: String,
+    },
+    /// The yosys report had no statistics to parse.
+    #[error("no cell statistics found in the yosys log")]
+    NoStatistics,
+}
+
+/// Verilator warnings waived for rust-hdl's generated code (measured on the
+/// test front half: 267 WIDTH, 8 UNUSEDSIGNAL, 1 DECLFILENAME, nothing else),
+/// each for a reason that does not hide a design error:
+/// * `WIDTH`: rust-hdl writes every literal as 32 bits (`x = 32'h0`,
+///   `cur_x != 32'h0`) and casts as `(x & N'hmask)`, so operand widths differ
+///   by construction; the widths that matter are fixed by the Rust types, and
+///   the simulation tests check the values against the model.
+/// * `UNUSEDSIGNAL`: outputs a parent does not read (the tags of the top and
+///   bottom candidate windows duplicate the middle one's; the word index after
+///   the counter).
+/// * `DECLFILENAME`: one generated file holds every module.
+pub const VERILATOR_WAIVERS: &[&str] = &["-Wno-WIDTH", "-Wno-UNUSEDSIGNAL", "-Wno-DECLFILENAME"];
+
+fn write_file(dir: &Path, name: &str, text: &str) -> Result<PathBuf, ToolError> {
+    std::fs::create_dir_all(dir).map_err(|source| ToolError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let path = dir.join(name);
+    let mut f = std::fs::File::create(&path).map_err(|source| ToolError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    f.write_all(text.as_bytes())
+        .map_err(|source| ToolError::Io {
+            path: path.clone(),
+            source,
+        })?;
+    Ok(path)
+}
+
+fn run(tool: &'static str, cmd: &mut Command) -> Result<String, ToolError> {
+    let out = cmd
+        .output()
+        .map_err(|source| ToolError::Missing { tool, source })?;
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    if out.status.success() {
+        Ok(text)
+    } else {
+        Err(ToolError::Failed {
+            tool,
+            code: out.status.code(),
+            output: text,
+        })
+    }
+}
+
+/// Runs `verilator --lint-only -Wall` (with [`VERILATOR_WAIVERS`]) on the
+/// Verilog, top module `top`, in `dir`. Returns the tool's output.
+pub fn verilator_lint(verilog: &str, dir: &Path) -> Result<String, ToolError> {
+    let file = write_file(dir, "top.v", verilog)?;
+    run(
+        "verilator",
+        Command::new("verilator")
+            .arg("--lint-only")
+            .arg("-Wall")
+            .args(VERILATOR_WAIVERS)
+            .arg("--top-module")
+            .arg("top")
+            .arg(&file),
+    )
+}
+
+/// Cell counts of a yosys `synth_xilinx -family xc6s` run.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Resources {
+    /// Look-up tables (LUT1..LUT6).
+    pub luts: u64,
+    /// Flip-flops (FD*).
+    pub ffs: u64,
+    /// 18-Kbit block RAMs.
+    pub ramb16: u64,
+    /// 9-Kbit block RAMs.
+    pub ramb8: u64,
+    /// DSP slices.
+    pub dsp48a1: u64,
+    /// LUTs used as distributed RAM (RAM32/RAM64/RAM128 primitives).
+    pub lutram: u64,
+    /// Carry chains (CARRY4).
+    pub carry4: u64,
+}
+
+/// Parses the last `Number of cells` table of a yosys log.
+pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
+    let start = log
+        .rfind("Printing statistics")
+        .ok_or(ToolError::NoStatistics)?;
+    let mut r = Resources::default();
+    for line in log[start..].lines() {
+        let mut parts = line.split_whitespace();
+        let (Some(name), Some(count)) = (parts.next(), parts.next()) else {
+            continue;
+        };
+        let Ok(n) = count.parse::<u64>() else {
+            continue;
+        };
+        match name {
+            n_ if n_.starts_with("LUT") => r.luts += n,
+            n_ if n_.starts_with("FD") => r.ffs += n,
+            "RAMB16BWER" => r.ramb16 += n,
+            "RAMB8BWER" => r.ramb8 += n,
+            "DSP48A1" => r.dsp48a1 += n,
+            "CARRY4" => r.carry4 += n,
+            n_ if n_.starts_with("RAM32")
+                || n_.starts_with("RAM64")
+                || n_.starts_with("RAM128") =>
+            {
+                r.lutram += n
+            }
+            _ => {}
+        }
+    }
+    Ok(r)
+}
+
+/// The yosys command used for the resource figures.
+pub const YOSYS_SCRIPT: &str =
+    "read_verilog top.v; synth_xilinx -family xc6s -top top -flatten; stat";
+
+/// Synthesises the Verilog for the Spartan-6 with yosys in `dir` and returns
+/// the cell counts (the log is left in `dir/yosys.log`).
+pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError> {
+    write_file(dir, "top.v", verilog)?;
+    let log = run(
+        "yosys",
+        Command::new("yosys")
+            .current_dir(dir)
+            .arg("-q")
+            .arg("-l")
+            .arg("yosys.log")
+            .arg("-p")
+            .arg(YOSYS_SCRIPT),
+    )?;
+    let full = std::fs::read_to_string(dir.join("yosys.log")).unwrap_or(log);
+    parse_yosys_stat(&full)
+}

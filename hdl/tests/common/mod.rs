@@ -1,0 +1,37 @@
+//! Shared helpers of the block tests: random planes, words of P pixels.
+#![allow(dead_code)]
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use smartagg_model::plane::BitPlane;
+
+/// A seeded generator.
+pub fn rng(seed: u64) -> ChaCha8Rng {
+    ChaCha8Rng::seed_from_u64(seed)
+}
+
+/// Random planes with a bright blob so that counts and candidates vary.
+pub fn random_planes(
+    rng: &mut ChaCha8Rng,
+    w: usize,
+    h: usize,
+    n: usize,
+    p_one: f64,
+) -> Vec<BitPlane> {
+    let (cx, cy) = (rng.gen_range(0..w) as f64, rng.gen_range(0..h) as f64);
+    (0..n)
+        .map(|_| {
+            BitPlane::from_fn(w, h, |x, y| {
+                let d2 = (x as f64 - cx).powi(2) + (y as f64 - cy).powi(2);
+                let p = p_one + 0.6 * (-d2 / 4.0).exp();
+                rng.gen_bool(p.min(1.0))
+            })
+        })
+        .collect()
+}
+
+/// Word `idx` (raster order, P pixels) of a plane, pixel i in bit i.
+pub fn word(plane: &BitPlane, p: usize, idx: usize) -> u64 {
+    let bits = plane.bits();
+    (0..p).fold(0u64, |acc, i| acc | ((bits[idx * p + i] as u64) << i))
+}

@@ -1,0 +1,438 @@
+//! `smartagg demo`: the whole chain on an embedded default scene.
+//!
+//! GATTA-PAINT 80G nanorulers (three markers 80 nm apart) seen by the
+//! SPCImager at 150× on a 64×64-pixel field: simulate the bit-planes, run them
+//! through the golden model and the fast engine (they must give the same
+//! bytes), stream the packets through the host decoder in USB-sized chunks as
+//! they would arrive from the board, localise every blink, and write the
+//! packet stream, a ThunderSTORM CSV, a rendered super-resolution image and a
+//! Markdown report with error against ground truth beside the time of each
+//! stage, the recovered ruler spacing, and bytes of packets against bytes of
+//! raw bit-planes.
+
+use crate::setup::{self, PipelineArgs};
+use anyhow::Context;
+use smartagg_localize::table::{self, Localization};
+use smartagg_localize::{fit_binomial, FitOptions, SigmaMode, SpadRoi};
+use smartagg_model::fast_engine::fast_pipeline;
+use smartagg_model::packet::{Decoder, Event, LossStats};
+use smartagg_model::packetiser::Packetiser;
+use smartagg_model::params::{Camera, Preset, PresetName};
+use smartagg_model::pipeline::Pipeline;
+use smartagg_model::record::{BlinkRecord, Record};
+use smartagg_scene::scene::{Blinking, Layout, OnTime, Position, Scene};
+use smartagg_scene::spad::SpadSimulator;
+use smartagg_scene::truth::BlinkTruth;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `smartagg demo`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Output folder (created).
+    #[arg(long, default_value = "demo-out")]
+    pub out: PathBuf,
+    /// Simulated acquisition, seconds of bit-planes (10,000 planes per second).
+    #[arg(long, default_value_t = 30.0)]
+    pub seconds: f64,
+    /// Field side, pixels (53.3 nm each at 150x).
+    #[arg(long, default_value_t = 64)]
+    pub field: u32,
+    /// Random seed of the scene and the photons.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Mean time a marker stays off between blinks, s.
+    #[arg(long, default_value_t = 1.5)]
+    pub mean_off_s: f64,
+    /// Skip the golden model (it is the slowest stage); the fast engine alone.
+    #[arg(long)]
+    pub skip_golden: bool,
+    /// No progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Ruler centres and orientations of the embedded scene, as fractions of the field.
+const RULERS: [(f64, f64, f64); 6] = [
+    (0.25, 0.25, 0.0),
+    (0.72, 0.27, 60.0),
+    (0.27, 0.73, 120.0),
+    (0.70, 0.70, 30.0),
+    (0.50, 0.48, 95.0),
+    (0.85, 0.50, 150.0),
+];
+
+/// Marker spacing of GATTA-PAINT 80G, nm.
+const SPACING_NM: f64 = 80.0;
+
+/// Localisations further than this from the truth are false (one pixel at 150x).
+const MATCH_NM: f64 = 53.3;
+
+fn scene(preset: &Preset, field: u32, mean_off_s: f64) -> (Scene, Vec<[usize; 3]>) {
+    let px = preset.pixel_nm();
+    let side = field as f64 * px;
+    let mut positions = Vec::new();
+    let mut rulers = Vec::new();
+    for (i, &(fx, fy, deg)) in RULERS.iter().enumerate() {
+        let (cx, cy) = (fx * side, fy * side);
+        let (dx, dy) = (deg.to_radians().cos() * SPACING_NM, deg.to_radians().sin() * SPACING_NM);
+        for m in -1..=1 {
+            positions.push(Position {
+                x_nm: cx + m as f64 * dx,
+                y_nm: cy + m as f64 * dy,
+            });
+        }
+        rulers.push([3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    let s = Scene {
+        layout: Layout::List(positions),
+        blinking: Blinking::Independent {
+            on: OnTime::Exponential { mean_s: 0.030 },
+            mean_off_s,
+        },
+        ..Scene::nanorulers(preset).with_field(field, field)
+    };
+    (s, rulers)
+}
+
+struct Timing {
+    rows: Vec<(String, f64, String)>,
+}
+
+impl Timing {
+    fn add(&mut self, stage: &str, since: Instant, what: String) {
+        let s = since.elapsed().as_secs_f64();
+        eprintln!("  {stage}: {s:.2} s — {what}");
+        self.rows.push((stage.to_string(), s, what));
+    }
+}
+
+/// Runs the demo.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let preset = Preset::new(PresetName::Spcimager, 150)?;
+    let Camera::Spad(cam) = &preset.camera else {
+        unreachable!("the SPCImager preset is a SPAD camera")
+    };
+    let planes = (args.seconds / cam.plane_period_s).round() as u64;
+    anyhow::ensure!(planes >= 1, "--seconds must cover at least one bit-plane");
+    let (scene, rulers) = scene(&preset, args.field, args.mean_off_s);
+    let pipeline_args = PipelineArgs::default();
+    let cfg = setup::pipeline_config(&pipeline_args, args.field, args.field, 100_000)?;
+    eprintln!(
+        "smartagg demo: {} GATTA-PAINT 80G rulers, SPCImager 150x, {}x{} pixels, {:.0} s = {} bit-planes",
+        rulers.len(),
+        args.field,
+        args.field,
+        args.seconds,
+        planes
+    );
+    eprintln!("{}", setup::describe(&cfg));
+    let mut timing = Timing { rows: Vec::new() };
+
+    // 1+2. Simulate and aggregate, plane by plane (nothing of the recording is kept).
+    let mut sim = SpadSimulator::new(cam, &scene, args.seed)?;
+    let mut golden = (!args.skip_golden).then(|| Pipeline::new(cfg.clone())).transpose()?;
+    let mut fast = fast_pipeline(cfg.clone())?;
+    let mut golden_bytes = Vec::new();
+    let mut fast_bytes = Vec::new();
+    let (mut pg, mut pf) = (Packetiser::new(), Packetiser::new());
+    if let Some(g) = &golden {
+        pg.push(&g.start_record(), &mut golden_bytes)?;
+    }
+    pf.push(&fast.start_record(), &mut fast_bytes)?;
+    let progress = setup::progress(Some(planes), args.quiet);
+    let (mut t_sim, mut t_golden, mut t_fast) = (0.0, 0.0, 0.0);
+    for _ in 0..planes {
+        let t = Instant::now();
+        let plane = sim.next_plane();
+        t_sim += t.elapsed().as_secs_f64();
+        if let Some(g) = &mut golden {
+            let t = Instant::now();
+            for r in g.push_plane(&plane)? {
+                pg.push(&r, &mut golden_bytes)?;
+            }
+            t_golden += t.elapsed().as_secs_f64();
+        }
+        let t = Instant::now();
+        for r in fast.push_plane(&plane)? {
+            pf.push(&r, &mut fast_bytes)?;
+        }
+        t_fast += t.elapsed().as_secs_f64();
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    if let Some(g) = &mut golden {
+        for r in g.finish() {
+            pg.push(&r, &mut golden_bytes)?;
+        }
+    }
+    for r in fast.finish() {
+        pf.push(&r, &mut fast_bytes)?;
+    }
+    let truth: Vec<BlinkTruth> = sim.truth().to_vec();
+    let rate = |s: f64| planes as f64 / s.max(1e-9);
+    timing.rows.push(("simulate bit-planes".into(), t_sim, format!("{planes} planes, {:.0} planes/s", rate(t_sim))));
+    let identical = if golden.is_some() {
+        timing.rows.push((
+            "golden model".into(),
+            t_golden,
+            format!("{:.0} planes/s, {} bytes of packets", rate(t_golden), golden_bytes.len()),
+        ));
+        Some(golden_bytes == fast_bytes)
+    } else {
+        None
+    };
+    timing.rows.push((
+        "fast engine".into(),
+        t_fast,
+        format!("{:.0} planes/s, {} bytes of packets", rate(t_fast), fast_bytes.len()),
+    ));
+    if identical == Some(false) {
+        anyhow::bail!("the fast engine's packets differ from the golden model's: this is a bug, please report it");
+    }
+
+    // 3. The host side: bytes arrive in USB-sized chunks, are written to disk
+    //    as they come, and are decoded incrementally.
+    let t = Instant::now();
+    let rois_path = args.out.join("blinks.rois");
+    let mut decoder = Decoder::new();
+    let mut received = Vec::with_capacity(fast_bytes.len());
+    let mut records: Vec<BlinkRecord> = Vec::new();
+    let mut end = None;
+    for chunk in fast_bytes.chunks(16 * 1024) {
+        received.extend_from_slice(chunk);
+        decoder.feed(chunk);
+        while let Some(ev) = decoder.next_event() {
+            take(ev, &mut records, &mut end);
+        }
+    }
+    for ev in decoder.finish() {
+        take(ev, &mut records, &mut end);
+    }
+    std::fs::write(&rois_path, &received).with_context(|| format!("writing {}", rois_path.display()))?;
+    let losses: LossStats = decoder.stats().clone();
+    timing.add(
+        "host decoder",
+        t,
+        format!("{} packets, {} blinks, losses: {}", losses.packets_ok, records.len(), if losses.any_loss() { "YES" } else { "none" }),
+    );
+
+    // 4. Localise every blink (SPAD binomial MLE with the record's on/off split).
+    let t = Instant::now();
+    let pixel_nm = preset.pixel_nm();
+    let opts = FitOptions::new(SigmaMode::Fitted {
+        initial: preset.sigma_px(),
+    });
+    let mut locs: Vec<Localization> = Vec::new();
+    let mut failed = 0;
+    for (i, rec) in records.iter().enumerate() {
+        let roi = SpadRoi::from_record(rec, None)?;
+        let fit = fit_binomial(&roi, &opts);
+        if !fit.status.is_ok() {
+            failed += 1;
+        }
+        locs.push(Localization::from_record_fit(i as u64 + 1, rec, &fit, pixel_nm));
+    }
+    timing.add(
+        "localise",
+        t,
+        format!("{} localisations ({failed} fits failed, flagged), {:.0} fits/s", locs.len(), locs.len() as f64 / t.elapsed().as_secs_f64().max(1e-9)),
+    );
+
+    // 5. Compare with the truth, measure the rulers.
+    let t = Instant::now();
+    let period = cam.plane_period_s;
+    let analysis = analyse(&locs, &records, &truth, &rulers, sim.emitters(), period);
+    timing.add("analysis", t, format!("{} matched", analysis.matched));
+
+    // 6. Outputs.
+    let t = Instant::now();
+    let csv = args.out.join("localisations.csv");
+    table::write_csv_file(&csv, &locs)?;
+    let png = args.out.join("render.png");
+    smartagg_localize::render::render_png_file(&png, &locs, &smartagg_localize::render::RenderOptions::default())?;
+    timing.add("write outputs", t, format!("{}, {}", csv.display(), png.display()));
+
+    let raw_bytes = planes * smartagg_model::recording::plane_bytes(args.field, args.field) as u64;
+    let report = report(&args, &cfg, planes, raw_bytes, fast_bytes.len() as u64, identical, &losses, end, &analysis, &timing, failed);
+    let md = args.out.join("report.md");
+    std::fs::write(&md, &report)?;
+    println!("{report}");
+    println!("written: {}, {}, {}, {}", rois_path.display(), csv.display(), png.display(), md.display());
+    Ok(())
+}
+
+fn take(ev: Event, records: &mut Vec<BlinkRecord>, end: &mut Option<smartagg_model::record::StreamEnd>) {
+    if let Event::Packet(p) = ev {
+        match p.record {
+            Record::Blink(b) => records.push(b),
+            Record::End(e) => *end = Some(e),
+            _ => {}
+        }
+    }
+}
+
+/// What the demo measured against the truth.
+struct Analysis {
+    matched: usize,
+    false_positives: usize,
+    blinks_true: usize,
+    blinks_found: usize,
+    rmse_nm: f64,
+    markers: Vec<MarkerStats>,
+    spacings_nm: Vec<f64>,
+}
+
+struct MarkerStats {
+    ruler: usize,
+    marker: usize,
+    count: usize,
+    spread_nm: f64,
+    mean: (f64, f64),
+}
+
+fn analyse(
+    locs: &[Localization],
+    records: &[BlinkRecord],
+    truth: &[BlinkTruth],
+    rulers: &[[usize; 3]],
+    emitters: &[Position],
+    period_s: f64,
+) -> Analysis {
+    // A localisation matches the nearest true blink within MATCH_NM whose
+    // on-time overlaps the record's estimated [t_s, t_e] (widened by the
+    // record's summation range).
+    let mut per_emitter: Vec<Vec<(f64, f64)>> = vec![Vec::new(); emitters.len()];
+    let mut found = vec![false; truth.len()];
+    let (mut matched, mut sq) = (0usize, 0.0);
+    for (loc, rec) in locs.iter().zip(records) {
+        if !loc.ok {
+            continue;
+        }
+        let t0 = (rec.t_drop as f64 + 1.0 - rec.planes_summed as f64) * period_s;
+        let t1 = (rec.t_drop as f64 + 1.0) * period_s;
+        let best = truth
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.t_on_s < t1 && b.t_off_s > t0)
+            .map(|(i, b)| (i, ((b.x_nm - loc.x_nm).powi(2) + (b.y_nm - loc.y_nm).powi(2)).sqrt()))
+            .filter(|&(_, d)| d <= MATCH_NM)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((i, d)) = best {
+            matched += 1;
+            sq += d * d;
+            found[i] = true;
+            if let Some(v) = per_emitter.get_mut(truth[i].emitter as usize) {
+                v.push((loc.x_nm, loc.y_nm));
+            }
+        }
+    }
+    let mut markers = Vec::new();
+    let mut spacings = Vec::new();
+    for (r, ids) in rulers.iter().enumerate() {
+        let mut means = Vec::new();
+        for (m, &id) in ids.iter().enumerate() {
+            let pts = &per_emitter[id];
+            if pts.is_empty() {
+                means.push(None);
+                continue;
+            }
+            let n = pts.len() as f64;
+            let mean = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+            let spread = (pts.iter().map(|p| (p.0 - mean.0).powi(2) + (p.1 - mean.1).powi(2)).sum::<f64>() / (2.0 * n)).sqrt();
+            markers.push(MarkerStats {
+                ruler: r,
+                marker: m,
+                count: pts.len(),
+                spread_nm: spread,
+                mean,
+            });
+            means.push(Some(mean));
+        }
+        for w in means.windows(2) {
+            if let (Some(a), Some(b)) = (w[0], w[1]) {
+                spacings.push(((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt());
+            }
+        }
+    }
+    Analysis {
+        matched,
+        false_positives: locs.iter().filter(|l| l.ok).count() - matched,
+        blinks_true: truth.iter().filter(|b| b.on_exposed_s > 0.0).count(),
+        blinks_found: found.iter().filter(|&&f| f).count(),
+        rmse_nm: if matched > 0 { (sq / matched as f64).sqrt() } else { f64::NAN },
+        markers,
+        spacings_nm: spacings,
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        (s[n / 2 - 1] + s[n / 2]) / 2.0
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn report(
+    args: &Args,
+    cfg: &smartagg_model::config::PipelineConfig,
+    planes: u64,
+    raw_bytes: u64,
+    packet_bytes: u64,
+    identical: Option<bool>,
+    losses: &LossStats,
+    end: Option<smartagg_model::record::StreamEnd>,
+    a: &Analysis,
+    timing: &Timing,
+    failed: usize,
+) -> String {
+    let mut s = String::new();
+    let fmt_nm = |v: f64| if v.is_finite() { format!("{v:.1} nm") } else { "n/a".into() };
+    let _ = writeln!(s, "# smartagg demo: GATTA-PAINT 80G nanorulers, SPCImager 150x\n");
+    let _ = writeln!(
+        s,
+        "{} rulers (three markers {SPACING_NM} nm apart), {}x{} pixels of 53.3 nm, {:.0} s of bit-planes ({planes} planes), seed {}.\n",
+        RULERS.len(),
+        args.field,
+        args.field,
+        args.seconds,
+        args.seed
+    );
+    let _ = writeln!(s, "Pipeline: window N = {} planes, T_int = {}, kernel {:?}, L_min = {}, ROI {}x{}.\n", cfg.n_window, cfg.threshold_int, cfg.kernel, cfg.l_min, cfg.roi_size, cfg.roi_size);
+    let _ = writeln!(s, "## Result\n");
+    let _ = writeln!(s, "| quantity | value |\n|---|---|");
+    let _ = writeln!(s, "| localisation error (RMS vs truth, matched within {MATCH_NM} nm) | {} |", fmt_nm(a.rmse_nm));
+    let _ = writeln!(s, "| localisations matched / false | {} / {} ({failed} fits failed) |", a.matched, a.false_positives);
+    let _ = writeln!(s, "| true blinks found | {} of {} |", a.blinks_found, a.blinks_true);
+    let _ = writeln!(s, "| median ruler spacing | {} (true {SPACING_NM} nm; {} neighbour pairs) |", fmt_nm(median(&a.spacings_nm)), a.spacings_nm.len());
+    let _ = writeln!(s, "| packets vs raw bit-planes | {} bytes vs {} bytes ({:.0}x smaller) |", packet_bytes, raw_bytes, raw_bytes as f64 / packet_bytes.max(1) as f64);
+    let _ = writeln!(s, "| golden model and fast engine | {} |", match identical {
+        Some(true) => "byte-identical packet streams",
+        Some(false) => "DIFFER",
+        None => "golden model skipped",
+    });
+    let _ = writeln!(s, "| losses in the packet stream | {} |", if losses.any_loss() { losses.to_string() } else { "none".into() });
+    if let Some(e) = end {
+        let _ = writeln!(s, "| tracks unconfirmed / candidates dropped / dips bridged | {} / {} / {} |", e.unconfirmed, e.dropped_candidates, e.bridged_dips);
+    }
+    let _ = writeln!(s, "\n## Markers\n\n| ruler | marker | localisations | spread (RMS per axis) | mean x, y (nm) |\n|---|---|---|---|---|");
+    for m in &a.markers {
+        let _ = writeln!(s, "| {} | {} | {} | {} | {:.1}, {:.1} |", m.ruler + 1, m.marker + 1, m.count, fmt_nm(m.spread_nm), m.mean.0, m.mean.1);
+    }
+    let _ = writeln!(s, "\nNeighbour spacings: {}", a.spacings_nm.iter().map(|d| format!("{d:.1}")).collect::<Vec<_>>().join(", "));
+    let _ = writeln!(s, "\n## Time per stage\n\n| stage | seconds | |\n|---|---|---|");
+    for (stage, secs, what) in &timing.rows {
+        let _ = writeln!(s, "| {stage} | {secs:.2} | {what} |");
+    }
+    s
+}

@@ -1,0 +1,234 @@
+//! Localisation tables in ThunderSTORM's CSV layout.
+//!
+//! The first nine columns are exactly ThunderSTORM's, so the table opens in
+//! ThunderSTORM ("Import results"), in Picasso's and SMAP's ThunderSTORM
+//! importers:
+//!
+//! `"id","frame","x [nm]","y [nm]","sigma [nm]","intensity [photon]","offset [photon]","bkgstd [photon]","uncertainty [nm]"`
+//!
+//! then `"fit_status"` (0 = ok; the codes of [`FitStatus`]): a failed fit is
+//! kept, flagged, with finite values — never dropped silently and never NaN.
+//! Merged tables add ThunderSTORM's `"detections"` column; blink-ROI tables
+//! add their timing columns (see the callers).
+//!
+//! `uncertainty [nm]` is `sqrt((var_x + var_y)/2)` of the estimator's
+//! precision (the Cramér–Rao bound of the fitted model for the MLEs).
+
+use crate::error::LocalizeError;
+use crate::fit::{Fit, FitStatus};
+use std::io::{BufRead, Write};
+
+/// ThunderSTORM's column names, in order.
+pub const THUNDERSTORM_COLUMNS: [&str; 9] = [
+    "id",
+    "frame",
+    "x [nm]",
+    "y [nm]",
+    "sigma [nm]",
+    "intensity [photon]",
+    "offset [photon]",
+    "bkgstd [photon]",
+    "uncertainty [nm]",
+];
+
+/// Name of the status column appended after ThunderSTORM's.
+pub const STATUS_COLUMN: &str = "fit_status";
+/// ThunderSTORM's column for the number of merged detections.
+pub const DETECTIONS_COLUMN: &str = "detections";
+
+/// One localisation in sample coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Localization {
+    /// Frame (1-based for frame stacks; the blink index for ROI streams).
+    pub frame: u64,
+    /// x, nm.
+    pub x_nm: f64,
+    /// y, nm.
+    pub y_nm: f64,
+    /// PSF σ, nm.
+    pub sigma_nm: f64,
+    /// Photons from the emitter.
+    pub intensity: f64,
+    /// Background photons per pixel.
+    pub offset: f64,
+    /// Background noise per pixel, photons.
+    pub bkgstd: f64,
+    /// `sqrt((var_x + var_y)/2)`, nm.
+    pub uncertainty_nm: f64,
+    /// Fit outcome.
+    pub status: FitStatus,
+    /// Detections merged into this one (1 if not merged).
+    pub detections: u32,
+    /// Values of the table's extra columns.
+    pub extra: Vec<f64>,
+}
+
+impl Localization {
+    /// A localisation from a fit in an ROI whose top-left pixel is at sensor
+    /// pixel `(x0, y0)`: position `(x0 + x) · pixel_nm` (pixel `i` spans
+    /// `[i, i+1)`, the ImageJ/ThunderSTORM convention).
+    pub fn from_fit(fit: &Fit, x0: f64, y0: f64, pixel_nm: f64, frame: u64) -> Localization {
+        let f = fit.sanitized(0);
+        Localization {
+            frame,
+            x_nm: (x0 + f.x) * pixel_nm,
+            y_nm: (y0 + f.y) * pixel_nm,
+            sigma_nm: f.sigma * pixel_nm,
+            intensity: f.photons,
+            offset: f.background,
+            bkgstd: f.bkgstd,
+            uncertainty_nm: f.uncertainty_px() * pixel_nm,
+            status: f.status,
+            detections: 1,
+            extra: Vec::new(),
+        }
+    }
+}
+
+/// A localisation table with optional extra columns.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LocTable {
+    /// Names of the columns after `fit_status` (and `detections`).
+    pub extra_columns: Vec<String>,
+    /// Whether the `detections` column is written (merged tables).
+    pub merged: bool,
+    /// The rows; `id` is the 1-based row number.
+    pub rows: Vec<Localization>,
+}
+
+impl LocTable {
+    /// Number of rows whose fit failed.
+    pub fn failures(&self) -> usize {
+        self.rows.iter().filter(|r| !r.status.is_ok()).count()
+    }
+
+    /// Writes the table as CSV.
+    pub fn write_csv<W: Write>(&self, w: &mut W) -> std::io::Result<()> {
+        let mut header: Vec<String> = THUNDERSTORM_COLUMNS.iter().map(|c| format!("\"{c}\"")).collect();
+        header.push(format!("\"{STATUS_COLUMN}\""));
+        if self.merged {
+            header.push(format!("\"{DETECTIONS_COLUMN}\""));
+        }
+        for c in &self.extra_columns {
+            header.push(format!("\"{}\"", c.replace('"', "'")));
+        }
+        writeln!(w, "{}", header.join(","))?;
+        for (i, r) in self.rows.iter().enumerate() {
+            write!(
+                w,
+                "{},{},{},{},{},{},{},{},{},{}",
+                i + 1,
+                r.frame,
+                num(r.x_nm, 3),
+                num(r.y_nm, 3),
+                num(r.sigma_nm, 3),
+                num(r.intensity, 2),
+                num(r.offset, 3),
+                num(r.bkgstd, 3),
+                num(r.uncertainty_nm, 3),
+                r.status.code()
+            )?;
+            if self.merged {
+                write!(w, ",{}", r.detections)?;
+            }
+            for k in 0..self.extra_columns.len() {
+                write!(w, ",{}", num(r.extra.get(k).copied().unwrap_or(0.0), 3))?;
+            }
+            writeln!(w)?;
+        }
+        Ok(())
+    }
+}
+
+/// A finite number with `digits` decimals, trailing zeros trimmed. Values
+/// reaching here are finite (fits are sanitised); anything else is written as
+/// 0 so that no NaN can enter a table.
+fn num(v: f64, digits: usize) -> String {
+    if !v.is_finite() {
+        return "0".into();
+    }
+    let s = format!("{v:.digits$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
+/// A numeric table read from CSV: column names and rows of numbers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CsvTable {
+    /// Column names, quotes removed.
+    pub columns: Vec<String>,
+    /// Rows of values.
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl CsvTable {
+    /// Index of the first column with one of these names.
+    pub fn column(&self, names: &[&str]) -> Option<usize> {
+        names
+            .iter()
+            .find_map(|n| self.columns.iter().position(|c| c.eq_ignore_ascii_case(n)))
+    }
+
+    /// Reads a numeric CSV table (comma separated, header first, quoted or
+    /// plain names). Blank lines are skipped; a wrong field count or a value
+    /// that is not a number is an error naming the line.
+    pub fn read<R: BufRead>(reader: R) -> Result<CsvTable, LocalizeError> {
+        let mut columns: Option<Vec<String>> = None;
+        let mut rows = Vec::new();
+        for (i, line) in reader.lines().enumerate() {
+            let line = line?;
+            let line = line.trim_start_matches('\u{feff}').trim();
+            if line.is_empty() {
+                continue;
+            }
+            let fields: Vec<&str> = line.split(',').map(|f| f.trim().trim_matches('"')).collect();
+            match &columns {
+                None => columns = Some(fields.iter().map(|f| f.to_string()).collect()),
+                Some(cols) => {
+                    if fields.len() != cols.len() {
+                        return Err(LocalizeError::Table {
+                            line: i + 1,
+                            why: format!("{} fields, the header has {}", fields.len(), cols.len()),
+                        });
+                    }
+                    let mut row = Vec::with_capacity(fields.len());
+                    for (f, c) in fields.iter().zip(cols) {
+                        let v: f64 = f.parse().map_err(|_| LocalizeError::Table {
+                            line: i + 1,
+                            why: format!("column \"{c}\": `{f}` is not a number"),
+                        })?;
+                        row.push(v);
+                    }
+                    rows.push(row);
+                }
+            }
+        }
+        let columns = columns.ok_or(LocalizeError::Table {
+            line: 1,
+            why: "empty file: no header".into(),
+        })?;
+        Ok(CsvTable { columns, rows })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn number_format_is_finite_and_trimmed() {
+        assert_eq!(num(1.5, 3), "1.5");
+        assert_eq!(num(2.0, 3), "2");
+        assert_eq!(num(-0.0001, 3), "0");
+        assert_eq!(num(f64::NAN, 3), "0");
+        assert_eq!(num(1234.56789, 2), "1234.57");
+    }
+}
