@@ -108,16 +108,13 @@ pub fn outcome(
         failed_fits,
     };
     for (l, m) in locs.iter().zip(&a) {
-        match m {
-            Some(i) => {
-                let (dx, dy) = (l.x_nm - truth[*i].x_nm, l.y_nm - truth[*i].y_nm);
-                let o = &mut out.blinks[*i];
-                o.matches += 1;
-                o.sse_nm2 += dx * dx + dy * dy;
-                o.sum_dx_nm += dx;
-                o.sum_dy_nm += dy;
-            }
-            None => {}
+        if let Some(i) = m {
+            let (dx, dy) = (l.x_nm - truth[*i].x_nm, l.y_nm - truth[*i].y_nm);
+            let o = &mut out.blinks[*i];
+            o.matches += 1;
+            o.sse_nm2 += dx * dx + dy * dy;
+            o.sum_dx_nm += dx;
+            o.sum_dy_nm += dy;
         }
     }
     out

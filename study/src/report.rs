@@ -13,6 +13,15 @@ use std::path::{Path, PathBuf};
 /// Detection rate below which a curve is drawn dotted (the paper's 90 %).
 pub const DOTTED_BELOW: f64 = 0.9;
 
+/// A CSV text field, quoted (RFC 4180) when it holds a comma, quote or newline.
+fn text(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
 fn opt(v: Option<f64>) -> String {
     v.map_or(String::new(), |v| format!("{v}"))
 }
@@ -54,8 +63,8 @@ pub fn points_csv(plan: &Plan, s: &Summary) -> String {
                 "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 plan.study,
                 p.x,
-                sc.id,
-                sc.label,
+                text(&sc.id),
+                text(&sc.label),
                 sc.method.is_reference() as u8,
                 st.blinks,
                 st.detected,
@@ -90,9 +99,9 @@ pub fn ratios_csv(plan: &Plan, s: &Summary) -> String {
                 "{},{},{},{},{},{},{},{},{}",
                 plan.study,
                 p.x,
-                r.label,
-                plan.schemes[r.num].id,
-                plan.schemes[r.den].id,
+                text(&r.label),
+                text(&plan.schemes[r.num].id),
+                text(&plan.schemes[r.den].id),
                 r.den_point.map_or(p.x, |i| plan.points[i]),
                 opt(e.value),
                 opt(e.lo),
@@ -110,7 +119,7 @@ pub fn timing_csv(plan: &Plan, s: &Summary) -> String {
         let _ = writeln!(out, "{},all,,{}", p.x, p.seconds);
     }
     for t in &s.stages {
-        let _ = writeln!(out, "all,{},{},{}", t.stage, t.count, t.seconds);
+        let _ = writeln!(out, "all,{},{},{}", text(&t.stage), t.count, t.seconds);
     }
     out
 }
@@ -433,12 +442,8 @@ fn markdown(
             );
         }
     }
-    let notes = crate::notes::notes(plan.study);
-    if !notes.is_empty() {
-        let _ = writeln!(m, "\n## Where this differs from the paper, and why\n");
-        m.push_str(notes);
-        m.push('\n');
-    }
+    let _ = writeln!(m, "\n## Where this differs from the paper, and why\n");
+    m.push_str(&crate::notes::notes(plan.study));
     let _ = writeln!(m, "\n## Time\n");
     let total: f64 = s.points.iter().map(|p| p.seconds).sum();
     let _ = writeln!(
@@ -511,7 +516,7 @@ fn localizer_table(m: &mut String, plan: &Plan, s: &Summary) {
 }
 
 const METHOD_TEXT: &str = "- **Scene** (paper §4): one molecule on at a time at a random position (3 sigma from the edges) in the camera's study field, 50,000 photons/s, 70,000 background photons/s/um^2, every blink exactly the point's duration, gaps of 10 ms + Exp(40 ms). Every configuration of a point sees the same blinks (same times, same relative positions) as explicit blinks of the scene simulator, each camera with its own photon noise; each work item is one continuous recording per configuration.
-- **Smart aggregation**: the model's pipeline (its fast engine, proven byte-identical to the golden pipeline by the model's tests) on the simulated bit-planes, N, T_int and kernel from the paper's statistics; its records go through the packetiser and the packet decoder (any loss is an error); each ROI is fitted with the Poisson MLE (and the SPAD binomial MLE with the record's on/off split where shown). L_min comes from the model's false-alarm statistics (1 false blink/s over the study field) unless set; `smart, L_min = 1 (paper)` is the paper's literal scheme on the same bit-planes. Records whose summed planes and ROI cannot reach any blink are false positives whatever their fit and are not fitted.
+- **Smart aggregation**: the model's pipeline (its fast engine, proven byte-identical to the golden pipeline by the model's tests) on the simulated bit-planes, N, T_int and kernel from the paper's statistics; its records go through the packetiser and the packet decoder (any loss is an error); each ROI is fitted with the Poisson MLE (and the SPAD binomial MLE with the record's on/off split where shown). L_min comes from the model's false-alarm statistics (1 false blink/s over the study field) unless set; `smart (L_min = 1 as in the paper)` is the paper's literal scheme on the same bit-planes. Records whose summed planes and ROI cannot reach any blink are false positives whatever their fit and are not fitted.
 - **Frame detection** (fixed SPAD frames, EMCCD, sCMOS, hot-pixel frames): B-spline wavelet (ThunderSTORM's default), 8-neighbour local maxima of the second wavelet level above the frame threshold times the std of the first; Poisson MLE of a 9x9 ROI (EMCCD: F^2 = 2 in the bound; sCMOS: per-pixel read variance). Hot pixels (known map) are interpolated for detection, then ignored or interpolated in the fit.
 - **CRLB reference** (dashed): per blink, the SPAD binomial Cramér–Rao bound at its true position for an ideal aggregation of exactly its on-planes (no off-plane), in a 9x9 ROI centred on its pixel, sigma fixed or fitted as the fits; the curve is sqrt(mean(var_x + var_y)).
 ";
@@ -607,7 +612,9 @@ pub fn plot(path: &Path, plan: &Plan, s: &Summary) -> Result<(), StudyError> {
     for (i, sc) in plan.schemes.iter().enumerate() {
         let col = scheme_colour(plan, i);
         let style = col.stroke_width(2);
-        let pts: Vec<(f64, Option<f64>, f64, Option<f64>, Option<f64>)> = s
+        // (x, RMS, detection rate, CI low, CI high)
+        type Pt = (f64, Option<f64>, f64, Option<f64>, Option<f64>);
+        let pts: Vec<Pt> = s
             .points
             .iter()
             .map(|p| {

@@ -6,8 +6,11 @@
 //! (`model::fast_engine::fast_pipeline`: the golden stages 5–7 with
 //! incremental stages 1–4, proven byte-identical to the golden pipeline by
 //! the model's tests). Parameters come from the paper's statistics for the
-//! preset (`stats::derive`: N, T_int, kernel) with `L_min = 1` (the paper's
-//! scheme for one molecule in a small field), a 9×9 ROI and the default slots.
+//! preset (`stats::derive`: N, T_int, kernel), a 9×9 ROI and the default
+//! slots; [`Setup::new`] sets `L_min = 1` (the paper's scheme) and
+//! [`Setup::with_pipeline`] applies the study's choice (by default from the
+//! false-alarm statistics), keeping the `L_min = 1` pipeline in
+//! [`Setup::paper`] for the paper's curve.
 //! Every record then goes through `packetiser::encode_stream` and
 //! `packet::decode_all`, the real packet path; any decoder loss is an error.
 

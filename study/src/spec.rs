@@ -100,8 +100,8 @@ pub struct StudyOptions {
     pub points: Option<Vec<f64>>,
     /// Planes a track must stay on to be confirmed. Default: from the
     /// model's false-alarm statistics at 1 false blink/s over the study field
-    /// (the paper's literal `L_min = 1` is the `smart, L_min = 1` curve of
-    /// `smart-vs-fixed`, or `--l-min 1`).
+    /// (the paper's literal `L_min = 1` is the `smart (L_min = 1 as in the
+    /// paper)` curve of `smart-vs-fixed`, or `--l-min 1`).
     pub l_min: LMin,
     /// Pipeline override: association radius, pixels (default: the model's 1).
     pub r_assoc: Option<u32>,
@@ -345,8 +345,8 @@ impl Method {
         match self {
             Method::Fixed => "fixed 50 ms",
             Method::Smart => "smart",
-            Method::SmartSpadMle => "smart, SPAD MLE",
-            Method::SmartLmin1 => "smart, L_min = 1 (paper)",
+            Method::SmartSpadMle => "smart (SPAD MLE)",
+            Method::SmartLmin1 => "smart (L_min = 1 as in the paper)",
             Method::SmartCrlb => "CRLB",
             Method::Frames => "50 ms frames",
             Method::FramesMerged => "merged",

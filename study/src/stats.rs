@@ -15,7 +15,9 @@
 //! same at every point (all points have the same number of blinks), which
 //! also pairs ratios across points (the hot-pixel study's "vs 0 %").
 //! Resamples in which a scheme has no match at all are left out of that
-//! scheme's interval; with fewer than half left the interval is not given.
+//! scheme's interval; with fewer than half left, or fewer than
+//! [`MIN_DETECTED_FOR_CI`] detected blinks behind the value, the interval is
+//! not given (a "95 % interval" of one localisation would be a point).
 
 use crate::item::ItemResult;
 use crate::matching::BlinkOutcome;
@@ -23,6 +25,13 @@ use crate::spec::Plan;
 use crate::timeline::{derive_seed, key_hash};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+/// Detected blinks needed behind a value for its interval to be given.
+pub const MIN_DETECTED_FOR_CI: usize = 10;
+
+fn detected(b: &[BlinkOutcome]) -> usize {
+    b.iter().filter(|o| o.matches > 0).count()
+}
 
 /// A value with its 95 % bootstrap interval; `None` where undefined (no match).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -170,11 +179,15 @@ fn resampled_rms(b: &[BlinkOutcome], idx: &[u32]) -> Option<f64> {
 pub fn rms_estimate(blinks: &[BlinkOutcome], idx: &[Vec<u32>]) -> Estimate {
     let sse: f64 = blinks.iter().map(|b| b.sse_nm2).sum();
     let m: u64 = blinks.iter().map(|b| b.matches as u64).sum();
-    let v: Vec<f64> = idx
-        .iter()
-        .filter_map(|r| resampled_rms(blinks, r))
-        .collect();
-    let (lo, hi) = interval(v, idx.len());
+    let (lo, hi) = if detected(blinks) >= MIN_DETECTED_FOR_CI {
+        let v: Vec<f64> = idx
+            .iter()
+            .filter_map(|r| resampled_rms(blinks, r))
+            .collect();
+        interval(v, idx.len())
+    } else {
+        (None, None)
+    };
     Estimate {
         value: rms(sse, m),
         lo,
@@ -191,11 +204,15 @@ pub fn ratio_estimate(num: &[BlinkOutcome], den: &[BlinkOutcome], idx: &[Vec<u32
     };
     let all: Vec<u32> = (0..num.len().min(den.len()) as u32).collect();
     let value = ratio(resampled_rms(num, &all), resampled_rms(den, &all));
-    let v: Vec<f64> = idx
-        .iter()
-        .filter_map(|r| ratio(resampled_rms(num, r), resampled_rms(den, r)))
-        .collect();
-    let (lo, hi) = interval(v, idx.len());
+    let (lo, hi) = if detected(num).min(detected(den)) >= MIN_DETECTED_FOR_CI {
+        let v: Vec<f64> = idx
+            .iter()
+            .filter_map(|r| ratio(resampled_rms(num, r), resampled_rms(den, r)))
+            .collect();
+        interval(v, idx.len())
+    } else {
+        (None, None)
+    };
     Estimate { value, lo, hi }
 }
 
@@ -337,6 +354,16 @@ mod tests {
         let c = blinks_with_error(10.0, 300, 6);
         let r = ratio_estimate(&a, &c, &idx);
         assert!(r.lo.unwrap() < 1.0 && r.hi.unwrap() > 1.0, "{r:?}");
+    }
+
+    #[test]
+    fn too_few_detected_blinks_give_no_interval() {
+        let mut b = vec![BlinkOutcome::default(); 500];
+        b[7] = blinks_with_error(10.0, 1, 9)[0];
+        let idx = resample_indices(4, 500, 200);
+        let e = rms_estimate(&b, &idx);
+        assert!(e.value.is_some());
+        assert_eq!((e.lo, e.hi), (None, None));
     }
 
     #[test]

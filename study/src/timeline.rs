@@ -38,7 +38,7 @@ pub fn mix64(mut z: u64) -> u64 {
 pub fn derive_seed(parts: &[u64]) -> u64 {
     parts
         .iter()
-        .fold(0x5EED_0F_5A_u64, |acc, &p| mix64(acc ^ mix64(p)))
+        .fold(0x5EED_0F5A_u64, |acc, &p| mix64(acc ^ mix64(p)))
 }
 
 /// FNV-1a of a string, to turn configuration keys into seed parts.
