@@ -749,3 +749,15 @@ pub fn plot(path: &Path, plan: &Plan, s: &Summary) -> Result<(), StudyError> {
     root.present().map_err(|e| plot_err(path, e))?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_text_is_quoted_only_when_needed() {
+        assert_eq!(text("fixed / smart"), "fixed / smart");
+        assert_eq!(text("a,b"), "\"a,b\"");
+        assert_eq!(text("say \"hi\", twice"), "\"say \"\"hi\"\", twice\"");
+    }
+}

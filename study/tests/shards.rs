@@ -55,6 +55,8 @@ fn shards_merge_bit_identically_and_outputs_are_written() {
     // Header plus 2 points x 5 schemes, every one with the matching rule.
     assert_eq!(points.lines().count(), 1 + 2 * 5);
     assert!(points.lines().skip(1).all(|l| l.ends_with(",53.3")));
+    let columns = points.lines().next().unwrap().split(',').count();
+    assert!(points.lines().all(|l| l.split(',').count() == columns));
     assert!(!points.contains("NaN") && !points.contains("inf"));
 
     for n in [2u32, 3] {

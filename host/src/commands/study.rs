@@ -152,8 +152,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let t0 = Instant::now();
             let (plan, w) = run::merge_to_dir(&a.dirs, &a.out)?;
             eprintln!(
-                "merged {} shard directories of study {} in {:.1} s; wrote {}",
+                "merged {} shard director{} of study {} in {:.1} s; wrote {}",
                 a.dirs.len(),
+                if a.dirs.len() == 1 { "y" } else { "ies" },
                 plan.study,
                 t0.elapsed().as_secs_f64(),
                 a.out.display()
