@@ -472,14 +472,14 @@ fn markdown(
 fn localizer_table(m: &mut String, plan: &Plan, s: &Summary) {
     let _ = writeln!(
         m,
-        "Every estimator on the same smart-aggregated ROIs. CRLB ratio = RMS / sqrt(mean Cramér–Rao bound of the blinks' ideal aggregation). Fit speed from the wall time of each estimator's loop over all records of the study (false blinks included).\n"
+        "Every estimator on the same smart-aggregated ROIs. CRLB ratio = RMS / sqrt(mean Cramér–Rao bound of the blinks' ideal aggregation). Fit speed from the wall time of each estimator's loop over the records it fitted, over the whole study; point time = wall seconds spent on the whole point (simulation, pipeline, every estimator). Truth matching as for every study: within the match radius and overlapping in time.\n"
     );
     let _ = writeln!(
         m,
-        "| {} | estimator | RMS nm [95 % CI] | bias x, y nm | RMS / CRLB [95 % CI] | detection | FP | fits/s | µs/fit |",
+        "| {} | estimator | RMS nm [95 % CI] | bias x, y nm | RMS / CRLB [95 % CI] | detection | FP | fits/s | µs/fit | point time s |",
         plan.axis.label()
     );
-    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(m, "|---|---|---|---|---|---|---|---|---|---|");
     for p in &s.points {
         for (i, (sc, st)) in plan.schemes.iter().zip(&p.schemes).enumerate() {
             let ratio = plan
@@ -499,7 +499,7 @@ fn localizer_table(m: &mut String, plan: &Plan, s: &Summary) {
             };
             let _ = writeln!(
                 m,
-                "| {} | {} | {} | {}, {} | {} | {:.1} % | {:.1} % | {} | {} |",
+                "| {} | {} | {} | {}, {} | {} | {:.1} % | {:.1} % | {} | {} | {:.1} |",
                 p.x,
                 sc.method.as_str(),
                 ci1(&st.rms),
@@ -509,7 +509,8 @@ fn localizer_table(m: &mut String, plan: &Plan, s: &Summary) {
                 100.0 * st.detection_rate(),
                 100.0 * st.false_pos_rate(),
                 fps,
-                us
+                us,
+                p.seconds
             );
         }
     }

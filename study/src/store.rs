@@ -163,6 +163,18 @@ fn finite(path: &Path, line: usize, v: f64) -> Result<f64, StudyError> {
     }
 }
 
+fn non_negative(path: &Path, line: usize, v: f64) -> Result<f64, StudyError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(StudyError::Parse {
+            path: path.to_path_buf(),
+            line,
+            why: format!("a sum of squares must be finite and not negative, found {v}"),
+        })
+    }
+}
+
 /// Reads a run or shard directory back: its manifest and items.
 pub fn read_raw(dir: &Path) -> Result<(Manifest, Vec<ItemResult>), StudyError> {
     let mpath = dir.join("manifest.json");
@@ -256,7 +268,7 @@ pub fn read_raw(dir: &Path) -> Result<(Manifest, Vec<ItemResult>), StudyError> {
             })?;
         *slot = BlinkOutcome {
             matches: field(&bpath, line, &f, 4, "matches")?,
-            sse_nm2: finite(&bpath, line, field(&bpath, line, &f, 5, "sse_nm2")?)?,
+            sse_nm2: non_negative(&bpath, line, field(&bpath, line, &f, 5, "sse_nm2")?)?,
             sum_dx_nm: finite(&bpath, line, field(&bpath, line, &f, 6, "sum_dx_nm")?)?,
             sum_dy_nm: finite(&bpath, line, field(&bpath, line, &f, 7, "sum_dy_nm")?)?,
         };

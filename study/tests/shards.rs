@@ -119,6 +119,16 @@ fn incomplete_duplicate_or_foreign_shards_are_refused() {
     let e = run::merge_to_dir(&[s1.clone(), s2.clone()], &out).unwrap_err();
     assert!(matches!(e, StudyError::Parse { line: 2, .. }), "{e}");
     assert!(e.to_string().contains("blinks.csv"), "{e}");
+    let negative = text.replacen(
+        ",spcimager-150x/fixed,0,0,",
+        ",spcimager-150x/fixed,0,-1,",
+        1,
+    );
+    if negative != text {
+        std::fs::write(&blinks, negative).unwrap();
+        let e = run::merge_to_dir(&[s1.clone(), s2.clone()], &out).unwrap_err();
+        assert!(e.to_string().contains("not negative"), "{e}");
+    }
     let truncated: String = text.lines().take(5).map(|l| format!("{l}\n")).collect();
     std::fs::write(&blinks, truncated).unwrap();
     let e = run::merge_to_dir(&[s1, s2], &out).unwrap_err();
