@@ -34,6 +34,11 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     pub sop: Signal<In, Bit>,
     /// Word of a flush plane (not stored).
     pub flush: Signal<In, Bit>,
+    /// Word of a drain plane: stored like a plane (its live bits are 0) so
+    /// that `B_{t−N}` keeps coming out, but marked flush downstream.
+    pub drain: Signal<In, Bit>,
+    /// Bits carried along with the word (the mask bits for the ROI stage).
+    pub side: Signal<In, Bits<P>>,
     /// Live pixels `B_t`, pixel i of the word in bit i.
     pub live: Signal<In, Bits<P>>,
     /// Output word present.
@@ -50,6 +55,10 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     pub out_live: Signal<Out, Bits<P>>,
     /// `B_{t−N}` (zero for t < N and for flush words).
     pub out_delayed: Signal<Out, Bits<P>>,
+    /// Word of a drain plane.
+    pub out_drain: Signal<Out, Bit>,
+    /// `side`, one clock later.
+    pub out_side: Signal<Out, Bits<P>>,
     pos: RasterPosition,
     mem: Bram<P, AW>,
     n_reg: DFF<Bits<NW>>,
@@ -67,6 +76,8 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     i1: DFF<Bits<32>>,
     live1: DFF<Bits<P>>,
     zero1: DFF<Bit>,
+    drain1: DFF<Bit>,
+    side1: DFF<Bits<P>>,
     words_per_plane: Constant<Bits<AW>>,
 }
 
@@ -85,6 +96,8 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             valid: Default::default(),
             sop: Default::default(),
             flush: Default::default(),
+            drain: Default::default(),
+            side: Default::default(),
             live: Default::default(),
             out_valid: Default::default(),
             out_flush: Default::default(),
@@ -93,6 +106,8 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             out_idx: Default::default(),
             out_live: Default::default(),
             out_delayed: Default::default(),
+            out_drain: Default::default(),
+            out_side: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
             mem: Bram::new(cfg.n_max as usize * wpp, RamStyle::Block),
             n_reg: Default::default(),
@@ -110,6 +125,8 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             i1: Default::default(),
             live1: Default::default(),
             zero1: Default::default(),
+            drain1: Default::default(),
+            side1: Default::default(),
             words_per_plane: Constant::new((wpp as u64).to_bits()),
         })
     }
@@ -118,7 +135,10 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
 impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW, NW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, n_reg, planes, slot, base, zero, v1, f1, x1, y1, i1, live1, zero1);
+        dff_setup!(
+            self, clock, n_reg, planes, slot, base, zero, v1, f1, x1, y1, i1, live1, zero1, drain1,
+            side1
+        );
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
         self.pos.sop.next = self.sop.val();
@@ -160,6 +180,8 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             self.i1.d.next = self.pos.idx.val();
             self.live1.d.next = self.live.val();
             self.zero1.d.next = self.zero_now.val() | self.flush.val();
+            self.drain1.d.next = self.drain.val();
+            self.side1.d.next = self.side.val();
         }
         if self.restart.val() {
             self.n_reg.d.next = self.n_window.val();
@@ -168,7 +190,9 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
         }
 
         self.out_valid.next = self.v1.q.val();
-        self.out_flush.next = self.f1.q.val();
+        self.out_flush.next = self.f1.q.val() | self.drain1.q.val();
+        self.out_drain.next = self.drain1.q.val();
+        self.out_side.next = self.side1.q.val();
         self.out_x.next = self.x1.q.val();
         self.out_y.next = self.y1.q.val();
         self.out_idx.next = self.i1.q.val();

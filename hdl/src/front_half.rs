@@ -251,6 +251,8 @@ impl<
         self.mask.valid.next = self.valid.val();
         self.mask.sop.next = self.sop.val();
         self.mask.flush.next = self.flush.val();
+        self.mask.drain.next = false;
+        self.mask.enable.next = true;
         self.mask.live.next = self.live.val();
         self.delay.restart.next = self.restart.val();
         self.front.restart.next = self.restart.val();
@@ -259,6 +261,8 @@ impl<
         self.delay.valid.next = self.mask.out_valid.val();
         self.delay.sop.next = self.mask.out_sop.val();
         self.delay.flush.next = self.mask.out_flush.val();
+        self.delay.drain.next = self.mask.out_drain.val();
+        self.delay.side.next = self.mask.out_mask.val();
         self.delay.live.next = self.mask.out_live.val();
         self.front.valid.next = self.delay.out_valid.val();
         self.front.flush.next = self.delay.out_flush.val();

@@ -30,6 +30,10 @@ pub struct HotPixelMask<const P: usize, const AW: usize> {
     pub sop: Signal<In, Bit>,
     /// Word of a flush plane.
     pub flush: Signal<In, Bit>,
+    /// Word of a drain plane (stream end; passed on).
+    pub drain: Signal<In, Bit>,
+    /// Apply the mask (the MASK_ENABLE register; off: nothing is masked).
+    pub enable: Signal<In, Bit>,
     /// Raw pixels.
     pub live: Signal<In, Bits<P>>,
     /// Output word present.
@@ -38,13 +42,19 @@ pub struct HotPixelMask<const P: usize, const AW: usize> {
     pub out_sop: Signal<Out, Bit>,
     /// Word of a flush plane.
     pub out_flush: Signal<Out, Bit>,
+    /// Word of a drain plane.
+    pub out_drain: Signal<Out, Bit>,
     /// Masked pixels.
     pub out_live: Signal<Out, Bits<P>>,
+    /// The mask bits of the word (for the ROI's MASKED flag).
+    pub out_mask: Signal<Out, Bits<P>>,
     pos: RasterPosition,
     mask: Bram<P, AW>,
     v1: DFF<Bit>,
     s1: DFF<Bit>,
     f1: DFF<Bit>,
+    d1: DFF<Bit>,
+    en1: DFF<Bit>,
     live1: DFF<Bits<P>>,
 }
 
@@ -62,16 +72,22 @@ impl<const P: usize, const AW: usize> HotPixelMask<P, AW> {
             valid: Default::default(),
             sop: Default::default(),
             flush: Default::default(),
+            drain: Default::default(),
+            enable: Default::default(),
             live: Default::default(),
             out_valid: Default::default(),
             out_sop: Default::default(),
             out_flush: Default::default(),
+            out_drain: Default::default(),
             out_live: Default::default(),
+            out_mask: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
             mask: Bram::new(cfg.words_per_plane(), RamStyle::Block),
             v1: Default::default(),
             s1: Default::default(),
             f1: Default::default(),
+            d1: Default::default(),
+            en1: Default::default(),
             live1: Default::default(),
         })
     }
@@ -80,7 +96,7 @@ impl<const P: usize, const AW: usize> HotPixelMask<P, AW> {
 impl<const P: usize, const AW: usize> Logic for HotPixelMask<P, AW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, v1, s1, f1, live1);
+        dff_setup!(self, clock, v1, s1, f1, d1, en1, live1);
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
         self.pos.sop.next = self.sop.val();
@@ -93,11 +109,18 @@ impl<const P: usize, const AW: usize> Logic for HotPixelMask<P, AW> {
         if self.valid.val() {
             self.s1.d.next = self.sop.val();
             self.f1.d.next = self.flush.val();
+            self.d1.d.next = self.drain.val();
+            self.en1.d.next = self.enable.val();
             self.live1.d.next = self.live.val();
         }
         self.out_valid.next = self.v1.q.val();
         self.out_sop.next = self.s1.q.val();
         self.out_flush.next = self.f1.q.val();
-        self.out_live.next = self.live1.q.val() & !self.mask.read_data.val();
+        self.out_drain.next = self.d1.q.val();
+        self.out_mask.next = 0.into();
+        if self.en1.q.val() {
+            self.out_mask.next = self.mask.read_data.val();
+        }
+        self.out_live.next = self.live1.q.val() & !self.out_mask.val();
     }
 }

@@ -33,12 +33,16 @@
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
+pub mod blink_tracker;
 pub mod bram;
 pub mod candidates;
 pub mod config;
 pub mod delay_line;
+pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
+pub mod packetiser;
+pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod sim;
 pub mod spatial_filter;

@@ -1,4 +1,5 @@
 //! The block-RAM delay line against the model's `DelayLine`: several planes,
+//! the N drain planes of the stream end (the last N planes come out again),
 //! random stalls, a runtime N below N_max, then a second stream after a
 //! restart (old memory contents must not leak: planes before the stream are zero).
 
@@ -20,6 +21,10 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
     let stream = common::random_planes(&mut rng, w, h, planes, 0.3);
     let mut model = ModelDelayLine::new(n as usize, w, h);
     let expected: Vec<_> = stream.iter().map(|p| model.push(p.clone())).collect();
+    // The N drain planes of the stream end: B_{p−N} … B_{p−1} come out.
+    let drained: Vec<_> = (0..n)
+        .map(|_| model.push(smartagg_model::plane::BitPlane::zeros(w, h)))
+        .collect();
     let wpp = w * h / P;
 
     let u = &mut bench.uut;
@@ -33,16 +38,21 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
     let mut got_live = Vec::new();
     let mut got_delayed = Vec::new();
     let mut positions = Vec::new();
-    let total = (planes + 1) * wpp; // last plane is a flush plane
+    let mut got_drain = Vec::new();
+    let n_drain = n as usize;
+    // Real planes, N drain planes, one flush plane.
+    let total = (planes + n_drain + 1) * wpp;
     let mut sent = 0;
-    while got_live.len() < planes * wpp {
+    while got_live.len() < planes * wpp || got_drain.len() < n_drain * wpp {
         let u = &mut bench.uut;
         let offer = sent < total && stalls.offer();
         u.valid.next = offer;
         if offer {
             let (t, idx) = (sent / wpp, sent % wpp);
             u.sop.next = idx == 0;
-            u.flush.next = t == planes;
+            u.drain.next = t >= planes && t < planes + n_drain;
+            u.flush.next = t == planes + n_drain;
+            u.side.next = ((sent as u64 * 7) & 15).to_bits();
             u.live.next = if t < planes {
                 common::word(&stream[t], P, idx).to_bits()
             } else {
@@ -51,7 +61,16 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
             sent += 1;
         }
         smartagg_hdl::sim::settle(u);
+        if u.out_valid.val() && u.out_drain.val() {
+            assert!(u.out_flush.val(), "drain words are flush downstream");
+            got_drain.push(u.out_delayed.val().to_u64());
+        }
         if u.out_valid.val() && !u.out_flush.val() {
+            assert_eq!(
+                u.out_side.val().to_u64(),
+                ((got_live.len() as u64 * 7) & 15),
+                "side bits ride along"
+            );
             got_live.push(u.out_live.val().to_u64());
             got_delayed.push(u.out_delayed.val().to_u64());
             positions.push((
@@ -62,6 +81,15 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
         }
         bench.tick();
         assert!(bench.cycles < 100_000, "stream did not complete");
+    }
+    for (j, plane) in drained.iter().enumerate() {
+        for idx in 0..wpp {
+            assert_eq!(
+                got_drain[j * wpp + idx],
+                common::word(plane, P, idx),
+                "drain plane {j} word {idx}, N = {n}"
+            );
+        }
     }
     for t in 0..planes {
         for idx in 0..wpp {

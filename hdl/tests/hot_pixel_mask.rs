@@ -49,23 +49,35 @@ fn hot_pixel_mask_equals_model() {
         if offer {
             u.sop.next = sent % wpp == 0;
             u.flush.next = false;
+            // The MASK_ENABLE register: on for even planes, off for odd ones.
+            u.enable.next = (sent / wpp).is_multiple_of(2);
             u.live.next = common::word(&planes[sent / wpp], P, sent % wpp).to_bits();
             sent += 1;
         }
         settle(u);
         if u.out_valid.val() {
             assert_eq!(u.out_sop.val(), got.len() % wpp == 0);
-            got.push(u.out_live.val().to_u64());
+            got.push((u.out_live.val().to_u64(), u.out_mask.val().to_u64()));
         }
         bench.tick();
         assert!(bench.cycles < 10_000);
     }
     for (t, plane) in planes.iter().enumerate() {
-        let want = mask.apply(plane);
+        let enabled = t % 2 == 0;
+        let want = if enabled {
+            mask.apply(plane)
+        } else {
+            plane.clone()
+        };
         for idx in 0..wpp {
+            let want_mask = if enabled {
+                common::word(&mask_plane, P, idx)
+            } else {
+                0
+            };
             assert_eq!(
                 got[t * wpp + idx],
-                common::word(&want, P, idx),
+                (common::word(&want, P, idx), want_mask),
                 "plane {t} word {idx}"
             );
         }

@@ -24,6 +24,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The whole chain on an embedded scene: nanorulers, SPCImager 150x, simulate, aggregate, decode, localise, report.
+    Demo(commands::demo::Args),
     /// List the camera presets (Table 1 of the paper) and the study's scene defaults.
     Presets(commands::presets::Args),
     /// Derive the window N, threshold T and filter kernel for a camera and molecule.
@@ -55,11 +57,14 @@ enum BenchCommand {
     Localize(commands::bench_localize::Args),
     /// Planes/s of the golden and fast aggregation engines side by side.
     Aggregate(commands::bench_aggregate::Args),
+    /// Blinks made by background alone against L_min: measured, beside the analytic bound.
+    FalseBlinks(commands::bench_false_blinks::Args),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(a) => commands::demo::run(a),
         Command::Presets(a) => commands::presets::run(a),
         Command::Params(a) => commands::params::run(a),
         Command::Aggregate(a) => commands::aggregate::run(a),
@@ -72,6 +77,7 @@ fn main() {
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),
+        Command::Bench(BenchCommand::FalseBlinks(a)) => commands::bench_false_blinks::run(a),
     };
     if let Err(e) = result {
         eprintln!("smartagg: error: {e:#}");

@@ -249,3 +249,54 @@ fn calibration_masks_hot_pixels_in_aggregate() {
     ]);
     assert!(err(&["aggregate", &other, "--out", &rois, "--calibration", &cal]).contains("24x20"));
 }
+
+#[test]
+fn demo_writes_every_output_and_engines_agree() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = p(dir.path(), "demo");
+    let report = ok(&[
+        "demo",
+        "--out",
+        &out,
+        "--seconds",
+        "4",
+        "--mean-off-s",
+        "0.4",
+        "--quiet",
+    ]);
+    for f in [
+        "blinks.rois",
+        "localisations.csv",
+        "render.png",
+        "report.md",
+    ] {
+        let path = dir.path().join("demo").join(f);
+        assert!(
+            std::fs::metadata(&path)
+                .map(|m| m.len() > 0)
+                .unwrap_or(false),
+            "{f} missing or empty"
+        );
+    }
+    assert!(report.contains("byte-identical packet streams"), "{report}");
+    assert!(
+        report.contains("| losses in the packet stream | none |"),
+        "{report}"
+    );
+    let csv = std::fs::read_to_string(dir.path().join("demo/localisations.csv")).unwrap();
+    assert!(csv.starts_with("\"id\",\"frame\",\"x [nm]\",\"y [nm]\",\"sigma [nm]\",\"intensity [photon]\",\"offset [photon]\",\"bkgstd [photon]\",\"uncertainty [nm]\""));
+    assert!(
+        csv.lines().count() > 10,
+        "the rulers must blink and be localised"
+    );
+    // The received stream decodes to the blinks of the table.
+    let d = smartagg_model::packet::decode_all(
+        &std::fs::read(dir.path().join("demo/blinks.rois")).unwrap(),
+    );
+    let blinks = d
+        .packets
+        .iter()
+        .filter(|p| matches!(p.record, smartagg_model::record::Record::Blink(_)))
+        .count();
+    assert_eq!(blinks, csv.lines().count() - 1);
+}

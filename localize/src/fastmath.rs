@@ -178,7 +178,11 @@ pub(crate) fn ln_and_recip<A: Arith>(x: f64) -> (f64, f64) {
     let q = 1.0 / (x * den);
     let s = f * (q * x);
     let z = s * s;
-    let ln = A::madd(e, std::f64::consts::LN_2, 2.0 * s * estrin::<A, 7>(z, &LN_COEF));
+    let ln = A::madd(
+        e,
+        std::f64::consts::LN_2,
+        2.0 * s * estrin::<A, 7>(z, &LN_COEF),
+    );
     (ln, q * den)
 }
 

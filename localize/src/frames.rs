@@ -90,11 +90,17 @@ impl FramePipeline {
         self.fit.validate()?;
         check_option("threshold-factor", self.threshold_factor, 0.0, 1e6)?;
         check_option("pixel-nm", self.pixel_nm, 1e-3, 1e6)?;
-        if self.roi_side < 3 || self.roi_side % 2 == 0 || self.roi_side > crate::psf::MAX_SIDE {
+        if self.roi_side < 3
+            || self.roi_side.is_multiple_of(2)
+            || self.roi_side > crate::psf::MAX_SIDE
+        {
             return Err(LocalizeError::InvalidOption {
                 name: "roi",
                 value: self.roi_side as f64,
-                why: format!("the fitting ROI side must be odd, 3 to {}", crate::psf::MAX_SIDE),
+                why: format!(
+                    "the fitting ROI side must be odd, 3 to {}",
+                    crate::psf::MAX_SIDE
+                ),
             });
         }
         if width < self.roi_side || height < self.roi_side {
@@ -126,7 +132,8 @@ impl FramePipeline {
             return Err(LocalizeError::InvalidOption {
                 name: "planes",
                 value: 0.0,
-                why: "the SPAD binomial fit of frames needs the number of bit-planes per frame".into(),
+                why: "the SPAD binomial fit of frames needs the number of bit-planes per frame"
+                    .into(),
             });
         }
         Ok(())
@@ -266,7 +273,10 @@ pub fn localize_frame(
     let mut img = raw.to_vec();
     p.conversion.apply(&mut img);
     // Non-finite pixels are detected as nothing and fitted as flagged input.
-    let filt: Vec<f64> = img.iter().map(|&v| if v.is_finite() { v } else { 0.0 }).collect();
+    let filt: Vec<f64> = img
+        .iter()
+        .map(|&v| if v.is_finite() { v } else { 0.0 })
+        .collect();
     let (f1, f2) = wavelet(&filt, width, height);
     let threshold = p.threshold_factor * robust_std(&f1);
     let cands = local_maxima(&f2, width, height, threshold.max(f64::MIN_POSITIVE));
@@ -298,7 +308,13 @@ pub fn localize_frame(
             (Estimator::SpadMle, Some(planes)) => {
                 let counts: Vec<u32> = data
                     .iter()
-                    .map(|&v| if v.is_finite() { v.round().clamp(0.0, u32::MAX as f64) as u32 } else { 0 })
+                    .map(|&v| {
+                        if v.is_finite() {
+                            v.round().clamp(0.0, u32::MAX as f64) as u32
+                        } else {
+                            0
+                        }
+                    })
                     .collect();
                 let roi = SpadRoi {
                     side: r,
@@ -326,7 +342,9 @@ pub fn localize_frame(
                 fit_roi(est, &view, &opts)
             }
         };
-        locs.push(Localization::from_fit(&fit, x0 as f64, y0 as f64, p.pixel_nm, frame_no));
+        locs.push(Localization::from_fit(
+            &fit, x0 as f64, y0 as f64, p.pixel_nm, frame_no,
+        ));
     }
     Ok(FrameResult {
         localizations: locs,
@@ -363,7 +381,9 @@ mod tests {
 
     #[test]
     fn robust_std_ignores_outliers() {
-        let mut v: Vec<f64> = (0..1000).map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5).collect();
+        let mut v: Vec<f64> = (0..1000)
+            .map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5)
+            .collect();
         let s0 = robust_std(&v);
         v.extend([1e6; 20]);
         let s1 = robust_std(&v);

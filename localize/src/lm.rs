@@ -22,11 +22,11 @@
 //! the Fisher information of the fitted model, so the Cramér–Rao bound costs
 //! one 5×5 inversion.
 
-use crate::fit::{Fit, FitOptions, FitStatus, NoiseModel};
-use crate::linalg::{invert_spd, solve_spd};
-use crate::fastmath::{ln_and_recip, Arith, Plain};
 #[cfg(target_arch = "x86_64")]
 use crate::fastmath::Fused;
+use crate::fastmath::{ln_and_recip, Arith, Plain};
+use crate::fit::{Fit, FitOptions, FitStatus, NoiseModel};
+use crate::linalg::{invert_spd, solve_spd};
 use crate::psf::AxisTerms;
 use crate::roi::{PixelMaps, RoiView};
 
@@ -243,7 +243,12 @@ fn prepare<M: PixelModel>(data: &[f64], m: &M, lay: Layout, scratch: &mut [f64])
 /// Row `R` of the curvature, `h[R][q] = Σ_k w_k d_R,k d_q,k` for `q ≥ R`
 /// (mirrored), over padded pixel arrays `w` and `d` (P arrays of `np`).
 #[inline(always)]
-fn curvature_row<const P: usize, const R: usize, A: Arith>(w: &[f64], d: &[f64], np: usize, h: &mut [[f64; P]; P]) {
+fn curvature_row<const P: usize, const R: usize, A: Arith>(
+    w: &[f64],
+    d: &[f64],
+    np: usize,
+    h: &mut [[f64; P]; P],
+) {
     if R >= P {
         return;
     }
@@ -363,7 +368,11 @@ impl<M: PixelModel> Problem<M> {
         lay: Layout,
     ) -> Eval<P> {
         let fit_sigma = P == 5;
-        let sigma = if fit_sigma { theta[P - 1] } else { self.sigma_fixed };
+        let sigma = if fit_sigma {
+            theta[P - 1]
+        } else {
+            self.sigma_fixed
+        };
         let side = lay.side;
         let np = lay.np;
         ax.compute_with::<A>(side, theta[0], sigma, fit_sigma);
@@ -527,11 +536,21 @@ impl<const P: usize, M: PixelModel, O: Objective, A: Arith> Evaluate<P> for Fram
     fn eval(&mut self, theta: &[f64; P], objective: bool) -> Eval<P> {
         // The least-squares objective costs nothing extra: always computed.
         if objective || O::LEAST_SQUARES {
-            self.prob
-                .evaluate::<P, O, A, true>(theta, &mut self.ax, &mut self.ay, self.scratch, self.layout)
+            self.prob.evaluate::<P, O, A, true>(
+                theta,
+                &mut self.ax,
+                &mut self.ay,
+                self.scratch,
+                self.layout,
+            )
         } else {
-            self.prob
-                .evaluate::<P, O, A, false>(theta, &mut self.ax, &mut self.ay, self.scratch, self.layout)
+            self.prob.evaluate::<P, O, A, false>(
+                theta,
+                &mut self.ax,
+                &mut self.ay,
+                self.scratch,
+                self.layout,
+            )
         }
     }
     #[inline(always)]
@@ -586,7 +605,8 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
         let mut held = [false; P];
         let mut any = false;
         for p in 0..P {
-            held[p] = (theta[p] <= lo[p] && delta[p] < 0.0) || (theta[p] >= hi[p] && delta[p] > 0.0);
+            held[p] =
+                (theta[p] <= lo[p] && delta[p] < 0.0) || (theta[p] >= hi[p] && delta[p] > 0.0);
             any |= held[p];
         }
         let mut g = cur.g;
@@ -639,7 +659,9 @@ pub(crate) fn levenberg_marquardt<const P: usize>(
         let better = if exact {
             trial.ll >= cur.ll && trial.ll.is_finite()
         } else {
-            let gain: f64 = (0..P).map(|p| (next[p] - theta[p]) * (cur.g[p] + trial.g[p])).sum();
+            let gain: f64 = (0..P)
+                .map(|p| (next[p] - theta[p]) * (cur.g[p] + trial.g[p]))
+                .sum();
             gain >= 0.0 && gain.is_finite()
         };
         if better {
@@ -775,7 +797,13 @@ fn dispatch<A: Arith>(roi: &RoiView, opts: &FitOptions, kind: Kind) -> Fit {
 }
 
 #[inline(always)]
-fn run<M: PixelModel, A: Arith>(data: &[f64], side: usize, m: M, opts: &FitOptions, kind: Kind) -> Fit {
+fn run<M: PixelModel, A: Arith>(
+    data: &[f64],
+    side: usize,
+    m: M,
+    opts: &FitOptions,
+    kind: Kind,
+) -> Fit {
     let sigma0 = opts.sigma.value();
     if data.len() != side * side || side == 0 || side > crate::psf::MAX_SIDE {
         return Fit::failed(side, sigma0, FitStatus::NonFiniteInput);
@@ -829,6 +857,7 @@ fn run<M: PixelModel, A: Arith>(data: &[f64], side: usize, m: M, opts: &FitOptio
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn finish<const P: usize, M: PixelModel, A: Arith>(
     prob: &Problem<M>,
     init: [f64; P],
@@ -941,7 +970,11 @@ fn finish<const P: usize, M: PixelModel, A: Arith>(
 pub fn bench_evaluate(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -> f64 {
     #[target_feature(enable = "avx2,fma")]
     unsafe fn inner(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -> f64 {
-        let prob = Problem { side, model: Uniform, sigma_fixed: 1.5 };
+        let prob = Problem {
+            side,
+            model: Uniform,
+            sigma_fixed: 1.5,
+        };
         let mut ax = AxisTerms::default();
         let mut ay = AxisTerms::default();
         let mut s = 0.0;
@@ -951,7 +984,13 @@ pub fn bench_evaluate(data: &[f64], side: usize, theta: [f64; 5], reps: usize) -
         for r in 0..reps {
             let mut t = theta;
             t[0] += r as f64 * 1e-9;
-            let e = prob.evaluate::<5, PoissonObjective, Fused, true>(&t, &mut ax, &mut ay, &mut scratch, lay);
+            let e = prob.evaluate::<5, PoissonObjective, Fused, true>(
+                &t,
+                &mut ax,
+                &mut ay,
+                &mut scratch,
+                lay,
+            );
             s += e.ll + e.h[1][2];
         }
         s

@@ -35,7 +35,11 @@ struct Track {
 /// Merges localisations of consecutive frames (`max_gap` frames may be
 /// skipped; 0 means strictly consecutive) within `max_dist_nm`. The output
 /// is sorted by frame.
-pub fn merge_consecutive(locs: &[Localization], max_dist_nm: f64, max_gap: u64) -> (Vec<Localization>, MergeStats) {
+pub fn merge_consecutive(
+    locs: &[Localization],
+    max_dist_nm: f64,
+    max_gap: u64,
+) -> (Vec<Localization>, MergeStats) {
     let mut order: Vec<usize> = (0..locs.len()).collect();
     order.sort_by_key(|&i| locs[i].frame);
     let cell = max_dist_nm.max(1e-9);
@@ -72,7 +76,8 @@ pub fn merge_consecutive(locs: &[Localization], max_dist_nm: f64, max_gap: u64) 
                     if let Some(ts) = grid.get(&(cx + dx, cy + dy)) {
                         for &ti in ts {
                             let t = &open[ti];
-                            let d = ((l.x_nm - t.last.0).powi(2) + (l.y_nm - t.last.1).powi(2)).sqrt();
+                            let d =
+                                ((l.x_nm - t.last.0).powi(2) + (l.y_nm - t.last.1).powi(2)).sqrt();
                             if d <= max_dist_nm {
                                 pairs.push((d, ti, li));
                             }

@@ -47,7 +47,13 @@ impl AxisTerms {
 
     /// [`AxisTerms::compute`] with the fit's arithmetic.
     #[inline(always)]
-    pub(crate) fn compute_with<A: Arith>(&mut self, n: usize, c: f64, sigma: f64, with_sigma: bool) {
+    pub(crate) fn compute_with<A: Arith>(
+        &mut self,
+        n: usize,
+        c: f64,
+        sigma: f64,
+        with_sigma: bool,
+    ) {
         debug_assert!(n <= MAX_SIDE && sigma > 0.0);
         self.n = n;
         let inv = std::f64::consts::FRAC_1_SQRT_2 / sigma;
@@ -145,7 +151,6 @@ struct EdgeBlock {
     /// Offset from the centre times the pdf.
     updf: [f64; 4],
 }
-
 
 /// The expected photon fraction of every pixel of an `side × side` ROI for an
 /// emitter at `(x, y)` with width `sigma` (row-major).

@@ -75,10 +75,19 @@ impl RenderOptions {
     /// Covers every point with a margin of 4 × the largest σ drawn (at least
     /// 10 pixels), at `pixel_nm`. Errors if the image would exceed
     /// [`MAX_PIXELS`].
-    pub fn covering(points: &[Point], pixel_nm: f64, min_sigma_nm: f64) -> Result<RenderOptions, LocalizeError> {
+    pub fn covering(
+        points: &[Point],
+        pixel_nm: f64,
+        min_sigma_nm: f64,
+    ) -> Result<RenderOptions, LocalizeError> {
         check_option("pixel-nm", pixel_nm, 1e-3, 1e6)?;
         check_option("min-sigma-nm", min_sigma_nm, 1e-3, 1e6)?;
-        let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+        let (mut x0, mut y0, mut x1, mut y1) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
         let mut smax: f64 = 0.0;
         for p in points {
             x0 = x0.min(p.x_nm);
@@ -255,8 +264,11 @@ pub fn to_png(img: &Image, saturate_percent: f64) -> Result<(Vec<u8>, ScaleBar),
             yppu: ppm,
             unit: png::Unit::Meter,
         }));
-        let mut w = enc.write_header().map_err(|e| LocalizeError::Png(e.to_string()))?;
-        w.write_image_data(&px).map_err(|e| LocalizeError::Png(e.to_string()))?;
+        let mut w = enc
+            .write_header()
+            .map_err(|e| LocalizeError::Png(e.to_string()))?;
+        w.write_image_data(&px)
+            .map_err(|e| LocalizeError::Png(e.to_string()))?;
         w.finish().map_err(|e| LocalizeError::Png(e.to_string()))?;
     }
     Ok((out, bar))

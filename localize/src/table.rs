@@ -104,7 +104,10 @@ impl LocTable {
 
     /// Writes the table as CSV.
     pub fn write_csv<W: Write>(&self, w: &mut W) -> std::io::Result<()> {
-        let mut header: Vec<String> = THUNDERSTORM_COLUMNS.iter().map(|c| format!("\"{c}\"")).collect();
+        let mut header: Vec<String> = THUNDERSTORM_COLUMNS
+            .iter()
+            .map(|c| format!("\"{c}\""))
+            .collect();
         header.push(format!("\"{STATUS_COLUMN}\""));
         if self.merged {
             header.push(format!("\"{DETECTIONS_COLUMN}\""));
@@ -189,7 +192,10 @@ impl CsvTable {
             if line.is_empty() {
                 continue;
             }
-            let fields: Vec<&str> = line.split(',').map(|f| f.trim().trim_matches('"')).collect();
+            let fields: Vec<&str> = line
+                .split(',')
+                .map(|f| f.trim().trim_matches('"'))
+                .collect();
             match &columns {
                 None => columns = Some(fields.iter().map(|f| f.to_string()).collect()),
                 Some(cols) => {

@@ -67,12 +67,18 @@ impl<R: Read + Seek> TiffStack<R> {
         let (w, h) = self.decoder.dimensions().map_err(|e| tiff_err(&name, e))?;
         let ct = self.decoder.colortype().map_err(|e| tiff_err(&name, e))?;
         if !matches!(ct, tiff::ColorType::Gray(_)) {
-            return Err(tiff_err(&name, format!("colour type {ct:?}: expected a greyscale image")));
+            return Err(tiff_err(
+                &name,
+                format!("colour type {ct:?}: expected a greyscale image"),
+            ));
         }
         let (w, h) = (w as usize, h as usize);
         if let Some((w0, h0)) = self.size {
             if (w, h) != (w0, h0) {
-                return Err(tiff_err(&name, format!("{w}x{h} pixels, but the first page is {w0}x{h0}")));
+                return Err(tiff_err(
+                    &name,
+                    format!("{w}x{h} pixels, but the first page is {w0}x{h0}"),
+                ));
             }
         }
         self.size = Some((w, h));
@@ -90,7 +96,10 @@ impl<R: Read + Seek> TiffStack<R> {
             DecodingResult::F64(v) => v,
         };
         if data.len() != w * h {
-            return Err(tiff_err(&name, format!("{} samples for {w}x{h} pixels", data.len())));
+            return Err(tiff_err(
+                &name,
+                format!("{} samples for {w}x{h} pixels", data.len()),
+            ));
         }
         Ok(Frame {
             width: w,
@@ -115,7 +124,10 @@ impl<R: Read + Seek> Iterator for TiffStack<R> {
             self.done = true;
             if frame.is_ok() {
                 // The page read is good; report the broken link with the next.
-                return Some(Err(tiff_err(&self.name, format!("after page {}: {e}", self.page))));
+                return Some(Err(tiff_err(
+                    &self.name,
+                    format!("after page {}: {e}", self.page),
+                )));
             }
         }
         Some(frame)
@@ -151,7 +163,12 @@ pub fn write_stack<W: Write + Seek>(
 }
 
 /// Writes a 32-bit float greyscale image (e.g. a rendered density).
-pub fn write_f32<W: Write + Seek>(writer: W, width: usize, height: usize, data: &[f32]) -> Result<(), LocalizeError> {
+pub fn write_f32<W: Write + Seek>(
+    writer: W,
+    width: usize,
+    height: usize,
+    data: &[f32],
+) -> Result<(), LocalizeError> {
     let mut enc = TiffEncoder::new(writer).map_err(|e| tiff_err("output image", e))?;
     enc.write_image::<colortype::Gray32Float>(width as u32, height as u32, data)
         .map_err(|e| tiff_err("output image", e))
@@ -221,7 +238,8 @@ pub fn roi_pages(rois: &[RoiPage], layout: RoiLayout) -> (usize, usize, Vec<Vec<
                         for i in 0..r.side {
                             let (x, y) = (r.x0 + i as i32, r.y0 + j as i32);
                             if x >= 0 && y >= 0 && (x as usize) < width && (y as usize) < height {
-                                p[y as usize * width + x as usize] = r.counts.get(j * r.side + i).copied().unwrap_or(0);
+                                p[y as usize * width + x as usize] =
+                                    r.counts.get(j * r.side + i).copied().unwrap_or(0);
                             }
                         }
                     }

@@ -4,7 +4,9 @@
 //! on more ROIs; here 10 % keeps the tests fast and robust.)
 
 use smartagg_localize::bench::{score_frames, simulate_frames, FrameScenario};
-use smartagg_localize::crlb::{crlb_frame, mortensen_lsq_variance, mortensen_mle_variance, Emitter};
+use smartagg_localize::crlb::{
+    crlb_frame, mortensen_lsq_variance, mortensen_mle_variance, Emitter,
+};
 use smartagg_localize::{Estimator, FitOptions, NoiseModel, SigmaMode};
 
 fn fixed() -> FitOptions {
@@ -20,9 +22,17 @@ fn mle_reaches_the_bound_at_230_photons() {
     let set = simulate_frames(&FrameScenario::spcimager_blink(3000, 7));
     for opts in [fixed(), fitted()] {
         let s = score_frames(&set, Estimator::Mle, &opts);
-        assert!(s.ratio() < 1.10 && s.ratio() > 0.93, "{opts:?}: RMSE/CRLB = {}", s.ratio());
+        assert!(
+            s.ratio() < 1.10 && s.ratio() > 0.93,
+            "{opts:?}: RMSE/CRLB = {}",
+            s.ratio()
+        );
         // The reported uncertainty describes the actual error.
-        assert!((s.reported_over_rmse - 1.0).abs() < 0.1, "{}", s.reported_over_rmse);
+        assert!(
+            (s.reported_over_rmse - 1.0).abs() < 0.1,
+            "{}",
+            s.reported_over_rmse
+        );
         assert!(s.failures <= 3, "{} failures", s.failures);
         assert!(s.bias_x.abs() < 0.02 && s.bias_y.abs() < 0.02);
     }
@@ -38,11 +48,25 @@ fn mle_reaches_the_bound_at_1000_photons_and_beats_lsq_and_centroid() {
     assert_eq!(mle.failures, 0);
     // Least squares ignores the Poisson weights: measurably less precise.
     let lsq = score_frames(&set, Estimator::Lsq, &fitted());
-    assert!(lsq.rmse > 1.05 * mle.rmse, "lsq {} mle {}", lsq.rmse, mle.rmse);
+    assert!(
+        lsq.rmse > 1.05 * mle.rmse,
+        "lsq {} mle {}",
+        lsq.rmse,
+        mle.rmse
+    );
     // The LSQ sandwich uncertainty describes the LSQ error.
-    assert!((lsq.reported_over_rmse - 1.0).abs() < 0.1, "{}", lsq.reported_over_rmse);
+    assert!(
+        (lsq.reported_over_rmse - 1.0).abs() < 0.1,
+        "{}",
+        lsq.reported_over_rmse
+    );
     let cen = score_frames(&set, Estimator::Centroid, &fixed());
-    assert!(cen.rmse > mle.rmse, "centroid {} mle {}", cen.rmse, mle.rmse);
+    assert!(
+        cen.rmse > mle.rmse,
+        "centroid {} mle {}",
+        cen.rmse,
+        mle.rmse
+    );
 }
 
 #[test]
@@ -55,7 +79,11 @@ fn emccd_and_scmos_noise_models() {
     let mut o = fixed();
     o.noise = NoiseModel::Emccd;
     let s = score_frames(&set, Estimator::Mle, &o);
-    assert!(s.ratio() < 1.10 && s.ratio() > 0.9, "EMCCD RMSE/CRLB {}", s.ratio());
+    assert!(
+        s.ratio() < 1.10 && s.ratio() > 0.9,
+        "EMCCD RMSE/CRLB {}",
+        s.ratio()
+    );
     // The EMCCD bound is √2 × the Poisson one.
     let em = set.truth[0];
     let p = crlb_frame(9, &em, None, NoiseModel::Poisson, false).unwrap();
@@ -67,8 +95,16 @@ fn emccd_and_scmos_noise_models() {
     let set = simulate_frames(&sc);
     o.noise = NoiseModel::Scmos;
     let s = score_frames(&set, Estimator::Mle, &o);
-    assert!(s.ratio() < 1.10 && s.ratio() > 0.9, "sCMOS RMSE/CRLB {}", s.ratio());
-    assert!((s.reported_over_rmse - 1.0).abs() < 0.12, "{}", s.reported_over_rmse);
+    assert!(
+        s.ratio() < 1.10 && s.ratio() > 0.9,
+        "sCMOS RMSE/CRLB {}",
+        s.ratio()
+    );
+    assert!(
+        (s.reported_over_rmse - 1.0).abs() < 0.12,
+        "{}",
+        s.reported_over_rmse
+    );
 }
 
 #[test]
@@ -85,7 +121,11 @@ fn crlb_agrees_with_mortensen_in_a_large_roi() {
         };
         let c = crlb_frame(25, &em, None, NoiseModel::Poisson, false).unwrap();
         let m = mortensen_mle_variance(1.5, 1.0, n, b, 1.0);
-        assert!((c.var_x / m - 1.0).abs() < 0.01, "N={n} b={b}: {} vs {m}", c.var_x);
+        assert!(
+            (c.var_x / m - 1.0).abs() < 0.01,
+            "N={n} b={b}: {} vs {m}",
+            c.var_x
+        );
         // Least squares is less precise than maximum likelihood (16/9 of the
         // variance without background).
         assert!(mortensen_lsq_variance(1.5, 1.0, n, b, 1.0) > 1.2 * m);

@@ -7,7 +7,9 @@ use smartagg_localize::bench::{
     score_hot_pixels, score_spad, score_spad_hot_pixels, simulate_spad, FrameScenario, SpadScenario,
 };
 use smartagg_localize::spad::{fit_binomial, SpadEmitter, SpadRoi};
-use smartagg_localize::{lm, synth, Estimator, FitOptions, HotPixelMode, PixelMaps, RoiView, SigmaMode};
+use smartagg_localize::{
+    lm, synth, Estimator, FitOptions, HotPixelMode, PixelMaps, RoiView, SigmaMode,
+};
 
 /// Strong pile-up: S = 10 detections per on-plane put ~0.5 detections per
 /// plane on the centre pixel (λ ≈ 0.69).
@@ -34,17 +36,41 @@ fn pile_up_biases_poisson_but_not_binomial() {
     let poisson = score_spad(&set, Estimator::Mle, &fitted);
     let binomial = score_spad(&set, Estimator::SpadMle, &fitted);
     // Poisson: photons low, σ high (flattened peak).
-    assert!(poisson.photon_bias < -0.10, "Poisson photon bias {}", poisson.photon_bias);
-    assert!(poisson.sigma_bias > 0.05, "Poisson σ bias {}", poisson.sigma_bias);
+    assert!(
+        poisson.photon_bias < -0.10,
+        "Poisson photon bias {}",
+        poisson.photon_bias
+    );
+    assert!(
+        poisson.sigma_bias > 0.05,
+        "Poisson σ bias {}",
+        poisson.sigma_bias
+    );
     // Binomial: unbiased.
-    assert!(binomial.photon_bias.abs() < 0.02, "binomial photon bias {}", binomial.photon_bias);
-    assert!(binomial.sigma_bias.abs() < 0.01, "binomial σ bias {}", binomial.sigma_bias);
-    assert!(binomial.ratio() < 1.10 && binomial.ratio() > 0.9, "RMSE/CRLB {}", binomial.ratio());
+    assert!(
+        binomial.photon_bias.abs() < 0.02,
+        "binomial photon bias {}",
+        binomial.photon_bias
+    );
+    assert!(
+        binomial.sigma_bias.abs() < 0.01,
+        "binomial σ bias {}",
+        binomial.sigma_bias
+    );
+    assert!(
+        binomial.ratio() < 1.10 && binomial.ratio() > 0.9,
+        "RMSE/CRLB {}",
+        binomial.ratio()
+    );
     assert_eq!(binomial.failures, 0);
     let poisson = score_spad(&set, Estimator::Mle, &fixed);
     let binomial = score_spad(&set, Estimator::SpadMle, &fixed);
     assert!(poisson.photon_bias < -0.15, "{}", poisson.photon_bias);
-    assert!(binomial.photon_bias.abs() < 0.02, "{}", binomial.photon_bias);
+    assert!(
+        binomial.photon_bias.abs() < 0.02,
+        "{}",
+        binomial.photon_bias
+    );
 }
 
 #[test]
@@ -74,7 +100,10 @@ fn asymmetric_pile_up_biases_the_poisson_position() {
         let c = synth::spad_roi(&mut rng, side, &em, 200, 108, Some(&maps));
         let f: Vec<f64> = c.iter().map(|&v| v as f64).collect();
         let p = lm::fit_mle(&RoiView::new(side, &f, Some(&maps)).unwrap(), &opts);
-        let b = fit_binomial(&SpadRoi::new(side, &c, 200, 108, Some(&maps)).unwrap(), &opts);
+        let b = fit_binomial(
+            &SpadRoi::new(side, &c, 200, 108, Some(&maps)).unwrap(),
+            &opts,
+        );
         assert!(p.status.is_ok() && b.status.is_ok());
         bp += p.x - em.x;
         bb += b.x - em.x;
@@ -101,9 +130,17 @@ fn binomial_reaches_its_bound_without_pile_up() {
         seed: 4,
     };
     let set = simulate_spad(&sc);
-    let s = score_spad(&set, Estimator::SpadMle, &FitOptions::new(SigmaMode::Fixed(1.5)));
+    let s = score_spad(
+        &set,
+        Estimator::SpadMle,
+        &FitOptions::new(SigmaMode::Fixed(1.5)),
+    );
     assert!(s.ratio() < 1.10 && s.ratio() > 0.9, "{}", s.ratio());
-    assert!((s.reported_over_rmse - 1.0).abs() < 0.1, "{}", s.reported_over_rmse);
+    assert!(
+        (s.reported_over_rmse - 1.0).abs() < 0.1,
+        "{}",
+        s.reported_over_rmse
+    );
 }
 
 #[test]
@@ -113,7 +150,12 @@ fn ignoring_hot_pixels_beats_interpolating_them() {
     let sc = FrameScenario::spcimager_blink(2000, 2);
     let ignore = score_hot_pixels(&sc, 0.2, HotPixelMode::Ignore, &o);
     let interp = score_hot_pixels(&sc, 0.2, HotPixelMode::Interpolate, &o);
-    assert!(ignore.rmse < interp.rmse, "ignore {} interpolate {}", ignore.rmse, interp.rmse);
+    assert!(
+        ignore.rmse < interp.rmse,
+        "ignore {} interpolate {}",
+        ignore.rmse,
+        interp.rmse
+    );
     // SPAD binomial MLE, same comparison.
     let sc = SpadScenario {
         side: 9,
@@ -130,6 +172,11 @@ fn ignoring_hot_pixels_beats_interpolating_them() {
     let set = simulate_spad(&sc);
     let ignore = score_spad_hot_pixels(&set, 0.2, HotPixelMode::Ignore, &o);
     let interp = score_spad_hot_pixels(&set, 0.2, HotPixelMode::Interpolate, &o);
-    assert!(ignore.rmse < interp.rmse, "ignore {} interpolate {}", ignore.rmse, interp.rmse);
+    assert!(
+        ignore.rmse < interp.rmse,
+        "ignore {} interpolate {}",
+        ignore.rmse,
+        interp.rmse
+    );
     assert_eq!(ignore.failures + interp.failures, 0);
 }

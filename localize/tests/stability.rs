@@ -6,7 +6,9 @@ use rand::SeedableRng;
 use smartagg_localize::crlb::Emitter;
 use smartagg_localize::spad::{fit_binomial, SpadRoi};
 use smartagg_localize::table::{CsvTable, LocTable, Localization};
-use smartagg_localize::{fit_roi, synth, Estimator, Fit, FitOptions, FitStatus, PixelMaps, RoiView, SigmaMode};
+use smartagg_localize::{
+    fit_roi, synth, Estimator, Fit, FitOptions, FitStatus, PixelMaps, RoiView, SigmaMode,
+};
 
 const SIDE: usize = 9;
 
@@ -31,7 +33,13 @@ fn fit_all(data: &[f64], maps: Option<&PixelMaps>, planes: u32) -> Vec<(String, 
         }
         let counts: Vec<u32> = data
             .iter()
-            .map(|&v| if v.is_finite() { v.max(0.0).round() as u32 } else { 0 })
+            .map(|&v| {
+                if v.is_finite() {
+                    v.max(0.0).round() as u32
+                } else {
+                    0
+                }
+            })
             .collect();
         let r = SpadRoi {
             side: SIDE,
@@ -75,7 +83,10 @@ fn table_round_trip(fits: &[(String, Fit)]) {
     let mut buf = Vec::new();
     t.write_csv(&mut buf).unwrap();
     let text = String::from_utf8(buf.clone()).unwrap();
-    assert!(!text.to_lowercase().contains("nan") && !text.contains("inf"), "{text}");
+    assert!(
+        !text.to_lowercase().contains("nan") && !text.contains("inf"),
+        "{text}"
+    );
     let back = CsvTable::read(&buf[..]).unwrap();
     assert_eq!(back.rows.len(), fits.len());
     let st = back.column(&["fit_status"]).unwrap();
@@ -106,7 +117,10 @@ fn saturated_spad_roi() {
     let fits = fit_all(&data, None, planes);
     for (l, f) in &fits {
         assert_finite(l, f);
-        assert!(!f.status.is_ok(), "{l}: a flat saturated ROI cannot be localised");
+        assert!(
+            !f.status.is_ok(),
+            "{l}: a flat saturated ROI cannot be localised"
+        );
         if l.starts_with("SpadMle") {
             assert_eq!(f.status, FitStatus::Saturated, "{l}");
         }
@@ -187,7 +201,11 @@ fn hot_pixel_only_roi() {
     let fits = fit_all(&data, Some(&maps), 6000);
     for (l, f) in &fits {
         assert_finite(l, f);
-        assert!(f.photons < 200.0, "{l}: {} photons from background alone", f.photons);
+        assert!(
+            f.photons < 200.0,
+            "{l}: {} photons from background alone",
+            f.photons
+        );
     }
     table_round_trip(&fits);
 }
@@ -215,7 +233,11 @@ fn tiny_and_huge_sigma() {
         );
         if true_sigma < 0.25 {
             // Narrower than the σ bound: flagged, not silently accepted.
-            assert_eq!(fitted.status, FitStatus::SigmaAtBound, "σ={true_sigma}: {fitted:?}");
+            assert_eq!(
+                fitted.status,
+                FitStatus::SigmaAtBound,
+                "σ={true_sigma}: {fitted:?}"
+            );
             assert!((fitted.x - em.x).abs() < 0.5);
         }
         table_round_trip(&fits);
@@ -240,7 +262,9 @@ fn tiny_and_huge_sigma() {
         }
     }
     assert!(FitOptions::new(SigmaMode::Fixed(0.0)).validate().is_err());
-    assert!(FitOptions::new(SigmaMode::Fixed(f64::NAN)).validate().is_err());
+    assert!(FitOptions::new(SigmaMode::Fixed(f64::NAN))
+        .validate()
+        .is_err());
 }
 
 #[test]

@@ -1,10 +1,965 @@
-//! (being written)
+//! `smartagg localize`: molecule positions from blink-ROI packets (`.rois`)
+//! or from a TIFF stack of frames, written as a ThunderSTORM CSV table.
+//!
+//! * **ROI packets** (from `smartagg aggregate` or `download`): each blink
+//!   record is fitted where it is; position = ROI origin + fitted position,
+//!   times the pixel size. `frame` is the 1-based blink index (the page of
+//!   `--export-tiff`); the blink's timing follows in `t_start [plane]`,
+//!   `t_end [plane]`, `planes`, and the record `flags`. Pixels off the sensor
+//!   (EDGE records) are left out of the fit. With `--calibration` (a SPAD
+//!   calibration directory) the fit uses the DCR map (as dark counts per
+//!   plane), the PRNU map, and the hot pixels (ignored or interpolated).
+//!   `--estimator spad-mle` uses the binomial likelihood with the record's
+//!   on/off split, exact under pile-up.
+//! * **TIFF frames** (EMCCD, sCMOS, fixed-aggregation SPAD frames): B-spline
+//!   wavelet filter, threshold 1.5 × noise, 8-neighbour maxima, fits,
+//!   optional merging of consecutive frames within `--merge-nm` (the paper's
+//!   40 nm). ADU are converted with `--offset-adu`, `--e-per-adu`,
+//!   `--em-gain` (defaults from `--preset`) or per pixel from a frame
+//!   calibration.
+//!
+//! A failed fit is kept and flagged in `fit_status` (0 = ok) unless
+//! `--drop-failed`; either way the failures are counted and printed.
 
-/// Arguments.
+use crate::calibration::{flags, AnyCalibration};
+use anyhow::{bail, Context};
+use rayon::prelude::*;
+use smartagg_localize::frames::{localize_frame, Conversion, FramePipeline};
+use smartagg_localize::merge::merge_consecutive;
+use smartagg_localize::spad::{fit_binomial, SpadRoi};
+use smartagg_localize::table::{LocTable, Localization};
+use smartagg_localize::tiffio::{self, RoiLayout, RoiPage};
+use smartagg_localize::{
+    fit_roi, Estimator, FitOptions, FitStatus, HotPixelMode, NoiseModel, PixelMaps, RoiView,
+    SigmaMode,
+};
+use smartagg_model::params::{Camera, Preset, PresetName};
+use smartagg_model::record::{flags as rflags, BlinkRecord, Record, StreamStart};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Estimator names on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EstimatorArg {
+    /// Poisson maximum likelihood (pixel-integrated Gaussian), as ThunderSTORM's MLE.
+    Mle,
+    /// SPAD binomial maximum likelihood (ROI packets, or SPAD frames with --planes).
+    SpadMle,
+    /// Unweighted least squares.
+    Lsq,
+    /// Background-subtracted centroid.
+    Centroid,
+}
+
+impl EstimatorArg {
+    fn estimator(self) -> Estimator {
+        match self {
+            EstimatorArg::Mle => Estimator::Mle,
+            EstimatorArg::SpadMle => Estimator::SpadMle,
+            EstimatorArg::Lsq => Estimator::Lsq,
+            EstimatorArg::Centroid => Estimator::Centroid,
+        }
+    }
+}
+
+/// Noise model names on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NoiseArg {
+    /// Ideal photon counting.
+    Poisson,
+    /// EMCCD, excess noise F² = 2.
+    Emccd,
+    /// sCMOS, per-pixel read noise (Huang et al. 2013).
+    Scmos,
+}
+
+/// Hot-pixel strategy on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HotArg {
+    /// Leave hot pixels out of the likelihood (the paper found this better).
+    Ignore,
+    /// Replace them by the mean of their valid 4-neighbours.
+    Interpolate,
+}
+
+/// Layout of `--export-tiff`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayoutArg {
+    /// One R×R page per ROI (a page → origin table goes to PATH.origins.csv).
+    Compact,
+    /// One sensor-sized page per ROI, the ROI at its place.
+    Sensor,
+}
+
+/// Arguments of `smartagg localize`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Blink-ROI packet stream (.rois) or TIFF stack of frames (.tif).
+    pub input: PathBuf,
+    /// Output table (ThunderSTORM CSV).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Estimator.
+    #[arg(long, value_enum, default_value_t = EstimatorArg::Mle)]
+    pub estimator: EstimatorArg,
+    /// Sample-plane pixel size, nm [default: from --preset].
+    #[arg(long)]
+    pub pixel_nm: Option<f64>,
+    /// Camera preset (spcimager, spcimager-projected, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Objective magnification of the preset (150 or 60).
+    #[arg(long, default_value_t = 150)]
+    pub objective: u32,
+    /// PSF σ in camera pixels (initial value when fitted) [default: the preset's, else 1.6 as ThunderSTORM].
+    #[arg(long)]
+    pub sigma: Option<f64>,
+    /// Keep σ fixed instead of fitting it.
+    #[arg(long)]
+    pub fixed_sigma: bool,
+    /// Noise model for the likelihood and the uncertainty [default: from the preset, else poisson].
+    #[arg(long, value_enum)]
+    pub noise: Option<NoiseArg>,
+    /// Camera or calibration directory (from `smartagg calibrate`): SPAD DCR/PRNU/hot maps, or frame offset/gain/read-noise maps.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// What to do with hot pixels of the calibration.
+    #[arg(long, value_enum, default_value_t = HotArg::Ignore)]
+    pub hot_pixels: HotArg,
+    /// Leave failed fits out of the table (they are counted either way).
+    #[arg(long)]
+    pub drop_failed: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Frames: camera bias, ADU [default: from the preset, else 0].
+    #[arg(long, allow_negative_numbers = true)]
+    pub offset_adu: Option<f64>,
+    /// Frames: electrons per ADU [default: from the preset, else 1].
+    #[arg(long)]
+    pub e_per_adu: Option<f64>,
+    /// Frames: EM gain [default: from the preset, else 1].
+    #[arg(long)]
+    pub em_gain: Option<f64>,
+    /// Frames: sCMOS read noise, e⁻ rms [default: from the preset].
+    #[arg(long)]
+    pub read_noise_e: Option<f64>,
+    /// Frames: fitting ROI side, odd [default: 2⌈3σ⌉+1, at least 7].
+    #[arg(long)]
+    pub roi: Option<usize>,
+    /// Frames: detection threshold in units of the wavelet noise std.
+    #[arg(long, default_value_t = 1.5)]
+    pub threshold: f64,
+    /// Frames: bit-planes per SPAD frame (for --estimator spad-mle on frames).
+    #[arg(long)]
+    pub planes: Option<u32>,
+    /// Frames: merge localisations of consecutive frames within this distance, nm (the paper: 40).
+    #[arg(long)]
+    pub merge_nm: Option<f64>,
+    /// Frames: frames a merged track may skip.
+    #[arg(long, default_value_t = 0)]
+    pub merge_gap: u64,
+    /// ROI packets: also write the ROIs as a TIFF stack (for ThunderSTORM).
+    #[arg(long)]
+    pub export_tiff: Option<PathBuf>,
+    /// Layout of --export-tiff.
+    #[arg(long, value_enum, default_value_t = LayoutArg::Compact)]
+    pub export_layout: LayoutArg,
+}
+
+/// The optics and camera settings resolved from the arguments.
+struct Setup {
+    pixel_nm: f64,
+    sigma_px: f64,
+    opts: FitOptions,
+    preset: Option<Preset>,
+}
+
+fn setup(args: &Args) -> anyhow::Result<Setup> {
+    let preset = match &args.preset {
+        Some(name) => Some(Preset::new(PresetName::parse(name)?, args.objective)?),
+        None => None,
+    };
+    let pixel_nm = match (args.pixel_nm, &preset) {
+        (Some(p), _) => p,
+        (None, Some(p)) => p.pixel_nm(),
+        (None, None) => bail!("give the pixel size with --pixel-nm, or a camera with --preset"),
+    };
+    if !(pixel_nm.is_finite() && pixel_nm > 0.0) {
+        bail!("--pixel-nm must be a positive number of nanometres, got {pixel_nm}");
+    }
+    let sigma_px = args
+        .sigma
+        .unwrap_or_else(|| preset.as_ref().map_or(1.6, |p| p.sigma_px()));
+    let noise = match args.noise {
+        Some(NoiseArg::Poisson) => NoiseModel::Poisson,
+        Some(NoiseArg::Emccd) => NoiseModel::Emccd,
+        Some(NoiseArg::Scmos) => NoiseModel::Scmos,
+        None => match preset.as_ref().map(|p| &p.camera) {
+            Some(Camera::Emccd(_)) => NoiseModel::Emccd,
+            Some(Camera::Scmos(_)) => NoiseModel::Scmos,
+            _ => NoiseModel::Poisson,
+        },
+    };
+    let mut opts = FitOptions::new(if args.fixed_sigma {
+        SigmaMode::Fixed(sigma_px)
+    } else {
+        SigmaMode::Fitted { initial: sigma_px }
+    });
+    opts.noise = noise;
+    opts.validate().context("fit options")?;
+    Ok(Setup {
+        pixel_nm,
+        sigma_px,
+        opts,
+        preset,
+    })
+}
 
 /// Runs the command.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("this command is being written")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(n) = args.threads {
+        // Only the first call configures the global pool; later ones (tests
+        // in one process) keep it.
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global();
+    }
+    let s = setup(&args)?;
+    let started = Instant::now();
+    let (mut table, fits) = if is_tiff(&args.input)? {
+        localize_tiff(&args, &s)?
+    } else {
+        localize_rois(&args, &s)?
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    let mut counts: BTreeMap<&'static str, usize> = BTreeMap::new();
+    for r in &table.rows {
+        *counts.entry(r.status.name()).or_default() += 1;
+    }
+    let failed = table.failures();
+    if args.drop_failed {
+        table.rows.retain(|r| r.status.is_ok());
+    }
+    let file = std::fs::File::create(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    table
+        .write_csv(&mut w)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    w.flush()?;
+    let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    println!(
+        "{} localisations written to {} ({}); {} failed fits {}; {} fits in {:.2} s ({:.0} fits/s)",
+        table.rows.len(),
+        args.out.display(),
+        summary.join(", "),
+        failed,
+        if args.drop_failed {
+            "dropped"
+        } else {
+            "kept, flagged in fit_status"
+        },
+        fits,
+        seconds,
+        fits as f64 / seconds.max(1e-9)
+    );
+    Ok(())
+}
+
+/// True for a TIFF (by magic number; a missing file is an error).
+fn is_tiff(path: &Path) -> anyhow::Result<bool> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let mut magic = [0u8; 4];
+    let n = f.read(&mut magic)?;
+    Ok(n == 4
+        && (magic == *b"II*\0" || magic == *b"MM\0*" || magic == *b"II+\0" || magic == *b"MM\0+"))
+}
+
+/// Reads the blink records of a packet stream, printing what the decoder
+/// lost; also returns the stream-start record when present.
+pub fn read_stream(path: &Path) -> anyhow::Result<(Option<StreamStart>, Vec<BlinkRecord>)> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let decoded = smartagg_model::packet::decode_all(&bytes);
+    eprintln!("{}: {}", path.display(), decoded.stats);
+    let mut start = None;
+    let mut rois = Vec::new();
+    for p in decoded.packets {
+        match p.record {
+            // The first stream start describes the stream.
+            Record::Start(s) if start.is_none() => start = Some(s),
+            Record::Blink(b) => rois.push(b),
+            _ => {}
+        }
+    }
+    if rois.is_empty() && decoded.stats.packets_ok == 0 {
+        bail!(
+            "{} holds no packets: it is neither a blink-ROI packet stream nor a TIFF",
+            path.display()
+        );
+    }
+    Ok((start, rois))
+}
+
+/// Sensor-sized SPAD maps from a calibration: dark counts per plane, PRNU,
+/// hot pixels.
+struct SpadMaps {
+    width: usize,
+    height: usize,
+    dark_per_plane: Vec<f64>,
+    gain: Option<Vec<f64>>,
+    hot: Vec<bool>,
+}
+
+fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
+    let (start, rois) = read_stream(&args.input)?;
+    let est = args.estimator.estimator();
+    let maps = match &args.calibration {
+        None => None,
+        Some(dir) => match AnyCalibration::load(dir)
+            .with_context(|| format!("loading calibration {}", dir.display()))?
+        {
+            AnyCalibration::Spad(c) => {
+                let tau = start
+                    .as_ref()
+                    .map(|st| st.plane_period_ns as f64 * 1e-9)
+                    .unwrap_or(c.tau_s);
+                Some(SpadMaps {
+                    width: c.width as usize,
+                    height: c.height as usize,
+                    dark_per_plane: c.dcr_hz.iter().map(|r| r * tau).collect(),
+                    gain: c.prnu.clone(),
+                    hot: c.flags.iter().map(|f| f & flags::HOT != 0).collect(),
+                })
+            }
+            AnyCalibration::Frame(_) => bail!(
+                "{} is a frame-camera calibration; blink-ROI packets need a SPAD calibration",
+                dir.display()
+            ),
+        },
+    };
+    if let (Some(st), Some(m)) = (&start, &maps) {
+        if (st.width as usize, st.height as usize) != (m.width, m.height) {
+            bail!(
+                "the calibration is {}x{} pixels but the stream's sensor is {}x{}",
+                m.width,
+                m.height,
+                st.width,
+                st.height
+            );
+        }
+    }
+    let sensor = start
+        .as_ref()
+        .map(|st| (st.width as usize, st.height as usize));
+    if sensor.is_none() {
+        eprintln!("warning: no stream-start record: pixels off the right or bottom sensor edge cannot be told apart");
+    }
+    let masked = rois.iter().filter(|r| r.has(rflags::MASKED)).count();
+    if masked > 0 && maps.is_none() {
+        eprintln!(
+            "warning: {masked} ROIs contain pixels masked by the pipeline (they read 0); give --calibration to leave them out of the fit"
+        );
+    }
+    let hot_mode = match args.hot_pixels {
+        HotArg::Ignore => HotPixelMode::Ignore,
+        HotArg::Interpolate => HotPixelMode::Interpolate,
+    };
+    let rows: Vec<Localization> = rois
+        .par_iter()
+        .enumerate()
+        .map(|(i, rec)| fit_record(rec, i as u64 + 1, est, s, sensor, maps.as_ref(), hot_mode))
+        .collect();
+    if let Some(path) = &args.export_tiff {
+        export_tiff(path, &rois, args.export_layout, sensor)?;
+    }
+    let n = rows.len();
+    Ok((
+        LocTable {
+            extra_columns: vec![
+                "t_start [plane]".into(),
+                "t_end [plane]".into(),
+                "planes".into(),
+                "flags".into(),
+            ],
+            merged: false,
+            rows,
+        },
+        n,
+    ))
+}
+
+/// Fits one blink record.
+fn fit_record(
+    rec: &BlinkRecord,
+    frame: u64,
+    est: Estimator,
+    s: &Setup,
+    sensor: Option<(usize, usize)>,
+    maps: Option<&SpadMaps>,
+    hot_mode: HotPixelMode,
+) -> Localization {
+    let side = rec.roi_size as usize;
+    let (x0, y0) = (rec.roi_x0(), rec.roi_y0());
+    let extra = vec![
+        rec.t_s as f64,
+        rec.t_e as f64,
+        rec.planes_summed as f64,
+        rec.flags as f64,
+    ];
+    let bad_shape =
+        side == 0 || side > smartagg_localize::psf::MAX_SIDE || rec.counts.len() != side * side;
+    if bad_shape {
+        let mut l = Localization::from_fit(
+            &smartagg_localize::Fit::failed(side.max(1), s.sigma_px, FitStatus::InconsistentCounts),
+            x0 as f64,
+            y0 as f64,
+            s.pixel_nm,
+            frame,
+        );
+        l.extra = extra;
+        return l;
+    }
+    // Per-ROI maps: pixels off the sensor ignored; calibration maps cut out.
+    let mut pm = PixelMaps::uniform(side);
+    let mut hot = vec![false; side * side];
+    let planes = rec.planes_summed as f64;
+    for j in 0..side {
+        for i in 0..side {
+            let k = j * side + i;
+            let (x, y) = (x0 + i as i32, y0 + j as i32);
+            let off =
+                x < 0 || y < 0 || sensor.is_some_and(|(w, h)| x as usize >= w || y as usize >= h);
+            if off {
+                pm.ignore[k] = true;
+                continue;
+            }
+            if let Some(m) = maps {
+                let (xu, yu) = (x as usize, y as usize);
+                if xu < m.width && yu < m.height {
+                    let q = yu * m.width + xu;
+                    pm.dark[k] = m.dark_per_plane[q];
+                    if let Some(g) = &m.gain {
+                        // A dead pixel (response 0) is left out rather than
+                        // given an impossible gain.
+                        if g[q] > 0.0 {
+                            pm.gain[k] = g[q];
+                        } else {
+                            pm.ignore[k] = true;
+                        }
+                    }
+                    hot[k] = m.hot[q];
+                }
+            }
+        }
+    }
+    let mut data: Vec<f64> = rec.counts.iter().map(|&c| c as f64).collect();
+    if maps.is_some() {
+        // Shapes agree by construction.
+        let _ = smartagg_localize::roi::apply_hot_pixels(&mut data, &hot, hot_mode, &mut pm);
+    }
+    let fit = if est == Estimator::SpadMle {
+        let counts: Vec<u32> = if maps.is_some() && hot_mode == HotPixelMode::Interpolate {
+            data.iter().map(|&v| v.round().max(0.0) as u32).collect()
+        } else {
+            rec.counts.clone()
+        };
+        let (n_on, n_off) = smartagg_localize::spad::on_off_split(rec);
+        let roi = SpadRoi {
+            side,
+            counts: &counts,
+            n_on,
+            n_off,
+            maps: Some(&pm),
+        };
+        fit_binomial(&roi, &s.opts)
+    } else {
+        // Frame estimators see totals: dark counts over all planes summed.
+        for d in pm.dark.iter_mut() {
+            *d *= planes;
+        }
+        let opts = FitOptions {
+            noise: NoiseModel::Poisson,
+            ..s.opts
+        };
+        fit_roi(
+            est,
+            &RoiView {
+                side,
+                data: &data,
+                maps: Some(&pm),
+            },
+            &opts,
+        )
+    };
+    let mut l = Localization::from_fit(&fit, x0 as f64, y0 as f64, s.pixel_nm, frame);
+    l.extra = extra;
+    l
+}
+
+fn export_tiff(
+    path: &Path,
+    rois: &[BlinkRecord],
+    layout: LayoutArg,
+    sensor: Option<(usize, usize)>,
+) -> anyhow::Result<()> {
+    let pages: Vec<RoiPage> = rois
+        .iter()
+        .map(|r| RoiPage {
+            x0: r.roi_x0(),
+            y0: r.roi_y0(),
+            side: r.roi_size as usize,
+            counts: &r.counts,
+        })
+        .collect();
+    let layout = match layout {
+        LayoutArg::Compact => RoiLayout::Compact,
+        LayoutArg::Sensor => {
+            let Some((width, height)) = sensor else {
+                bail!("--export-layout sensor needs the stream-start record (sensor size), which this stream lacks");
+            };
+            RoiLayout::Sensor { width, height }
+        }
+    };
+    let (w, h, data) = tiffio::roi_pages(&pages, layout);
+    let out = tiffio::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let bits16 = tiffio::write_stack(out, w, h, &data)
+        .with_context(|| format!("writing {}", path.display()))?;
+    if layout == RoiLayout::Compact {
+        let origins = PathBuf::from(format!("{}.origins.csv", path.display()));
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&origins)?);
+        writeln!(
+            f,
+            "\"page\",\"x0 [px]\",\"y0 [px]\",\"t_start [plane]\",\"t_end [plane]\",\"planes\""
+        )?;
+        for (i, r) in rois.iter().enumerate() {
+            writeln!(
+                f,
+                "{},{},{},{},{},{}",
+                i + 1,
+                r.roi_x0(),
+                r.roi_y0(),
+                r.t_s,
+                r.t_e,
+                r.planes_summed
+            )?;
+        }
+        f.flush()?;
+        eprintln!(
+            "{} ROIs written to {} ({}x{}, {}); page origins in {}",
+            rois.len(),
+            path.display(),
+            w,
+            h,
+            if bits16 { "16-bit" } else { "32-bit float" },
+            origins.display()
+        );
+    } else {
+        eprintln!(
+            "{} sensor-sized pages written to {}",
+            rois.len(),
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
+    let est = args.estimator.estimator();
+    if args.export_tiff.is_some() {
+        bail!("--export-tiff applies to blink-ROI packet input");
+    }
+    // ADU conversion: options, else the preset, else identity.
+    let (p_off, p_epa, p_gain, p_read) = match s.preset.as_ref().map(|p| &p.camera) {
+        Some(Camera::Emccd(c)) => (c.offset_adu, c.e_per_adu, c.em_gain, c.read_noise_e),
+        Some(Camera::Scmos(c)) => (c.offset_adu, c.e_per_adu, 1.0, c.read_noise_e),
+        _ => (0.0, 1.0, 1.0, 0.0),
+    };
+    let conversion = Conversion {
+        offset_adu: args.offset_adu.unwrap_or(p_off),
+        e_per_adu: args.e_per_adu.unwrap_or(p_epa),
+        em_gain: args.em_gain.unwrap_or(p_gain),
+    };
+    conversion.validate()?;
+    let read_noise = args.read_noise_e.unwrap_or(p_read);
+    let calibration = match &args.calibration {
+        None => None,
+        Some(dir) => match AnyCalibration::load(dir)
+            .with_context(|| format!("loading calibration {}", dir.display()))?
+        {
+            AnyCalibration::Frame(f) => Some(f),
+            AnyCalibration::Spad(_) => bail!(
+                "{} is a SPAD calibration; frames need an EMCCD or sCMOS calibration",
+                dir.display()
+            ),
+        },
+    };
+    let roi = args.roi.unwrap_or_else(|| {
+        let r = 2 * (3.0 * s.sigma_px).ceil() as usize + 1;
+        r.clamp(7, 21)
+    });
+    let stack = tiffio::open_stack(&args.input)?;
+    let mut rows = Vec::new();
+    let mut frames = 0u64;
+    let mut candidates = 0usize;
+    let mut pipeline: Option<FramePipeline> = None;
+    // Frames are read one at a time and fitted in parallel batches.
+    let mut batch = Vec::new();
+    let flush = |batch: &mut Vec<(u64, smartagg_localize::tiffio::Frame)>,
+                 p: &FramePipeline,
+                 rows: &mut Vec<Localization>,
+                 candidates: &mut usize|
+     -> anyhow::Result<()> {
+        let results: Vec<_> = batch
+            .par_iter()
+            .map(|(no, f)| localize_frame(p, &f.data, f.width, f.height, *no))
+            .collect();
+        for r in results {
+            let r = r?;
+            *candidates += r.candidates;
+            rows.extend(r.localizations);
+        }
+        batch.clear();
+        Ok(())
+    };
+    for frame in stack {
+        let mut frame = frame?;
+        frames += 1;
+        if pipeline.is_none() {
+            pipeline = Some(frame_pipeline(
+                args,
+                s,
+                est,
+                conversion,
+                read_noise,
+                roi,
+                calibration.as_ref(),
+                &frame,
+            )?);
+        }
+        let p = pipeline.as_ref().expect("set above");
+        if let Some(c) = &calibration {
+            if (c.width as usize, c.height as usize) != (frame.width, frame.height) {
+                bail!(
+                    "the calibration is {}x{} pixels but the frames are {}x{}",
+                    c.width,
+                    c.height,
+                    frame.width,
+                    frame.height
+                );
+            }
+            // Per-pixel conversion: (ADU − offset) / (ADU per electron).
+            for (k, v) in frame.data.iter_mut().enumerate() {
+                let gain = c
+                    .gain_adu_per_e
+                    .as_ref()
+                    .map_or(1.0 / (conversion.e_per_adu / conversion.em_gain), |g| g[k]);
+                *v = (*v - c.offset_adu[k]) / gain.max(1e-12);
+            }
+        }
+        batch.push((frames, frame));
+        if batch.len() >= 64 {
+            flush(&mut batch, p, &mut rows, &mut candidates)?;
+        }
+    }
+    if let Some(p) = &pipeline {
+        flush(&mut batch, p, &mut rows, &mut candidates)?;
+    } else {
+        bail!("{} holds no frames", args.input.display());
+    }
+    let fits = rows.len();
+    eprintln!("{frames} frames, {candidates} candidates above threshold");
+    let mut table = LocTable {
+        extra_columns: vec![],
+        merged: false,
+        rows,
+    };
+    if let Some(d) = args.merge_nm {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--merge-nm must be a positive distance in nm, got {d}");
+        }
+        let (merged, st) = merge_consecutive(&table.rows, d, args.merge_gap);
+        eprintln!(
+            "merging within {d} nm over consecutive frames: {} → {} localisations ({} tracks of two or more; {} failed fits not merged)",
+            st.input, st.output, st.merged_tracks, st.passed_failed
+        );
+        table.rows = merged;
+        table.merged = true;
+    }
+    Ok((table, fits))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn frame_pipeline(
+    args: &Args,
+    s: &Setup,
+    est: Estimator,
+    conversion: Conversion,
+    read_noise: f64,
+    roi: usize,
+    calibration: Option<&crate::calibration::FrameCalibration>,
+    first: &smartagg_localize::tiffio::Frame,
+) -> anyhow::Result<FramePipeline> {
+    let n = first.width * first.height;
+    let scmos = s.opts.noise == NoiseModel::Scmos;
+    let read_var = if scmos {
+        Some(match calibration.and_then(|c| c.read_noise_e.as_ref()) {
+            Some(m) => m.iter().map(|r| r * r).collect(),
+            None => vec![read_noise * read_noise; n],
+        })
+    } else {
+        None
+    };
+    let hot = calibration.map(|c| {
+        let mode = match args.hot_pixels {
+            HotArg::Ignore => HotPixelMode::Ignore,
+            HotArg::Interpolate => HotPixelMode::Interpolate,
+        };
+        (c.flags.iter().map(|f| f & flags::HOT != 0).collect(), mode)
+    });
+    let p = FramePipeline {
+        // With a calibration the host converts per pixel.
+        conversion: if calibration.is_some() {
+            Conversion::IDENTITY
+        } else {
+            conversion
+        },
+        roi_side: roi,
+        threshold_factor: args.threshold,
+        estimator: est,
+        fit: s.opts,
+        pixel_nm: s.pixel_nm,
+        read_var,
+        hot,
+        spad_planes: args.planes,
+    };
+    p.validate(first.width, first.height)?;
+    Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use smartagg_model::packet::Encoder;
+
+    fn record(i: u16, x: u16, y: u16, counts: Vec<u32>) -> BlinkRecord {
+        BlinkRecord {
+            slot: 0,
+            flags: 0,
+            anchor_x: x,
+            anchor_y: y,
+            t_cross: 1000 + i as u64 * 10,
+            t_drop: 1500 + i as u64 * 10,
+            t_s: 946 + i as i64 * 10,
+            t_e: 1446 + i as i64 * 10,
+            planes_summed: 609,
+            roi_size: 9,
+            counts,
+        }
+    }
+
+    fn start() -> StreamStart {
+        StreamStart {
+            width: 64,
+            height: 48,
+            n_window: 108,
+            threshold_int: 100,
+            l_min: 1,
+            l_max: 10_000,
+            r_assoc: 1,
+            slots: 8,
+            roi_size: 9,
+            kernel_shift: 4,
+            kernel: vec![1, 4, 6, 4, 1],
+            plane_period_ns: 100_000,
+            masked_pixels: 0,
+        }
+    }
+
+    /// A blink ROI centred at (4.5 + dx, 4.5) in ROI pixels, from the
+    /// expected image (no noise), in counts.
+    fn blink(dx: f64) -> Vec<u32> {
+        let em = smartagg_localize::crlb::Emitter {
+            x: 4.5 + dx,
+            y: 4.5,
+            sigma: 1.5,
+            photons: 2000.0,
+            background: 7.0,
+        };
+        smartagg_localize::synth::expected_roi(9, &em, None)
+            .into_iter()
+            .map(|v| v.round() as u32)
+            .collect()
+    }
+
+    fn args(input: &Path, out: &Path) -> Args {
+        Args {
+            input: input.to_path_buf(),
+            out: out.to_path_buf(),
+            estimator: EstimatorArg::SpadMle,
+            pixel_nm: Some(50.0),
+            preset: None,
+            objective: 150,
+            sigma: Some(1.5),
+            fixed_sigma: false,
+            noise: None,
+            calibration: None,
+            hot_pixels: HotArg::Ignore,
+            drop_failed: false,
+            threads: None,
+            offset_adu: None,
+            e_per_adu: None,
+            em_gain: None,
+            read_noise_e: None,
+            roi: None,
+            threshold: 1.5,
+            planes: None,
+            merge_nm: None,
+            merge_gap: 0,
+            export_tiff: None,
+            export_layout: LayoutArg::Compact,
+        }
+    }
+
+    #[test]
+    fn packet_stream_to_table_and_tiff() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("blinks.rois");
+        let mut enc = Encoder::new();
+        let mut bytes = Vec::new();
+        enc.push(&Record::Start(start()), &mut bytes).unwrap();
+        enc.push(&Record::Blink(record(0, 20, 30, blink(0.3))), &mut bytes)
+            .unwrap();
+        let mut edge = record(1, 2, 10, blink(-0.2));
+        edge.flags = rflags::EDGE;
+        enc.push(&Record::Blink(edge), &mut bytes).unwrap();
+        enc.push(&Record::Blink(record(2, 40, 20, vec![0; 81])), &mut bytes)
+            .unwrap();
+        std::fs::write(&input, &bytes).unwrap();
+
+        let (st, rois) = read_stream(&input).unwrap();
+        assert_eq!(st.unwrap().width, 64);
+        assert_eq!(rois.len(), 3);
+
+        let out = dir.path().join("locs.csv");
+        let mut a = args(&input, &out);
+        a.export_tiff = Some(dir.path().join("rois.tif"));
+        run(a).unwrap();
+        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+            std::fs::File::open(&out).unwrap(),
+        ))
+        .unwrap();
+        assert_eq!(t.rows.len(), 3, "the zero-photon ROI is kept, flagged");
+        let (x, st) = (
+            t.column(&["x [nm]"]).unwrap(),
+            t.column(&["fit_status"]).unwrap(),
+        );
+        // First blink: anchor 20 → ROI origin 16; 16 + 4.5 + 0.3 px at 50 nm.
+        assert!(
+            (t.rows[0][x] - (16.0 + 4.8) * 50.0).abs() < 3.0,
+            "{}",
+            t.rows[0][x]
+        );
+        assert_eq!(t.rows[0][st], 0.0);
+        // Second: origin x = −2, two columns off the sensor ignored.
+        assert!(
+            (t.rows[1][x] - (-2.0 + 4.3) * 50.0).abs() < 5.0,
+            "{}",
+            t.rows[1][x]
+        );
+        assert_eq!(t.rows[2][st], FitStatus::NoSignal.code() as f64);
+        let ts = t.column(&["t_start [plane]"]).unwrap();
+        assert_eq!(t.rows[0][ts], 946.0);
+        // The ROI stack opens as three 9×9 pages.
+        let pages: Vec<_> = tiffio::open_stack(&dir.path().join("rois.tif"))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        assert_eq!(pages.len(), 3);
+        assert_eq!(pages[0].data.len(), 81);
+        assert!(dir.path().join("rois.tif.origins.csv").exists());
+
+        // Dropping failed fits leaves two rows.
+        let mut a = args(&input, &out);
+        a.drop_failed = true;
+        a.estimator = EstimatorArg::Mle;
+        run(a).unwrap();
+        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+            std::fs::File::open(&out).unwrap(),
+        ))
+        .unwrap();
+        assert_eq!(t.rows.len(), 2);
+    }
+
+    #[test]
+    fn bad_inputs_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let junk = dir.path().join("junk.rois");
+        std::fs::write(&junk, b"this is not a packet stream at all").unwrap();
+        let e = run(args(&junk, &dir.path().join("o.csv")))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("neither a blink-ROI packet stream nor a TIFF"),
+            "{e}"
+        );
+        let e = run(args(
+            &dir.path().join("missing.rois"),
+            &dir.path().join("o.csv"),
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("missing.rois"), "{e}");
+        let mut a = args(&junk, &dir.path().join("o.csv"));
+        a.pixel_nm = None;
+        let e = format!("{:#}", run(a).unwrap_err());
+        assert!(e.contains("--pixel-nm"), "{e}");
+    }
+
+    #[test]
+    fn tiff_frames_with_merging() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (32usize, 32usize);
+        // One molecule on in frames 1–3, another in frame 3 only; ADU with
+        // offset 100 and 2 e⁻/ADU.
+        let frames: Vec<Vec<u32>> = (0..4)
+            .map(|f| {
+                let mut em = Vec::new();
+                if f < 3 {
+                    em.push((10.4, 12.6, 3000.0));
+                }
+                if f == 2 {
+                    em.push((22.5, 20.5, 3000.0));
+                }
+                smartagg_localize::synth::expected_frame(w, h, &em, 1.3, 8.0)
+                    .into_iter()
+                    .map(|v| (v / 2.0 + 100.0).round() as u32)
+                    .collect()
+            })
+            .collect();
+        let input = dir.path().join("frames.tif");
+        tiffio::write_stack(tiffio::create(&input).unwrap(), w, h, &frames).unwrap();
+        let out = dir.path().join("f.csv");
+        let mut a = args(&input, &out);
+        a.estimator = EstimatorArg::Mle;
+        a.pixel_nm = Some(100.0);
+        a.sigma = Some(1.3);
+        a.offset_adu = Some(100.0);
+        a.e_per_adu = Some(2.0);
+        a.merge_nm = Some(40.0);
+        run(a).unwrap();
+        let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+            std::fs::File::open(&out).unwrap(),
+        ))
+        .unwrap();
+        let det = t.column(&["detections"]).unwrap();
+        let st = t.column(&["fit_status"]).unwrap();
+        let ok: Vec<_> = t.rows.iter().filter(|r| r[st] == 0.0).collect();
+        assert_eq!(ok.len(), 2, "{:?}", t.rows);
+        assert!(ok.iter().any(|r| r[det] == 3.0));
+        assert!(ok.iter().any(|r| r[det] == 1.0));
+    }
 }

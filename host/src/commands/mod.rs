@@ -2,9 +2,11 @@
 
 pub mod aggregate;
 pub mod bench_aggregate;
+pub mod bench_false_blinks;
 pub mod bench_localize;
 pub mod bench_simulate;
 pub mod calibrate;
+pub mod demo;
 pub mod download;
 pub mod localize;
 pub mod params;

@@ -1,0 +1,1154 @@
+//! Stage 5 — blink tracking in M slots, exactly the rules of
+//! [`smartagg_model::blink_tracker`] (association against the slot states at
+//! the end of the previous plane plus tracks opened earlier in this plane,
+//! lowest free slot, Chebyshev `r_assoc`, 3×3 on/off around the anchor,
+//! single-plane dip bridging, `L_min` confirmation, cut at `L_max`,
+//! completion at `max(t_drop + 1, t_cross + N − 1)`, stream end).
+//!
+//! **Input.** The words of the front half's output (above-threshold bits and
+//! candidate bits of P pixels, word column, row) through a FIFO, in raster
+//! order; the pipeline pushes only the words with an above bit and the last
+//! word of every row, which marks the row's end. Words of flush/drain planes
+//! carry `flush`.
+//!
+//! **Order of work within a plane t** (the model was written so that this
+//! order gives its results):
+//! * every word ORs its above bits into each slot's 3×3 window around the
+//!   anchor (two P-bit lane masks, computed once when the slot opens);
+//! * candidates are associated one per clock in raster order (the lowest
+//!   candidate lane of the word first) against the slots active at the end
+//!   of t−1 or opened earlier in t; a new track opens in the lowest slot free
+//!   at the end of t−1 and not yet taken, or the candidate is dropped;
+//! * at the end of row `min(ay + 1, H − 1)` the slot's 3×3 window has
+//!   streamed and its on/off step is applied (bridge, dip, or end of the
+//!   blink at `t_drop = t − 1`) — in the model this happens first, but no
+//!   association reads what it changes;
+//! * after the last row: cuts, unconfirmed frees and completions (EOP A),
+//!   then one clock per slot in slot order (EOP B: counters, Blink records,
+//!   continuation segments), then the Dropped record and the snapshot of
+//!   the slot states for plane t+1 (EOP C).
+//!
+//! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
+//! (32 bits): confirmation `t_drop − t_cross ≥ L_min` is `age ≥ L_min + 1`
+//! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`, the
+//! completion `t + 1 ≥ t_cross + N` is `age ≥ N − 1`, the pre-roll
+//! `t < t_cross + N` is `age < N`. `t_cross` and `t_drop` are stored (48
+//! bits) only for the record.
+//!
+//! **ROI view (shadow).** For each plane t and slot, the tracker publishes
+//! what the ROI aggregator needs — sum the live plane (the model's
+//! `sums_live`), sum the delayed plane (`sums_preroll`), first plane of the
+//! segment (`fresh`: the counters start from zero), anchor and counter
+//! bank — in a table indexed by the parity of t. A slot's entry for plane t
+//! is final once row `min(ay + 1, H − 1)` is done (or when it opens), before
+//! the aggregator (which follows `plane`/`rows_done`) reads any ROI row of
+//! it; entries of plane t stay untouched while the tracker works on t+1.
+//!
+//! **Records** go to the record queue in the model's order, numbered later
+//! by the packetiser: StreamStart, then per plane the completed segments in
+//! slot order and one Dropped record, and at stream end the finished
+//! segments and StreamEnd. A Blink record carries its counter bank; the slot
+//! takes a fresh bank from the free list. When the queue is full the record
+//! is lost and counted (`rec_lost` of the next record pushed, which becomes
+//! an Overflow record) — never silently; StreamStart and StreamEnd wait.
+//!
+//! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
+//! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
+//! follows the N drain planes (their ends are flush rows) so that the
+//! aggregator completes the pre-rolls from the delay line, emits the
+//! finished segments in slot order and then StreamEnd.
+
+use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
+use crate::stream::lanes;
+use rust_hdl::prelude::*;
+
+/// Kinds of the record descriptors the tracker pushes (see [`crate::packetiser`]).
+pub mod record_kind {
+    /// StreamStart.
+    pub const START: u64 = 0;
+    /// Blink.
+    pub const BLINK: u64 = 1;
+    /// Dropped.
+    pub const DROPPED: u64 = 2;
+    /// StreamEnd.
+    pub const END: u64 = 3;
+}
+
+/// Tracker states.
+#[derive(Copy, Clone, Debug, PartialEq, LogicState)]
+pub enum TrackerState {
+    /// Push the StreamStart record.
+    Start,
+    /// Process the words of a plane.
+    Run,
+    /// End of plane: cuts, unconfirmed frees, completions decided.
+    EopA,
+    /// End of plane: one slot per clock (records, counters, continuations).
+    EopB,
+    /// End of plane: Dropped record, snapshot for the next plane.
+    EopC,
+    /// Stream end: the model's `finish`.
+    Finish,
+    /// Follow the N drain planes.
+    Drain,
+    /// Emit the finished segments, slot order.
+    Emit,
+    /// Push StreamEnd.
+    End,
+    /// Stream over.
+    Done,
+}
+
+/// The M-slot blink tracker. `P`: pixels per word; `NW`: bits of N;
+/// `BW`: bits of a counter-bank index.
+#[derive(LogicBlock)]
+pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: all slots free, plane 0, StreamStart first.
+    pub restart: Signal<In, Bit>,
+    /// N register.
+    pub n_window: Signal<In, Bits<NW>>,
+    /// L_min register (≥ 1).
+    pub l_min: Signal<In, Bits<32>>,
+    /// L_max register (≥ max(L_min, N)).
+    pub l_max: Signal<In, Bits<32>>,
+    /// No real plane after `planes_total` will come.
+    pub stopping: Signal<In, Bit>,
+    /// Number of real planes p of the stream (valid with `stopping`).
+    pub planes_total: Signal<In, Bits<48>>,
+    /// A word is at the head of the input FIFO.
+    pub in_valid: Signal<In, Bit>,
+    /// Its above-threshold bits.
+    pub in_above: Signal<In, Bits<P>>,
+    /// Its candidate bits.
+    pub in_cand: Signal<In, Bits<P>>,
+    /// Its word column.
+    pub in_x: Signal<In, Bits<16>>,
+    /// Its row.
+    pub in_y: Signal<In, Bits<16>>,
+    /// It belongs to a flush or drain plane.
+    pub in_flush: Signal<In, Bit>,
+    /// Pop the head word.
+    pub in_pop: Signal<Out, Bit>,
+    /// Plane t being tracked.
+    pub plane: Signal<Out, Bits<48>>,
+    /// Rows of plane t fully processed (H once the plane's rows are done).
+    pub rows_done: Signal<Out, Bits<16>>,
+    /// StreamEnd has been pushed.
+    pub done: Signal<Out, Bit>,
+    /// ROI view, index `parity·M + slot`: sum the live plane.
+    pub sh_live: Vec<Signal<Out, Bit>>,
+    /// ROI view: sum the delayed plane (pre-roll).
+    pub sh_pre: Vec<Signal<Out, Bit>>,
+    /// ROI view: first plane of the segment (counters start at zero).
+    pub sh_fresh: Vec<Signal<Out, Bit>>,
+    /// ROI view: anchor column.
+    pub sh_ax: Vec<Signal<Out, Bits<16>>>,
+    /// ROI view: anchor row.
+    pub sh_ay: Vec<Signal<Out, Bits<16>>>,
+    /// ROI view: counter bank.
+    pub sh_bank: Vec<Signal<Out, Bits<BW>>>,
+    /// The record queue accepts a push.
+    pub rec_room: Signal<In, Bit>,
+    /// Push a record descriptor.
+    pub rec_push: Signal<Out, Bit>,
+    /// Its kind ([`record_kind`]).
+    pub rec_kind: Signal<Out, Bits<2>>,
+    /// Records lost (queue full) just before this one.
+    pub rec_lost: Signal<Out, Bits<32>>,
+    /// Blink: slot.
+    pub rec_slot: Signal<Out, Bits<8>>,
+    /// Blink: CUT, CONTINUATION, TRUNCATED flag bits.
+    pub rec_flags: Signal<Out, Bits<8>>,
+    /// Blink: anchor column; Dropped: first column.
+    pub rec_ax: Signal<Out, Bits<16>>,
+    /// Blink: anchor row; Dropped: first row.
+    pub rec_ay: Signal<Out, Bits<16>>,
+    /// Blink: t_cross; Dropped: the plane.
+    pub rec_t0: Signal<Out, Bits<48>>,
+    /// Blink: t_drop; Dropped: the count.
+    pub rec_t1: Signal<Out, Bits<48>>,
+    /// Blink: the counter bank holding its ROI.
+    pub rec_bank: Signal<Out, Bits<BW>>,
+    /// Blink: its counts are final once the aggregator has finished this plane.
+    pub rec_tag: Signal<Out, Bits<48>>,
+    /// A free bank is available.
+    pub fb_valid: Signal<In, Bit>,
+    /// The free bank.
+    pub fb_bank: Signal<In, Bits<BW>>,
+    /// Take the free bank.
+    pub fb_pop: Signal<Out, Bit>,
+    /// Blink records emitted (lost ones included), for StreamEnd.
+    pub blinks: Signal<Out, Bits<64>>,
+    /// Tracks that ended unconfirmed.
+    pub unconfirmed: Signal<Out, Bits<64>>,
+    /// Candidates dropped for want of a slot.
+    pub dropped: Signal<Out, Bits<64>>,
+    /// Single-plane dips bridged.
+    pub bridged: Signal<Out, Bits<64>>,
+    /// Segments cut at L_max.
+    pub cuts: Signal<Out, Bits<64>>,
+    /// The free list was empty when a bank was needed (sticky; never expected).
+    pub bank_error: Signal<Out, Bit>,
+    state: DFF<TrackerState>,
+    t: DFF<Bits<48>>,
+    rows: DFF<Bits<16>>,
+    done_mask: DFF<Bits<P>>,
+    walk: DFF<Bits<8>>,
+    lost: DFF<Bits<32>>,
+    drops: DFF<Bits<32>>,
+    drop_x: DFF<Bits<16>>,
+    drop_y: DFF<Bits<16>>,
+    c_blinks: DFF<Bits<64>>,
+    c_unconf: DFF<Bits<64>>,
+    c_dropped: DFF<Bits<64>>,
+    c_bridged: DFF<Bits<64>>,
+    c_cuts: DFF<Bits<64>>,
+    bank_err: DFF<Bit>,
+    // Per slot.
+    busy: Vec<DFF<Bit>>,
+    live: Vec<DFF<Bit>>,
+    dip: Vec<DFF<Bit>>,
+    conf: Vec<DFF<Bit>>,
+    cont: Vec<DFF<Bit>>,
+    cutf: Vec<DFF<Bit>>,
+    trunc: Vec<DFF<Bit>>,
+    aprev: Vec<DFF<Bit>>,
+    fprev: Vec<DFF<Bit>>,
+    opened: Vec<DFF<Bit>>,
+    hit: Vec<DFF<Bit>>,
+    comp: Vec<DFF<Bit>>,
+    ev_bridge: Vec<DFF<Bit>>,
+    ev_unconf: Vec<DFF<Bit>>,
+    ev_cut: Vec<DFF<Bit>>,
+    ax: Vec<DFF<Bits<16>>>,
+    ay: Vec<DFF<Bits<16>>>,
+    wl: Vec<DFF<Bits<16>>>,
+    wh: Vec<DFF<Bits<16>>>,
+    frow: Vec<DFF<Bits<16>>>,
+    ml: Vec<DFF<Bits<P>>>,
+    mh: Vec<DFF<Bits<P>>>,
+    age: Vec<DFF<Bits<32>>>,
+    tc: Vec<DFF<Bits<48>>>,
+    td: Vec<DFF<Bits<48>>>,
+    bank: Vec<DFF<Bits<BW>>>,
+    s_live: Vec<DFF<Bit>>,
+    s_pre: Vec<DFF<Bit>>,
+    s_fresh: Vec<DFF<Bit>>,
+    s_ax: Vec<DFF<Bits<16>>>,
+    s_ay: Vec<DFF<Bits<16>>>,
+    s_bank: Vec<DFF<Bits<BW>>>,
+    // Combinational.
+    rem: Signal<Local, Bits<P>>,
+    low: Signal<Local, Bits<P>>,
+    has_cand: Signal<Local, Bit>,
+    more: Signal<Local, Bit>,
+    lane: Signal<Local, Bits<16>>,
+    cx: Signal<Local, Bits<16>>,
+    cx_lo: Signal<Local, Bits<16>>,
+    cx_hi: Signal<Local, Bits<16>>,
+    cy_lo: Signal<Local, Bits<16>>,
+    cy_hi: Signal<Local, Bits<16>>,
+    lo_col: Signal<Local, Bits<16>>,
+    hi_col: Signal<Local, Bits<16>>,
+    o_wl: Signal<Local, Bits<16>>,
+    o_wh: Signal<Local, Bits<16>>,
+    lo_lane: Signal<Local, Bits<16>>,
+    hi_lane: Signal<Local, Bits<16>>,
+    m_lo: Signal<Local, Bits<P>>,
+    m_hi: Signal<Local, Bits<P>>,
+    o_ml: Signal<Local, Bits<P>>,
+    o_mh: Signal<Local, Bits<P>>,
+    o_frow: Signal<Local, Bits<16>>,
+    y_m1: Signal<Local, Bits<16>>,
+    y_p1: Signal<Local, Bits<16>>,
+    eor: Signal<Local, Bit>,
+    par: Signal<Local, Bit>,
+    par1: Signal<Local, Bit>,
+    t_m1: Signal<Local, Bits<48>>,
+    t_p1: Signal<Local, Bits<48>>,
+    t_ge_n: Signal<Local, Bit>,
+    t1_ge_n: Signal<Local, Bit>,
+    n32: Signal<Local, Bits<32>>,
+    n_m1: Signal<Local, Bits<32>>,
+    lmin_p1: Signal<Local, Bits<32>>,
+    lmax_m1: Signal<Local, Bits<32>>,
+    p_plus_n: Signal<Local, Bits<48>>,
+    fin_cond: Signal<Local, Bit>,
+    go: Signal<Local, Bit>,
+    do_open: Signal<Local, Bit>,
+    do_drop: Signal<Local, Bit>,
+    do_fin: Signal<Local, Bit>,
+    can_push: Signal<Local, Bit>,
+    near: Vec<Signal<Local, Bit>>,
+    absorb: Vec<Signal<Local, Bit>>,
+    freeable: Vec<Signal<Local, Bit>>,
+    abs_any: Vec<Signal<Local, Bit>>,
+    ftaken: Vec<Signal<Local, Bit>>,
+    fsel: Vec<Signal<Local, Bit>>,
+    absorbed: Signal<Local, Bit>,
+    any_free: Signal<Local, Bit>,
+    row_ok: Vec<Signal<Local, Bit>>,
+    hw: Vec<Signal<Local, Bit>>,
+    on: Vec<Signal<Local, Bit>>,
+    agen: Vec<Signal<Local, Bits<32>>>,
+    sel: Vec<Signal<Local, Bit>>,
+    fconf: Vec<Signal<Local, Bit>>,
+    f_cut: Vec<Signal<Local, Bits<8>>>,
+    f_cont: Vec<Signal<Local, Bits<8>>>,
+    f_trunc: Vec<Signal<Local, Bits<8>>>,
+    // Constants.
+    slot_id: Vec<Constant<Bits<8>>>,
+    bank_init: Vec<Constant<Bits<BW>>>,
+    lane_id: Vec<Constant<Bits<16>>>,
+    all_lanes: Constant<Bits<P>>,
+    log2p: Constant<Bits<8>>,
+    pm1: Constant<Bits<16>>,
+    r_assoc: Constant<Bits<16>>,
+    last_col: Constant<Bits<16>>,
+    last_row: Constant<Bits<16>>,
+    last_word: Constant<Bits<16>>,
+    last_slot: Constant<Bits<8>>,
+    _m: usize,
+}
+
+impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
+    /// The tracker of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        cfg.validate()?;
+        let f = &cfg.front;
+        GatewareConfig::check_width("BlinkTracker", "P", P, f.pixels_per_clock)?;
+        GatewareConfig::check_width("BlinkTracker", "NW", NW, f.count_bits())?;
+        GatewareConfig::check_width("BlinkTracker", "BW", BW, cfg.bank_bits())?;
+        let m = cfg.slots;
+        let c16 = |v: u64| Constant::new(v.to_bits());
+        Ok(BlinkTracker {
+            clock: Default::default(),
+            restart: Default::default(),
+            n_window: Default::default(),
+            l_min: Default::default(),
+            l_max: Default::default(),
+            stopping: Default::default(),
+            planes_total: Default::default(),
+            in_valid: Default::default(),
+            in_above: Default::default(),
+            in_cand: Default::default(),
+            in_x: Default::default(),
+            in_y: Default::default(),
+            in_flush: Default::default(),
+            in_pop: Default::default(),
+            plane: Default::default(),
+            rows_done: Default::default(),
+            done: Default::default(),
+            sh_live: lanes(2 * m),
+            sh_pre: lanes(2 * m),
+            sh_fresh: lanes(2 * m),
+            sh_ax: lanes(2 * m),
+            sh_ay: lanes(2 * m),
+            sh_bank: lanes(2 * m),
+            rec_room: Default::default(),
+            rec_push: Default::default(),
+            rec_kind: Default::default(),
+            rec_lost: Default::default(),
+            rec_slot: Default::default(),
+            rec_flags: Default::default(),
+            rec_ax: Default::default(),
+            rec_ay: Default::default(),
+            rec_t0: Default::default(),
+            rec_t1: Default::default(),
+            rec_bank: Default::default(),
+            rec_tag: Default::default(),
+            fb_valid: Default::default(),
+            fb_bank: Default::default(),
+            fb_pop: Default::default(),
+            blinks: Default::default(),
+            unconfirmed: Default::default(),
+            dropped: Default::default(),
+            bridged: Default::default(),
+            cuts: Default::default(),
+            bank_error: Default::default(),
+            state: Default::default(),
+            t: Default::default(),
+            rows: Default::default(),
+            done_mask: Default::default(),
+            walk: Default::default(),
+            lost: Default::default(),
+            drops: Default::default(),
+            drop_x: Default::default(),
+            drop_y: Default::default(),
+            c_blinks: Default::default(),
+            c_unconf: Default::default(),
+            c_dropped: Default::default(),
+            c_bridged: Default::default(),
+            c_cuts: Default::default(),
+            bank_err: Default::default(),
+            busy: lanes(m),
+            live: lanes(m),
+            dip: lanes(m),
+            conf: lanes(m),
+            cont: lanes(m),
+            cutf: lanes(m),
+            trunc: lanes(m),
+            aprev: lanes(m),
+            fprev: lanes(m),
+            opened: lanes(m),
+            hit: lanes(m),
+            comp: lanes(m),
+            ev_bridge: lanes(m),
+            ev_unconf: lanes(m),
+            ev_cut: lanes(m),
+            ax: lanes(m),
+            ay: lanes(m),
+            wl: lanes(m),
+            wh: lanes(m),
+            frow: lanes(m),
+            ml: lanes(m),
+            mh: lanes(m),
+            age: lanes(m),
+            tc: lanes(m),
+            td: lanes(m),
+            bank: lanes(m),
+            s_live: lanes(2 * m),
+            s_pre: lanes(2 * m),
+            s_fresh: lanes(2 * m),
+            s_ax: lanes(2 * m),
+            s_ay: lanes(2 * m),
+            s_bank: lanes(2 * m),
+            rem: Default::default(),
+            low: Default::default(),
+            has_cand: Default::default(),
+            more: Default::default(),
+            lane: Default::default(),
+            cx: Default::default(),
+            cx_lo: Default::default(),
+            cx_hi: Default::default(),
+            cy_lo: Default::default(),
+            cy_hi: Default::default(),
+            lo_col: Default::default(),
+            hi_col: Default::default(),
+            o_wl: Default::default(),
+            o_wh: Default::default(),
+            lo_lane: Default::default(),
+            hi_lane: Default::default(),
+            m_lo: Default::default(),
+            m_hi: Default::default(),
+            o_ml: Default::default(),
+            o_mh: Default::default(),
+            o_frow: Default::default(),
+            y_m1: Default::default(),
+            y_p1: Default::default(),
+            eor: Default::default(),
+            par: Default::default(),
+            par1: Default::default(),
+            t_m1: Default::default(),
+            t_p1: Default::default(),
+            t_ge_n: Default::default(),
+            t1_ge_n: Default::default(),
+            n32: Default::default(),
+            n_m1: Default::default(),
+            lmin_p1: Default::default(),
+            lmax_m1: Default::default(),
+            p_plus_n: Default::default(),
+            fin_cond: Default::default(),
+            go: Default::default(),
+            do_open: Default::default(),
+            do_drop: Default::default(),
+            do_fin: Default::default(),
+            can_push: Default::default(),
+            near: lanes(m),
+            absorb: lanes(m),
+            freeable: lanes(m),
+            abs_any: lanes(m + 1),
+            ftaken: lanes(m + 1),
+            fsel: lanes(m),
+            absorbed: Default::default(),
+            any_free: Default::default(),
+            row_ok: lanes(m),
+            hw: lanes(m),
+            on: lanes(m),
+            agen: lanes(m),
+            sel: lanes(m),
+            fconf: lanes(m),
+            f_cut: lanes(m),
+            f_cont: lanes(m),
+            f_trunc: lanes(m),
+            slot_id: (0..m)
+                .map(|i| Constant::new((i as u64).to_bits()))
+                .collect(),
+            bank_init: (0..m)
+                .map(|i| Constant::new((i as u64).to_bits()))
+                .collect(),
+            lane_id: (0..P).map(|j| c16(j as u64)).collect(),
+            all_lanes: Constant::new(Bits::<P>::mask()),
+            log2p: Constant::new((cfg.log2_p() as u64).to_bits()),
+            pm1: c16(P as u64 - 1),
+            r_assoc: c16(cfg.r_assoc as u64),
+            last_col: c16(f.width as u64 - 1),
+            last_row: c16(f.height as u64 - 1),
+            last_word: c16(f.words_per_row() as u64 - 1),
+            last_slot: Constant::new((m as u64 - 1).to_bits()),
+            _m: m,
+        })
+    }
+}
+
+// Match guards do not translate to Verilog, so the ifs stay inside the arms.
+#[allow(clippy::collapsible_match)]
+impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P, NW, BW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(
+            self, clock, state, t, rows, done_mask, walk, lost, drops, drop_x, drop_y, c_blinks,
+            c_unconf, c_dropped, c_bridged, c_cuts, bank_err
+        );
+        for i in 0..self._m {
+            self.busy[i].clock.next = self.clock.val();
+            self.live[i].clock.next = self.clock.val();
+            self.dip[i].clock.next = self.clock.val();
+            self.conf[i].clock.next = self.clock.val();
+            self.cont[i].clock.next = self.clock.val();
+            self.cutf[i].clock.next = self.clock.val();
+            self.trunc[i].clock.next = self.clock.val();
+            self.aprev[i].clock.next = self.clock.val();
+            self.fprev[i].clock.next = self.clock.val();
+            self.opened[i].clock.next = self.clock.val();
+            self.hit[i].clock.next = self.clock.val();
+            self.comp[i].clock.next = self.clock.val();
+            self.ev_bridge[i].clock.next = self.clock.val();
+            self.ev_unconf[i].clock.next = self.clock.val();
+            self.ev_cut[i].clock.next = self.clock.val();
+            self.ax[i].clock.next = self.clock.val();
+            self.ay[i].clock.next = self.clock.val();
+            self.wl[i].clock.next = self.clock.val();
+            self.wh[i].clock.next = self.clock.val();
+            self.frow[i].clock.next = self.clock.val();
+            self.ml[i].clock.next = self.clock.val();
+            self.mh[i].clock.next = self.clock.val();
+            self.age[i].clock.next = self.clock.val();
+            self.tc[i].clock.next = self.clock.val();
+            self.td[i].clock.next = self.clock.val();
+            self.bank[i].clock.next = self.clock.val();
+            self.busy[i].d.next = self.busy[i].q.val();
+            self.live[i].d.next = self.live[i].q.val();
+            self.dip[i].d.next = self.dip[i].q.val();
+            self.conf[i].d.next = self.conf[i].q.val();
+            self.cont[i].d.next = self.cont[i].q.val();
+            self.cutf[i].d.next = self.cutf[i].q.val();
+            self.trunc[i].d.next = self.trunc[i].q.val();
+            self.aprev[i].d.next = self.aprev[i].q.val();
+            self.fprev[i].d.next = self.fprev[i].q.val();
+            self.opened[i].d.next = self.opened[i].q.val();
+            self.hit[i].d.next = self.hit[i].q.val();
+            self.comp[i].d.next = self.comp[i].q.val();
+            self.ev_bridge[i].d.next = self.ev_bridge[i].q.val();
+            self.ev_unconf[i].d.next = self.ev_unconf[i].q.val();
+            self.ev_cut[i].d.next = self.ev_cut[i].q.val();
+            self.ax[i].d.next = self.ax[i].q.val();
+            self.ay[i].d.next = self.ay[i].q.val();
+            self.wl[i].d.next = self.wl[i].q.val();
+            self.wh[i].d.next = self.wh[i].q.val();
+            self.frow[i].d.next = self.frow[i].q.val();
+            self.ml[i].d.next = self.ml[i].q.val();
+            self.mh[i].d.next = self.mh[i].q.val();
+            self.age[i].d.next = self.age[i].q.val();
+            self.tc[i].d.next = self.tc[i].q.val();
+            self.td[i].d.next = self.td[i].q.val();
+            self.bank[i].d.next = self.bank[i].q.val();
+        }
+        for q in 0..(2 * self._m) {
+            self.s_live[q].clock.next = self.clock.val();
+            self.s_pre[q].clock.next = self.clock.val();
+            self.s_fresh[q].clock.next = self.clock.val();
+            self.s_ax[q].clock.next = self.clock.val();
+            self.s_ay[q].clock.next = self.clock.val();
+            self.s_bank[q].clock.next = self.clock.val();
+            self.s_live[q].d.next = self.s_live[q].q.val();
+            self.s_pre[q].d.next = self.s_pre[q].q.val();
+            self.s_fresh[q].d.next = self.s_fresh[q].q.val();
+            self.s_ax[q].d.next = self.s_ax[q].q.val();
+            self.s_ay[q].d.next = self.s_ay[q].q.val();
+            self.s_bank[q].d.next = self.s_bank[q].q.val();
+            self.sh_live[q].next = self.s_live[q].q.val();
+            self.sh_pre[q].next = self.s_pre[q].q.val();
+            self.sh_fresh[q].next = self.s_fresh[q].q.val();
+            self.sh_ax[q].next = self.s_ax[q].q.val();
+            self.sh_ay[q].next = self.s_ay[q].q.val();
+            self.sh_bank[q].next = self.s_bank[q].q.val();
+        }
+
+        // ---- Shared values.
+        self.par.next = self.t.q.val().get_bit(0);
+        self.par1.next = !self.t.q.val().get_bit(0);
+        self.t_m1.next = self.t.q.val() - 1;
+        self.t_p1.next = self.t.q.val() + 1;
+        self.n32.next = bit_cast::<32, NW>(self.n_window.val());
+        self.n_m1.next = self.n32.val() - 1;
+        self.lmin_p1.next = self.l_min.val() + 1;
+        self.lmax_m1.next = self.l_max.val() - 1;
+        self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
+        self.t1_ge_n.next = self.t_p1.val() >= bit_cast::<48, NW>(self.n_window.val());
+        self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
+        self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
+        self.can_push.next = self.rec_room.val() & self.fb_valid.val();
+
+        // ---- The head word: candidate lanes, lowest first.
+        self.rem.next = self.in_cand.val() & !self.done_mask.q.val();
+        self.low.next = self.rem.val() & (!self.rem.val() + 1);
+        self.has_cand.next = self.rem.val().any();
+        self.more.next = (self.rem.val() & (self.rem.val() - 1)).any();
+        self.lane.next = 0.into();
+        for j in 0..P {
+            if self.low.val().get_bit(j) {
+                self.lane.next = self.lane_id[j].val();
+            }
+        }
+        self.cx.next = (self.in_x.val() << self.log2p.val()) | self.lane.val();
+        self.eor.next = self.in_x.val() == self.last_word.val();
+        self.go.next = (self.state.q.val() == TrackerState::Run)
+            & !self.fin_cond.val()
+            & self.in_valid.val()
+            & !self.in_flush.val();
+
+        // Association window of the candidate: [c − r, c + r] in x and y.
+        self.cx_lo.next = 0.into();
+        if self.cx.val() >= self.r_assoc.val() {
+            self.cx_lo.next = self.cx.val() - self.r_assoc.val();
+        }
+        self.cx_hi.next = self.cx.val() + self.r_assoc.val();
+        self.cy_lo.next = 0.into();
+        if self.in_y.val() >= self.r_assoc.val() {
+            self.cy_lo.next = self.in_y.val() - self.r_assoc.val();
+        }
+        self.cy_hi.next = self.in_y.val() + self.r_assoc.val();
+
+        // The 3x3 window of a new anchor: columns [cx − 1, cx + 1] clipped, as
+        // lane masks of the (at most two) words that hold them.
+        self.lo_col.next = 0.into();
+        if self.cx.val() != 0 {
+            self.lo_col.next = self.cx.val() - 1;
+        }
+        self.hi_col.next = self.cx.val() + 1;
+        if self.cx.val() == self.last_col.val() {
+            self.hi_col.next = self.cx.val();
+        }
+        self.o_wl.next = self.lo_col.val() >> self.log2p.val();
+        self.o_wh.next = self.hi_col.val() >> self.log2p.val();
+        self.lo_lane.next = self.lo_col.val() & self.pm1.val();
+        self.hi_lane.next = self.hi_col.val() & self.pm1.val();
+        self.m_lo.next = self.all_lanes.val() << self.lo_lane.val();
+        self.m_hi.next = self.all_lanes.val() >> (self.pm1.val() - self.hi_lane.val());
+        self.o_ml.next = self.m_lo.val();
+        self.o_mh.next = self.m_hi.val();
+        if self.o_wl.val() == self.o_wh.val() {
+            self.o_ml.next = self.m_lo.val() & self.m_hi.val();
+            self.o_mh.next = self.m_lo.val() & self.m_hi.val();
+        }
+        self.o_frow.next = self.in_y.val() + 1;
+        if self.in_y.val() == self.last_row.val() {
+            self.o_frow.next = self.in_y.val();
+        }
+
+        // Rows y − 1 .. y + 1 see the word.
+        self.y_m1.next = 0.into();
+        if self.in_y.val() != 0 {
+            self.y_m1.next = self.in_y.val() - 1;
+        }
+        self.y_p1.next = self.in_y.val() + 1;
+
+        // ---- Per slot: association, window hits, chains.
+        self.abs_any[0].next = false;
+        self.ftaken[0].next = false;
+        for i in 0..self._m {
+            self.near[i].next = (self.ax[i].q.val() >= self.cx_lo.val())
+                & (self.ax[i].q.val() <= self.cx_hi.val())
+                & (self.ay[i].q.val() >= self.cy_lo.val())
+                & (self.ay[i].q.val() <= self.cy_hi.val());
+            self.absorb[i].next = self.busy[i].q.val()
+                & (self.aprev[i].q.val() | self.opened[i].q.val())
+                & self.near[i].val();
+            self.freeable[i].next = self.fprev[i].q.val() & !self.opened[i].q.val();
+            self.abs_any[i + 1].next = self.abs_any[i].val() | self.absorb[i].val();
+            self.fsel[i].next = self.freeable[i].val() & !self.ftaken[i].val();
+            self.ftaken[i + 1].next = self.ftaken[i].val() | self.freeable[i].val();
+            self.row_ok[i].next =
+                (self.ay[i].q.val() >= self.y_m1.val()) & (self.ay[i].q.val() <= self.y_p1.val());
+            self.hw[i].next = self.row_ok[i].val()
+                & (((self.in_x.val() == self.wl[i].q.val())
+                    & (self.in_above.val() & self.ml[i].q.val()).any())
+                    | ((self.in_x.val() == self.wh[i].q.val())
+                        & (self.in_above.val() & self.mh[i].q.val()).any()));
+            self.on[i].next = self.hit[i].q.val() | self.hw[i].val();
+            self.agen[i].next = self.age[i].q.val() + 1;
+            self.sel[i].next = self.walk.q.val() == self.slot_id[i].val();
+            // Record flag bits (model `flags`): CUT 0x04, CONTINUATION 0x08, TRUNCATED 0x10.
+            self.f_cut[i].next = 0.into();
+            if self.cutf[i].q.val() {
+                self.f_cut[i].next = 4.into();
+            }
+            self.f_cont[i].next = 0.into();
+            if self.cont[i].q.val() {
+                self.f_cont[i].next = 8.into();
+            }
+            self.f_trunc[i].next = 0.into();
+            if self.trunc[i].q.val() {
+                self.f_trunc[i].next = 16.into();
+            }
+            self.fconf[i].next = self.cont[i].q.val()
+                | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.l_min.val()))
+                | (self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin_p1.val()));
+        }
+        for mm in self._m..(self._m + 1) {
+            self.absorbed.next = self.abs_any[mm].val();
+            self.any_free.next = self.ftaken[mm].val();
+        }
+        self.do_open.next =
+            self.go.val() & self.has_cand.val() & !self.absorbed.val() & self.any_free.val();
+        self.do_drop.next =
+            self.go.val() & self.has_cand.val() & !self.absorbed.val() & !self.any_free.val();
+        self.do_fin.next = self.go.val() & !self.more.val() & self.eor.val();
+
+        // ---- Record port defaults.
+        self.in_pop.next = false;
+        self.rec_push.next = false;
+        self.rec_kind.next = 0.into();
+        self.rec_lost.next = self.lost.q.val();
+        self.rec_slot.next = 0.into();
+        self.rec_flags.next = 0.into();
+        self.rec_ax.next = 0.into();
+        self.rec_ay.next = 0.into();
+        self.rec_t0.next = 0.into();
+        self.rec_t1.next = 0.into();
+        self.rec_bank.next = 0.into();
+        self.rec_tag.next = self.t.q.val();
+        self.fb_pop.next = false;
+
+        match self.state.q.val() {
+            TrackerState::Start => {
+                if self.rec_room.val() {
+                    self.rec_push.next = true;
+                    self.rec_kind.next = 0.into();
+                    self.state.d.next = TrackerState::Run;
+                }
+            }
+            TrackerState::Run => {
+                if self.fin_cond.val() {
+                    self.state.d.next = TrackerState::Finish;
+                } else if self.go.val() {
+                    for i in 0..self._m {
+                        self.hit[i].d.next = self.on[i].val();
+                    }
+                    if self.more.val() {
+                        self.done_mask.d.next = self.done_mask.q.val() | self.low.val();
+                    } else {
+                        self.in_pop.next = true;
+                        self.done_mask.d.next = 0.into();
+                        if self.eor.val() {
+                            self.rows.d.next = self.in_y.val() + 1;
+                            if self.in_y.val() == self.last_row.val() {
+                                self.state.d.next = TrackerState::EopA;
+                            }
+                        }
+                    }
+                }
+            }
+            TrackerState::EopA => {
+                for i in 0..self._m {
+                    if self.busy[i].q.val()
+                        & self.live[i].q.val()
+                        & !self.dip[i].q.val()
+                        & (self.age[i].q.val() >= self.lmax_m1.val())
+                    {
+                        self.live[i].d.next = false;
+                        self.td[i].d.next = self.t.q.val();
+                        self.cutf[i].d.next = true;
+                        self.conf[i].d.next = true;
+                        self.ev_cut[i].d.next = true;
+                        self.comp[i].d.next = true;
+                    } else if self.busy[i].q.val() & !self.live[i].q.val() {
+                        if !self.conf[i].q.val() {
+                            self.busy[i].d.next = false;
+                            self.ev_unconf[i].d.next = true;
+                        } else if self.cont[i].q.val() | (self.age[i].q.val() >= self.n_m1.val()) {
+                            self.comp[i].d.next = true;
+                        }
+                    }
+                }
+                self.walk.d.next = 0.into();
+                self.state.d.next = TrackerState::EopB;
+            }
+            TrackerState::EopB => {
+                for i in 0..self._m {
+                    if self.sel[i].val() {
+                        if self.ev_bridge[i].q.val() {
+                            self.c_bridged.d.next = self.c_bridged.q.val() + 1;
+                        }
+                        if self.ev_unconf[i].q.val() {
+                            self.c_unconf.d.next = self.c_unconf.q.val() + 1;
+                        }
+                        if self.ev_cut[i].q.val() {
+                            self.c_cuts.d.next = self.c_cuts.q.val() + 1;
+                        }
+                        self.ev_bridge[i].d.next = false;
+                        self.ev_unconf[i].d.next = false;
+                        self.ev_cut[i].d.next = false;
+                        if self.comp[i].q.val() {
+                            self.comp[i].d.next = false;
+                            self.c_blinks.d.next = self.c_blinks.q.val() + 1;
+                            self.rec_kind.next = 1.into();
+                            self.rec_slot.next = self.slot_id[i].val();
+                            self.rec_flags.next =
+                                self.f_cut[i].val() | self.f_cont[i].val() | self.f_trunc[i].val();
+                            self.rec_ax.next = self.ax[i].q.val();
+                            self.rec_ay.next = self.ay[i].q.val();
+                            self.rec_t0.next = self.tc[i].q.val();
+                            self.rec_t1.next = self.td[i].q.val();
+                            self.rec_bank.next = self.bank[i].q.val();
+                            if self.can_push.val() {
+                                self.rec_push.next = true;
+                                self.lost.d.next = 0.into();
+                                self.fb_pop.next = true;
+                                self.bank[i].d.next = self.fb_bank.val();
+                            } else {
+                                self.lost.d.next = self.lost.q.val() + 1;
+                                if self.rec_room.val() {
+                                    self.bank_err.d.next = true;
+                                }
+                            }
+                            if self.cutf[i].q.val() {
+                                // The blink goes on: a continuation segment from t + 1
+                                // (age t − t_cross = −1 now, 0 at t + 1).
+                                self.cont[i].d.next = true;
+                                self.live[i].d.next = true;
+                                self.dip[i].d.next = false;
+                                self.cutf[i].d.next = false;
+                                self.trunc[i].d.next = false;
+                                self.conf[i].d.next = true;
+                                self.tc[i].d.next = self.t_p1.val();
+                                self.age[i].d.next = 0xFFFF_FFFF_u64.into();
+                            } else {
+                                self.busy[i].d.next = false;
+                            }
+                        }
+                    }
+                }
+                self.walk.d.next = self.walk.q.val() + 1;
+                if self.walk.q.val() == self.last_slot.val() {
+                    self.state.d.next = TrackerState::EopC;
+                }
+            }
+            TrackerState::EopC => {
+                if self.drops.q.val() != 0 {
+                    self.rec_kind.next = 2.into();
+                    self.rec_ax.next = self.drop_x.q.val();
+                    self.rec_ay.next = self.drop_y.q.val();
+                    self.rec_t0.next = self.t.q.val();
+                    self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
+                    if self.rec_room.val() {
+                        self.rec_push.next = true;
+                        self.lost.d.next = 0.into();
+                    } else {
+                        self.lost.d.next = self.lost.q.val() + 1;
+                    }
+                }
+                self.drops.d.next = 0.into();
+                for i in 0..self._m {
+                    self.aprev[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
+                    self.fprev[i].d.next = !self.busy[i].q.val();
+                    self.opened[i].d.next = false;
+                    self.hit[i].d.next = false;
+                    if self.busy[i].q.val() {
+                        self.age[i].d.next = self.agen[i].val();
+                    }
+                }
+                for mm in self._m..(self._m + 1) {
+                    for i in 0..self._m {
+                        if self.par1.val() {
+                            self.s_live[i + mm].d.next =
+                                self.busy[i].q.val() & self.live[i].q.val();
+                            self.s_pre[i + mm].d.next = self.busy[i].q.val()
+                                & !self.cont[i].q.val()
+                                & self.t1_ge_n.val()
+                                & (self.agen[i].val() < self.n32.val());
+                            self.s_fresh[i + mm].d.next =
+                                self.busy[i].q.val() & (self.agen[i].val() == 0);
+                            self.s_ax[i + mm].d.next = self.ax[i].q.val();
+                            self.s_ay[i + mm].d.next = self.ay[i].q.val();
+                            self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                        } else {
+                            self.s_live[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
+                            self.s_pre[i].d.next = self.busy[i].q.val()
+                                & !self.cont[i].q.val()
+                                & self.t1_ge_n.val()
+                                & (self.agen[i].val() < self.n32.val());
+                            self.s_fresh[i].d.next =
+                                self.busy[i].q.val() & (self.agen[i].val() == 0);
+                            self.s_ax[i].d.next = self.ax[i].q.val();
+                            self.s_ay[i].d.next = self.ay[i].q.val();
+                            self.s_bank[i].d.next = self.bank[i].q.val();
+                        }
+                    }
+                }
+                self.t.d.next = self.t_p1.val();
+                self.rows.d.next = 0.into();
+                self.state.d.next = TrackerState::Run;
+            }
+            TrackerState::Finish => {
+                if self.t.q.val() == 0 {
+                    self.state.d.next = TrackerState::End;
+                } else {
+                    for mm in self._m..(self._m + 1) {
+                        for i in 0..self._m {
+                            if self.busy[i].q.val() & self.live[i].q.val() {
+                                self.live[i].d.next = false;
+                                self.dip[i].d.next = false;
+                                self.td[i].d.next = self.t_m1.val();
+                                self.trunc[i].d.next = true;
+                                self.conf[i].d.next = self.fconf[i].val();
+                                if !self.fconf[i].val() {
+                                    self.busy[i].d.next = false;
+                                    self.ev_unconf[i].d.next = true;
+                                    if self.par.val() {
+                                        self.s_pre[i + mm].d.next = false;
+                                    } else {
+                                        self.s_pre[i].d.next = false;
+                                    }
+                                }
+                            }
+                            if self.par.val() {
+                                self.s_live[i + mm].d.next = false;
+                            } else {
+                                self.s_live[i].d.next = false;
+                            }
+                        }
+                    }
+                    self.state.d.next = TrackerState::Drain;
+                }
+            }
+            TrackerState::Drain => {
+                if self.in_valid.val() {
+                    self.in_pop.next = true;
+                    if self.in_flush.val() & self.eor.val() {
+                        self.rows.d.next = self.in_y.val() + 1;
+                        if self.in_y.val() == self.last_row.val() {
+                            for mm in self._m..(self._m + 1) {
+                                for i in 0..self._m {
+                                    if self.busy[i].q.val() {
+                                        self.age[i].d.next = self.agen[i].val();
+                                    }
+                                    if self.par1.val() {
+                                        self.s_live[i + mm].d.next = false;
+                                        self.s_pre[i + mm].d.next = self.busy[i].q.val()
+                                            & !self.cont[i].q.val()
+                                            & self.t1_ge_n.val()
+                                            & (self.agen[i].val() < self.n32.val());
+                                        self.s_fresh[i + mm].d.next = false;
+                                        self.s_ax[i + mm].d.next = self.ax[i].q.val();
+                                        self.s_ay[i + mm].d.next = self.ay[i].q.val();
+                                        self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                                    } else {
+                                        self.s_live[i].d.next = false;
+                                        self.s_pre[i].d.next = self.busy[i].q.val()
+                                            & !self.cont[i].q.val()
+                                            & self.t1_ge_n.val()
+                                            & (self.agen[i].val() < self.n32.val());
+                                        self.s_fresh[i].d.next = false;
+                                        self.s_ax[i].d.next = self.ax[i].q.val();
+                                        self.s_ay[i].d.next = self.ay[i].q.val();
+                                        self.s_bank[i].d.next = self.bank[i].q.val();
+                                    }
+                                }
+                            }
+                            self.t.d.next = self.t_p1.val();
+                            self.rows.d.next = 0.into();
+                            if self.t_p1.val() == self.p_plus_n.val() {
+                                self.walk.d.next = 0.into();
+                                self.state.d.next = TrackerState::Emit;
+                            }
+                        }
+                    }
+                }
+            }
+            TrackerState::Emit => {
+                for i in 0..self._m {
+                    if self.sel[i].val() {
+                        if self.ev_unconf[i].q.val() {
+                            self.c_unconf.d.next = self.c_unconf.q.val() + 1;
+                        }
+                        if self.ev_bridge[i].q.val() {
+                            self.c_bridged.d.next = self.c_bridged.q.val() + 1;
+                        }
+                        self.ev_unconf[i].d.next = false;
+                        self.ev_bridge[i].d.next = false;
+                        if self.busy[i].q.val() {
+                            self.busy[i].d.next = false;
+                            self.c_blinks.d.next = self.c_blinks.q.val() + 1;
+                            self.rec_kind.next = 1.into();
+                            self.rec_slot.next = self.slot_id[i].val();
+                            self.rec_flags.next =
+                                self.f_cut[i].val() | self.f_cont[i].val() | self.f_trunc[i].val();
+                            self.rec_ax.next = self.ax[i].q.val();
+                            self.rec_ay.next = self.ay[i].q.val();
+                            self.rec_t0.next = self.tc[i].q.val();
+                            self.rec_t1.next = self.td[i].q.val();
+                            self.rec_bank.next = self.bank[i].q.val();
+                            self.rec_tag.next = self.t_m1.val();
+                            if self.can_push.val() {
+                                self.rec_push.next = true;
+                                self.lost.d.next = 0.into();
+                                self.fb_pop.next = true;
+                                self.bank[i].d.next = self.fb_bank.val();
+                            } else {
+                                self.lost.d.next = self.lost.q.val() + 1;
+                                if self.rec_room.val() {
+                                    self.bank_err.d.next = true;
+                                }
+                            }
+                        }
+                    }
+                }
+                self.walk.d.next = self.walk.q.val() + 1;
+                if self.walk.q.val() == self.last_slot.val() {
+                    self.state.d.next = TrackerState::End;
+                }
+            }
+            TrackerState::End => {
+                if self.rec_room.val() {
+                    self.rec_push.next = true;
+                    self.rec_kind.next = 3.into();
+                    self.lost.d.next = 0.into();
+                    self.state.d.next = TrackerState::Done;
+                }
+            }
+            _ => {}
+        }
+
+        // ---- Association: open a track or drop the candidate.
+        for i in 0..self._m {
+            if self.do_open.val() & self.fsel[i].val() {
+                self.busy[i].d.next = true;
+                self.live[i].d.next = true;
+                self.dip[i].d.next = false;
+                self.conf[i].d.next = false;
+                self.cont[i].d.next = false;
+                self.cutf[i].d.next = false;
+                self.trunc[i].d.next = false;
+                self.opened[i].d.next = true;
+                self.ax[i].d.next = self.cx.val();
+                self.ay[i].d.next = self.in_y.val();
+                self.wl[i].d.next = self.o_wl.val();
+                self.wh[i].d.next = self.o_wh.val();
+                self.ml[i].d.next = self.o_ml.val();
+                self.mh[i].d.next = self.o_mh.val();
+                self.frow[i].d.next = self.o_frow.val();
+                self.age[i].d.next = 0.into();
+                self.tc[i].d.next = self.t.q.val();
+            }
+        }
+        for mm in self._m..(self._m + 1) {
+            for i in 0..self._m {
+                if self.do_open.val() & self.fsel[i].val() {
+                    if self.par.val() {
+                        self.s_live[i + mm].d.next = true;
+                        self.s_pre[i + mm].d.next = self.t_ge_n.val();
+                        self.s_fresh[i + mm].d.next = true;
+                        self.s_ax[i + mm].d.next = self.cx.val();
+                        self.s_ay[i + mm].d.next = self.in_y.val();
+                        self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                    } else {
+                        self.s_live[i].d.next = true;
+                        self.s_pre[i].d.next = self.t_ge_n.val();
+                        self.s_fresh[i].d.next = true;
+                        self.s_ax[i].d.next = self.cx.val();
+                        self.s_ay[i].d.next = self.in_y.val();
+                        self.s_bank[i].d.next = self.bank[i].q.val();
+                    }
+                }
+            }
+        }
+        if self.do_drop.val() {
+            self.c_dropped.d.next = self.c_dropped.q.val() + 1;
+            self.drops.d.next = self.drops.q.val() + 1;
+            if self.drops.q.val() == 0 {
+                self.drop_x.d.next = self.cx.val();
+                self.drop_y.d.next = self.in_y.val();
+            }
+        }
+
+        // ---- End of a row: the on/off step of slots whose 3x3 window has streamed.
+        for mm in self._m..(self._m + 1) {
+            for i in 0..self._m {
+                if self.do_fin.val()
+                    & self.aprev[i].q.val()
+                    & self.busy[i].q.val()
+                    & self.live[i].q.val()
+                    & (self.frow[i].q.val() == self.in_y.val())
+                {
+                    if self.on[i].val() {
+                        if self.dip[i].q.val() {
+                            self.dip[i].d.next = false;
+                            self.ev_bridge[i].d.next = true;
+                        }
+                    } else if !self.dip[i].q.val() {
+                        self.dip[i].d.next = true;
+                    } else {
+                        // Second plane below: the blink ended at t − 1.
+                        self.live[i].d.next = false;
+                        self.dip[i].d.next = false;
+                        self.td[i].d.next = self.t_m1.val();
+                        self.conf[i].d.next =
+                            self.cont[i].q.val() | (self.age[i].q.val() >= self.lmin_p1.val());
+                        if self.par.val() {
+                            self.s_live[i + mm].d.next = false;
+                        } else {
+                            self.s_live[i].d.next = false;
+                        }
+                    }
+                }
+            }
+        }
+
+        if self.restart.val() {
+            self.state.d.next = TrackerState::Start;
+            self.t.d.next = 0.into();
+            self.rows.d.next = 0.into();
+            self.done_mask.d.next = 0.into();
+            self.lost.d.next = 0.into();
+            self.drops.d.next = 0.into();
+            self.c_blinks.d.next = 0.into();
+            self.c_unconf.d.next = 0.into();
+            self.c_dropped.d.next = 0.into();
+            self.c_bridged.d.next = 0.into();
+            self.c_cuts.d.next = 0.into();
+            self.bank_err.d.next = false;
+            for i in 0..self._m {
+                self.busy[i].d.next = false;
+                self.live[i].d.next = false;
+                self.aprev[i].d.next = false;
+                self.fprev[i].d.next = true;
+                self.opened[i].d.next = false;
+                self.hit[i].d.next = false;
+                self.comp[i].d.next = false;
+                self.ev_bridge[i].d.next = false;
+                self.ev_unconf[i].d.next = false;
+                self.ev_cut[i].d.next = false;
+                self.bank[i].d.next = self.bank_init[i].val();
+            }
+            for q in 0..(2 * self._m) {
+                self.s_live[q].d.next = false;
+                self.s_pre[q].d.next = false;
+                self.s_fresh[q].d.next = false;
+            }
+        }
+
+        self.plane.next = self.t.q.val();
+        self.rows_done.next = self.rows.q.val();
+        self.done.next = self.state.q.val() == TrackerState::Done;
+        self.blinks.next = self.c_blinks.q.val();
+        self.unconfirmed.next = self.c_unconf.q.val();
+        self.dropped.next = self.c_dropped.q.val();
+        self.bridged.next = self.c_bridged.q.val();
+        self.cuts.next = self.c_cuts.q.val();
+        self.bank_error.next = self.bank_err.q.val();
+    }
+}

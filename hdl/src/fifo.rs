@@ -1,0 +1,164 @@
+//! A first-word-fall-through FIFO over a registered-read [`Bram`]: the head
+//! entry is always visible on `out_data` while `out_valid` is high, and one
+//! entry can be pushed and one popped every clock.
+//!
+//! The memory holds up to `2^AW` entries; two output registers (the head and
+//! a one-entry landing register) hide the memory's read latency. A fetch is
+//! issued only when at most one entry is held or arriving, so the landing
+//! register never overflows and a steady pop every clock is sustained.
+//! A push while the memory is full is refused and sets the sticky
+//! `overflow` flag (the owner reports it; nothing is lost silently).
+
+use crate::bram::{Bram, RamStyle};
+use rust_hdl::prelude::*;
+
+/// FWFT FIFO of `DW`-bit entries, `2^AW` in memory (plus up to two in the
+/// output registers).
+#[derive(LogicBlock)]
+pub struct Fifo<const DW: usize, const AW: usize> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Empties the FIFO and clears `overflow`.
+    pub restart: Signal<In, Bit>,
+    /// Push `push_data` (ignored and flagged when `room` is low).
+    pub push: Signal<In, Bit>,
+    /// Entry to push.
+    pub push_data: Signal<In, Bits<DW>>,
+    /// Pop the head (ignored while `out_valid` is low).
+    pub pop: Signal<In, Bit>,
+    /// The head is valid.
+    pub out_valid: Signal<Out, Bit>,
+    /// The head entry.
+    pub out_data: Signal<Out, Bits<DW>>,
+    /// A push this clock is accepted.
+    pub room: Signal<Out, Bit>,
+    /// Entries held (memory, in flight and output registers).
+    pub count: Signal<Out, Bits<16>>,
+    /// A push was refused since the last restart (sticky).
+    pub overflow: Signal<Out, Bit>,
+    mem: Bram<DW, AW>,
+    wr: DFF<Bits<16>>,
+    rd: DFF<Bits<16>>,
+    o_valid: DFF<Bit>,
+    o_data: DFF<Bits<DW>>,
+    l_valid: DFF<Bit>,
+    l_data: DFF<Bits<DW>>,
+    f_valid: DFF<Bit>,
+    ovf: DFF<Bit>,
+    mem_count: Signal<Local, Bits<16>>,
+    full: Signal<Local, Bit>,
+    consume: Signal<Local, Bit>,
+    keep: Signal<Local, Bit>,
+    issue: Signal<Local, Bit>,
+    depth: Constant<Bits<16>>,
+}
+
+impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
+    /// A FIFO with its memory in block or distributed RAM.
+    pub fn new(style: RamStyle) -> Self {
+        assert!(
+            AW <= 15,
+            "FIFO depth 2^{AW} does not fit the 16-bit pointers"
+        );
+        Fifo {
+            clock: Default::default(),
+            restart: Default::default(),
+            push: Default::default(),
+            push_data: Default::default(),
+            pop: Default::default(),
+            out_valid: Default::default(),
+            out_data: Default::default(),
+            room: Default::default(),
+            count: Default::default(),
+            overflow: Default::default(),
+            mem: Bram::new(1 << AW, style),
+            wr: Default::default(),
+            rd: Default::default(),
+            o_valid: Default::default(),
+            o_data: Default::default(),
+            l_valid: Default::default(),
+            l_data: Default::default(),
+            f_valid: Default::default(),
+            ovf: Default::default(),
+            mem_count: Default::default(),
+            full: Default::default(),
+            consume: Default::default(),
+            keep: Default::default(),
+            issue: Default::default(),
+            depth: Constant::new((1u64 << AW).to_bits()),
+        }
+    }
+}
+
+impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, wr, rd, o_valid, o_data, l_valid, l_data, f_valid, ovf);
+        self.mem.clock.next = self.clock.val();
+        self.mem_count.next = self.wr.q.val() - self.rd.q.val();
+        self.full.next = self.mem_count.val() == self.depth.val();
+        self.consume.next = self.o_valid.q.val() & self.pop.val();
+        self.keep.next = self.o_valid.q.val() & !self.consume.val();
+        // Fetch only when at most one entry will be held after this clock.
+        self.issue.next = (self.mem_count.val() != 0)
+            & !((self.keep.val() & self.l_valid.q.val())
+                | (self.keep.val() & self.f_valid.q.val())
+                | (self.l_valid.q.val() & self.f_valid.q.val()));
+
+        // Write side.
+        self.mem.write_address.next = bit_cast::<AW, 16>(self.wr.q.val());
+        self.mem.write_data.next = self.push_data.val();
+        self.mem.write_enable.next = self.push.val() & !self.full.val();
+        if self.push.val() & !self.full.val() {
+            self.wr.d.next = self.wr.q.val() + 1;
+        }
+        if self.push.val() & self.full.val() {
+            self.ovf.d.next = true;
+        }
+
+        // Fetch: the entry at `rd` arrives next clock.
+        self.mem.read_address.next = bit_cast::<AW, 16>(self.rd.q.val());
+        self.f_valid.d.next = self.issue.val();
+        if self.issue.val() {
+            self.rd.d.next = self.rd.q.val() + 1;
+        }
+
+        // Landing: head first, then the landing register.
+        if !self.keep.val() {
+            if self.l_valid.q.val() {
+                self.o_valid.d.next = true;
+                self.o_data.d.next = self.l_data.q.val();
+                self.l_valid.d.next = self.f_valid.q.val();
+                if self.f_valid.q.val() {
+                    self.l_data.d.next = self.mem.read_data.val();
+                }
+            } else if self.f_valid.q.val() {
+                self.o_valid.d.next = true;
+                self.o_data.d.next = self.mem.read_data.val();
+            } else {
+                self.o_valid.d.next = false;
+            }
+        } else if self.f_valid.q.val() {
+            self.l_valid.d.next = true;
+            self.l_data.d.next = self.mem.read_data.val();
+        }
+
+        if self.restart.val() {
+            self.wr.d.next = 0.into();
+            self.rd.d.next = 0.into();
+            self.o_valid.d.next = false;
+            self.l_valid.d.next = false;
+            self.f_valid.d.next = false;
+            self.ovf.d.next = false;
+        }
+
+        self.out_valid.next = self.o_valid.q.val();
+        self.out_data.next = self.o_data.q.val();
+        self.room.next = !self.full.val();
+        self.count.next = self.mem_count.val()
+            + bit_cast::<16, 1>(self.o_valid.q.val().into())
+            + bit_cast::<16, 1>(self.l_valid.q.val().into())
+            + bit_cast::<16, 1>(self.f_valid.q.val().into());
+        self.overflow.next = self.ovf.q.val();
+    }
+}

@@ -1,0 +1,1226 @@
+//! Stage 7 — packetiser: records become the bytes of `model/PACKETS.md`
+//! exactly as [`smartagg_model::packet::encode_record`] writes them — header
+//! (magic, version, type, sequence number, length), payload with the ROI
+//! counts as one Rice-coded count block, CRC-32C — one byte per clock into
+//! the output FIFO.
+//!
+//! **Blink count block.** The counts are read from the record's counter bank
+//! ([`crate::roi_aggregator`]) three times, one count per clock: pass 1 finds
+//! the minimum `base` (and ORs the rows' mask flags into MASKED), pass 2 feeds
+//! 32 length accumulators, one per Rice parameter k (each code is
+//! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`; 16 bits suffice for
+//! R ≤ 31), a 32-clock scan takes the smallest total (ties: smallest k), and
+//! pass 3 emits the codes MSB first through a bit packer. ROI rows outside
+//! the sensor read as 0. The header's length is known after pass 2.
+//!
+//! **Sequence numbers and overflow.** Every record but Overflow takes the
+//! next number (from `seq_init` at stream start). A record the tracker could
+//! not queue arrives as `r_lost` on the next one. Before emitting a record
+//! the packetiser checks that the output FIFO has room for the whole packet
+//! (and for an Overflow packet if records were lost); if not, the record is
+//! dropped whole and counted. The next record that fits is preceded by one
+//! Overflow record (first lost number, count), whose header carries the first
+//! lost number and consumes none — the gateware stream is the model's with
+//! records missing and every gap announced exactly. StreamStart and
+//! StreamEnd are never dropped: they wait for room (nothing else is in
+//! flight then).
+//!
+//! **CRC-32C** is updated a byte per clock with the table-free form
+//! `crc' = (crc >> 8) ^ ⊕ᵢ vᵢ·T(2ⁱ)`, `v = (crc ^ byte) & 0xFF`, where T is
+//! the reflected byte table of polynomial 0x82F63B78 (linear in v).
+
+use crate::bram::RamStyle;
+use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
+use crate::fifo::Fifo;
+use crate::spatial_filter::ConstMul;
+use crate::stream::lanes;
+use rust_hdl::prelude::*;
+
+/// Packetiser states.
+#[derive(Copy, Clone, Debug, PartialEq, LogicState)]
+pub enum PacketState {
+    /// Waiting for a record.
+    Idle,
+    /// Blink: waiting until its counts are final.
+    Wait,
+    /// Blink pass 1: minimum and mask flag.
+    Pass1,
+    /// Blink pass 2: code lengths for every k.
+    Pass2,
+    /// Blink: the best k.
+    Choose,
+    /// Room check: emit or drop.
+    Decide,
+    /// Header and payload bytes of the Overflow packet.
+    Ovf,
+    /// Header and fixed payload bytes of the record.
+    Emit,
+    /// Blink pass 3: the codes.
+    Codes,
+    /// The four CRC bytes.
+    Crc,
+    /// Return the bank, next sequence number.
+    Finish,
+}
+
+/// CRC-32C table entries of the single-bit bytes 2⁰ … 2⁷.
+fn crc_bit_entries() -> [u32; 8] {
+    let mut t = [0u32; 8];
+    for (i, e) in t.iter_mut().enumerate() {
+        let mut c = 1u32 << i;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0x82F6_3B78
+            } else {
+                c >> 1
+            };
+        }
+        *e = c;
+    }
+    t
+}
+
+/// `value` as a `Bits<N>` from little-endian bytes.
+fn bits_from_le<const N: usize>(bytes: &[u8]) -> Bits<N> {
+    bytes
+        .iter()
+        .enumerate()
+        .fold(Bits::<N>::default(), |acc, (i, &b)| {
+            acc | (bit_cast::<N, 8>((b as u64).to_bits()) << (8 * i) as u64)
+        })
+}
+
+/// The packetiser. `R` counts per ROI row come from the counter memory.
+/// `RCW`: count bits; `CAW`: counter address bits; `BW`: bank bits; `NW`:
+/// bits of N; `PW`: bits of the assembled header and fixed payload
+/// (`8 ×` [`BackHalfConfig::prefix_bytes`]).
+#[derive(LogicBlock)]
+pub struct Packetiser<
+    const RCW: usize,
+    const CAW: usize,
+    const BW: usize,
+    const NW: usize,
+    const PW: usize,
+> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: sequence number `seq_init` next, nothing pending.
+    pub restart: Signal<In, Bit>,
+    /// First sequence number (0 in the pipeline; the vectors start later).
+    pub seq_init: Signal<In, Bits<32>>,
+    /// N register (StreamStart).
+    pub n_window: Signal<In, Bits<NW>>,
+    /// T_int register (StreamStart).
+    pub threshold: Signal<In, Bits<32>>,
+    /// L_min register (StreamStart).
+    pub l_min: Signal<In, Bits<32>>,
+    /// L_max register (StreamStart).
+    pub l_max: Signal<In, Bits<32>>,
+    /// Plane period, ns (StreamStart).
+    pub plane_period: Signal<In, Bits<32>>,
+    /// Masked pixels (StreamStart).
+    pub masked_pixels: Signal<In, Bits<32>>,
+    /// StreamEnd: planes.
+    pub c_planes: Signal<In, Bits<64>>,
+    /// StreamEnd: blinks.
+    pub c_blinks: Signal<In, Bits<64>>,
+    /// StreamEnd: unconfirmed.
+    pub c_unconf: Signal<In, Bits<64>>,
+    /// StreamEnd: dropped candidates.
+    pub c_dropped: Signal<In, Bits<64>>,
+    /// StreamEnd: bridged dips.
+    pub c_bridged: Signal<In, Bits<64>>,
+    /// StreamEnd: cut segments.
+    pub c_cuts: Signal<In, Bits<64>>,
+    /// A record is at the head of the queue (held until `r_pop`).
+    pub r_valid: Signal<In, Bit>,
+    /// Its kind ([`crate::blink_tracker::record_kind`]).
+    pub r_kind: Signal<In, Bits<2>>,
+    /// Records lost just before it.
+    pub r_lost: Signal<In, Bits<32>>,
+    /// Blink: slot.
+    pub r_slot: Signal<In, Bits<8>>,
+    /// Blink: flags (MASKED is added from the counter rows).
+    pub r_flags: Signal<In, Bits<8>>,
+    /// Blink: anchor column; Dropped: first column.
+    pub r_ax: Signal<In, Bits<16>>,
+    /// Blink: anchor row; Dropped: first row.
+    pub r_ay: Signal<In, Bits<16>>,
+    /// Blink: t_cross; Dropped: plane.
+    pub r_t0: Signal<In, Bits<48>>,
+    /// Blink: t_drop; Dropped: count.
+    pub r_t1: Signal<In, Bits<48>>,
+    /// Blink: t_s (two's complement, 48 bits).
+    pub r_ts: Signal<In, Bits<48>>,
+    /// Blink: t_e.
+    pub r_te: Signal<In, Bits<48>>,
+    /// Blink: planes summed.
+    pub r_planes: Signal<In, Bits<32>>,
+    /// Blink: counter bank.
+    pub r_bank: Signal<In, Bits<BW>>,
+    /// Blink: its counts are final.
+    pub r_ready: Signal<In, Bit>,
+    /// Blink: no plane was summed (counts 0, MASKED from `r_empty_masked`).
+    pub r_empty: Signal<In, Bit>,
+    /// MASKED of an empty Blink.
+    pub r_empty_masked: Signal<In, Bit>,
+    /// Done with the head record.
+    pub r_pop: Signal<Out, Bit>,
+    /// Counter row read request.
+    pub rd_req: Signal<Out, Bit>,
+    /// Counter row address.
+    pub rd_addr: Signal<Out, Bits<CAW>>,
+    /// The request is taken; the row follows next clock.
+    pub rd_grant: Signal<In, Bit>,
+    /// The counts of the row.
+    pub rd_counts: Vec<Signal<In, Bits<RCW>>>,
+    /// The row's mask flag.
+    pub rd_masked: Signal<In, Bit>,
+    /// Return a bank to the free list.
+    pub fb_ret: Signal<Out, Bit>,
+    /// The bank returned.
+    pub fb_ret_bank: Signal<Out, Bits<BW>>,
+    /// Free bytes in the output FIFO.
+    pub fifo_free: Signal<In, Bits<16>>,
+    /// A byte is emitted.
+    pub out_valid: Signal<Out, Bit>,
+    /// The byte.
+    pub out_byte: Signal<Out, Bits<8>>,
+    /// Nothing in flight and no record waiting.
+    pub idle: Signal<Out, Bit>,
+    /// Records were lost since stream start (sticky; Overflow records tell how many).
+    pub overflowed: Signal<Out, Bit>,
+    state: DFF<PacketState>,
+    seq_ctr: DFF<Bits<32>>,
+    pend_first: DFF<Bits<32>>,
+    pend_cnt: DFF<Bits<32>>,
+    ovf_flag: DFF<Bit>,
+    in_ovf: DFF<Bit>,
+    // Count streamer.
+    cs_active: DFF<Bit>,
+    cs_wait: DFF<Bit>,
+    row_valid: DFF<Bit>,
+    cs_dy: DFF<Bits<8>>,
+    cs_dx: DFF<Bits<8>>,
+    row: Vec<DFF<Bits<RCW>>>,
+    base: DFF<Bits<RCW>>,
+    masked: DFF<Bit>,
+    acc: Vec<DFF<Bits<16>>>,
+    best: DFF<Bits<16>>,
+    bestk: DFF<Bits<8>>,
+    scan: DFF<Bits<8>>,
+    // Emission.
+    prefix: DFF<Bits<PW>>,
+    prefix_len: DFF<Bits<16>>,
+    boff: DFF<Bits<16>>,
+    bidx: DFF<Bits<16>>,
+    crc: DFF<Bits<32>>,
+    crc_i: DFF<Bits<8>>,
+    nb: DFF<Bits<8>>,
+    pk: DFF<Bits<72>>,
+    bank_base: ConstMul<CAW>,
+    // Combinational.
+    is_blink: Signal<Local, Bit>,
+    take: Signal<Local, Bit>,
+    c_valid: Signal<Local, Bit>,
+    c_val: Signal<Local, Bits<RCW>>,
+    row_y: Signal<Local, Bits<16>>,
+    in_sensor: Signal<Local, Bit>,
+    dd: Signal<Local, Bits<RCW>>,
+    d32: Signal<Local, Bits<32>>,
+    d64: Signal<Local, Bits<64>>,
+    q: Vec<Signal<Local, Bits<32>>>,
+    len: Vec<Signal<Local, Bits<32>>>,
+    acc_j: Signal<Local, Bits<16>>,
+    vlen: Signal<Local, Bits<16>>,
+    tb0: Signal<Local, Bits<8>>,
+    tb1: Signal<Local, Bits<8>>,
+    tb2: Signal<Local, Bits<8>>,
+    tb3: Signal<Local, Bits<8>>,
+    tb4: Signal<Local, Bits<8>>,
+    tb5: Signal<Local, Bits<8>>,
+    vb: Vec<Signal<Local, Bits<8>>>,
+    payload_len: Signal<Local, Bits<16>>,
+    rec_prefix_len: Signal<Local, Bits<16>>,
+    need: Signal<Local, Bits<16>>,
+    type_code: Signal<Local, Bits<8>>,
+    hdr: Signal<Local, Bits<PW>>,
+    rec_prefix: Signal<Local, Bits<PW>>,
+    ovf_prefix: Signal<Local, Bits<PW>>,
+    byte: Signal<Local, Bits<8>>,
+    pk_byte: Signal<Local, Bits<8>>,
+    pad_byte: Signal<Local, Bits<8>>,
+    crc_v: Signal<Local, Bits<8>>,
+    ct: Vec<Signal<Local, Bits<32>>>,
+    crc_next: Signal<Local, Bits<32>>,
+    cq: Signal<Local, Bits<32>>,
+    cesc: Signal<Local, Bit>,
+    clen: Signal<Local, Bits<8>>,
+    ones_q: Signal<Local, Bits<64>>,
+    low_k: Signal<Local, Bits<64>>,
+    code: Signal<Local, Bits<64>>,
+    // Constants.
+    ids: Vec<Constant<Bits<8>>>,
+    kc: Vec<Constant<Bits<8>>>,
+    k5c: Vec<Constant<Bits<8>>>,
+    kp1: Vec<Constant<Bits<32>>>,
+    crc_t: Vec<Constant<Bits<32>>>,
+    start_const: Constant<Bits<PW>>,
+    start_len: Constant<Bits<16>>,
+    off_period: Constant<Bits<16>>,
+    off_masked: Constant<Bits<16>>,
+    roi_side: Constant<Bits<8>>,
+    h: Constant<Bits<16>>,
+    h_plus_rows: Constant<Bits<16>>,
+    last_idx: Constant<Bits<8>>,
+    one64: Constant<Bits<64>>,
+    all_ones: Constant<Bits<RCW>>,
+    _r: usize,
+}
+
+impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const PW: usize>
+    Packetiser<RCW, CAW, BW, NW, PW>
+{
+    /// The packetiser of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        cfg.validate()?;
+        let f = &cfg.front;
+        GatewareConfig::check_width("Packetiser", "RCW", RCW, cfg.roi_count_bits())?;
+        GatewareConfig::check_width("Packetiser", "CAW", CAW, cfg.counter_addr_bits())?;
+        GatewareConfig::check_width("Packetiser", "BW", BW, cfg.bank_bits())?;
+        GatewareConfig::check_width("Packetiser", "NW", NW, f.count_bits())?;
+        GatewareConfig::check_width("Packetiser", "PW", PW, 8 * cfg.prefix_bytes())?;
+        let r = cfg.roi_size;
+        let k = f.kernel.len();
+        // The constant bytes of StreamStart: header (seq and the registers
+        // are added at run time) and the generation parameters.
+        let start_payload = 33 + 2 * k;
+        let mut sb = vec![0u8; 10 + start_payload];
+        sb[..4].copy_from_slice(&[0x53, 0x41, 0x01, 0x01]);
+        sb[8..10].copy_from_slice(&(start_payload as u16).to_le_bytes());
+        sb[10..12].copy_from_slice(&(f.width as u16).to_le_bytes());
+        sb[12..14].copy_from_slice(&(f.height as u16).to_le_bytes());
+        sb[30] = cfg.r_assoc as u8;
+        sb[31] = cfg.slots as u8;
+        sb[32] = r as u8;
+        sb[33] = f.kernel_shift;
+        sb[34] = k as u8;
+        for (i, w) in f.kernel.iter().enumerate() {
+            sb[35 + 2 * i..37 + 2 * i].copy_from_slice(&(*w as u16).to_le_bytes());
+        }
+        let c8 = |v: u64| Constant::new(v.to_bits());
+        Ok(Packetiser {
+            clock: Default::default(),
+            restart: Default::default(),
+            seq_init: Default::default(),
+            n_window: Default::default(),
+            threshold: Default::default(),
+            l_min: Default::default(),
+            l_max: Default::default(),
+            plane_period: Default::default(),
+            masked_pixels: Default::default(),
+            c_planes: Default::default(),
+            c_blinks: Default::default(),
+            c_unconf: Default::default(),
+            c_dropped: Default::default(),
+            c_bridged: Default::default(),
+            c_cuts: Default::default(),
+            r_valid: Default::default(),
+            r_kind: Default::default(),
+            r_lost: Default::default(),
+            r_slot: Default::default(),
+            r_flags: Default::default(),
+            r_ax: Default::default(),
+            r_ay: Default::default(),
+            r_t0: Default::default(),
+            r_t1: Default::default(),
+            r_ts: Default::default(),
+            r_te: Default::default(),
+            r_planes: Default::default(),
+            r_bank: Default::default(),
+            r_ready: Default::default(),
+            r_empty: Default::default(),
+            r_empty_masked: Default::default(),
+            r_pop: Default::default(),
+            rd_req: Default::default(),
+            rd_addr: Default::default(),
+            rd_grant: Default::default(),
+            rd_counts: lanes(r),
+            rd_masked: Default::default(),
+            fb_ret: Default::default(),
+            fb_ret_bank: Default::default(),
+            fifo_free: Default::default(),
+            out_valid: Default::default(),
+            out_byte: Default::default(),
+            idle: Default::default(),
+            overflowed: Default::default(),
+            state: Default::default(),
+            seq_ctr: Default::default(),
+            pend_first: Default::default(),
+            pend_cnt: Default::default(),
+            ovf_flag: Default::default(),
+            in_ovf: Default::default(),
+            cs_active: Default::default(),
+            cs_wait: Default::default(),
+            row_valid: Default::default(),
+            cs_dy: Default::default(),
+            cs_dx: Default::default(),
+            row: lanes(r),
+            base: Default::default(),
+            masked: Default::default(),
+            acc: lanes(32),
+            best: Default::default(),
+            bestk: Default::default(),
+            scan: Default::default(),
+            prefix: Default::default(),
+            prefix_len: Default::default(),
+            boff: Default::default(),
+            bidx: Default::default(),
+            crc: Default::default(),
+            crc_i: Default::default(),
+            nb: Default::default(),
+            pk: Default::default(),
+            bank_base: ConstMul::new(r as u32),
+            is_blink: Default::default(),
+            take: Default::default(),
+            c_valid: Default::default(),
+            c_val: Default::default(),
+            row_y: Default::default(),
+            in_sensor: Default::default(),
+            dd: Default::default(),
+            d32: Default::default(),
+            d64: Default::default(),
+            q: lanes(32),
+            len: lanes(32),
+            acc_j: Default::default(),
+            vlen: Default::default(),
+            tb0: Default::default(),
+            tb1: Default::default(),
+            tb2: Default::default(),
+            tb3: Default::default(),
+            tb4: Default::default(),
+            tb5: Default::default(),
+            vb: lanes(5),
+            payload_len: Default::default(),
+            rec_prefix_len: Default::default(),
+            need: Default::default(),
+            type_code: Default::default(),
+            hdr: Default::default(),
+            rec_prefix: Default::default(),
+            ovf_prefix: Default::default(),
+            byte: Default::default(),
+            pk_byte: Default::default(),
+            pad_byte: Default::default(),
+            crc_v: Default::default(),
+            ct: lanes(8),
+            crc_next: Default::default(),
+            cq: Default::default(),
+            cesc: Default::default(),
+            clen: Default::default(),
+            ones_q: Default::default(),
+            low_k: Default::default(),
+            code: Default::default(),
+            ids: (0..r).map(|i| c8(i as u64)).collect(),
+            kc: (0..32).map(|k| c8(k as u64)).collect(),
+            k5c: (0..32).map(|k| c8(k as u64 + 5)).collect(),
+            kp1: (0..32)
+                .map(|k| Constant::new((k as u64 + 1).to_bits()))
+                .collect(),
+            crc_t: crc_bit_entries()
+                .iter()
+                .map(|&e| Constant::new((e as u64).to_bits()))
+                .collect(),
+            start_const: Constant::new(bits_from_le::<PW>(&sb)),
+            start_len: Constant::new(((10 + start_payload) as u64).to_bits()),
+            off_period: Constant::new((8 * (35 + 2 * k) as u64).to_bits()),
+            off_masked: Constant::new((8 * (39 + 2 * k) as u64).to_bits()),
+            roi_side: c8(r as u64),
+            h: Constant::new((cfg.roi_half() as u64).to_bits()),
+            h_plus_rows: Constant::new(((cfg.roi_half() + f.height) as u64).to_bits()),
+            last_idx: c8(r as u64 - 1),
+            one64: Constant::new(1u64.to_bits()),
+            all_ones: Constant::new(Bits::<RCW>::mask()),
+            _r: r,
+        })
+    }
+}
+
+// Match guards do not translate to Verilog, so the ifs stay inside the arms.
+#[allow(clippy::collapsible_match)]
+impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const PW: usize> Logic
+    for Packetiser<RCW, CAW, BW, NW, PW>
+{
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(
+            self, clock, state, seq_ctr, pend_first, pend_cnt, ovf_flag, in_ovf, cs_active,
+            cs_wait, row_valid, cs_dy, cs_dx, base, masked, best, bestk, scan, prefix, prefix_len,
+            boff, bidx, crc, crc_i, nb, pk
+        );
+        for dx in 0..self._r {
+            self.row[dx].clock.next = self.clock.val();
+            self.row[dx].d.next = self.row[dx].q.val();
+        }
+        for k in 0..32 {
+            self.acc[k].clock.next = self.clock.val();
+            self.acc[k].d.next = self.acc[k].q.val();
+        }
+        self.is_blink.next = self.r_kind.val() == 1;
+
+        // ---- Count streamer: one ROI row at a time from the counter bank.
+        self.bank_base.x.next = bit_cast::<CAW, BW>(self.r_bank.val());
+        self.rd_addr.next = self.bank_base.y.val() + bit_cast::<CAW, 8>(self.cs_dy.q.val());
+        self.rd_req.next = false;
+        self.row_y.next = self.r_ay.val() + bit_cast::<16, 8>(self.cs_dy.q.val());
+        self.in_sensor.next =
+            (self.row_y.val() >= self.h.val()) & (self.row_y.val() < self.h_plus_rows.val());
+        self.c_valid.next = self.row_valid.q.val();
+        self.c_val.next = 0.into();
+        for dx in 0..self._r {
+            if self.cs_dx.q.val() == self.ids[dx].val() {
+                self.c_val.next = self.row[dx].q.val();
+            }
+        }
+        // `take` (set below by the pass that consumes) advances the streamer.
+        self.take.next = false;
+        match self.state.q.val() {
+            PacketState::Pass1 => {
+                self.take.next = true;
+            }
+            PacketState::Pass2 => {
+                self.take.next = true;
+            }
+            PacketState::Codes => {
+                self.take.next = self.nb.q.val() < 8;
+            }
+            _ => {}
+        }
+        if self.cs_active.q.val() {
+            if !self.row_valid.q.val() & !self.cs_wait.q.val() {
+                if self.r_empty.val() {
+                    for dx in 0..self._r {
+                        self.row[dx].d.next = 0.into();
+                    }
+                    self.row_valid.d.next = true;
+                } else {
+                    self.rd_req.next = true;
+                    if self.rd_grant.val() {
+                        self.cs_wait.d.next = true;
+                    }
+                }
+            }
+            if self.cs_wait.q.val() {
+                for dx in 0..self._r {
+                    self.row[dx].d.next = 0.into();
+                    if self.in_sensor.val() {
+                        self.row[dx].d.next = self.rd_counts[dx].val();
+                    }
+                }
+                if (self.state.q.val() == PacketState::Pass1)
+                    & self.in_sensor.val()
+                    & self.rd_masked.val()
+                {
+                    self.masked.d.next = true;
+                }
+                self.row_valid.d.next = true;
+                self.cs_wait.d.next = false;
+            }
+            if self.row_valid.q.val() & self.take.val() {
+                self.cs_dx.d.next = self.cs_dx.q.val() + 1;
+                if self.cs_dx.q.val() == self.last_idx.val() {
+                    self.cs_dx.d.next = 0.into();
+                    self.row_valid.d.next = false;
+                    self.cs_dy.d.next = self.cs_dy.q.val() + 1;
+                    if self.cs_dy.q.val() == self.last_idx.val() {
+                        self.cs_active.d.next = false;
+                    }
+                }
+            }
+        }
+
+        // ---- Offsets from the base, and the code lengths for every k.
+        self.dd.next = self.c_val.val() - self.base.q.val();
+        self.d32.next = bit_cast::<32, RCW>(self.dd.val());
+        self.d64.next = bit_cast::<64, RCW>(self.dd.val());
+        for k in 0..32 {
+            self.q[k].next = self.d32.val() >> self.kc[k].val();
+            self.len[k].next = self.q[k].val() + self.kp1[k].val();
+            if (self.d32.val() >> self.k5c[k].val()).any() {
+                self.len[k].next = 64.into();
+            }
+        }
+        self.acc_j.next = 0.into();
+        for k in 0..32 {
+            if self.scan.q.val() == self.kc[k].val() {
+                self.acc_j.next = self.acc[k].q.val();
+            }
+        }
+
+        // ---- The code of the current count with the chosen k.
+        self.cq.next = self.d32.val() >> self.bestk.q.val();
+        self.cesc.next = (self.cq.val() >> 5).any();
+        self.ones_q.next = ((self.one64.val() << self.cq.val()) - 1) << (self.bestk.q.val() + 1);
+        self.low_k.next = (self.one64.val() << self.bestk.q.val()) - 1;
+        self.code.next = self.ones_q.val() | (self.d64.val() & self.low_k.val());
+        self.clen.next = bit_cast::<8, 32>(self.cq.val()) + self.bestk.q.val() + 1;
+        if self.cesc.val() {
+            self.code.next = (bit_cast::<64, 32>(0xFFFF_FFFF_u64.into()) << 32) | self.d64.val();
+            self.clen.next = 64.into();
+        }
+
+        // ---- Count block tail of the header: base as LEB128, then k.
+        self.vlen.next = 5.into();
+        if (self.base.q.val() >> 28) == 0 {
+            self.vlen.next = 4.into();
+        }
+        if (self.base.q.val() >> 21) == 0 {
+            self.vlen.next = 3.into();
+        }
+        if (self.base.q.val() >> 14) == 0 {
+            self.vlen.next = 2.into();
+        }
+        if (self.base.q.val() >> 7) == 0 {
+            self.vlen.next = 1.into();
+        }
+        self.vb[0].next = bit_cast::<8, RCW>(self.base.q.val()) & 0x7F;
+        self.vb[1].next = bit_cast::<8, RCW>(self.base.q.val() >> 7) & 0x7F;
+        self.vb[2].next = bit_cast::<8, RCW>(self.base.q.val() >> 14) & 0x7F;
+        self.vb[3].next = bit_cast::<8, RCW>(self.base.q.val() >> 21) & 0x7F;
+        self.vb[4].next = bit_cast::<8, RCW>(self.base.q.val() >> 28) & 0x7F;
+        self.tb0.next = self.vb[0].val();
+        if self.vlen.val() > 1 {
+            self.tb0.next = self.vb[0].val() | 0x80;
+        }
+        self.tb1.next = 0.into();
+        if self.vlen.val() == 1 {
+            self.tb1.next = self.bestk.q.val();
+        }
+        if self.vlen.val() == 2 {
+            self.tb1.next = self.vb[1].val();
+        }
+        if self.vlen.val() > 2 {
+            self.tb1.next = self.vb[1].val() | 0x80;
+        }
+        self.tb2.next = 0.into();
+        if self.vlen.val() == 2 {
+            self.tb2.next = self.bestk.q.val();
+        }
+        if self.vlen.val() == 3 {
+            self.tb2.next = self.vb[2].val();
+        }
+        if self.vlen.val() > 3 {
+            self.tb2.next = self.vb[2].val() | 0x80;
+        }
+        self.tb3.next = 0.into();
+        if self.vlen.val() == 3 {
+            self.tb3.next = self.bestk.q.val();
+        }
+        if self.vlen.val() == 4 {
+            self.tb3.next = self.vb[3].val();
+        }
+        if self.vlen.val() > 4 {
+            self.tb3.next = self.vb[3].val() | 0x80;
+        }
+        self.tb4.next = 0.into();
+        if self.vlen.val() == 4 {
+            self.tb4.next = self.bestk.q.val();
+        }
+        if self.vlen.val() == 5 {
+            self.tb4.next = self.vb[4].val();
+        }
+        self.tb5.next = 0.into();
+        if self.vlen.val() == 5 {
+            self.tb5.next = self.bestk.q.val();
+        }
+
+        // ---- Lengths and the assembled header + fixed payload of each kind.
+        self.payload_len.next = 33.into();
+        self.rec_prefix_len.next = self.start_len.val();
+        self.type_code.next = 1.into();
+        match self.r_kind.val().index() {
+            1 => {
+                self.type_code.next = 2.into();
+                self.payload_len.next = self.vlen.val() + 36 + ((self.best.q.val() + 7) >> 3);
+                self.rec_prefix_len.next = self.vlen.val() + 46;
+            }
+            2 => {
+                self.type_code.next = 3.into();
+                self.payload_len.next = 14.into();
+                self.rec_prefix_len.next = 24.into();
+            }
+            3 => {
+                self.type_code.next = 4.into();
+                self.payload_len.next = 48.into();
+                self.rec_prefix_len.next = 58.into();
+            }
+            _ => {
+                self.payload_len.next = self.start_len.val() - 10;
+            }
+        }
+        self.need.next = self.payload_len.val() + 14;
+        if self.pend_cnt.q.val() != 0 {
+            self.need.next = self.payload_len.val() + 36;
+        }
+        self.hdr.next = bit_cast::<PW, 16>(0x4153.into())
+            | (bit_cast::<PW, 8>(1.into()) << 16)
+            | (bit_cast::<PW, 8>(self.type_code.val()) << 24)
+            | (bit_cast::<PW, 32>(self.seq_ctr.q.val()) << 32)
+            | (bit_cast::<PW, 16>(self.payload_len.val()) << 64);
+        match self.r_kind.val().index() {
+            1 => {
+                self.rec_prefix.next = self.hdr.val()
+                    | (bit_cast::<PW, 8>(self.r_slot.val()) << 80)
+                    | (bit_cast::<PW, 8>(self.r_flags.val()) << 88)
+                    | (bit_cast::<PW, 1>(self.masked.q.val().into()) << 89)
+                    | (bit_cast::<PW, 16>(self.r_ax.val()) << 96)
+                    | (bit_cast::<PW, 16>(self.r_ay.val()) << 112)
+                    | (bit_cast::<PW, 48>(self.r_t0.val()) << 128)
+                    | (bit_cast::<PW, 48>(self.r_t1.val()) << 176)
+                    | (bit_cast::<PW, 48>(self.r_ts.val()) << 224)
+                    | (bit_cast::<PW, 48>(self.r_te.val()) << 272)
+                    | (bit_cast::<PW, 32>(self.r_planes.val()) << 320)
+                    | (bit_cast::<PW, 8>(self.roi_side.val()) << 352)
+                    | (bit_cast::<PW, 8>(self.tb0.val()) << 360)
+                    | (bit_cast::<PW, 8>(self.tb1.val()) << 368)
+                    | (bit_cast::<PW, 8>(self.tb2.val()) << 376)
+                    | (bit_cast::<PW, 8>(self.tb3.val()) << 384)
+                    | (bit_cast::<PW, 8>(self.tb4.val()) << 392)
+                    | (bit_cast::<PW, 8>(self.tb5.val()) << 400);
+            }
+            2 => {
+                self.rec_prefix.next = self.hdr.val()
+                    | (bit_cast::<PW, 48>(self.r_t0.val()) << 80)
+                    | (bit_cast::<PW, 32>(bit_cast::<32, 48>(self.r_t1.val())) << 128)
+                    | (bit_cast::<PW, 16>(self.r_ax.val()) << 160)
+                    | (bit_cast::<PW, 16>(self.r_ay.val()) << 176);
+            }
+            3 => {
+                self.rec_prefix.next = self.hdr.val()
+                    | (bit_cast::<PW, 64>(self.c_planes.val()) << 80)
+                    | (bit_cast::<PW, 64>(self.c_blinks.val()) << 144)
+                    | (bit_cast::<PW, 64>(self.c_unconf.val()) << 208)
+                    | (bit_cast::<PW, 64>(self.c_dropped.val()) << 272)
+                    | (bit_cast::<PW, 64>(self.c_bridged.val()) << 336)
+                    | (bit_cast::<PW, 64>(self.c_cuts.val()) << 400);
+            }
+            _ => {
+                self.rec_prefix.next = self.start_const.val()
+                    | (bit_cast::<PW, 32>(self.seq_ctr.q.val()) << 32)
+                    | (bit_cast::<PW, NW>(self.n_window.val()) << 112)
+                    | (bit_cast::<PW, 32>(self.threshold.val()) << 144)
+                    | (bit_cast::<PW, 32>(self.l_min.val()) << 176)
+                    | (bit_cast::<PW, 32>(self.l_max.val()) << 208)
+                    | (bit_cast::<PW, 32>(self.plane_period.val()) << self.off_period.val())
+                    | (bit_cast::<PW, 32>(self.masked_pixels.val()) << self.off_masked.val());
+            }
+        }
+        self.ovf_prefix.next = bit_cast::<PW, 32>(0x7F01_4153_u64.into())
+            | (bit_cast::<PW, 32>(self.pend_first.q.val()) << 32)
+            | (bit_cast::<PW, 16>(8.into()) << 64)
+            | (bit_cast::<PW, 32>(self.pend_first.q.val()) << 80)
+            | (bit_cast::<PW, 32>(self.pend_cnt.q.val()) << 112);
+
+        // ---- The byte of this clock and the CRC.
+        self.pk_byte.next = (self.pk.q.val() >> (self.nb.q.val() - 8)).get_bits::<8>(0);
+        self.pad_byte.next = (self.pk.q.val() << (8 - self.nb.q.val())).get_bits::<8>(0);
+        self.byte.next = self.prefix.q.val().get_bits::<8>(self.boff.q.val().index());
+        if self.state.q.val() == PacketState::Codes {
+            self.byte.next = self.pad_byte.val();
+            if self.nb.q.val() >= 8 {
+                self.byte.next = self.pk_byte.val();
+            }
+        }
+        self.crc_v.next = self.crc.q.val().get_bits::<8>(0) ^ self.byte.val();
+        for i in 0..8 {
+            self.ct[i].next = 0.into();
+            if self.crc_v.val().get_bit(i) {
+                self.ct[i].next = self.crc_t[i].val();
+            }
+        }
+        self.crc_next.next = (self.crc.q.val() >> 8)
+            ^ self.ct[0].val()
+            ^ self.ct[1].val()
+            ^ self.ct[2].val()
+            ^ self.ct[3].val()
+            ^ self.ct[4].val()
+            ^ self.ct[5].val()
+            ^ self.ct[6].val()
+            ^ self.ct[7].val();
+
+        self.out_valid.next = false;
+        self.out_byte.next = self.byte.val();
+        self.r_pop.next = false;
+        self.fb_ret.next = false;
+        self.fb_ret_bank.next = self.r_bank.val();
+
+        match self.state.q.val() {
+            PacketState::Idle => {
+                if self.r_valid.val() {
+                    if self.r_lost.val() != 0 {
+                        self.ovf_flag.d.next = true;
+                        if self.pend_cnt.q.val() == 0 {
+                            self.pend_first.d.next = self.seq_ctr.q.val();
+                        }
+                        self.pend_cnt.d.next = self.pend_cnt.q.val() + self.r_lost.val();
+                    }
+                    self.seq_ctr.d.next = self.seq_ctr.q.val() + self.r_lost.val();
+                    if self.is_blink.val() {
+                        self.state.d.next = PacketState::Wait;
+                    } else {
+                        self.state.d.next = PacketState::Decide;
+                    }
+                }
+            }
+            PacketState::Wait => {
+                if self.r_ready.val() {
+                    self.base.d.next = self.all_ones.val();
+                    self.masked.d.next = self.r_empty.val() & self.r_empty_masked.val();
+                    self.cs_active.d.next = true;
+                    self.cs_dy.d.next = 0.into();
+                    self.cs_dx.d.next = 0.into();
+                    self.row_valid.d.next = false;
+                    self.cs_wait.d.next = false;
+                    self.state.d.next = PacketState::Pass1;
+                }
+            }
+            PacketState::Pass1 => {
+                if self.c_valid.val() & (self.c_val.val() < self.base.q.val()) {
+                    self.base.d.next = self.c_val.val();
+                }
+                if !self.cs_active.q.val() {
+                    for k in 0..32 {
+                        self.acc[k].d.next = 0.into();
+                    }
+                    self.cs_active.d.next = true;
+                    self.cs_dy.d.next = 0.into();
+                    self.cs_dx.d.next = 0.into();
+                    self.state.d.next = PacketState::Pass2;
+                }
+            }
+            PacketState::Pass2 => {
+                if self.c_valid.val() {
+                    for k in 0..32 {
+                        self.acc[k].d.next =
+                            self.acc[k].q.val() + self.len[k].val().get_bits::<16>(0);
+                    }
+                }
+                if !self.cs_active.q.val() {
+                    self.best.d.next = 0xFFFF.into();
+                    self.bestk.d.next = 0.into();
+                    self.scan.d.next = 0.into();
+                    self.state.d.next = PacketState::Choose;
+                }
+            }
+            PacketState::Choose => {
+                if self.acc_j.val() < self.best.q.val() {
+                    self.best.d.next = self.acc_j.val();
+                    self.bestk.d.next = self.scan.q.val();
+                }
+                self.scan.d.next = self.scan.q.val() + 1;
+                if self.scan.q.val() == 31 {
+                    self.state.d.next = PacketState::Decide;
+                }
+            }
+            PacketState::Decide => {
+                if self.fifo_free.val() >= self.need.val() {
+                    self.boff.d.next = 0.into();
+                    self.bidx.d.next = 0.into();
+                    self.crc.d.next = 0xFFFF_FFFF_u64.into();
+                    if self.pend_cnt.q.val() != 0 {
+                        self.prefix.d.next = self.ovf_prefix.val();
+                        self.prefix_len.d.next = 18.into();
+                        self.in_ovf.d.next = true;
+                        self.state.d.next = PacketState::Ovf;
+                    } else {
+                        self.prefix.d.next = self.rec_prefix.val();
+                        self.prefix_len.d.next = self.rec_prefix_len.val();
+                        self.in_ovf.d.next = false;
+                        self.state.d.next = PacketState::Emit;
+                    }
+                } else if (self.r_kind.val() == 1) | (self.r_kind.val() == 2) {
+                    // No room for the whole packet: drop the record, count it.
+                    self.ovf_flag.d.next = true;
+                    if self.pend_cnt.q.val() == 0 {
+                        self.pend_first.d.next = self.seq_ctr.q.val();
+                    }
+                    self.pend_cnt.d.next = self.pend_cnt.q.val() + 1;
+                    self.state.d.next = PacketState::Finish;
+                }
+            }
+            PacketState::Ovf => {
+                self.out_valid.next = true;
+                self.crc.d.next = self.crc_next.val();
+                self.boff.d.next = self.boff.q.val() + 8;
+                self.bidx.d.next = self.bidx.q.val() + 1;
+                if self.bidx.q.val() + 1 == self.prefix_len.q.val() {
+                    self.crc_i.d.next = 0.into();
+                    self.state.d.next = PacketState::Crc;
+                }
+            }
+            PacketState::Emit => {
+                self.out_valid.next = true;
+                self.crc.d.next = self.crc_next.val();
+                self.boff.d.next = self.boff.q.val() + 8;
+                self.bidx.d.next = self.bidx.q.val() + 1;
+                if self.bidx.q.val() + 1 == self.prefix_len.q.val() {
+                    self.crc_i.d.next = 0.into();
+                    if self.is_blink.val() {
+                        self.nb.d.next = 0.into();
+                        self.cs_active.d.next = true;
+                        self.cs_dy.d.next = 0.into();
+                        self.cs_dx.d.next = 0.into();
+                        self.state.d.next = PacketState::Codes;
+                    } else {
+                        self.state.d.next = PacketState::Crc;
+                    }
+                }
+            }
+            PacketState::Codes => {
+                if self.nb.q.val() >= 8 {
+                    self.out_valid.next = true;
+                    self.crc.d.next = self.crc_next.val();
+                    self.nb.d.next = self.nb.q.val() - 8;
+                } else if self.c_valid.val() {
+                    self.pk.d.next =
+                        (self.pk.q.val() << self.clen.val()) | bit_cast::<72, 64>(self.code.val());
+                    self.nb.d.next = self.nb.q.val() + self.clen.val();
+                } else if !self.cs_active.q.val() {
+                    if self.nb.q.val() != 0 {
+                        self.out_valid.next = true;
+                        self.crc.d.next = self.crc_next.val();
+                        self.nb.d.next = 0.into();
+                    } else {
+                        self.state.d.next = PacketState::Crc;
+                    }
+                }
+            }
+            PacketState::Crc => {
+                self.out_valid.next = true;
+                self.out_byte.next = !(self.crc.q.val()
+                    >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3))
+                    .get_bits::<8>(0);
+                self.crc_i.d.next = self.crc_i.q.val() + 1;
+                if self.crc_i.q.val() == 3 {
+                    if self.in_ovf.q.val() {
+                        // The Overflow packet is out: now the record.
+                        self.pend_cnt.d.next = 0.into();
+                        self.in_ovf.d.next = false;
+                        self.prefix.d.next = self.rec_prefix.val();
+                        self.prefix_len.d.next = self.rec_prefix_len.val();
+                        self.boff.d.next = 0.into();
+                        self.bidx.d.next = 0.into();
+                        self.crc.d.next = 0xFFFF_FFFF_u64.into();
+                        self.state.d.next = PacketState::Emit;
+                    } else {
+                        self.state.d.next = PacketState::Finish;
+                    }
+                }
+            }
+            PacketState::Finish => {
+                self.r_pop.next = true;
+                self.fb_ret.next = self.is_blink.val();
+                self.seq_ctr.d.next = self.seq_ctr.q.val() + 1;
+                self.state.d.next = PacketState::Idle;
+            }
+            _ => {}
+        }
+
+        if self.restart.val() {
+            self.state.d.next = PacketState::Idle;
+            self.seq_ctr.d.next = self.seq_init.val();
+            self.pend_cnt.d.next = 0.into();
+            self.ovf_flag.d.next = false;
+            self.cs_active.d.next = false;
+        }
+        self.idle.next = (self.state.q.val() == PacketState::Idle) & !self.r_valid.val();
+        self.overflowed.next = self.ovf_flag.q.val();
+    }
+}
+
+/// The record queue between the tracker and the packetiser: descriptor
+/// fields packed into one FIFO entry (`QW = 226 + BW` bits: kind 2, lost 32,
+/// slot 8, flags 8, x 16, y 16, t0 48, t1 48, tag 48, bank BW), in
+/// distributed RAM. `room` limits it to Q entries (the packetiser's current
+/// record included), so that every queued Blink holds one of the Q spare
+/// banks.
+#[derive(LogicBlock)]
+pub struct RecordQueue<const BW: usize, const QAW: usize, const QW: usize> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: empty.
+    pub restart: Signal<In, Bit>,
+    /// Fewer than Q records held.
+    pub room: Signal<Out, Bit>,
+    /// Push a descriptor.
+    pub push: Signal<In, Bit>,
+    /// Kind.
+    pub kind: Signal<In, Bits<2>>,
+    /// Records lost before it.
+    pub lost: Signal<In, Bits<32>>,
+    /// Slot.
+    pub slot: Signal<In, Bits<8>>,
+    /// Tracker flags.
+    pub flags: Signal<In, Bits<8>>,
+    /// Column.
+    pub x: Signal<In, Bits<16>>,
+    /// Row.
+    pub y: Signal<In, Bits<16>>,
+    /// t_cross / plane.
+    pub t0: Signal<In, Bits<48>>,
+    /// t_drop / count.
+    pub t1: Signal<In, Bits<48>>,
+    /// Plane after whose sweep the counts are final.
+    pub tag: Signal<In, Bits<48>>,
+    /// Bank.
+    pub bank: Signal<In, Bits<BW>>,
+    /// The head is valid.
+    pub h_valid: Signal<Out, Bit>,
+    /// Pop the head.
+    pub h_pop: Signal<In, Bit>,
+    /// Head kind.
+    pub h_kind: Signal<Out, Bits<2>>,
+    /// Head lost count.
+    pub h_lost: Signal<Out, Bits<32>>,
+    /// Head slot.
+    pub h_slot: Signal<Out, Bits<8>>,
+    /// Head flags.
+    pub h_flags: Signal<Out, Bits<8>>,
+    /// Head column.
+    pub h_x: Signal<Out, Bits<16>>,
+    /// Head row.
+    pub h_y: Signal<Out, Bits<16>>,
+    /// Head t0.
+    pub h_t0: Signal<Out, Bits<48>>,
+    /// Head t1.
+    pub h_t1: Signal<Out, Bits<48>>,
+    /// Head tag.
+    pub h_tag: Signal<Out, Bits<48>>,
+    /// Head bank.
+    pub h_bank: Signal<Out, Bits<BW>>,
+    /// A push was refused (never expected: the tracker checks `room`).
+    pub overflow: Signal<Out, Bit>,
+    fifo: Fifo<QW, QAW>,
+    depth: Constant<Bits<16>>,
+}
+
+impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW> {
+    /// The queue of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        GatewareConfig::check_width("RecordQueue", "BW", BW, cfg.bank_bits())?;
+        GatewareConfig::check_width("RecordQueue", "QAW", QAW, cfg.queue_log2)?;
+        GatewareConfig::check_width("RecordQueue", "QW", QW, 226 + cfg.bank_bits())?;
+        Ok(RecordQueue {
+            clock: Default::default(),
+            restart: Default::default(),
+            room: Default::default(),
+            push: Default::default(),
+            kind: Default::default(),
+            lost: Default::default(),
+            slot: Default::default(),
+            flags: Default::default(),
+            x: Default::default(),
+            y: Default::default(),
+            t0: Default::default(),
+            t1: Default::default(),
+            tag: Default::default(),
+            bank: Default::default(),
+            h_valid: Default::default(),
+            h_pop: Default::default(),
+            h_kind: Default::default(),
+            h_lost: Default::default(),
+            h_slot: Default::default(),
+            h_flags: Default::default(),
+            h_x: Default::default(),
+            h_y: Default::default(),
+            h_t0: Default::default(),
+            h_t1: Default::default(),
+            h_tag: Default::default(),
+            h_bank: Default::default(),
+            overflow: Default::default(),
+            fifo: Fifo::new(RamStyle::Distributed),
+            depth: Constant::new((cfg.queue_depth() as u64).to_bits()),
+        })
+    }
+}
+
+impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<BW, QAW, QW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        self.fifo.clock.next = self.clock.val();
+        self.fifo.restart.next = self.restart.val();
+        self.fifo.push.next = self.push.val();
+        self.fifo.push_data.next = bit_cast::<QW, 2>(self.kind.val())
+            | (bit_cast::<QW, 32>(self.lost.val()) << 2)
+            | (bit_cast::<QW, 8>(self.slot.val()) << 34)
+            | (bit_cast::<QW, 8>(self.flags.val()) << 42)
+            | (bit_cast::<QW, 16>(self.x.val()) << 50)
+            | (bit_cast::<QW, 16>(self.y.val()) << 66)
+            | (bit_cast::<QW, 48>(self.t0.val()) << 82)
+            | (bit_cast::<QW, 48>(self.t1.val()) << 130)
+            | (bit_cast::<QW, 48>(self.tag.val()) << 178)
+            | (bit_cast::<QW, BW>(self.bank.val()) << 226);
+        self.fifo.pop.next = self.h_pop.val();
+        self.room.next = self.fifo.count.val() < self.depth.val();
+        self.h_valid.next = self.fifo.out_valid.val();
+        self.h_kind.next = self.fifo.out_data.val().get_bits::<2>(0);
+        self.h_lost.next = self.fifo.out_data.val().get_bits::<32>(2);
+        self.h_slot.next = self.fifo.out_data.val().get_bits::<8>(34);
+        self.h_flags.next = self.fifo.out_data.val().get_bits::<8>(42);
+        self.h_x.next = self.fifo.out_data.val().get_bits::<16>(50);
+        self.h_y.next = self.fifo.out_data.val().get_bits::<16>(66);
+        self.h_t0.next = self.fifo.out_data.val().get_bits::<48>(82);
+        self.h_t1.next = self.fifo.out_data.val().get_bits::<48>(130);
+        self.h_tag.next = self.fifo.out_data.val().get_bits::<48>(178);
+        self.h_bank.next = self.fifo.out_data.val().get_bits::<BW>(226);
+        self.overflow.next = self.fifo.overflow.val();
+    }
+}
+
+/// The fields of a Blink record that follow from the tracker's descriptor,
+/// as the model's `Pipeline::emit` computes them: `t_s = t_cross − ⌊N/2⌋`
+/// (a continuation: `t_cross`), `t_e = t_drop − ⌊N/2⌋` (cut or truncated:
+/// `t_drop`), planes summed `t_drop + 1 − first` with `first = t_cross` for a
+/// continuation and `max(0, t_cross − N)` otherwise, EDGE from the anchor,
+/// PREROLL_CLIPPED when `t_cross < N` (not a continuation); the counts are
+/// final once the aggregator has swept the record's plane; a segment with
+/// `t_drop < t_cross` summed nothing.
+#[derive(LogicBlock)]
+pub struct RecordFinisher<const NW: usize> {
+    /// N register.
+    pub n_window: Signal<In, Bits<NW>>,
+    /// Planes the aggregator has swept.
+    pub planes_done: Signal<In, Bits<48>>,
+    /// MASKED per slot (aggregator).
+    pub slot_masked: Vec<Signal<In, Bit>>,
+    /// Kind.
+    pub kind: Signal<In, Bits<2>>,
+    /// Slot.
+    pub slot: Signal<In, Bits<8>>,
+    /// Tracker flags (CUT, CONTINUATION, TRUNCATED).
+    pub flags: Signal<In, Bits<8>>,
+    /// Anchor column.
+    pub ax: Signal<In, Bits<16>>,
+    /// Anchor row.
+    pub ay: Signal<In, Bits<16>>,
+    /// t_cross.
+    pub t0: Signal<In, Bits<48>>,
+    /// t_drop.
+    pub t1: Signal<In, Bits<48>>,
+    /// Tag.
+    pub tag: Signal<In, Bits<48>>,
+    /// Flags with EDGE and PREROLL_CLIPPED.
+    pub o_flags: Signal<Out, Bits<8>>,
+    /// t_s.
+    pub o_ts: Signal<Out, Bits<48>>,
+    /// t_e.
+    pub o_te: Signal<Out, Bits<48>>,
+    /// Planes summed.
+    pub o_planes: Signal<Out, Bits<32>>,
+    /// Counts final.
+    pub o_ready: Signal<Out, Bit>,
+    /// Summed nothing.
+    pub o_empty: Signal<Out, Bit>,
+    /// MASKED of the slot (for an empty segment).
+    pub o_empty_masked: Signal<Out, Bit>,
+    n48: Signal<Local, Bits<48>>,
+    half: Signal<Local, Bits<48>>,
+    cont: Signal<Local, Bit>,
+    first: Signal<Local, Bits<48>>,
+    at_edge: Signal<Local, Bit>,
+    f_edge: Signal<Local, Bits<8>>,
+    f_clip: Signal<Local, Bits<8>>,
+    h: Constant<Bits<16>>,
+    last_x: Constant<Bits<16>>,
+    last_y: Constant<Bits<16>>,
+    ids: Vec<Constant<Bits<8>>>,
+    _m: usize,
+}
+
+impl<const NW: usize> RecordFinisher<NW> {
+    /// The finisher of a configuration.
+    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        GatewareConfig::check_width("RecordFinisher", "NW", NW, cfg.front.count_bits())?;
+        let h = cfg.roi_half() as u64;
+        Ok(RecordFinisher {
+            n_window: Default::default(),
+            planes_done: Default::default(),
+            slot_masked: lanes(cfg.slots),
+            kind: Default::default(),
+            slot: Default::default(),
+            flags: Default::default(),
+            ax: Default::default(),
+            ay: Default::default(),
+            t0: Default::default(),
+            t1: Default::default(),
+            tag: Default::default(),
+            o_flags: Default::default(),
+            o_ts: Default::default(),
+            o_te: Default::default(),
+            o_planes: Default::default(),
+            o_ready: Default::default(),
+            o_empty: Default::default(),
+            o_empty_masked: Default::default(),
+            n48: Default::default(),
+            half: Default::default(),
+            cont: Default::default(),
+            first: Default::default(),
+            at_edge: Default::default(),
+            f_edge: Default::default(),
+            f_clip: Default::default(),
+            h: Constant::new(h.to_bits()),
+            // ax + h ≥ W  ⟺  ax > W − 1 − h (W > 2h: R < H ≤ … and R ≤ P < W).
+            last_x: Constant::new((cfg.front.width as u64 - 1 - h).to_bits()),
+            last_y: Constant::new((cfg.front.height as u64 - 1 - h).to_bits()),
+            ids: (0..cfg.slots)
+                .map(|i| Constant::new((i as u64).to_bits()))
+                .collect(),
+            _m: cfg.slots,
+        })
+    }
+}
+
+impl<const NW: usize> Logic for RecordFinisher<NW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        self.n48.next = bit_cast::<48, NW>(self.n_window.val());
+        self.half.next = self.n48.val() >> 1;
+        self.cont.next = self.flags.val().get_bit(3);
+        self.o_ts.next = self.t0.val() - self.half.val();
+        if self.cont.val() {
+            self.o_ts.next = self.t0.val();
+        }
+        self.o_te.next = self.t1.val() - self.half.val();
+        if self.flags.val().get_bit(2) | self.flags.val().get_bit(4) {
+            self.o_te.next = self.t1.val();
+        }
+        self.first.next = 0.into();
+        if self.t0.val() >= self.n48.val() {
+            self.first.next = self.t0.val() - self.n48.val();
+        }
+        if self.cont.val() {
+            self.first.next = self.t0.val();
+        }
+        self.o_planes.next = bit_cast::<32, 48>(self.t1.val() + 1 - self.first.val());
+        self.at_edge.next = (self.ax.val() < self.h.val())
+            | (self.ay.val() < self.h.val())
+            | (self.ax.val() > self.last_x.val())
+            | (self.ay.val() > self.last_y.val());
+        self.f_edge.next = 0.into();
+        if self.at_edge.val() {
+            self.f_edge.next = 1.into();
+        }
+        self.f_clip.next = 0.into();
+        if !self.cont.val() & (self.t0.val() < self.n48.val()) {
+            self.f_clip.next = 0x20.into();
+        }
+        self.o_flags.next = self.flags.val() | self.f_edge.val() | self.f_clip.val();
+        self.o_ready.next = (self.kind.val() != 1) | (self.planes_done.val() > self.tag.val());
+        self.o_empty.next = self.t1.val() < self.t0.val();
+        self.o_empty_masked.next = false;
+        for i in 0..self._m {
+            if self.slot.val() == self.ids[i].val() {
+                self.o_empty_masked.next = self.slot_masked[i].val();
+            }
+        }
+    }
+}

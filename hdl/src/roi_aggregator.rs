@@ -1,0 +1,732 @@
+//! Stage 6 — ROI aggregation: per slot, R×R counters summing the raw
+//! (masked) live plane `B_t` while the tracker says `sums_live` and the
+//! delayed plane `B_{t−N}` during the pre-roll (`sums_preroll`), as
+//! [`smartagg_model::roi_aggregator`].
+//!
+//! **Row skew.** A track opens only when its candidate has come out of the
+//! front half, c + 1 rows after its row went in, and its on/off step for
+//! plane t is known only when row `ay + 1` of H has been processed. The raw
+//! live, delayed and mask bits therefore go into a ring of
+//! [`BackHalfConfig::row_buffer_rows`] rows (c + h + 5 rows of lag plus the
+//! sweep backlog), and raw row r of plane t is summed (*swept*) only once
+//! the tracker has finished row `min(r + h + 2, H)` of plane t: by then
+//! every slot whose ROI covers row r has its final flags for plane t in the
+//! tracker's ROI view (see [`crate::blink_tracker`]), including tracks
+//! opened by candidates up to row r + h. A ring overrun (the sweep fell a
+//! whole ring behind) sets the sticky `overrun` flag.
+//!
+//! **Sweep.** For each raw row, the slots whose ROI covers it and that sum
+//! this plane are taken one per clock (lowest slot first): the R bits of
+//! the row at columns `ax − h … ax + h` are cut from the two words that hold
+//! them (the ring keeps even and odd words in separate banks, so both are
+//! read in one clock; columns outside the sensor read 0), and the R counters
+//! of that ROI row are read, incremented by `live·sums_live +
+//! delayed·sums_preroll`, and written back the next clock. In the first
+//! plane of a segment (`fresh`) the old counts read as zero, so counters
+//! never need clearing. ROI rows outside the sensor are never swept; the
+//! packetiser reads them as 0. The MASKED flag is the OR of the mask bits
+//! of the ROI, kept beside each counter row, and per slot for the one
+//! segment that sums nothing (a continuation starting at the stream's end,
+//! which the model still reports, with zero counts).
+//!
+//! **Counters: block RAM.** R memories (one per ROI column) of
+//! `(M + Q)·R` counter rows of RCW bits, plus one 1-bit memory for the mask
+//! flags: for the SPCImager (M = 32, Q = 32, R = 9, RCW = 17) that is
+//! 9 × 576 × 17 bits, nine 9-Kbit block RAMs, against 57 Kbit of LUT RAM
+//! (≈ 900 LUTs as 64×1 RAM) — block RAM wins. Every slot owns one bank of R
+//! rows; a completed segment hands its bank to the record queue and takes a
+//! free one ([`BankPool`]). The packetiser reads queued banks through the
+//! memories' read port whenever the sweep does not use it (`rd_grant`).
+//!
+//! **Throughput.** A row costs one clock plus one per relevant slot beyond
+//! the first; R rows bring R·W/P word clocks at most, so the sweep keeps up
+//! when `M + 1 ≤ W/P` and otherwise needs `⌈R·(M + 1 − W/P)/(W/P)⌉` rows of
+//! slack, plus the rows the tracker may fall behind at each plane's end
+//! (`M + 3` clocks): [`BackHalfConfig::default_row_slack`].
+
+use crate::bram::{Bram, RamStyle};
+use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
+use crate::fifo::Fifo;
+use crate::spatial_filter::ConstMul;
+use crate::stream::lanes;
+use rust_hdl::prelude::*;
+
+/// The ROI aggregator. `P`: pixels per word; `RAW`: row-buffer bank address
+/// bits; `RCW`: counter bits; `CAW`: counter address bits; `BW`: bank bits.
+#[derive(LogicBlock)]
+pub struct RoiAggregator<
+    const P: usize,
+    const RAW: usize,
+    const RCW: usize,
+    const CAW: usize,
+    const BW: usize,
+> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: plane 0, row 0, empty ring.
+    pub restart: Signal<In, Bit>,
+    /// A raw word of a real or drain plane (raster order).
+    pub in_valid: Signal<In, Bit>,
+    /// Its word column.
+    pub in_x: Signal<In, Bits<16>>,
+    /// `B_t`.
+    pub in_live: Signal<In, Bits<P>>,
+    /// `B_{t−N}`.
+    pub in_delayed: Signal<In, Bits<P>>,
+    /// Hot-pixel mask bits.
+    pub in_mask: Signal<In, Bits<P>>,
+    /// Tracker plane.
+    pub tr_plane: Signal<In, Bits<48>>,
+    /// Tracker rows done in that plane.
+    pub tr_rows: Signal<In, Bits<16>>,
+    /// Tracker ROI view: sum live (index parity·M + slot).
+    pub sh_live: Vec<Signal<In, Bit>>,
+    /// Tracker ROI view: sum delayed.
+    pub sh_pre: Vec<Signal<In, Bit>>,
+    /// Tracker ROI view: first plane of the segment.
+    pub sh_fresh: Vec<Signal<In, Bit>>,
+    /// Tracker ROI view: anchor column.
+    pub sh_ax: Vec<Signal<In, Bits<16>>>,
+    /// Tracker ROI view: anchor row.
+    pub sh_ay: Vec<Signal<In, Bits<16>>>,
+    /// Tracker ROI view: bank.
+    pub sh_bank: Vec<Signal<In, Bits<BW>>>,
+    /// Planes whose every row has been swept.
+    pub planes_done: Signal<Out, Bits<48>>,
+    /// The ring was overrun (sticky; sums are then wrong).
+    pub overrun: Signal<Out, Bit>,
+    /// Counter read request (packetiser).
+    pub rd_req: Signal<In, Bit>,
+    /// Counter row address: bank·R + ROI row.
+    pub rd_addr: Signal<In, Bits<CAW>>,
+    /// The request is taken this clock; the row follows next clock.
+    pub rd_grant: Signal<Out, Bit>,
+    /// The R counts of the row read.
+    pub rd_counts: Vec<Signal<Out, Bits<RCW>>>,
+    /// The row's mask flag.
+    pub rd_masked: Signal<Out, Bit>,
+    /// Per slot: MASKED of the ROI of its latest segment that summed a plane
+    /// (for a continuation cut off by the stream end before summing any).
+    pub slot_masked: Vec<Signal<Out, Bit>>,
+    ring: Vec<Bram<P, RAW>>,
+    cnt: Vec<Bram<RCW, CAW>>,
+    msk: Bram<1, CAW>,
+    bank_base: ConstMul<CAW>,
+    // Writer.
+    wbase: DFF<Bits<RAW>>,
+    wslot: DFF<Bits<16>>,
+    gw: DFF<Bits<16>>,
+    ovf: DFF<Bit>,
+    // Sweep.
+    sweeping: DFF<Bit>,
+    rel: Vec<DFF<Bit>>,
+    rbase: DFF<Bits<RAW>>,
+    rslot: DFF<Bits<16>>,
+    gs: DFF<Bits<16>>,
+    ta: DFF<Bits<48>>,
+    ra: DFF<Bits<16>>,
+    s1_valid: DFF<Bit>,
+    s1_live: DFF<Bit>,
+    s1_pre: DFF<Bit>,
+    s1_fresh: DFF<Bit>,
+    s1_off: DFF<Bits<16>>,
+    s1_lo_ok: DFF<Bit>,
+    s1_hi_ok: DFF<Bit>,
+    s1_odd: DFF<Bit>,
+    s1_addr: DFF<Bits<CAW>>,
+    s1_first: DFF<Bit>,
+    s1_sel: Vec<DFF<Bit>>,
+    mflag: Vec<DFF<Bit>>,
+    // Combinational.
+    pending: Signal<Local, Bits<16>>,
+    par: Signal<Local, Bit>,
+    need: Signal<Local, Bits<16>>,
+    trig: Signal<Local, Bit>,
+    row_lo: Signal<Local, Bits<16>>,
+    row_hi: Signal<Local, Bits<16>>,
+    rtaken: Vec<Signal<Local, Bit>>,
+    rsel: Vec<Signal<Local, Bit>>,
+    any_rel: Signal<Local, Bit>,
+    rest_taken: Vec<Signal<Local, Bit>>,
+    rest_any: Signal<Local, Bit>,
+    now_rel: Vec<Signal<Local, Bit>>,
+    now_taken: Vec<Signal<Local, Bit>>,
+    now_any: Signal<Local, Bit>,
+    row_done: Signal<Local, Bit>,
+    s0: Signal<Local, Bit>,
+    k_live: Signal<Local, Bit>,
+    k_pre: Signal<Local, Bit>,
+    k_fresh: Signal<Local, Bit>,
+    k_ax: Signal<Local, Bits<16>>,
+    k_ay: Signal<Local, Bits<16>>,
+    k_bank: Signal<Local, Bits<BW>>,
+    dy: Signal<Local, Bits<16>>,
+    x0p: Signal<Local, Bits<16>>,
+    wq: Signal<Local, Bits<16>>,
+    half_wq: Signal<Local, Bits<16>>,
+    odd_addr: Signal<Local, Bits<16>>,
+    caddr: Signal<Local, Bits<CAW>>,
+    lo_l: Signal<Local, Bits<P>>,
+    lo_d: Signal<Local, Bits<P>>,
+    lo_m: Signal<Local, Bits<P>>,
+    hi_l: Signal<Local, Bits<P>>,
+    hi_d: Signal<Local, Bits<P>>,
+    hi_m: Signal<Local, Bits<P>>,
+    sh_hi: Signal<Local, Bits<16>>,
+    win_l: Signal<Local, Bits<P>>,
+    win_d: Signal<Local, Bits<P>>,
+    win_m: Signal<Local, Bits<P>>,
+    inc: Vec<Signal<Local, Bits<RCW>>>,
+    old: Vec<Signal<Local, Bits<RCW>>>,
+    old_m: Signal<Local, Bit>,
+    any_m: Signal<Local, Bit>,
+    // Constants.
+    h: Constant<Bits<16>>,
+    h2: Constant<Bits<16>>,
+    p_minus_h: Constant<Bits<16>>,
+    pw: Constant<Bits<16>>,
+    pm1: Constant<Bits<16>>,
+    log2p: Constant<Bits<8>>,
+    rows_h: Constant<Bits<16>>,
+    last_row: Constant<Bits<16>>,
+    last_word: Constant<Bits<16>>,
+    words: Constant<Bits<16>>,
+    half_words: Constant<Bits<RAW>>,
+    ring_rows: Constant<Bits<16>>,
+    last_slot_row: Constant<Bits<16>>,
+    roi_mask: Constant<Bits<P>>,
+    _m: usize,
+    _r: usize,
+}
+
+impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const BW: usize>
+    RoiAggregator<P, RAW, RCW, CAW, BW>
+{
+    /// The aggregator of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        cfg.validate()?;
+        let f = &cfg.front;
+        GatewareConfig::check_width("RoiAggregator", "P", P, f.pixels_per_clock)?;
+        GatewareConfig::check_width("RoiAggregator", "RAW", RAW, cfg.row_addr_bits())?;
+        GatewareConfig::check_width("RoiAggregator", "RCW", RCW, cfg.roi_count_bits())?;
+        GatewareConfig::check_width("RoiAggregator", "CAW", CAW, cfg.counter_addr_bits())?;
+        GatewareConfig::check_width("RoiAggregator", "BW", BW, cfg.bank_bits())?;
+        let (m, r, h) = (cfg.slots, cfg.roi_size, cfg.roi_half());
+        let c16 = |v: u64| Constant::new(v.to_bits());
+        let ring_depth = cfg.row_buffer_rows() * cfg.half_words_per_row();
+        let ring_style = if ring_depth <= 64 {
+            RamStyle::Distributed
+        } else {
+            RamStyle::Block
+        };
+        let counter_rows = cfg.banks() * r;
+        Ok(RoiAggregator {
+            clock: Default::default(),
+            restart: Default::default(),
+            in_valid: Default::default(),
+            in_x: Default::default(),
+            in_live: Default::default(),
+            in_delayed: Default::default(),
+            in_mask: Default::default(),
+            tr_plane: Default::default(),
+            tr_rows: Default::default(),
+            sh_live: lanes(2 * m),
+            sh_pre: lanes(2 * m),
+            sh_fresh: lanes(2 * m),
+            sh_ax: lanes(2 * m),
+            sh_ay: lanes(2 * m),
+            sh_bank: lanes(2 * m),
+            planes_done: Default::default(),
+            overrun: Default::default(),
+            rd_req: Default::default(),
+            rd_addr: Default::default(),
+            rd_grant: Default::default(),
+            rd_counts: lanes(r),
+            rd_masked: Default::default(),
+            slot_masked: lanes(m),
+            ring: (0..6).map(|_| Bram::new(ring_depth, ring_style)).collect(),
+            cnt: (0..r)
+                .map(|_| Bram::new(counter_rows, RamStyle::Block))
+                .collect(),
+            msk: Bram::new(counter_rows, RamStyle::Distributed),
+            bank_base: ConstMul::new(r as u32),
+            wbase: Default::default(),
+            wslot: Default::default(),
+            gw: Default::default(),
+            ovf: Default::default(),
+            sweeping: Default::default(),
+            rel: lanes(m),
+            rbase: Default::default(),
+            rslot: Default::default(),
+            gs: Default::default(),
+            ta: Default::default(),
+            ra: Default::default(),
+            s1_valid: Default::default(),
+            s1_live: Default::default(),
+            s1_pre: Default::default(),
+            s1_fresh: Default::default(),
+            s1_off: Default::default(),
+            s1_lo_ok: Default::default(),
+            s1_hi_ok: Default::default(),
+            s1_odd: Default::default(),
+            s1_addr: Default::default(),
+            s1_first: Default::default(),
+            s1_sel: lanes(m),
+            mflag: lanes(m),
+            pending: Default::default(),
+            par: Default::default(),
+            need: Default::default(),
+            trig: Default::default(),
+            row_lo: Default::default(),
+            row_hi: Default::default(),
+            rtaken: lanes(m + 1),
+            rsel: lanes(m),
+            any_rel: Default::default(),
+            rest_taken: lanes(m + 1),
+            rest_any: Default::default(),
+            now_rel: lanes(m),
+            now_taken: lanes(m + 1),
+            now_any: Default::default(),
+            row_done: Default::default(),
+            s0: Default::default(),
+            k_live: Default::default(),
+            k_pre: Default::default(),
+            k_fresh: Default::default(),
+            k_ax: Default::default(),
+            k_ay: Default::default(),
+            k_bank: Default::default(),
+            dy: Default::default(),
+            x0p: Default::default(),
+            wq: Default::default(),
+            half_wq: Default::default(),
+            odd_addr: Default::default(),
+            caddr: Default::default(),
+            lo_l: Default::default(),
+            lo_d: Default::default(),
+            lo_m: Default::default(),
+            hi_l: Default::default(),
+            hi_d: Default::default(),
+            hi_m: Default::default(),
+            sh_hi: Default::default(),
+            win_l: Default::default(),
+            win_d: Default::default(),
+            win_m: Default::default(),
+            inc: lanes(r),
+            old: lanes(r),
+            old_m: Default::default(),
+            any_m: Default::default(),
+            h: c16(h as u64),
+            h2: c16(h as u64 + 2),
+            p_minus_h: c16((P - h) as u64),
+            pw: c16(P as u64),
+            pm1: c16(P as u64 - 1),
+            log2p: Constant::new((cfg.log2_p() as u64).to_bits()),
+            rows_h: c16(f.height as u64),
+            last_row: c16(f.height as u64 - 1),
+            last_word: c16(f.words_per_row() as u64 - 1),
+            words: c16(f.words_per_row() as u64),
+            half_words: Constant::new((cfg.half_words_per_row() as u64).to_bits()),
+            ring_rows: c16(cfg.row_buffer_rows() as u64),
+            last_slot_row: c16(cfg.row_buffer_rows() as u64 - 1),
+            roi_mask: Constant::new(((1u64 << r) - 1).to_bits()),
+            _m: m,
+            _r: r,
+        })
+    }
+}
+
+impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const BW: usize> Logic
+    for RoiAggregator<P, RAW, RCW, CAW, BW>
+{
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(
+            self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, ra, s1_valid,
+            s1_live, s1_pre, s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first
+        );
+        for i in 0..self._m {
+            self.rel[i].clock.next = self.clock.val();
+            self.rel[i].d.next = self.rel[i].q.val();
+            self.s1_sel[i].clock.next = self.clock.val();
+            self.mflag[i].clock.next = self.clock.val();
+            self.mflag[i].d.next = self.mflag[i].q.val();
+            self.slot_masked[i].next = self.mflag[i].q.val();
+        }
+        for q in 0..6 {
+            self.ring[q].clock.next = self.clock.val();
+        }
+        for dx in 0..self._r {
+            self.cnt[dx].clock.next = self.clock.val();
+        }
+        self.msk.clock.next = self.clock.val();
+
+        // ---- Writer: even words to ring 0..2, odd words to ring 3..5.
+        self.pending.next = self.gw.q.val() - self.gs.q.val();
+        for q in 0..6 {
+            self.ring[q].write_address.next =
+                self.wbase.q.val() + bit_cast::<RAW, 16>(self.in_x.val() >> 1);
+        }
+        self.ring[0].write_data.next = self.in_live.val();
+        self.ring[1].write_data.next = self.in_delayed.val();
+        self.ring[2].write_data.next = self.in_mask.val();
+        self.ring[3].write_data.next = self.in_live.val();
+        self.ring[4].write_data.next = self.in_delayed.val();
+        self.ring[5].write_data.next = self.in_mask.val();
+        for q in 0..3 {
+            self.ring[q].write_enable.next = self.in_valid.val() & !self.in_x.val().get_bit(0);
+        }
+        for q in 3..6 {
+            self.ring[q].write_enable.next = self.in_valid.val() & self.in_x.val().get_bit(0);
+        }
+        if self.in_valid.val() {
+            if self.pending.val() >= self.ring_rows.val() {
+                self.ovf.d.next = true;
+            }
+            if self.in_x.val() == self.last_word.val() {
+                self.gw.d.next = self.gw.q.val() + 1;
+                if self.wslot.q.val() == self.last_slot_row.val() {
+                    self.wslot.d.next = 0.into();
+                    self.wbase.d.next = 0.into();
+                } else {
+                    self.wslot.d.next = self.wslot.q.val() + 1;
+                    self.wbase.d.next = self.wbase.q.val() + self.half_words.val();
+                }
+            }
+        }
+
+        // ---- Is the next raw row (ta, ra) ready to sweep?
+        self.par.next = self.ta.q.val().get_bit(0);
+        self.need.next = self.ra.q.val() + self.h2.val();
+        if self.need.val() > self.rows_h.val() {
+            self.need.next = self.rows_h.val();
+        }
+        self.trig.next = (self.pending.val() != 0)
+            & ((self.tr_plane.val() > self.ta.q.val())
+                | ((self.tr_plane.val() == self.ta.q.val())
+                    & (self.tr_rows.val() >= self.need.val())));
+        self.row_lo.next = 0.into();
+        if self.ra.q.val() >= self.h.val() {
+            self.row_lo.next = self.ra.q.val() - self.h.val();
+        }
+        self.row_hi.next = self.ra.q.val() + self.h.val();
+
+        // ---- Slots whose ROI covers row ra and that sum this plane.
+        self.now_taken[0].next = false;
+        for mm in self._m..(self._m + 1) {
+            for i in 0..self._m {
+                if self.par.val() {
+                    self.now_rel[i].next = (self.sh_live[i + mm].val() | self.sh_pre[i + mm].val())
+                        & (self.sh_ay[i + mm].val() >= self.row_lo.val())
+                        & (self.sh_ay[i + mm].val() <= self.row_hi.val());
+                } else {
+                    self.now_rel[i].next = (self.sh_live[i].val() | self.sh_pre[i].val())
+                        & (self.sh_ay[i].val() >= self.row_lo.val())
+                        & (self.sh_ay[i].val() <= self.row_hi.val());
+                }
+                self.now_taken[i + 1].next = self.now_taken[i].val() | self.now_rel[i].val();
+            }
+            self.now_any.next = self.now_taken[mm].val();
+        }
+
+        // ---- The lowest relevant slot, and its view.
+        self.rtaken[0].next = false;
+        self.rest_taken[0].next = false;
+        for i in 0..self._m {
+            self.rsel[i].next = self.rel[i].q.val() & !self.rtaken[i].val();
+            self.rtaken[i + 1].next = self.rtaken[i].val() | self.rel[i].q.val();
+            self.rest_taken[i + 1].next =
+                self.rest_taken[i].val() | (self.rel[i].q.val() & !self.rsel[i].val());
+        }
+        for mm in self._m..(self._m + 1) {
+            self.any_rel.next = self.rtaken[mm].val();
+            self.rest_any.next = self.rest_taken[mm].val();
+        }
+        self.s0.next = self.sweeping.q.val() & self.any_rel.val();
+        self.k_live.next = false;
+        self.k_pre.next = false;
+        self.k_fresh.next = false;
+        self.k_ax.next = 0.into();
+        self.k_ay.next = 0.into();
+        self.k_bank.next = 0.into();
+        for mm in self._m..(self._m + 1) {
+            for i in 0..self._m {
+                if self.rsel[i].val() {
+                    if self.par.val() {
+                        self.k_live.next = self.sh_live[i + mm].val();
+                        self.k_pre.next = self.sh_pre[i + mm].val();
+                        self.k_fresh.next = self.sh_fresh[i + mm].val();
+                        self.k_ax.next = self.sh_ax[i + mm].val();
+                        self.k_ay.next = self.sh_ay[i + mm].val();
+                        self.k_bank.next = self.sh_bank[i + mm].val();
+                    } else {
+                        self.k_live.next = self.sh_live[i].val();
+                        self.k_pre.next = self.sh_pre[i].val();
+                        self.k_fresh.next = self.sh_fresh[i].val();
+                        self.k_ax.next = self.sh_ax[i].val();
+                        self.k_ay.next = self.sh_ay[i].val();
+                        self.k_bank.next = self.sh_bank[i].val();
+                    }
+                }
+            }
+        }
+
+        // ---- S0: addresses of the two words and of the counter row.
+        self.dy.next = self.row_hi.val() - self.k_ay.val();
+        // Column ax − h, shifted by one word so that it is never negative.
+        self.x0p.next = self.k_ax.val() + self.p_minus_h.val();
+        self.wq.next = self.x0p.val() >> self.log2p.val();
+        self.half_wq.next = self.wq.val() >> 1;
+        self.odd_addr.next = self.half_wq.val();
+        if !self.wq.val().get_bit(0) {
+            self.odd_addr.next = self.half_wq.val() - 1;
+        }
+        for q in 0..3 {
+            self.ring[q].read_address.next =
+                self.rbase.q.val() + bit_cast::<RAW, 16>(self.half_wq.val());
+        }
+        for q in 3..6 {
+            self.ring[q].read_address.next =
+                self.rbase.q.val() + bit_cast::<RAW, 16>(self.odd_addr.val());
+        }
+        self.bank_base.x.next = bit_cast::<CAW, BW>(self.k_bank.val());
+        self.caddr.next = self.bank_base.y.val() + bit_cast::<CAW, 16>(self.dy.val());
+        for dx in 0..self._r {
+            self.cnt[dx].read_address.next = self.rd_addr.val();
+            if self.s0.val() {
+                self.cnt[dx].read_address.next = self.caddr.val();
+            }
+        }
+        self.msk.read_address.next = self.rd_addr.val();
+        if self.s0.val() {
+            self.msk.read_address.next = self.caddr.val();
+        }
+        self.rd_grant.next = self.rd_req.val() & !self.s0.val();
+        self.s1_valid.d.next = self.s0.val();
+        for i in 0..self._m {
+            self.s1_sel[i].d.next = self.rsel[i].val() & self.s0.val();
+        }
+        self.s1_live.d.next = self.k_live.val();
+        self.s1_pre.d.next = self.k_pre.val();
+        self.s1_fresh.d.next = self.k_fresh.val();
+        self.s1_off.d.next = self.x0p.val() & self.pm1.val();
+        self.s1_lo_ok.d.next = self.wq.val() != 0;
+        self.s1_hi_ok.d.next = self.wq.val() < self.words.val();
+        self.s1_odd.d.next = self.wq.val().get_bit(0);
+        self.s1_addr.d.next = self.caddr.val();
+        // The first in-sensor row of the ROI.
+        self.s1_first.d.next = (self.dy.val() == 0) | (self.ra.q.val() == 0);
+
+        // ---- S1: the R columns of the ROI row, added to its counters.
+        // Word a = wq − 1 (left) is even when wq is odd.
+        self.lo_l.next = 0.into();
+        self.lo_d.next = 0.into();
+        self.lo_m.next = 0.into();
+        self.hi_l.next = 0.into();
+        self.hi_d.next = 0.into();
+        self.hi_m.next = 0.into();
+        if self.s1_lo_ok.q.val() {
+            if self.s1_odd.q.val() {
+                self.lo_l.next = self.ring[0].read_data.val();
+                self.lo_d.next = self.ring[1].read_data.val();
+                self.lo_m.next = self.ring[2].read_data.val();
+            } else {
+                self.lo_l.next = self.ring[3].read_data.val();
+                self.lo_d.next = self.ring[4].read_data.val();
+                self.lo_m.next = self.ring[5].read_data.val();
+            }
+        }
+        if self.s1_hi_ok.q.val() {
+            if self.s1_odd.q.val() {
+                self.hi_l.next = self.ring[3].read_data.val();
+                self.hi_d.next = self.ring[4].read_data.val();
+                self.hi_m.next = self.ring[5].read_data.val();
+            } else {
+                self.hi_l.next = self.ring[0].read_data.val();
+                self.hi_d.next = self.ring[1].read_data.val();
+                self.hi_m.next = self.ring[2].read_data.val();
+            }
+        }
+        self.sh_hi.next = self.pw.val() - self.s1_off.q.val();
+        self.win_l.next =
+            (self.lo_l.val() >> self.s1_off.q.val()) | (self.hi_l.val() << self.sh_hi.val());
+        self.win_d.next =
+            (self.lo_d.val() >> self.s1_off.q.val()) | (self.hi_d.val() << self.sh_hi.val());
+        self.win_m.next =
+            (self.lo_m.val() >> self.s1_off.q.val()) | (self.hi_m.val() << self.sh_hi.val());
+        for dx in 0..self._r {
+            self.old[dx].next = self.cnt[dx].read_data.val();
+            if self.s1_fresh.q.val() {
+                self.old[dx].next = 0.into();
+            }
+            self.inc[dx].next = 0.into();
+            if (self.s1_live.q.val() & self.win_l.val().get_bit(dx))
+                | (self.s1_pre.q.val() & self.win_d.val().get_bit(dx))
+            {
+                self.inc[dx].next = 1.into();
+            }
+            if self.s1_live.q.val()
+                & self.win_l.val().get_bit(dx)
+                & self.s1_pre.q.val()
+                & self.win_d.val().get_bit(dx)
+            {
+                self.inc[dx].next = 2.into();
+            }
+            self.cnt[dx].write_address.next = self.s1_addr.q.val();
+            self.cnt[dx].write_data.next = self.old[dx].val() + self.inc[dx].val();
+            self.cnt[dx].write_enable.next = self.s1_valid.q.val();
+            self.rd_counts[dx].next = self.cnt[dx].read_data.val();
+        }
+        self.old_m.next = self.msk.read_data.val().any() & !self.s1_fresh.q.val();
+        self.any_m.next = (self.win_m.val() & self.roi_mask.val()).any();
+        self.msk.write_address.next = self.s1_addr.q.val();
+        self.msk.write_data.next = (self.old_m.val() | self.any_m.val()).into();
+        for i in 0..self._m {
+            if self.s1_valid.q.val() & self.s1_sel[i].q.val() & self.s1_fresh.q.val() {
+                if self.s1_first.q.val() {
+                    self.mflag[i].d.next = self.any_m.val();
+                } else {
+                    self.mflag[i].d.next = self.mflag[i].q.val() | self.any_m.val();
+                }
+            }
+        }
+        self.msk.write_enable.next = self.s1_valid.q.val();
+        self.rd_masked.next = self.msk.read_data.val().any();
+
+        // ---- Sweep control: a row costs one clock per relevant slot (at
+        // least one); the row is done with its last slot.
+        self.row_done.next = false;
+        if !self.sweeping.q.val() {
+            if self.trig.val() {
+                if self.now_any.val() {
+                    self.sweeping.d.next = true;
+                    for i in 0..self._m {
+                        self.rel[i].d.next = self.now_rel[i].val();
+                    }
+                } else {
+                    self.row_done.next = true;
+                }
+            }
+        } else {
+            for i in 0..self._m {
+                if self.rsel[i].val() {
+                    self.rel[i].d.next = false;
+                }
+            }
+            if !self.rest_any.val() {
+                self.sweeping.d.next = false;
+                self.row_done.next = true;
+            }
+        }
+        if self.row_done.val() {
+            self.gs.d.next = self.gs.q.val() + 1;
+            if self.rslot.q.val() == self.last_slot_row.val() {
+                self.rslot.d.next = 0.into();
+                self.rbase.d.next = 0.into();
+            } else {
+                self.rslot.d.next = self.rslot.q.val() + 1;
+                self.rbase.d.next = self.rbase.q.val() + self.half_words.val();
+            }
+            if self.ra.q.val() == self.last_row.val() {
+                self.ra.d.next = 0.into();
+                self.ta.d.next = self.ta.q.val() + 1;
+            } else {
+                self.ra.d.next = self.ra.q.val() + 1;
+            }
+        }
+
+        if self.restart.val() {
+            self.wbase.d.next = 0.into();
+            self.wslot.d.next = 0.into();
+            self.gw.d.next = 0.into();
+            self.ovf.d.next = false;
+            self.sweeping.d.next = false;
+            self.rbase.d.next = 0.into();
+            self.rslot.d.next = 0.into();
+            self.gs.d.next = 0.into();
+            self.ta.d.next = 0.into();
+            self.ra.d.next = 0.into();
+            self.s1_valid.d.next = false;
+            for i in 0..self._m {
+                self.rel[i].d.next = false;
+            }
+        }
+        self.planes_done.next = self.ta.q.val();
+        self.overrun.next = self.ovf.q.val();
+    }
+}
+
+/// The free list of counter banks. Slot i owns bank i from stream start;
+/// banks M … M+Q−1 are handed out first, then the banks the packetiser
+/// returned (a FIFO of Q entries: at most Q banks are ever outside the slots).
+#[derive(LogicBlock)]
+pub struct BankPool<const BW: usize, const QAW: usize> {
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+    /// Stream start: all spare banks free.
+    pub restart: Signal<In, Bit>,
+    /// A bank is available.
+    pub valid: Signal<Out, Bit>,
+    /// The bank.
+    pub bank: Signal<Out, Bits<BW>>,
+    /// Take it.
+    pub pop: Signal<In, Bit>,
+    /// Return a bank.
+    pub ret: Signal<In, Bit>,
+    /// The bank returned.
+    pub ret_bank: Signal<In, Bits<BW>>,
+    fresh: DFF<Bits<BW>>,
+    left: DFF<Bits<16>>,
+    fifo: Fifo<BW, QAW>,
+    first: Constant<Bits<BW>>,
+    spare: Constant<Bits<16>>,
+}
+
+impl<const BW: usize, const QAW: usize> BankPool<BW, QAW> {
+    /// The pool of a configuration; errors if the type's widths differ.
+    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        GatewareConfig::check_width("BankPool", "BW", BW, cfg.bank_bits())?;
+        GatewareConfig::check_width("BankPool", "QAW", QAW, cfg.queue_log2)?;
+        Ok(BankPool {
+            clock: Default::default(),
+            restart: Default::default(),
+            valid: Default::default(),
+            bank: Default::default(),
+            pop: Default::default(),
+            ret: Default::default(),
+            ret_bank: Default::default(),
+            fresh: Default::default(),
+            left: Default::default(),
+            fifo: Fifo::new(RamStyle::Distributed),
+            first: Constant::new((cfg.slots as u64).to_bits()),
+            spare: Constant::new((cfg.queue_depth() as u64).to_bits()),
+        })
+    }
+}
+
+impl<const BW: usize, const QAW: usize> Logic for BankPool<BW, QAW> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        dff_setup!(self, clock, fresh, left);
+        self.fifo.clock.next = self.clock.val();
+        self.fifo.restart.next = self.restart.val();
+        self.fifo.push.next = self.ret.val();
+        self.fifo.push_data.next = self.ret_bank.val();
+        self.fifo.pop.next = false;
+        if self.left.q.val() != 0 {
+            self.valid.next = true;
+            self.bank.next = self.fresh.q.val();
+            if self.pop.val() {
+                self.fresh.d.next = self.fresh.q.val() + 1;
+                self.left.d.next = self.left.q.val() - 1;
+            }
+        } else {
+            self.valid.next = self.fifo.out_valid.val();
+            self.bank.next = self.fifo.out_data.val();
+            self.fifo.pop.next = self.pop.val();
+        }
+        if self.restart.val() {
+            self.fresh.d.next = self.first.val();
+            self.left.d.next = self.spare.val();
+        }
+    }
+}

@@ -1,0 +1,486 @@
+//! The gateware tracker against `model::blink_tracker::BlinkTracker` on
+//! random H streams (blinking molecules with one- and two-plane dips,
+//! neighbours within the association radius, short false alarms), random
+//! word timing, few slots (exhaustion), short L_max (cuts), a record queue
+//! that is sometimes full (losses counted), and the stream end with its N
+//! drain planes.
+//!
+//! Checked: every record (kind, slot, flags, anchor, t_cross, t_drop,
+//! Dropped count and first position, StreamEnd counters), the loss counts,
+//! bank hand-over, and the ROI view (shadow) exactly when and where the ROI
+//! aggregator reads it: for every row r of plane t once the tracker has done
+//! `min(r + h + 2, H)` rows, and for the whole previous plane, which slots
+//! sum row r and with which flags and anchor.
+
+mod common;
+
+use proptest::prelude::*;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rust_hdl::prelude::*;
+use smartagg_hdl::blink_tracker::{record_kind, BlinkTracker};
+use smartagg_hdl::config::{BackHalfConfig, GatewareConfig};
+use smartagg_hdl::sim::{settle, Bench};
+use smartagg_model::blink_tracker::{BlinkTracker as Model, Completed, Slot};
+use smartagg_model::candidates::{find, Candidate};
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::record::flags;
+use smartagg_model::threshold::neighbourhood_on;
+use std::collections::VecDeque;
+
+const W: usize = 16;
+const H: usize = 8;
+const P: usize = 4;
+const THR: u32 = 6;
+type Dut = BlinkTracker<4, 3, 3>;
+
+/// Random H maps: background below threshold, blinking molecules (peaks
+/// with lower neighbours), isolated one-plane false alarms.
+fn scene(rng: &mut ChaCha8Rng, planes: usize, molecules: usize, noise: f64) -> Vec<Vec<u32>> {
+    let mols: Vec<(usize, usize, Vec<bool>)> = (0..molecules)
+        .map(|_| {
+            let (x, y) = (rng.gen_range(0..W), rng.gen_range(0..H));
+            let mut on = vec![false; planes];
+            let mut t = rng.gen_range(0..planes / 2 + 1);
+            while t < planes {
+                let len = rng.gen_range(1..12);
+                for v in on.iter_mut().skip(t).take(len) {
+                    *v = true;
+                }
+                // Gaps of one plane (bridged) or more (a new blink).
+                t += len + rng.gen_range(1..6);
+            }
+            (x, y, on)
+        })
+        .collect();
+    (0..planes)
+        .map(|t| {
+            let mut h: Vec<u32> = (0..W * H).map(|_| rng.gen_range(0..3)).collect();
+            for (x, y, on) in &mols {
+                if on[t] {
+                    for dy in -1i64..=1 {
+                        for dx in -1i64..=1 {
+                            let (xx, yy) = (*x as i64 + dx, *y as i64 + dy);
+                            if xx >= 0 && yy >= 0 && xx < W as i64 && yy < H as i64 {
+                                let add = if dx == 0 && dy == 0 { 9 } else { 3 };
+                                h[yy as usize * W + xx as usize] += add;
+                            }
+                        }
+                    }
+                }
+            }
+            if rng.gen_bool(noise) {
+                let i = rng.gen_range(0..W * H);
+                h[i] = h[i].max(THR + 1);
+            }
+            h
+        })
+        .collect()
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Rec {
+    Start,
+    Blink {
+        slot: u8,
+        flags: u8,
+        ax: u16,
+        ay: u16,
+        t_cross: u64,
+        t_drop: u64,
+    },
+    Dropped {
+        plane: u64,
+        count: u32,
+        x: u16,
+        y: u16,
+    },
+    End,
+}
+
+fn blink(c: &Completed) -> Rec {
+    let s = &c.segment;
+    Rec::Blink {
+        slot: c.slot as u8,
+        flags: s.end_flags
+            | if s.continuation {
+                flags::CONTINUATION
+            } else {
+                0
+            },
+        ax: s.anchor_x,
+        ay: s.anchor_y,
+        t_cross: s.t_cross,
+        t_drop: s.t_drop.unwrap(),
+    }
+}
+
+/// What the aggregator must see for one slot in one plane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct View {
+    live: bool,
+    pre: bool,
+    fresh: bool,
+    ax: u16,
+    ay: u16,
+}
+
+impl View {
+    fn sums(&self) -> bool {
+        self.live || self.pre
+    }
+    fn covers(&self, r: usize, h: usize) -> bool {
+        self.sums() && (self.ay as usize + h >= r) && (self.ay as usize <= r + h)
+    }
+}
+
+struct Expected {
+    records: Vec<Rec>,
+    views: Vec<Vec<View>>, // per plane (real and drain), per slot
+    counters: [u64; 5],    // blinks, unconfirmed, dropped, bridged, cuts
+}
+
+fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> Expected {
+    let mut tr = Model::new(m, n, l_min, l_max, r);
+    let mut records = vec![Rec::Start];
+    let mut views = Vec::new();
+    let mut blinks = 0u64;
+    for (t, hmap) in hs.iter().enumerate() {
+        let t = t as u64;
+        tr.evaluate(t, |x, y| {
+            neighbourhood_on(hmap, W, H, x as usize, y as usize, THR)
+        });
+        let cands: Vec<Candidate> = find(hmap, W, H, THR);
+        let (_, drops) = tr.associate(t, &cands);
+        views.push(
+            (0..m)
+                .map(|i| match &tr.slots()[i] {
+                    Slot::Busy(s) => View {
+                        live: tr.sums_live(i, t),
+                        pre: tr.sums_preroll(i, t),
+                        fresh: s.t_cross == t,
+                        ax: s.anchor_x,
+                        ay: s.anchor_y,
+                    },
+                    Slot::Free => View {
+                        live: false,
+                        pre: false,
+                        fresh: false,
+                        ax: 0,
+                        ay: 0,
+                    },
+                })
+                .collect(),
+        );
+        for c in tr.end_of_plane(t) {
+            blinks += 1;
+            records.push(blink(&c));
+        }
+        if let Some(d) = drops {
+            records.push(Rec::Dropped {
+                plane: t,
+                count: d.count,
+                x: d.first.x,
+                y: d.first.y,
+            });
+        }
+    }
+    let p = hs.len() as u64;
+    if p > 0 {
+        let done = tr.finish(p);
+        for j in 0..n as u64 {
+            let t = p + j;
+            let mut v = vec![
+                View {
+                    live: false,
+                    pre: false,
+                    fresh: false,
+                    ax: 0,
+                    ay: 0
+                };
+                m
+            ];
+            for c in &done {
+                let s = &c.segment;
+                v[c.slot] = View {
+                    live: false,
+                    pre: !s.continuation && t >= n as u64 && t < s.t_cross + n as u64,
+                    fresh: false,
+                    ax: s.anchor_x,
+                    ay: s.anchor_y,
+                };
+            }
+            views.push(v);
+        }
+        for c in &done {
+            blinks += 1;
+            records.push(blink(c));
+        }
+    }
+    records.push(Rec::End);
+    let c = tr.counters();
+    Expected {
+        records,
+        views,
+        counters: [
+            blinks,
+            c.unconfirmed,
+            c.dropped_candidates,
+            c.bridged_dips,
+            c.cut_segments,
+        ],
+    }
+}
+
+struct Params {
+    seed: u64,
+    planes: usize,
+    molecules: usize,
+    slots: usize,
+    n: u32,
+    l_min: u32,
+    l_max: u32,
+    r_assoc: u32,
+    word_rate: f64,
+    room_rate: f64,
+}
+
+fn run(pr: &Params) -> (usize, usize) {
+    let mut rng = common::rng(pr.seed);
+    let hs = scene(&mut rng, pr.planes, pr.molecules, 0.3);
+    let exp = model(&hs, pr.slots, pr.n, pr.l_min, pr.l_max, pr.r_assoc);
+
+    let mut mcfg = PipelineConfig::new(W, H, pr.n, vec![1, 2, 1], 2, THR);
+    mcfg.slots = pr.slots;
+    mcfg.roi_size = 3;
+    mcfg.r_assoc = pr.r_assoc;
+    mcfg.l_min = pr.l_min;
+    mcfg.l_max = pr.l_max;
+    let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
+    let mut bh = BackHalfConfig::new(&mcfg, front, 64).unwrap();
+    bh.queue_log2 = 2; // banks M + 4 fit 3 bits for M ≤ 4
+    let h = bh.roi_half();
+    let m = pr.slots;
+
+    let mut b = Bench::new(Dut::new(&bh).unwrap(), |u| &mut u.clock);
+    b.uut.restart.next = true;
+    b.uut.n_window.next = (pr.n as u64).to_bits();
+    b.uut.l_min.next = (pr.l_min as u64).to_bits();
+    b.uut.l_max.next = (pr.l_max as u64).to_bits();
+    b.tick();
+    b.uut.restart.next = false;
+
+    // The word stream: real planes, N drain planes, one flush plane.
+    let wpr = W / P;
+    let words_per_plane = wpr * H;
+    let total_planes = pr.planes + pr.n as usize + 1;
+    let mut produced = 0usize;
+    let mut fifo: VecDeque<(u64, u64, usize, usize, bool)> = VecDeque::new();
+    let mut next_bank = 1000u64; // fresh banks never seen before
+    let mut got: Vec<(Rec, u32, u64)> = Vec::new();
+    let mut views_checked = 0usize;
+    let mut cycles = 0usize;
+    loop {
+        cycles += 1;
+        assert!(cycles < 200_000, "tracker did not finish");
+        // Produce the next word of the stream.
+        if produced < total_planes * words_per_plane && rng.gen_bool(pr.word_rate) {
+            let (t, k) = (produced / words_per_plane, produced % words_per_plane);
+            let (x, y) = (k % wpr, k / wpr);
+            let (mut above, mut cand) = (0u64, 0u64);
+            if t < pr.planes {
+                let cands = find(&hs[t], W, H, THR);
+                for i in 0..P {
+                    let px = x * P + i;
+                    if hs[t][y * W + px] >= THR {
+                        above |= 1 << i;
+                    }
+                    if cands.contains(&Candidate {
+                        x: px as u16,
+                        y: y as u16,
+                    }) {
+                        cand |= 1 << i;
+                    }
+                }
+            }
+            if above != 0 || x == wpr - 1 {
+                fifo.push_back((above, cand, x, y, t >= pr.planes));
+            }
+            produced += 1;
+        }
+        let u = &mut b.uut;
+        if produced >= pr.planes * words_per_plane {
+            u.stopping.next = true;
+            u.planes_total.next = (pr.planes as u64).to_bits();
+        }
+        u.in_valid.next = !fifo.is_empty();
+        if let Some(&(above, cand, x, y, fl)) = fifo.front() {
+            u.in_above.next = above.to_bits();
+            u.in_cand.next = cand.to_bits();
+            u.in_x.next = (x as u64).to_bits();
+            u.in_y.next = (y as u64).to_bits();
+            u.in_flush.next = fl;
+        }
+        u.rec_room.next = rng.gen_bool(pr.room_rate);
+        u.fb_valid.next = true;
+        u.fb_bank.next = (next_bank % 8).to_bits();
+        settle(u);
+
+        // The ROI view, where the aggregator may read it.
+        let plane = u.plane.val().to_u64() as usize;
+        let rows = u.rows_done.val().to_u64() as usize;
+        let view = |u: &Dut, par: usize, i: usize| View {
+            live: u.sh_live[par * m + i].val(),
+            pre: u.sh_pre[par * m + i].val(),
+            fresh: u.sh_fresh[par * m + i].val(),
+            ax: u.sh_ax[par * m + i].val().to_u64() as u16,
+            ay: u.sh_ay[par * m + i].val().to_u64() as u16,
+        };
+        for (tt, all_rows) in [(plane as i64 - 1, true), (plane as i64, false)] {
+            if tt < 0 || tt as usize >= exp.views.len() {
+                continue;
+            }
+            let tt = tt as usize;
+            for r in 0..H {
+                if !all_rows && rows < (r + h + 2).min(H) {
+                    continue;
+                }
+                for i in 0..m {
+                    let want = exp.views[tt][i];
+                    let have = view(u, tt % 2, i);
+                    assert_eq!(
+                        have.covers(r, h),
+                        want.covers(r, h),
+                        "plane {tt} row {r} slot {i}: have {have:?} want {want:?} (tracker at {plane}/{rows})"
+                    );
+                    if want.covers(r, h) {
+                        assert_eq!(have, want, "plane {tt} row {r} slot {i}");
+                        views_checked += 1;
+                    }
+                }
+            }
+        }
+
+        if u.rec_push.val() && u.rec_room.val() {
+            let kind = u.rec_kind.val().to_u64();
+            let rec = match kind {
+                record_kind::START => Rec::Start,
+                record_kind::BLINK => Rec::Blink {
+                    slot: u.rec_slot.val().to_u64() as u8,
+                    flags: u.rec_flags.val().to_u64() as u8,
+                    ax: u.rec_ax.val().to_u64() as u16,
+                    ay: u.rec_ay.val().to_u64() as u16,
+                    t_cross: u.rec_t0.val().to_u64(),
+                    t_drop: u.rec_t1.val().to_u64(),
+                },
+                record_kind::DROPPED => Rec::Dropped {
+                    plane: u.rec_t0.val().to_u64(),
+                    count: u.rec_t1.val().to_u64() as u32,
+                    x: u.rec_ax.val().to_u64() as u16,
+                    y: u.rec_ay.val().to_u64() as u16,
+                },
+                _ => Rec::End,
+            };
+            let bank = u.rec_bank.val().to_u64();
+            if kind == record_kind::BLINK {
+                // The slot hands over the bank it summed into and takes the fresh one.
+                assert!(u.fb_pop.val(), "a queued blink takes a fresh bank");
+            }
+            got.push((rec, u.rec_lost.val().to_u64() as u32, bank));
+        }
+        if u.fb_pop.val() {
+            next_bank += 1;
+        }
+        if u.in_pop.val() {
+            assert!(!fifo.is_empty());
+            fifo.pop_front();
+        }
+        assert!(!u.bank_error.val());
+        let finished = u.done.val();
+        b.tick();
+        if finished {
+            break;
+        }
+    }
+
+    let u = &b.uut;
+    let counters = [
+        u.blinks.val().to_u64(),
+        u.unconfirmed.val().to_u64(),
+        u.dropped.val().to_u64(),
+        u.bridged.val().to_u64(),
+        u.cuts.val().to_u64(),
+    ];
+    // Records: the model's, minus the lost ones, each gap announced.
+    let mut k = 0;
+    let mut lost_total = 0;
+    for (rec, lost, _) in &got {
+        k += *lost as usize;
+        lost_total += *lost as usize;
+        assert!(k < exp.records.len(), "more records than the model");
+        assert_eq!(rec, &exp.records[k], "record {k} (after {lost} lost)");
+        k += 1;
+    }
+    assert_eq!(k, exp.records.len(), "records missing at the end");
+    assert_eq!(
+        counters, exp.counters,
+        "blinks, unconfirmed, dropped, bridged, cuts"
+    );
+    if pr.room_rate >= 1.0 {
+        assert_eq!(lost_total, 0);
+    }
+    (views_checked, exp.records.len())
+}
+
+#[test]
+fn tracker_equals_model_with_cuts_dips_and_exhaustion() {
+    let (views, recs) = run(&Params {
+        seed: 11,
+        planes: 40,
+        molecules: 6,
+        slots: 3,
+        n: 3,
+        l_min: 2,
+        l_max: 5,
+        r_assoc: 1,
+        word_rate: 0.7,
+        room_rate: 1.0,
+    });
+    assert!(views > 100 && recs > 10, "views {views}, records {recs}");
+}
+
+#[test]
+fn tracker_counts_records_lost_when_the_queue_is_full() {
+    run(&Params {
+        seed: 12,
+        planes: 30,
+        molecules: 5,
+        slots: 4,
+        n: 2,
+        l_min: 1,
+        l_max: 3,
+        r_assoc: 2,
+        word_rate: 1.0,
+        room_rate: 0.6,
+    });
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
+    /// Any window, confirmation length, cut length, radius, slot count and timing.
+    #[test]
+    fn tracker_equals_model_on_random_streams(
+        seed in any::<u64>(),
+        planes in 0usize..30,
+        molecules in 0usize..8,
+        slots in 1usize..=4,
+        n in 1u32..=7,
+        l_min in 1u32..=4,
+        extra in 0u32..6,
+        r_assoc in 0u32..=2,
+        word_rate in 0.3f64..=1.0,
+    ) {
+        let l_max = n.max(l_min) + extra;
+        run(&Params { seed, planes, molecules, slots, n, l_min, l_max, r_assoc, word_rate, room_rate: 1.0 });
+    }
+}
