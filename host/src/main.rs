@@ -42,6 +42,8 @@ enum Command {
     Render(commands::render::Args),
     /// Calibrate a camera from its own recordings: DCR map, hot pixels, PRNU (SPAD); offset, gain, read noise (EMCCD, sCMOS).
     Calibrate(commands::calibrate::Args),
+    /// Reproduce the paper's simulation study (Fig. 4, Fig. 8) and beyond: CSV, PNG, Markdown.
+    Study(commands::study::Args),
     /// Measure speed and accuracy (figures printed, nothing asserted).
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -71,6 +73,7 @@ fn main() {
         Command::Render(a) => commands::render::run(a),
         Command::Calibrate(a) => commands::calibrate::run(a),
         Command::Download(a) => commands::download::run(a),
+        Command::Study(a) => commands::study::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),

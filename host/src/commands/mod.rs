@@ -13,3 +13,4 @@ pub mod params;
 pub mod presets;
 pub mod render;
 pub mod simulate;
+pub mod study;

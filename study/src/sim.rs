@@ -1,0 +1,401 @@
+//! Recordings of one work item: the scene simulator's bit-planes through the
+//! real smart-aggregation pipeline and packet path, the same bit-planes
+//! summed into fixed frames, and EMCCD/sCMOS frames of the same blinks.
+//!
+//! **Smart aggregation** runs the model's pipeline with the fast engine
+//! (`model::fast_engine::fast_pipeline`: the golden stages 5–7 with
+//! incremental stages 1–4, proven byte-identical to the golden pipeline by
+//! the model's tests). Parameters come from the paper's statistics for the
+//! preset (`stats::derive`: N, T_int, kernel), a 9×9 ROI and the default
+//! slots; [`Setup::new`] sets `L_min = 1` (the paper's scheme) and
+//! [`Setup::with_pipeline`] applies the study's choice (by default from the
+//! false-alarm statistics), keeping the `L_min = 1` pipeline in
+//! [`Setup::paper`] for the paper's curve.
+//! Every record then goes through `packetiser::encode_stream` and
+//! `packet::decode_all`, the real packet path; any decoder loss is an error.
+
+use crate::error::StudyError;
+use crate::frames::FrameMaps;
+use crate::spec::{LMin, FIXED_FRAME_PLANES, ROI_SIDE};
+use crate::timeline::BlinkNm;
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::false_alarm::l_min_for_target;
+use smartagg_model::fast_engine::fast_pipeline;
+use smartagg_model::packet::decode_all;
+use smartagg_model::packetiser::encode_stream;
+use smartagg_model::params::{Camera, Preset, PresetName, SpadCamera};
+use smartagg_model::record::{BlinkRecord, Record};
+use smartagg_model::stats::{self, Detection, DetectionInputs};
+use smartagg_scene::{
+    Blinking, EmccdSimulator, ExplicitBlink, Position, Scene, ScmosSimulator, SpadSimulator,
+};
+use std::time::Instant;
+
+/// A camera configuration with everything derived from its preset.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    /// The preset (camera, optics, light).
+    pub preset: Preset,
+    /// Side of the simulated square field, pixels.
+    pub field: u32,
+    /// Pixel size in the sample plane, nm.
+    pub pixel_nm: f64,
+    /// PSF σ, pixels.
+    pub sigma_px: f64,
+    /// Margin kept free of molecules, nm (3σ, at most a quarter of the field).
+    pub margin_nm: f64,
+    /// SPAD only: the paper's statistics and the pipeline configuration.
+    pub spad: Option<(Detection, PipelineConfig)>,
+    /// SPAD only: the same pipeline with the paper's literal `L_min = 1`.
+    pub paper: Option<PipelineConfig>,
+}
+
+impl Setup {
+    /// Derives the setup of `preset` with `objective`.
+    pub fn new(preset: PresetName, objective: u32) -> Result<Setup, StudyError> {
+        let preset = Preset::new(preset, objective)?;
+        let field = preset.study_field_px;
+        let sigma_px = preset.sigma_px();
+        let pixel_nm = preset.pixel_nm();
+        let margin_nm = (3.0 * sigma_px).min(field as f64 / 4.0) * pixel_nm;
+        let spad = match preset.camera {
+            Camera::Spad(_) => {
+                let det = stats::derive(&DetectionInputs::from_preset(&preset, None)?)?;
+                let t_int = u32::try_from(det.threshold_int).map_err(|_| StudyError::Option {
+                    name: "threshold",
+                    why: format!("T_int = {} does not fit 32 bits", det.threshold_int),
+                })?;
+                let mut cfg = PipelineConfig::new(
+                    field as usize,
+                    field as usize,
+                    det.n_window,
+                    det.kernel_weights.clone(),
+                    det.kernel_shift,
+                    t_int,
+                );
+                cfg.l_min = 1;
+                cfg.roi_size = ROI_SIDE;
+                cfg.validate()?;
+                Some((det, cfg))
+            }
+            _ => None,
+        };
+        Ok(Setup {
+            preset,
+            field,
+            pixel_nm,
+            sigma_px,
+            margin_nm,
+            paper: spad.as_ref().map(|(_, c)| c.clone()),
+            spad,
+        })
+    }
+
+    /// The same setup with the pipeline's `L_min` (a number of planes, or
+    /// from the false-alarm statistics for the study field) and association
+    /// radius; [`Setup::paper`] keeps the same pipeline with `L_min = 1`.
+    pub fn with_pipeline(mut self, l_min: LMin, r_assoc: Option<u32>) -> Result<Setup, StudyError> {
+        let field = self.field;
+        if let Some((det, cfg)) = self.spad.as_mut() {
+            let l = match l_min {
+                LMin::Planes(l) => l,
+                LMin::Auto { false_blinks_per_s } => {
+                    let rate = 1.0 / self.preset.period_s();
+                    l_min_for_target(
+                        &det.kernel(),
+                        det.n_window,
+                        det.p_off,
+                        det.threshold_int,
+                        field as u64 * field as u64,
+                        rate,
+                        false_blinks_per_s,
+                    )
+                    .map_err(|e| StudyError::Option {
+                        name: "l-min",
+                        why: format!("L_min from the false-alarm statistics: {e}"),
+                    })?
+                }
+            };
+            cfg.l_min = l;
+            cfg.l_max = cfg.l_max.max(l);
+            if let Some(r) = r_assoc {
+                cfg.r_assoc = r;
+            }
+            cfg.validate()?;
+            self.paper = Some(PipelineConfig {
+                l_min: 1,
+                ..cfg.clone()
+            });
+        }
+        Ok(self)
+    }
+
+    /// Field width in the sample plane, nm.
+    pub fn field_nm(&self) -> f64 {
+        self.field as f64 * self.pixel_nm
+    }
+
+    /// The SPAD camera, if this is one.
+    pub fn spad_camera(&self) -> Option<&SpadCamera> {
+        match &self.preset.camera {
+            Camera::Spad(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// The study scene of this setup with exactly `blinks`.
+    fn scene(&self, blinks: &[BlinkNm]) -> Scene {
+        let mut s = Scene::study(&self.preset, 0.05);
+        s.blinking = Blinking::Explicit(
+            blinks
+                .iter()
+                .enumerate()
+                .map(|(i, b)| ExplicitBlink {
+                    emitter: i as u64,
+                    position: Position {
+                        x_nm: b.x_nm,
+                        y_nm: b.y_nm,
+                    },
+                    t_on_s: b.t_on_s,
+                    t_off_s: b.t_off_s,
+                    flux_factor: 1.0,
+                })
+                .collect(),
+        );
+        s
+    }
+}
+
+/// What a SPAD recording gave.
+#[derive(Debug, Clone, Default)]
+pub struct SpadData {
+    /// Per pipeline asked for: the blink records decoded from its packet
+    /// stream, in stream order.
+    pub records: Vec<Vec<BlinkRecord>>,
+    /// Fixed frames: counts of consecutive 500-plane groups, raster order.
+    pub frames: Vec<Vec<u32>>,
+    /// The hot-pixel map of the simulated camera.
+    pub hot: Vec<bool>,
+    /// Bit-planes simulated.
+    pub planes: u64,
+    /// Packet bytes of the smart-aggregation streams.
+    pub packet_bytes: u64,
+    /// Wall time in the scene simulator, s.
+    pub simulate_s: f64,
+    /// Wall time in the pipelines, packetiser and decoder, s.
+    pub pipeline_s: f64,
+}
+
+/// The blink records of a finished stream, through the packet path: every
+/// record is encoded by the packetiser and decoded back; any loss is an error.
+fn through_packets(records: &[Record]) -> Result<(Vec<BlinkRecord>, u64), StudyError> {
+    let bytes = encode_stream(records)?;
+    let decoded = decode_all(&bytes);
+    if decoded.stats.any_loss() {
+        return Err(StudyError::PacketLoss(decoded.stats.to_string()));
+    }
+    if decoded.packets.len() != records.len() {
+        return Err(StudyError::PacketLoss(format!(
+            "{} records encoded, {} decoded",
+            records.len(),
+            decoded.packets.len()
+        )));
+    }
+    let blinks = decoded
+        .packets
+        .into_iter()
+        .filter_map(|p| match p.record {
+            Record::Blink(b) => Some(b),
+            _ => None,
+        })
+        .collect();
+    Ok((blinks, bytes.len() as u64))
+}
+
+/// Simulates `end_s` of bit-planes of `setup` watching `blinks` (seeded
+/// with `seed`), running every pipeline of `pipelines` on the same
+/// bit-planes and summing fixed frames when `frames`. `hot_fraction`
+/// overrides the camera's hot pixels.
+pub fn record_spad(
+    setup: &Setup,
+    blinks: &[BlinkNm],
+    end_s: f64,
+    seed: u64,
+    pipelines: &[PipelineConfig],
+    frames: bool,
+    hot_fraction: Option<f64>,
+) -> Result<SpadData, StudyError> {
+    let mut camera = setup
+        .spad_camera()
+        .expect("record_spad on a SPAD setup")
+        .clone();
+    if let Some(f) = hot_fraction {
+        camera.hot_pixel_fraction = f;
+    }
+    let scene = setup.scene(blinks);
+    let t0 = Instant::now();
+    let mut sim = SpadSimulator::new(&camera, &scene, seed)?;
+    let mut simulate_s = t0.elapsed().as_secs_f64();
+    let planes = (end_s / camera.plane_period_s).round() as u64;
+    let n_px = (setup.field * setup.field) as usize;
+    let mut pipes = pipelines
+        .iter()
+        .map(|c| fast_pipeline(c.clone()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut streams: Vec<Vec<Record>> = pipes.iter().map(|p| vec![p.start_record()]).collect();
+    let mut pipeline_s = 0.0;
+    let mut out_frames = Vec::new();
+    let mut acc = vec![0u32; n_px];
+    for t in 0..planes {
+        let a = Instant::now();
+        let plane = sim.next_plane();
+        let b = Instant::now();
+        simulate_s += (b - a).as_secs_f64();
+        if !pipes.is_empty() {
+            for (p, out) in pipes.iter_mut().zip(streams.iter_mut()) {
+                out.extend(p.push_plane(&plane)?);
+            }
+            pipeline_s += b.elapsed().as_secs_f64();
+        }
+        if frames {
+            for (wi, &word) in plane.words().iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let i = wi * 64 + bits.trailing_zeros() as usize;
+                    if i < n_px {
+                        acc[i] += 1;
+                    }
+                    bits &= bits - 1;
+                }
+            }
+            if (t + 1) % FIXED_FRAME_PLANES == 0 {
+                out_frames.push(std::mem::replace(&mut acc, vec![0u32; n_px]));
+            }
+        }
+    }
+    let mut data = SpadData {
+        frames: out_frames,
+        hot: sim.maps().hot.clone(),
+        planes,
+        simulate_s,
+        ..Default::default()
+    };
+    let a = Instant::now();
+    for (mut p, mut out) in pipes.into_iter().zip(streams) {
+        out.extend(p.finish());
+        let (recs, bytes) = through_packets(&out)?;
+        data.records.push(recs);
+        data.packet_bytes += bytes;
+    }
+    data.pipeline_s = pipeline_s + a.elapsed().as_secs_f64();
+    Ok(data)
+}
+
+/// Frames of an EMCCD or sCMOS in photon units (photo-electrons) and what
+/// the fit knows about their pixels.
+#[derive(Debug, Clone, Default)]
+pub struct FrameData {
+    /// One frame per 50 ms, raster order.
+    pub frames: Vec<Vec<f64>>,
+    /// sCMOS read variance (e⁻²); empty for the EMCCD.
+    pub maps: FrameMaps,
+    /// Wall time in the simulator, s.
+    pub simulate_s: f64,
+}
+
+/// Simulates `end_s` of EMCCD or sCMOS frames of `setup` watching `blinks`.
+///
+/// ADU become photo-electrons with the camera's calibration, as a user
+/// would convert them: EMCCD `(ADU − offset)·e_per_adu / gain`; sCMOS
+/// `(ADU − offset_i) / gain_i` with the per-pixel maps, whose read-noise
+/// variance goes to the sCMOS likelihood.
+pub fn record_frames(
+    setup: &Setup,
+    blinks: &[BlinkNm],
+    end_s: f64,
+    seed: u64,
+) -> Result<FrameData, StudyError> {
+    let scene = setup.scene(blinks);
+    let t0 = Instant::now();
+    let mut out = FrameData::default();
+    match &setup.preset.camera {
+        Camera::Emccd(c) => {
+            let mut sim = EmccdSimulator::new(c, &scene, seed)?;
+            let n = (end_s / c.frame_period_s).round() as usize;
+            let k = c.e_per_adu / c.em_gain;
+            for _ in 0..n {
+                let f = sim.next_frame();
+                out.frames.push(
+                    f.adu
+                        .iter()
+                        .map(|&a| (a as f64 - c.offset_adu) * k)
+                        .collect(),
+                );
+            }
+        }
+        Camera::Scmos(c) => {
+            let mut sim = ScmosSimulator::new(c, &scene, seed)?;
+            let n = (end_s / c.frame_period_s).round() as usize;
+            let maps = sim.maps().clone();
+            for _ in 0..n {
+                let f = sim.next_frame();
+                out.frames.push(
+                    f.adu
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &a)| (a as f64 - maps.offset_adu[i]) / maps.gain_adu_per_e[i])
+                        .collect(),
+                );
+            }
+            out.maps.read_var = maps.read_noise_e.iter().map(|r| r * r).collect();
+        }
+        Camera::Spad(_) => unreachable!("record_frames on a SPAD setup"),
+    }
+    out.simulate_s = t0.elapsed().as_secs_f64();
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::timeline::{place, Timeline};
+
+    #[test]
+    fn presets_give_the_papers_windows() {
+        let n = |p, o| Setup::new(p, o).unwrap().spad.unwrap().1.n_window;
+        assert_eq!(n(PresetName::Spcimager, 150), 109);
+        assert_eq!(n(PresetName::Spcimager, 60), 65);
+        assert_eq!(n(PresetName::SpcimagerProjected, 150), 18);
+        assert!(Setup::new(PresetName::Emccd, 150).unwrap().spad.is_none());
+    }
+
+    #[test]
+    fn a_long_blink_gives_a_record_near_it_through_the_packet_path() {
+        let s = Setup::new(PresetName::Spcimager, 150).unwrap();
+        let t = Timeline::one_at_a_time(3, 3, 0.08);
+        let blinks = place(&t.blinks, s.field_nm(), s.margin_nm);
+        let cfg = s.spad.as_ref().unwrap().1.clone();
+        let d = record_spad(&s, &blinks, t.end_s, 11, &[cfg], true, None).unwrap();
+        assert_eq!(d.planes, (t.end_s / 1e-4).round() as u64);
+        assert_eq!(d.frames.len() as u64, d.planes / 500);
+        assert!(d.packet_bytes > 0);
+        for b in &blinks {
+            let near = d.records[0].iter().any(|r| {
+                let first = (r.t_drop + 1 - r.planes_summed as u64) as f64 * 1e-4;
+                let last = (r.t_drop + 1) as f64 * 1e-4;
+                let (ax, ay) = (
+                    (r.anchor_x as f64 + 0.5) * s.pixel_nm,
+                    (r.anchor_y as f64 + 0.5) * s.pixel_nm,
+                );
+                first < b.t_off_s
+                    && last > b.t_on_s
+                    && (ax - b.x_nm).abs() < 2.0 * s.pixel_nm
+                    && (ay - b.y_nm).abs() < 2.0 * s.pixel_nm
+            });
+            assert!(near, "no record for {b:?}");
+        }
+        // Fixed frames hold every detection of the planes.
+        let total: u64 = d.frames.iter().flatten().map(|&c| c as u64).sum();
+        assert!(total > 0);
+    }
+}
