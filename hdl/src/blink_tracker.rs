@@ -77,6 +77,8 @@ pub mod record_kind {
 /// Tracker states.
 #[derive(Copy, Clone, Debug, PartialEq, LogicState)]
 pub enum TrackerState {
+    /// No stream (the power-up state: nothing is pushed before a restart).
+    Done,
     /// Push the StreamStart record.
     Start,
     /// Process the words of a plane.
@@ -95,8 +97,6 @@ pub enum TrackerState {
     Emit,
     /// Push StreamEnd.
     End,
-    /// Stream over.
-    Done,
 }
 
 /// The M-slot blink tracker. `P`: pixels per word; `NW`: bits of N;

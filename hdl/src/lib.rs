@@ -42,6 +42,7 @@ pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
 pub mod packetiser;
+pub mod pipeline;
 pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod sim;

@@ -999,6 +999,8 @@ pub struct RecordQueue<const BW: usize, const QAW: usize, const QW: usize> {
     pub h_bank: Signal<Out, Bits<BW>>,
     /// A push was refused (never expected: the tracker checks `room`).
     pub overflow: Signal<Out, Bit>,
+    /// Nothing queued, nothing in flight.
+    pub empty: Signal<Out, Bit>,
     fifo: Fifo<QW, QAW>,
     depth: Constant<Bits<16>>,
 }
@@ -1037,6 +1039,7 @@ impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW
             h_tag: Default::default(),
             h_bank: Default::default(),
             overflow: Default::default(),
+            empty: Default::default(),
             fifo: Fifo::new(RamStyle::Distributed),
             depth: Constant::new((cfg.queue_depth() as u64).to_bits()),
         })
@@ -1073,6 +1076,7 @@ impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<B
         self.h_tag.next = self.fifo.out_data.val().get_bits::<48>(178);
         self.h_bank.next = self.fifo.out_data.val().get_bits::<BW>(226);
         self.overflow.next = self.fifo.overflow.val();
+        self.empty.next = self.fifo.count.val() == 0;
     }
 }
 

@@ -50,7 +50,7 @@ fn hot_pixel_mask_equals_model() {
             u.sop.next = sent % wpp == 0;
             u.flush.next = false;
             // The MASK_ENABLE register: on for even planes, off for odd ones.
-            u.enable.next = (sent / wpp) % 2 == 0;
+            u.enable.next = (sent / wpp).is_multiple_of(2);
             u.live.next = common::word(&planes[sent / wpp], P, sent % wpp).to_bits();
             sent += 1;
         }
@@ -63,7 +63,7 @@ fn hot_pixel_mask_equals_model() {
         assert!(bench.cycles < 10_000);
     }
     for (t, plane) in planes.iter().enumerate() {
-        let enabled = t % 2 == 0;
+        let enabled = t.is_multiple_of(2);
         let want = if enabled {
             mask.apply(plane)
         } else {
