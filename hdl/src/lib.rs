@@ -38,6 +38,7 @@ pub mod bram;
 pub mod candidates;
 pub mod config;
 pub mod delay_line;
+pub mod delay_line_ddr;
 pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
