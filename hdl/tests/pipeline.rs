@@ -9,7 +9,8 @@ mod common;
 use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::pipeline::{test_back_config, TestPipeline};
+use smartagg_hdl::delay_line_ddr::McbModel;
+use smartagg_hdl::pipeline::{test_back_config, TestPipeline, TestPipelineDdr};
 use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
@@ -117,6 +118,104 @@ fn gateware(s: &Stream, stall_percent: u64, seed: u64) -> (Vec<u8>, u64) {
     (out, b.cycles - start_cycle)
 }
 
+/// The same with the DDR2 delay line and the behavioural MCB model (command
+/// latency, refresh gaps, garbage in unwritten memory).
+fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
+    let cfg = test_back_config(4, 3, 1).unwrap();
+    let mut b = Bench::new(TestPipelineDdr::new(&cfg).unwrap(), |u| &mut u.clock);
+    // Planes of this field are three DDR2 words: short latency and refresh
+    // gaps, in proportion (the SPCImager's planes are 2400 words).
+    let mut mcb = Bench::new(McbModel::new(4, 300, 6, 30, seed), |u| &mut u.clock);
+    let (mask, _) = HotPixelMask::from_pixels(W, H, &s.hot);
+    let mask_plane = BitPlane::from_fn(W, H, |x, y| mask.is_masked(x as i64, y as i64));
+    let wpp = W * H / P;
+    let mut step = |b: &mut Bench<TestPipelineDdr>, mcb: &mut Bench<McbModel>| {
+        let (u, m) = (&mut b.uut, &mut mcb.uut);
+        u.calib_done.next = m.calib_done.val();
+        u.cmd_full.next = m.cmd_full.val();
+        u.wr_full.next = m.wr_full.val();
+        u.rd_data.next = m.rd_data.val();
+        u.rd_empty.next = m.rd_empty.val();
+        settle(u);
+        m.cmd_en.next = u.cmd_en.val();
+        m.cmd_instr.next = u.cmd_instr.val();
+        m.cmd_bl.next = u.cmd_bl.val();
+        m.cmd_addr.next = u.cmd_addr.val();
+        m.wr_en.next = u.wr_en.val();
+        m.wr_mask.next = u.wr_mask.val();
+        m.wr_data.next = u.wr_data.val();
+        m.rd_en.next = u.rd_en.val();
+        settle(m);
+    };
+    for idx in 0..wpp {
+        b.uut.load.next = true;
+        b.uut.load_address.next = (idx as u64).to_bits();
+        b.uut.load_data.next = common::word(&mask_plane, P, idx).to_bits();
+        step(&mut b, &mut mcb);
+        b.tick();
+        mcb.tick();
+    }
+    b.uut.load.next = false;
+    // START waits for the memory's calibration.
+    while !b.uut.mem_ready.val() {
+        step(&mut b, &mut mcb);
+        b.tick();
+        mcb.tick();
+    }
+    let u = &mut b.uut;
+    u.reg_n.next = (s.n as u64).to_bits();
+    u.reg_threshold.next = (s.threshold as u64).to_bits();
+    u.reg_l_min.next = (s.l_min as u64).to_bits();
+    u.reg_l_max.next = (s.l_max as u64).to_bits();
+    u.reg_period.next = 100_000u64.to_bits();
+    u.reg_masked.next = (mask.count() as u64).to_bits();
+    u.reg_mask_enable.next = s.mask_enable;
+    u.start.next = true;
+    step(&mut b, &mut mcb);
+    b.tick();
+    mcb.tick();
+    b.uut.start.next = false;
+    while !b.uut.running.val() {
+        step(&mut b, &mut mcb);
+        b.tick();
+        mcb.tick();
+    }
+    let mut stalls = Stalls::new(seed, stall_percent);
+    let total = s.planes.len() * wpp;
+    let mut sent = 0;
+    let mut out = Vec::new();
+    let mut cycles = 0;
+    loop {
+        let u = &mut b.uut;
+        let offer = sent < total && stalls.offer();
+        u.in_valid.next = offer;
+        if offer {
+            let (t, idx) = (sent / wpp, sent % wpp);
+            u.in_sop.next = idx == 0;
+            u.in_live.next = common::word(&s.planes[t], P, idx).to_bits();
+            sent += 1;
+        }
+        u.stop.next = sent == total;
+        u.out_pop.next = true;
+        step(&mut b, &mut mcb);
+        let u = &b.uut;
+        if u.out_valid.val() {
+            out.push(u.out_data.val().to_u64() as u8);
+        }
+        assert!(!u.fault.val(), "internal overflow or DDR2 underrun");
+        assert!(!mcb.uut.error.val(), "MCB protocol error");
+        let ended = u.ended.val();
+        b.tick();
+        mcb.tick();
+        cycles += 1;
+        if ended && !b.uut.out_valid.val() {
+            break;
+        }
+        assert!(cycles < 400_000, "stream did not end");
+    }
+    out
+}
+
 fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable: bool) -> Stream {
     let mut rng = common::rng(seed);
     let planes = common::random_planes(&mut rng, W, H, planes, 0.08);
@@ -145,9 +244,17 @@ fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable:
 }
 
 fn check(s: &Stream, stall_percent: u64, seed: u64) -> Vec<Record> {
+    check_with(s, stall_percent, seed, false)
+}
+
+fn check_with(s: &Stream, stall_percent: u64, seed: u64, ddr: bool) -> Vec<Record> {
     let records = model_run(model_config(s), s.planes.clone()).unwrap();
     let want = encode_stream(&records).unwrap();
-    let (got, _) = gateware(s, stall_percent, seed);
+    let got = if ddr {
+        gateware_ddr(s, stall_percent, seed)
+    } else {
+        gateware(s, stall_percent, seed).0
+    };
     if got != want {
         let d = smartagg_model::packet::decode_all(&got);
         let g: Vec<Record> = d.packets.into_iter().map(|p| p.record).collect();
@@ -170,6 +277,18 @@ fn pipeline_bytes_equal_the_model() {
         .filter(|r| matches!(r, Record::Blink(_)))
         .count();
     assert!(blinks >= 2, "the stream exercises blinks: {recs:?}");
+}
+
+#[test]
+fn pipeline_with_ddr2_delay_line_bytes_equal_the_model() {
+    let s = stream(6, 20, 3, 2, 3, true);
+    let recs = check_with(&s, 30, 3, true);
+    assert!(
+        recs.iter().any(|r| matches!(r, Record::Blink(_))),
+        "{recs:?}"
+    );
+    let s = stream(7, 14, 7, 1, 2, false);
+    check_with(&s, 40, 4, true);
 }
 
 #[test]
