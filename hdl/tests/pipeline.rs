@@ -129,7 +129,7 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
     let (mask, _) = HotPixelMask::from_pixels(W, H, &s.hot);
     let mask_plane = BitPlane::from_fn(W, H, |x, y| mask.is_masked(x as i64, y as i64));
     let wpp = W * H / P;
-    let mut step = |b: &mut Bench<TestPipelineDdr>, mcb: &mut Bench<McbModel>| {
+    let step = |b: &mut Bench<TestPipelineDdr>, mcb: &mut Bench<McbModel>| {
         let (u, m) = (&mut b.uut, &mut mcb.uut);
         u.calib_done.next = m.calib_done.val();
         u.cmd_full.next = m.cmd_full.val();
