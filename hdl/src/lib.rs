@@ -44,6 +44,7 @@ pub mod front_half;
 pub mod hot_pixel_mask;
 pub mod packetiser;
 pub mod pipeline;
+pub mod registers;
 pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod sim;
@@ -51,6 +52,7 @@ pub mod spatial_filter;
 pub mod stream;
 pub mod synth;
 pub mod threshold;
+pub mod xem6310;
 
 /// The model crate this gateware mirrors.
 pub use smartagg_model as model;

