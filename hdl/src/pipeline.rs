@@ -1396,3 +1396,45 @@ pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 
 
 /// [`PipelineDdr`] of [`test_back_config`]`(4, 3, 1)`, prefetch of 64 words.
 pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 41, 5, 11>;
+
+/// The SPCImager at 150× (320×240, P = 16, N_max = 128, the model's kernel
+/// for σ = 1.51 px) with the model's defaults M = 32, 9×9 ROIs (R = k),
+/// r_assoc = 1 and L_max up to 65,535 planes (6.5 s).
+pub fn spcimager150_back_config() -> Result<BackHalfConfig, GatewareError> {
+    let front = crate::front_half::spcimager150_config();
+    back_config_for(front, 108)
+}
+
+/// The projected SPCImager (78 % fill, 25 Hz DCR) at 150×: N ≈ 18, so the
+/// delay line of N_max = 24 planes (1.84 Mbit) fits the block RAM of an
+/// LX150; otherwise as [`spcimager150_back_config`].
+pub fn projected150_back_config() -> Result<BackHalfConfig, GatewareError> {
+    let front = GatewareConfig {
+        n_max: 24,
+        ..crate::front_half::spcimager150_config()
+    };
+    back_config_for(front, 18)
+}
+
+fn back_config_for(front: GatewareConfig, n: u32) -> Result<BackHalfConfig, GatewareError> {
+    let mut cfg = smartagg_model::config::PipelineConfig::new(
+        front.width,
+        front.height,
+        n,
+        front.kernel.clone(),
+        front.kernel_shift,
+        1,
+    );
+    cfg.slots = 32;
+    cfg.roi_size = front.kernel.len();
+    cfg.r_assoc = 1;
+    BackHalfConfig::new(&cfg, front, 65_535)
+}
+
+/// [`Pipeline`] of [`projected150_back_config`] (block-RAM delay line).
+pub type Projected150Pipeline =
+    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+
+/// [`PipelineDdr`] of [`spcimager150_back_config`].
+pub type Spcimager150PipelineDdr =
+    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
