@@ -41,7 +41,12 @@ fn yosys_maps_the_test_front_half_to_spartan6() {
     let v = test_front_half_verilog().unwrap();
     let dir = scratch("yosys");
     let r = yosys_resources(&v, &dir).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("{r:?}");
     let _ = std::fs::remove_dir_all(dir);
+    // The delay line alone is 7 x 96 bits of memory; no multiplier.
+    assert!(r.memory_bits >= 7 * 96, "{r:?}");
+    assert_eq!(r.multipliers, 0, "{r:?}");
+    assert!(r.logic_depth.is_some_and(|d| d > 2 && d < 100), "{r:?}");
     // Shift-and-add constant multipliers: no DSP slice.
     assert_eq!(r.dsp48a1, 0, "{r:?}");
     // The delay line (7 planes x 96 bits) and the counter memory are memories, not flip-flops.
