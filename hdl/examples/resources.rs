@@ -1,21 +1,38 @@
-//! Resource figures of the generated front half from yosys
-//! `synth_xilinx -family xc6s` (run: `cargo run -p smartagg-hdl --release
-//! --example resources [test] [spc150] [mask150] [dl24]`, all by default), and
-//! the throughput arithmetic of the chosen P. The SPCImager front half takes
-//! minutes of yosys time.
+//! Resource figures from yosys `synth_xilinx -family xc6s`
+//! ([`YOSYS_SCRIPT`]), with the analytic floors (memory bits / 18 Kbit,
+//! multipliers) and the logic depth between registers; and the throughput
+//! arithmetic of the chosen P. Run one configuration at a time:
+//! `cargo run -p smartagg-hdl --release --example resources -- NAME`
+//! (all of them, in turn, when no name is given). The whole designs take
+//! from minutes (test, pipe) to hours (xem150, proj150) of yosys time.
 //!
-//! Configurations: the small test configuration (with its block-RAM delay
-//! line) and the SPCImager at 150× (320×240, P = 16, N_max = 128, k = 9,
-//! a = 8) without the delay line, which needs 128 planes × 76,800 bits =
-//! 9.8 Mbit and goes to DDR2 in phase 2. The 150× kernel here is the
-//! pixel-integrated Gaussian of the preset's σ, scaled to 2^8 (outer weights
-//! rounded, centre = remainder): only the figures depend on it, weakly.
+//! Configurations:
+//! * `test`: the small test front half (16×6, block-RAM delay line).
+//! * `pipe`: the small test pipeline (16×6, M = 4, 3×3 ROIs).
+//! * `spc150`: the SPCImager 150× front half (320×240, P = 16, N_max = 128,
+//!   k = 9, a = 8) without its delay line (9.8 Mbit: DDR2).
+//! * `mask150`: its hot-pixel mask; `dl24`: a 24-plane block-RAM delay line.
+//! * `xem150`: the whole XEM6310 top for the SPCImager at 150×, DDR2 delay
+//!   line, M = 32, 9×9 ROIs, for the LX45 (FrontPanel and MIG are black
+//!   boxes: their own cost comes on top, see the report).
+//! * `proj150`: the projected SPCImager at 150× with its delay line of
+//!   N_max = 24 planes in block RAM (the pipeline, without the XEM6310
+//!   endpoints), for the LX150.
+//!
+//! The 150× kernel of `spc150` is the pixel-integrated Gaussian of the
+//! preset's σ scaled to 2^8; `xem150` and `proj150` use
+//! [`smartagg_hdl::front_half::spcimager150_config`].
 
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
+use smartagg_hdl::pipeline::{
+    projected150_back_config, spcimager150_back_config, test_back_config, Projected150Pipeline,
+    TestPipeline,
+};
 use smartagg_hdl::synth::{yosys_resources, Resources, YOSYS_SCRIPT};
+use smartagg_hdl::xem6310::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};
 
 /// Pixel-integrated Gaussian of width `sigma` over k pixels, scaled to 2^a.
@@ -45,11 +62,39 @@ fn kernel(sigma: f64, k: usize, a: u8) -> Vec<u32> {
     w
 }
 
+/// (name, LUT6, FF, RAMB16, DSP48A1) of the two devices.
+const DEVICES: [(&str, u64, u64, u64, u64); 2] = [
+    ("XC6SLX45", 27_288, 54_576, 116, 58),
+    ("XC6SLX150", 92_152, 184_304, 268, 180),
+];
+
 fn print(name: &str, r: &Resources) {
     println!(
         "{name:<34} LUT {:>6}  FF {:>6}  RAMB16 {:>3}  RAMB8 {:>3}  DSP48A1 {:>2}  LUT-RAM {:>5}  CARRY4 {:>5}",
         r.luts, r.ffs, r.ramb16, r.ramb8, r.dsp48a1, r.lutram, r.carry4
     );
+    // A RAMB8 is half a RAMB16.
+    let ramb = r.ramb16 as f64 + r.ramb8 as f64 / 2.0;
+    println!(
+        "{:<34} memory {} bits -> floor {} RAMB16 (mapped {:.1}); multipliers {} -> floor {} DSP48A1; logic depth {}",
+        "",
+        r.memory_bits,
+        r.ramb16_floor(),
+        ramb,
+        r.multipliers,
+        r.multipliers,
+        r.logic_depth.map_or("?".to_string(), |d| d.to_string())
+    );
+    for (dev, luts, ffs, brams, dsps) in DEVICES {
+        println!(
+            "{:<34} {dev}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",
+            "",
+            100.0 * (r.luts + r.lutram) as f64 / luts as f64,
+            100.0 * r.ffs as f64 / ffs as f64,
+            100.0 * ramb / brams as f64,
+            100.0 * r.dsp48a1 as f64 / dsps as f64
+        );
+    }
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -88,6 +133,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(&verilog(TestFrontHalf::new(&small)?), &dir.join("test"))?;
         print("test config (16x6, P 4, k 5, N_max 7)", &r);
     }
+    if want("pipe") {
+        let cfg = test_back_config(4, 3, 1)?;
+        let r = yosys_resources(&verilog(TestPipeline::new(&cfg)?), &dir.join("pipe"))?;
+        print("test pipeline (16x6, M 4, R 3)", &r);
+    }
     if want("spc150") {
         let r = yosys_resources(
             &verilog(Spcimager150FrontHalf::new(&big)?),
@@ -119,6 +169,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &dir.join("dl24"),
         )?;
         print("BRAM delay line 320x240, N_max 24", &r);
+    }
+    if want("xem150") {
+        let cfg = spcimager150_back_config()?;
+        let r = yosys_resources(&verilog(Spcimager150Xem::new(&cfg)?), &dir.join("xem150"))?;
+        print("XEM6310 top, SPCImager 150x, DDR2", &r);
+    }
+    if want("proj150") {
+        let cfg = projected150_back_config()?;
+        let r = yosys_resources(
+            &verilog(Projected150Pipeline::new(&cfg)?),
+            &dir.join("proj150"),
+        )?;
+        print("pipeline, projected 150x, BRAM DL 24", &r);
     }
     Ok(())
 }

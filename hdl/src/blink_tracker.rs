@@ -77,6 +77,8 @@ pub mod record_kind {
 /// Tracker states.
 #[derive(Copy, Clone, Debug, PartialEq, LogicState)]
 pub enum TrackerState {
+    /// No stream (the power-up state: nothing is pushed before a restart).
+    Done,
     /// Push the StreamStart record.
     Start,
     /// Process the words of a plane.
@@ -95,8 +97,6 @@ pub enum TrackerState {
     Emit,
     /// Push StreamEnd.
     End,
-    /// Stream over.
-    Done,
 }
 
 /// The M-slot blink tracker. `P`: pixels per word; `NW`: bits of N;
@@ -107,6 +107,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     pub clock: Signal<In, Clock>,
     /// Stream start: all slots free, plane 0, StreamStart first.
     pub restart: Signal<In, Bit>,
+    /// With `restart`: a stream starts (push StreamStart); without, the
+    /// tracker is only cleared (RESET).
+    pub emit_start: Signal<In, Bit>,
     /// N register.
     pub n_window: Signal<In, Bits<NW>>,
     /// L_min register (≥ 1).
@@ -326,6 +329,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
         Ok(BlinkTracker {
             clock: Default::default(),
             restart: Default::default(),
+            emit_start: Default::default(),
             n_window: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
@@ -1109,7 +1113,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
 
         if self.restart.val() {
-            self.state.d.next = TrackerState::Start;
+            self.state.d.next = TrackerState::Done;
+            if self.emit_start.val() {
+                self.state.d.next = TrackerState::Start;
+            }
             self.t.d.next = 0.into();
             self.rows.d.next = 0.into();
             self.done_mask.d.next = 0.into();

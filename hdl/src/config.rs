@@ -297,15 +297,17 @@ pub struct BackHalfConfig {
 
 impl BackHalfConfig {
     /// The back half for a model configuration (M, R, r_assoc from it), with
-    /// the default queue (Q = M rounded up to a power of two, at least 4) and
-    /// FIFO depths and the row slack of [`BackHalfConfig::default_row_slack`].
+    /// the default record queue (Q = the power of two above M + 1: one plane
+    /// can complete every slot and drop candidates while the packetiser is
+    /// still busy), FIFO depths and the row slack of
+    /// [`BackHalfConfig::default_row_slack`].
     pub fn new(
         cfg: &PipelineConfig,
         front: GatewareConfig,
         l_max_max: u32,
     ) -> Result<BackHalfConfig, GatewareError> {
         cfg.validate()?;
-        let queue_log2 = bits_for(cfg.slots.max(4) as u64 - 1);
+        let queue_log2 = bits_for(cfg.slots as u64 + 1);
         let mut b = BackHalfConfig {
             front,
             slots: cfg.slots,

@@ -38,10 +38,13 @@ pub mod bram;
 pub mod candidates;
 pub mod config;
 pub mod delay_line;
+pub mod delay_line_ddr;
 pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
 pub mod packetiser;
+pub mod pipeline;
+pub mod registers;
 pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod sim;
@@ -49,6 +52,7 @@ pub mod spatial_filter;
 pub mod stream;
 pub mod synth;
 pub mod threshold;
+pub mod xem6310;
 
 /// The model crate this gateware mirrors.
 pub use smartagg_model as model;

@@ -247,7 +247,10 @@ pub struct Packetiser<
     hdr: Signal<Local, Bits<PW>>,
     rec_prefix: Signal<Local, Bits<PW>>,
     ovf_prefix: Signal<Local, Bits<PW>>,
-    byte: Signal<Local, Bits<8>>,
+    the_byte: Signal<Local, Bits<8>>,
+    pk_shift: Signal<Local, Bits<72>>,
+    pad_shift: Signal<Local, Bits<72>>,
+    crc_shift: Signal<Local, Bits<32>>,
     pk_byte: Signal<Local, Bits<8>>,
     pad_byte: Signal<Local, Bits<8>>,
     crc_v: Signal<Local, Bits<8>>,
@@ -408,7 +411,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             hdr: Default::default(),
             rec_prefix: Default::default(),
             ovf_prefix: Default::default(),
-            byte: Default::default(),
+            the_byte: Default::default(),
+            pk_shift: Default::default(),
+            pad_shift: Default::default(),
+            crc_shift: Default::default(),
             pk_byte: Default::default(),
             pad_byte: Default::default(),
             crc_v: Default::default(),
@@ -721,16 +727,20 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             | (bit_cast::<PW, 32>(self.pend_cnt.q.val()) << 112);
 
         // ---- The byte of this clock and the CRC.
-        self.pk_byte.next = (self.pk.q.val() >> (self.nb.q.val() - 8)).get_bits::<8>(0);
-        self.pad_byte.next = (self.pk.q.val() << (8 - self.nb.q.val())).get_bits::<8>(0);
-        self.byte.next = self.prefix.q.val().get_bits::<8>(self.boff.q.val().index());
+        // (Verilog cannot slice an expression: shift into a signal first.)
+        self.pk_shift.next = self.pk.q.val() >> (self.nb.q.val() - 8);
+        self.pk_byte.next = self.pk_shift.val().get_bits::<8>(0);
+        self.pad_shift.next = self.pk.q.val() << (8 - self.nb.q.val());
+        self.pad_byte.next = self.pad_shift.val().get_bits::<8>(0);
+        self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
+        self.the_byte.next = self.prefix.q.val().get_bits::<8>(self.boff.q.val().index());
         if self.state.q.val() == PacketState::Codes {
-            self.byte.next = self.pad_byte.val();
+            self.the_byte.next = self.pad_byte.val();
             if self.nb.q.val() >= 8 {
-                self.byte.next = self.pk_byte.val();
+                self.the_byte.next = self.pk_byte.val();
             }
         }
-        self.crc_v.next = self.crc.q.val().get_bits::<8>(0) ^ self.byte.val();
+        self.crc_v.next = self.crc.q.val().get_bits::<8>(0) ^ self.the_byte.val();
         for i in 0..8 {
             self.ct[i].next = 0.into();
             if self.crc_v.val().get_bit(i) {
@@ -748,7 +758,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             ^ self.ct[7].val();
 
         self.out_valid.next = false;
-        self.out_byte.next = self.byte.val();
+        self.out_byte.next = self.the_byte.val();
         self.r_pop.next = false;
         self.fb_ret.next = false;
         self.fb_ret_bank.next = self.r_bank.val();
@@ -896,9 +906,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
             PacketState::Crc => {
                 self.out_valid.next = true;
-                self.out_byte.next = !(self.crc.q.val()
-                    >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3))
-                    .get_bits::<8>(0);
+                self.out_byte.next = self.crc_shift.val().get_bits::<8>(0);
                 self.crc_i.d.next = self.crc_i.q.val() + 1;
                 if self.crc_i.q.val() == 3 {
                     if self.in_ovf.q.val() {
@@ -999,6 +1007,8 @@ pub struct RecordQueue<const BW: usize, const QAW: usize, const QW: usize> {
     pub h_bank: Signal<Out, Bits<BW>>,
     /// A push was refused (never expected: the tracker checks `room`).
     pub overflow: Signal<Out, Bit>,
+    /// Nothing queued, nothing in flight.
+    pub empty: Signal<Out, Bit>,
     fifo: Fifo<QW, QAW>,
     depth: Constant<Bits<16>>,
 }
@@ -1037,6 +1047,7 @@ impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW
             h_tag: Default::default(),
             h_bank: Default::default(),
             overflow: Default::default(),
+            empty: Default::default(),
             fifo: Fifo::new(RamStyle::Distributed),
             depth: Constant::new((cfg.queue_depth() as u64).to_bits()),
         })
@@ -1073,6 +1084,7 @@ impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<B
         self.h_tag.next = self.fifo.out_data.val().get_bits::<48>(178);
         self.h_bank.next = self.fifo.out_data.val().get_bits::<BW>(226);
         self.overflow.next = self.fifo.overflow.val();
+        self.empty.next = self.fifo.count.val() == 0;
     }
 }
 

@@ -43,18 +43,35 @@ pub enum ToolError {
     NoStatistics,
 }
 
-/// Verilator warnings waived for rust-hdl's generated code (measured on the
-/// test front half: 267 WIDTH, 8 UNUSEDSIGNAL, 1 DECLFILENAME, nothing else),
-/// each for a reason that does not hide a design error:
+/// Verilator warnings waived for rust-hdl's generated code, each for a
+/// reason that does not hide a design error:
 /// * `WIDTH`: rust-hdl writes every literal as 32 bits (`x = 32'h0`,
 ///   `cur_x != 32'h0`) and casts as `(x & N'hmask)`, so operand widths differ
 ///   by construction; the widths that matter are fixed by the Rust types, and
 ///   the simulation tests check the values against the model.
 /// * `UNUSEDSIGNAL`: outputs a parent does not read (the tags of the top and
 ///   bottom candidate windows duplicate the middle one's; the word index after
-///   the counter).
+///   the counter; unused bits of packed FIFO entries).
 /// * `DECLFILENAME`: one generated file holds every module.
-pub const VERILATOR_WAIVERS: &[&str] = &["-Wno-WIDTH", "-Wno-UNUSEDSIGNAL", "-Wno-DECLFILENAME"];
+/// * `UNUSEDPARAM`: rust-hdl declares the `localparam`s of a state enum in
+///   every module that holds a signal of that type, also where only the
+///   register is passed on.
+/// * `UNOPTFLAT`: Verilator's scheduling note for always-blocks that read one
+///   output of a child block and drive another of its inputs (a FIFO's push
+///   and its count, a constant multiplier's operand and product); rust-hdl's
+///   `check_all` (run on every block in the tests) rules out combinational
+///   loops signal by signal.
+/// * `PINCONNECTEMPTY`: outputs of the vendor black boxes (the MIG's
+///   `c3_clk0`/`c3_rst0` and FIFO counts, the pipes' `ep_blockstrobe`) that
+///   the top does not use are left unconnected on purpose.
+pub const VERILATOR_WAIVERS: &[&str] = &[
+    "-Wno-WIDTH",
+    "-Wno-UNUSEDSIGNAL",
+    "-Wno-DECLFILENAME",
+    "-Wno-UNUSEDPARAM",
+    "-Wno-UNOPTFLAT",
+    "-Wno-PINCONNECTEMPTY",
+];
 
 fn write_file(dir: &Path, name: &str, text: &str) -> Result<PathBuf, ToolError> {
     std::fs::create_dir_all(dir).map_err(|source| ToolError::Io {
@@ -127,15 +144,59 @@ pub struct Resources {
     pub lutram: u64,
     /// Carry chains (CARRY4).
     pub carry4: u64,
+    /// Bits of the design's memories before mapping (yosys `stat` after
+    /// `proc; flatten`): with [`Resources::ramb16_floor`], the analytic floor.
+    pub memory_bits: u64,
+    /// Multipliers (`$mul` cells) before mapping: the floor of DSP slices
+    /// (constant multipliers are written as shifts and adds, so 0).
+    pub multipliers: u64,
+    /// Longest path between registers, memories, black boxes and ports in
+    /// cells of the mapped netlist (LUTs, MUXF7/8, CARRY4, LUT-RAM reads and
+    /// inverters each count 1): yosys `ltp` once the sequential cells, block
+    /// RAMs, buffers and black boxes are deleted; a proxy for timing.
+    pub logic_depth: Option<u64>,
 }
 
-/// Parses the last `Number of cells` table of a yosys log.
+impl Resources {
+    /// 18-Kbit block RAMs needed at the least for [`Resources::memory_bits`].
+    pub fn ramb16_floor(&self) -> u64 {
+        self.memory_bits.div_ceil(18 * 1024)
+    }
+}
+
+/// Parses a log of [`YOSYS_SCRIPT`]: the cells of the last `stat` table, the
+/// memory bits and multipliers of the first, the `ltp` path length.
 pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
     let start = log
         .rfind("Printing statistics")
         .ok_or(ToolError::NoStatistics)?;
     let mut r = Resources::default();
-    for line in log[start..].lines() {
+    let first = log.find("Printing statistics").unwrap_or(start);
+    if first < start {
+        for line in log[first..start].lines() {
+            let line = line.trim();
+            let number = |prefix: &str| {
+                line.strip_prefix(prefix)
+                    .and_then(|rest| rest.trim().parse::<u64>().ok())
+            };
+            if let Some(n) = number("Number of memory bits:") {
+                r.memory_bits += n;
+            }
+            if let Some(n) = number("$mul") {
+                r.multipliers += n;
+            }
+        }
+    }
+    r.logic_depth = log.rfind("Longest topological path in").and_then(|i| {
+        let rest = &log[i..];
+        let at = rest.find("length=")? + "length=".len();
+        let digits: String = rest[at..].chars().take_while(|c| c.is_ascii_digit()).collect();
+        digits.parse().ok()
+    });
+    let end = log[start..]
+        .find("Longest topological path")
+        .map_or(log.len(), |e| start + e);
+    for line in log[start..end].lines() {
         let mut parts = line.split_whitespace();
         let (Some(name), Some(count)) = (parts.next(), parts.next()) else {
             continue;
@@ -162,9 +223,14 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
     Ok(r)
 }
 
-/// The yosys command used for the resource figures.
-pub const YOSYS_SCRIPT: &str =
-    "read_verilog top.v; synth_xilinx -family xc6s -top top -flatten; stat";
+/// The yosys command used for the resource figures: memory bits and
+/// multipliers of the flattened design, Spartan-6 synthesis, cell counts,
+/// then the longest path through the combinational cells of the mapped
+/// netlist (flip-flops, shift registers, block RAMs, buffers and the
+/// black boxes deleted first, so that paths start and end at them).
+pub const YOSYS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; stat; \
+     synth_xilinx -family xc6s -top top -flatten; stat; \
+     delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig; ltp";
 
 /// Synthesises the Verilog for the Spartan-6 with yosys in `dir` and returns
 /// the cell counts (the log is left in `dir/yosys.log`).

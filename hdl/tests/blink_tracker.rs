@@ -264,6 +264,7 @@ fn run(pr: &Params) -> (usize, usize) {
 
     let mut b = Bench::new(Dut::new(&bh).unwrap(), |u| &mut u.clock);
     b.uut.restart.next = true;
+    b.uut.emit_start.next = true;
     b.uut.n_window.next = (pr.n as u64).to_bits();
     b.uut.l_min.next = (pr.l_min as u64).to_bits();
     b.uut.l_max.next = (pr.l_max as u64).to_bits();

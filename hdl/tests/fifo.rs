@@ -70,6 +70,7 @@ fn fifo_equals_a_queue_at_full_rate_and_with_stalls() {
         run(style, 0.5, 0.5, 1 + i as u64, 1000);
         run(style, 0.9, 0.3, 3 + i as u64, 700); // fills up: refusals
         run(style, 0.3, 0.95, 5 + i as u64, 700);
+        run(style, 0.5, 1.0, 9 + i as u64, 1200);
         // One in and one out every clock after the first three.
         run(style, 1.0, 1.0, 7 + i as u64, 2997);
     }

@@ -63,7 +63,7 @@ fn hot_pixel_mask_equals_model() {
         assert!(bench.cycles < 10_000);
     }
     for (t, plane) in planes.iter().enumerate() {
-        let enabled = t % 2 == 0;
+        let enabled = t.is_multiple_of(2);
         let want = if enabled {
             mask.apply(plane)
         } else {

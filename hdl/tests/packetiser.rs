@@ -259,11 +259,11 @@ fn frozen_vectors_byte_for_byte() {
         ("stream_end.hex", 5),
     ] {
         let want = vector(file);
-        let got = run::<32, 10, 6, 8, 464>(&bh9, seq, &inputs(decoded(&want)), 0.7, seq as u64);
+        let got = run::<32, 10, 7, 8, 464>(&bh9, seq, &inputs(decoded(&want)), 0.7, seq as u64);
         assert_eq!(got, want, "{file}");
     }
     let want = vector("blink_large.hex");
-    let got = run::<32, 8, 6, 8, 464>(&bh3, 3, &inputs(decoded(&want)), 1.0, 3);
+    let got = run::<32, 9, 7, 8, 464>(&bh3, 3, &inputs(decoded(&want)), 1.0, 3);
     assert_eq!(got, want, "blink_large.hex");
 }
 
@@ -288,7 +288,7 @@ fn overflow_vector_after_seven_records_dropped_on_the_device() {
         lost: 0,
         room: true,
     });
-    let got = run::<32, 10, 6, 8, 464>(&bh, 42, &ins, 1.0, 9);
+    let got = run::<32, 10, 7, 8, 464>(&bh, 42, &ins, 1.0, 9);
     let want = vector("overflow.hex");
     assert_eq!(&got[..want.len()], &want[..]);
     let mut tail = Vec::new();
@@ -327,7 +327,7 @@ fn stream_vector_with_two_records_dropped() {
             }),
         }
     }
-    assert_eq!(run::<32, 10, 6, 8, 464>(&bh, 0, &ins, 0.5, 11), want);
+    assert_eq!(run::<32, 10, 7, 8, 464>(&bh, 0, &ins, 0.5, 11), want);
 }
 
 /// A random Blink of side `r`: counts of one of several shapes (flat, PSF
@@ -423,7 +423,7 @@ fn random_records_equal_the_model_encoder() {
         enc.push(r, &mut want).unwrap();
     }
     assert_eq!(
-        run::<32, 10, 6, 8, 464>(&bh, 0, &inputs(recs), 0.6, 21),
+        run::<32, 10, 7, 8, 464>(&bh, 0, &inputs(recs), 0.6, 21),
         want
     );
 }
@@ -448,7 +448,7 @@ fn empty_segment_has_zero_counts_and_its_slots_mask_flag() {
     let mut want = Vec::new();
     encode_record(&Record::Blink(bl.clone()), 0, &mut want).unwrap();
     assert_eq!(
-        run::<32, 10, 6, 8, 464>(&bh, 0, &inputs(vec![Record::Blink(bl)]), 1.0, 5),
+        run::<32, 10, 7, 8, 464>(&bh, 0, &inputs(vec![Record::Blink(bl)]), 1.0, 5),
         want
     );
 }
@@ -486,7 +486,7 @@ proptest! {
             lost = 0;
             fed.push(inp);
         }
-        let bytes = run::<32, 10, 6, 8, 464>(&bh, 0, &fed, 0.8, seed);
+        let bytes = run::<32, 10, 7, 8, 464>(&bh, 0, &fed, 0.8, seed);
         let d = decode_all(&bytes);
         prop_assert!(!d.stats.any_loss() || d.stats.lost_on_device > 0, "{}", d.stats);
         prop_assert_eq!(d.stats.crc_errors + d.stats.malformed + d.stats.bytes_skipped + d.stats.lost_in_transport, 0);
@@ -518,7 +518,7 @@ fn three_by_three_rois_too() {
         enc.push(r, &mut want).unwrap();
     }
     assert_eq!(
-        run::<32, 8, 6, 8, 464>(&bh, 1, &inputs(recs), 0.9, 77),
+        run::<32, 9, 7, 8, 464>(&bh, 1, &inputs(recs), 0.9, 77),
         want
     );
 }

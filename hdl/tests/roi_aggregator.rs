@@ -161,6 +161,7 @@ fn run_stream(
     let mut ag = Bench::new(Agg::new(&bh).unwrap(), |u| &mut u.clock);
     let mut pool = Bench::new(Pool::new(&bh).unwrap(), |u| &mut u.clock);
     tr.uut.restart.next = true;
+    tr.uut.emit_start.next = true;
     ag.uut.restart.next = true;
     pool.uut.restart.next = true;
     tr.uut.n_window.next = (n as u64).to_bits();

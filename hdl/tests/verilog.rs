@@ -1,11 +1,15 @@
 //! Verilog generation: Verilator lint (-Wall with the documented waivers)
-//! and a yosys Spartan-6 synthesis of the test configuration's front half.
+//! of the front halves and of the XEM6310 top, a yosys Spartan-6 synthesis
+//! of the test configuration's front half, and the XEM6310 constraints
+//! (`constraints/xem6310.ucf`) against the top's ports.
 //! The tools are required: a missing tool fails with an install hint.
 
 use smartagg_hdl::front_half::{
     spcimager150_config, test_front_half_verilog, verilog, Spcimager150FrontHalf,
 };
+use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
 use smartagg_hdl::synth::{verilator_lint, yosys_resources};
+use smartagg_hdl::xem6310::{Spcimager150Xem, TestXem};
 
 fn scratch(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("smartagg-hdl-{name}-{}", std::process::id()))
@@ -37,10 +41,99 @@ fn yosys_maps_the_test_front_half_to_spartan6() {
     let v = test_front_half_verilog().unwrap();
     let dir = scratch("yosys");
     let r = yosys_resources(&v, &dir).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("{r:?}");
     let _ = std::fs::remove_dir_all(dir);
+    // The delay line alone is 7 x 96 bits of memory; no multiplier.
+    assert!(r.memory_bits >= 7 * 96, "{r:?}");
+    assert_eq!(r.multipliers, 0, "{r:?}");
+    assert!(r.logic_depth.is_some_and(|d| d > 2 && d < 100), "{r:?}");
     // Shift-and-add constant multipliers: no DSP slice.
     assert_eq!(r.dsp48a1, 0, "{r:?}");
     // The delay line (7 planes x 96 bits) and the counter memory are memories, not flip-flops.
     assert!(r.ramb8 + r.ramb16 + r.lutram > 0, "{r:?}");
     assert!(r.luts > 100 && r.ffs > 100, "{r:?}");
+}
+
+/// The bits of the top module's ports: `name` for one bit, `name[i]` for
+/// each bit of a vector.
+fn top_port_bits(v: &str) -> Vec<String> {
+    let start = v.find("module top(").expect("top module");
+    let body = &v[start..];
+    let end = body.find("endmodule").expect("end of top");
+    let mut bits = Vec::new();
+    for line in body[..end].lines() {
+        let line = line.trim();
+        let Some(decl) = ["input wire ", "output reg ", "output wire ", "inout wire "]
+            .iter()
+            .find_map(|k| line.strip_prefix(k))
+        else {
+            continue;
+        };
+        let decl = decl.trim().trim_end_matches(';').trim();
+        if let Some(rest) = decl.strip_prefix('[') {
+            let (range, name) = rest.split_once(']').unwrap();
+            let (hi, lo) = range.split_once(':').unwrap();
+            let (hi, lo): (usize, usize) = (hi.parse().unwrap(), lo.parse().unwrap());
+            for i in lo..=hi {
+                bits.push(format!("{}[{i}]", name.trim()));
+            }
+        } else {
+            bits.push(decl.to_string());
+        }
+    }
+    bits
+}
+
+/// `(net, location)` of every `NET "..." LOC = "..."` line of a UCF.
+fn ucf_locations(ucf: &str) -> Vec<(String, String)> {
+    ucf.lines()
+        .map(|l| l.split('#').next().unwrap())
+        .filter(|l| l.contains("LOC"))
+        .map(|l| {
+            let q: Vec<&str> = l.split('"').collect();
+            assert!(q.len() >= 4 && q[0].trim() == "NET", "malformed line {l}");
+            (q[1].replace('<', "[").replace('>', "]"), q[3].to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn ucf_places_every_port_of_the_xem6310_top_and_nothing_else() {
+    let cfg = spcimager150_back_config().unwrap();
+    let v = verilog(Spcimager150Xem::new(&cfg).unwrap());
+    let ports = top_port_bits(&v);
+    assert!(ports.len() > 100, "{ports:?}");
+    let ucf_path = concat!(env!("CARGO_MANIFEST_DIR"), "/../constraints/xem6310.ucf");
+    let ucf = std::fs::read_to_string(ucf_path).unwrap();
+    let locs = ucf_locations(&ucf);
+    let mut seen = std::collections::HashSet::new();
+    let mut pins = std::collections::HashSet::new();
+    for (net, pin) in &locs {
+        assert!(
+            ports.contains(net),
+            "LOC for {net}, which is not a port of the top"
+        );
+        assert!(seen.insert(net.clone()), "{net} placed twice");
+        assert!(pins.insert(pin.clone()), "pin {pin} used twice");
+    }
+    for p in &ports {
+        assert!(seen.contains(p), "port bit {p} has no LOC");
+    }
+    // The host-interface clock period of the XEM6310.
+    assert!(ucf.contains("PERIOD \"okHostClk\" 9.92 ns"));
+    assert!(ucf.contains("NET \"okUH[0]\" TNM_NET = \"okHostClk\""));
+}
+
+#[test]
+fn xem6310_top_verilog_passes_verilator_lint() {
+    let cfg = test_back_config(4, 3, 1).unwrap();
+    let v = verilog(TestXem::new(&cfg).unwrap());
+    // The black boxes are declared once each.
+    assert_eq!(v.matches("module okHost(").count(), 1);
+    assert_eq!(v.matches("module smartagg_mig(").count(), 1);
+    let dir = scratch("lintxem");
+    if let Err(e) = verilator_lint(&v, &dir) {
+        panic!("{e}");
+    }
+    let _ = std::fs::remove_dir_all(dir);
 }

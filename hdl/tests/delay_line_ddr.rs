@@ -1,0 +1,163 @@
+//! The DDR2 delay line with the behavioural MCB model against the model's
+//! `DelayLine`: garbage in DDR2 before the first planes (they must read as
+//! zero), command latency, refresh gaps, random stalls, the N drain planes
+//! and a flush plane, restarts with another N while reads are in flight, and
+//! an MCB too slow for the stream (the underrun flag, never a silent error).
+
+mod common;
+
+use rust_hdl::prelude::*;
+use smartagg_hdl::config::GatewareConfig;
+use smartagg_hdl::delay_line_ddr::{DelayLineDdr, McbModel};
+use smartagg_hdl::sim::{settle, Bench, Stalls};
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::delay_line::DelayLine as ModelDelayLine;
+use smartagg_model::plane::BitPlane;
+
+const P: usize = 4;
+type Dut = DelayLineDdr<P, 3, 6>; // N_max 5 -> 3 bits; prefetch 64 words
+
+struct Rig {
+    dl: Bench<Dut>,
+    mcb: Bench<McbModel>,
+}
+
+impl Rig {
+    fn new(w: usize, h: usize, mcb: McbModel) -> Rig {
+        let cfg = PipelineConfig::new(w, h, 3, vec![1, 2, 1], 2, 3);
+        let g = GatewareConfig::new(&cfg, P, 5).unwrap();
+        Rig {
+            dl: Bench::new(Dut::new(&g).unwrap(), |u| &mut u.clock),
+            mcb: Bench::new(mcb, |u| &mut u.clock),
+        }
+    }
+
+    /// Settles the delay line with the MCB's outputs, then hands its
+    /// commands to the MCB.
+    fn settle(&mut self) {
+        let (d, m) = (&mut self.dl.uut, &mut self.mcb.uut);
+        d.calib_done.next = m.calib_done.val();
+        d.cmd_full.next = m.cmd_full.val();
+        d.wr_full.next = m.wr_full.val();
+        d.rd_data.next = m.rd_data.val();
+        d.rd_empty.next = m.rd_empty.val();
+        settle(d);
+        m.cmd_en.next = d.cmd_en.val();
+        m.cmd_instr.next = d.cmd_instr.val();
+        m.cmd_bl.next = d.cmd_bl.val();
+        m.cmd_addr.next = d.cmd_addr.val();
+        m.wr_en.next = d.wr_en.val();
+        m.wr_mask.next = d.wr_mask.val();
+        m.wr_data.next = d.wr_data.val();
+        m.rd_en.next = d.rd_en.val();
+        settle(m);
+    }
+
+    fn tick(&mut self) {
+        self.dl.tick();
+        self.mcb.tick();
+    }
+}
+
+/// One stream; returns whether the delay line flagged an underrun.
+fn run_stream(
+    rig: &mut Rig,
+    w: usize,
+    h: usize,
+    n: u32,
+    seed: u64,
+    planes: usize,
+    stall: u64,
+) -> bool {
+    let mut rng = common::rng(seed);
+    let stream = common::random_planes(&mut rng, w, h, planes, 0.3);
+    let mut model = ModelDelayLine::new(n as usize, w, h);
+    let mut expected: Vec<BitPlane> = stream.iter().map(|p| model.push(p.clone())).collect();
+    expected.extend((0..n).map(|_| model.push(BitPlane::zeros(w, h))));
+    let wpp = w * h / P;
+    rig.dl.uut.restart.next = true;
+    rig.dl.uut.n_window.next = (n as u64).to_bits();
+    rig.dl.uut.valid.next = false;
+    rig.settle();
+    rig.tick();
+    rig.dl.uut.restart.next = false;
+    // Wait for calibration as the stream control does before a stream.
+    while !rig.mcb.uut.calib_done.val() {
+        rig.settle();
+        rig.tick();
+    }
+    let mut stalls = Stalls::new(seed ^ 0x3c, stall);
+    let stored = planes + n as usize;
+    let total = (stored + 1) * wpp; // real, drain, one flush plane
+    let (mut sent, mut got, mut cycles) = (0, Vec::new(), 0);
+    while got.len() < stored * wpp {
+        let u = &mut rig.dl.uut;
+        let offer = sent < total && stalls.offer();
+        u.valid.next = offer;
+        if offer {
+            let (t, idx) = (sent / wpp, sent % wpp);
+            u.sop.next = idx == 0;
+            u.drain.next = t >= planes && t < stored;
+            u.flush.next = t == stored;
+            u.live.next = if t < planes {
+                common::word(&stream[t], P, idx).to_bits()
+            } else {
+                0.into()
+            };
+            sent += 1;
+        }
+        rig.settle();
+        let u = &rig.dl.uut;
+        if u.out_valid.val() && (!u.out_flush.val() || u.out_drain.val()) {
+            got.push(u.out_delayed.val().to_u64());
+        }
+        rig.tick();
+        cycles += 1;
+        assert!(cycles < 200_000, "stream did not complete");
+    }
+    let under = rig.dl.uut.underrun.val();
+    if !under {
+        for (t, plane) in expected.iter().enumerate() {
+            for idx in 0..wpp {
+                assert_eq!(
+                    got[t * wpp + idx],
+                    common::word(plane, P, idx),
+                    "B_(t-N), plane {t} word {idx}, N = {n}"
+                );
+            }
+        }
+        assert!(!rig.dl.uut.write_error.val());
+        assert!(!rig.mcb.uut.error.val(), "MCB protocol error");
+    }
+    under
+}
+
+#[test]
+fn ddr2_delay_line_equals_model_with_latency_refresh_and_garbage() {
+    let (w, h) = (64, 32); // 64 words per plane, bursts of 8
+                           // 20-clock command latency, a 40-clock refresh every 300 clocks.
+    let mut rig = Rig::new(w, h, McbModel::new(20, 300, 40, 50, 7));
+    assert!(!run_stream(&mut rig, w, h, 3, 11, 9, 30));
+    // Restart with another N; reads of the first stream may still arrive.
+    assert!(!run_stream(&mut rig, w, h, 5, 12, 8, 0));
+    assert!(!run_stream(&mut rig, w, h, 1, 13, 4, 50));
+    assert!(rig.mcb.uut.words_written() > 0);
+}
+
+#[test]
+fn ddr2_delay_line_small_planes() {
+    let (w, h) = (16, 4); // two 32-bit words per plane, one-word bursts
+    let mut rig = Rig::new(w, h, McbModel::new(5, 100, 10, 3, 9));
+    assert!(!run_stream(&mut rig, w, h, 4, 21, 10, 20));
+    assert!(!run_stream(&mut rig, w, h, 2, 22, 6, 0));
+}
+
+#[test]
+fn too_slow_memory_is_flagged() {
+    let (w, h) = (32, 8);
+    let mut rig = Rig::new(w, h, McbModel::new(400, 300, 40, 5, 3));
+    assert!(
+        run_stream(&mut rig, w, h, 3, 31, 6, 0),
+        "underrun must be flagged"
+    );
+}
