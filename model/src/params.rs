@@ -73,6 +73,28 @@ pub fn check_non_negative(name: &'static str, value: f64) -> Result<f64, ParamEr
     Ok(value)
 }
 
+/// Checks a sensor's size in pixels (1 ..= 65535 each way).
+fn check_sensor_size(width: u32, height: u32) -> Result<(), ParamError> {
+    check_range("width", width as f64, 1.0, 65535.0)?;
+    check_range("height", height as f64, 1.0, 65535.0)?;
+    Ok(())
+}
+
+/// Checks a frame camera's timing: positive period and exposure, and an
+/// exposure no longer than the period.
+fn check_frame_timing(frame_period_s: f64, exposure_s: f64) -> Result<(), ParamError> {
+    check_positive("frame_period_s", frame_period_s)?;
+    check_positive("exposure_s", exposure_s)?;
+    if exposure_s > frame_period_s * (1.0 + 1e-12) {
+        return Err(ParamError::Invalid {
+            name: "exposure_s",
+            value: exposure_s,
+            why: "a frame cannot expose longer than its period",
+        });
+    }
+    Ok(())
+}
+
 /// A binary single-photon avalanche diode camera (the SPCImager class).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SpadCamera {
@@ -111,8 +133,7 @@ impl SpadCamera {
     /// Validates every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ParamError> {
         check_positive("pixel_pitch_um", self.pixel_pitch_um)?;
-        check_range("width", self.width as f64, 1.0, 65535.0)?;
-        check_range("height", self.height as f64, 1.0, 65535.0)?;
+        check_sensor_size(self.width, self.height)?;
         check_range("pde", self.pde, 0.0, 1.0)?;
         check_range("fill_factor", self.fill_factor, 0.0, 1.0)?;
         check_non_negative("dcr_median_hz", self.dcr_median_hz)?;
@@ -166,22 +187,13 @@ impl EmccdCamera {
     /// Validates every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ParamError> {
         check_positive("pixel_pitch_um", self.pixel_pitch_um)?;
-        check_range("width", self.width as f64, 1.0, 65535.0)?;
-        check_range("height", self.height as f64, 1.0, 65535.0)?;
+        check_sensor_size(self.width, self.height)?;
         check_range("qe", self.qe, 0.0, 1.0)?;
         check_non_negative("read_noise_e", self.read_noise_e)?;
         check_non_negative("dark_e_per_s", self.dark_e_per_s)?;
         check_non_negative("cic_per_frame", self.cic_per_frame)?;
         check_range("em_gain", self.em_gain, 1.0, 10000.0)?;
-        check_positive("frame_period_s", self.frame_period_s)?;
-        check_positive("exposure_s", self.exposure_s)?;
-        if self.exposure_s > self.frame_period_s * (1.0 + 1e-12) {
-            return Err(ParamError::Invalid {
-                name: "exposure_s",
-                value: self.exposure_s,
-                why: "a frame cannot expose longer than its period",
-            });
-        }
+        check_frame_timing(self.frame_period_s, self.exposure_s)?;
         check_positive("e_per_adu", self.e_per_adu)?;
         check_non_negative("offset_adu", self.offset_adu)?;
         Ok(())
@@ -221,22 +233,13 @@ impl ScmosCamera {
     /// Validates every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), ParamError> {
         check_positive("pixel_pitch_um", self.pixel_pitch_um)?;
-        check_range("width", self.width as f64, 1.0, 65535.0)?;
-        check_range("height", self.height as f64, 1.0, 65535.0)?;
+        check_sensor_size(self.width, self.height)?;
         check_range("qe", self.qe, 0.0, 1.0)?;
         check_non_negative("read_noise_e", self.read_noise_e)?;
         check_non_negative("dark_e_per_s", self.dark_e_per_s)?;
         check_range("drnu", self.drnu, 0.0, 10.0)?;
         check_range("prnu", self.prnu, 0.0, 1.0)?;
-        check_positive("frame_period_s", self.frame_period_s)?;
-        check_positive("exposure_s", self.exposure_s)?;
-        if self.exposure_s > self.frame_period_s * (1.0 + 1e-12) {
-            return Err(ParamError::Invalid {
-                name: "exposure_s",
-                value: self.exposure_s,
-                why: "a frame cannot expose longer than its period",
-            });
-        }
+        check_frame_timing(self.frame_period_s, self.exposure_s)?;
         check_positive("e_per_adu", self.e_per_adu)?;
         check_non_negative("offset_adu", self.offset_adu)?;
         Ok(())
