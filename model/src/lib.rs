@@ -32,6 +32,7 @@ pub mod pipeline;
 pub mod plane;
 pub mod record;
 pub mod recording;
+pub mod registers;
 pub mod rice;
 pub mod roi_aggregator;
 pub mod rolling_count;

@@ -31,7 +31,7 @@
 //! of these differently or add a required `okFrontPanelDLL_LoadLib` step (the
 //! header's import side calls it; we `dlopen` the library ourselves instead);
 //! an empty serial in `OpenBySerial` opens the first device; the USB 3.0 pipe
-//! granularity is 16 bytes ([`registers::PIPE_GRANULE`]). A missing function
+//! granularity is 16 bytes ([`registers::PIPE_BLOCK_BYTES`]). A missing function
 //! is reported by name ([`TransportError::MissingSymbol`]).
 //!
 //! # What is tested here
@@ -43,7 +43,7 @@
 //! rounding to whole granules, the trimming of end-of-stream padding and the
 //! end of the stream. The calls into the real library are not exercised.
 
-use super::registers::{self, pipe, status, wire_out, RegisterBus, PIPE_GRANULE};
+use super::registers::{self, pipe, status, wire_out, RegisterBus, PIPE_BLOCK_BYTES};
 use super::{Chunk, DeviceConfig, PacketSource, TransportError};
 use libloading::Library;
 use std::ffi::{c_char, c_int, c_long, c_ulong, c_void, CString};
@@ -234,7 +234,7 @@ impl FrontPanelLib {
 
 /// Register access plus the pipe-out read that [`FrontPanelSource`] needs.
 pub trait PipeDevice: RegisterBus {
-    /// Reads exactly `buf.len()` bytes (a multiple of [`PIPE_GRANULE`]) from a pipe-out.
+    /// Reads exactly `buf.len()` bytes (a multiple of [`PIPE_BLOCK_BYTES`]) from a pipe-out.
     fn read_pipe_out(&mut self, addr: u8, buf: &mut [u8]) -> Result<(), TransportError>;
 }
 
@@ -339,7 +339,7 @@ impl RegisterBus for FrontPanelDevice {
     fn write_pipe_in(&mut self, addr: u8, data: &[u8]) -> Result<(), TransportError> {
         // Whole granules: pad the last one with zeros (the mask's padding bits are unused).
         let mut padded = data.to_vec();
-        padded.resize(data.len().div_ceil(PIPE_GRANULE) * PIPE_GRANULE, 0);
+        padded.resize(data.len().div_ceil(PIPE_BLOCK_BYTES) * PIPE_BLOCK_BYTES, 0);
         let n = unsafe {
             (self.lib.write_to_pipe_in)(
                 self.handle,
@@ -437,9 +437,9 @@ impl<D: PipeDevice> PacketSource for FrontPanelSource<D> {
         if self.ended {
             return Ok(Chunk::End);
         }
-        if buf.len() < PIPE_GRANULE {
+        if buf.len() < PIPE_BLOCK_BYTES {
             return Err(TransportError::Config(format!(
-                "FrontPanel reads need a buffer of at least {PIPE_GRANULE} bytes"
+                "FrontPanel reads need a buffer of at least {PIPE_BLOCK_BYTES} bytes"
             )));
         }
         let deadline = Instant::now() + wait;
@@ -448,7 +448,7 @@ impl<D: PipeDevice> PacketSource for FrontPanelSource<D> {
             // after it is final.
             let st = self.dev.wire_out(wire_out::STATUS)?;
             let avail = self.dev.wire_out(wire_out::FIFO_BYTES)? as usize;
-            let whole = avail.min(buf.len()) / PIPE_GRANULE * PIPE_GRANULE;
+            let whole = avail.min(buf.len()) / PIPE_BLOCK_BYTES * PIPE_BLOCK_BYTES;
             if whole > 0 {
                 self.dev
                     .read_pipe_out(pipe::STREAM_OUT, &mut buf[..whole])?;
@@ -459,9 +459,9 @@ impl<D: PipeDevice> PacketSource for FrontPanelSource<D> {
                     self.ended = true;
                     return Ok(Chunk::End);
                 }
-                if avail < PIPE_GRANULE {
+                if avail < PIPE_BLOCK_BYTES {
                     // The last, padded granule: keep only the stream's bytes.
-                    let mut last = [0u8; PIPE_GRANULE];
+                    let mut last = [0u8; PIPE_BLOCK_BYTES];
                     self.dev.read_pipe_out(pipe::STREAM_OUT, &mut last)?;
                     let n = avail.min(buf.len());
                     buf[..n].copy_from_slice(&last[..n]);
@@ -555,9 +555,14 @@ mod tests {
     impl PipeDevice for SimDevice {
         fn read_pipe_out(&mut self, addr: u8, buf: &mut [u8]) -> Result<(), TransportError> {
             assert_eq!(addr, pipe::STREAM_OUT);
-            assert_eq!(buf.len() % PIPE_GRANULE, 0, "pipe reads are whole granules");
+            assert_eq!(
+                buf.len() % PIPE_BLOCK_BYTES,
+                0,
+                "pipe reads are whole granules"
+            );
             let avail = self.produced - self.consumed;
-            let padded_end = self.ended() && buf.len() == PIPE_GRANULE && avail < PIPE_GRANULE;
+            let padded_end =
+                self.ended() && buf.len() == PIPE_BLOCK_BYTES && avail < PIPE_BLOCK_BYTES;
             assert!(buf.len() <= avail || padded_end, "read past the FIFO");
             for (i, b) in buf.iter_mut().enumerate() {
                 // Padding reads as zeros.
@@ -606,7 +611,7 @@ mod tests {
             assert_eq!(got, stream, "len {len} burst {burst} buf {buf}");
             assert!(reads
                 .iter()
-                .all(|r| r % PIPE_GRANULE == 0 && *r <= buf.max(PIPE_GRANULE)));
+                .all(|r| r % PIPE_BLOCK_BYTES == 0 && *r <= buf.max(PIPE_BLOCK_BYTES)));
         }
     }
 

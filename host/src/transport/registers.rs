@@ -1,64 +1,17 @@
-//! The device register map: the one place where the host and the gateware
-//! agree on endpoint addresses. The gateware (`hdl/`) copies this table; a
-//! change here is a change of [`REGISTER_MAP_VERSION`].
-//!
-//! The addresses follow FrontPanel's endpoint ranges (wire-in 0x00–0x1F,
-//! wire-out 0x20–0x3F, trigger-in 0x40–0x5F, pipe-in 0x80–0x9F, pipe-out
-//! 0xA0–0xBF), so the same numbers serve the FrontPanel transport and the
-//! plain-USB firmware, which reaches them with vendor control requests
-//! (see [`vendor`]). Every value is a 32-bit little-endian word.
-//!
-//! # Wire-ins (host → device; latched by START, ignored while streaming)
-//!
-//! | addr | name              | meaning                                                    |
-//! |------|-------------------|------------------------------------------------------------|
-//! | 0x00 | `CONTROL`         | bit 0 `SOURCE_REPLAY`: bit-planes come from pipe-in 0x80 instead of the sensor; bit 1 `MASK_ENABLE`: apply the hot-pixel mask loaded through pipe-in 0x81 |
-//! | 0x01 | `N_WINDOW`        | rolling window N, bit-planes (1 ..= `MAX_N`)               |
-//! | 0x02 | `THRESHOLD_INT`   | integer threshold T_int on H (≥ 1)                         |
-//! | 0x03 | `L_MIN`           | planes a track must stay on to be confirmed (≥ 1)          |
-//! | 0x04 | `L_MAX`           | planes after which an on track is cut (≥ max(L_min, N))    |
-//! | 0x05 | `PLANE_PERIOD_NS` | bit-plane period, ns, copied into the StreamStart record   |
-//! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record |
-//!
-//! # Wire-outs (device → host)
-//!
-//! | addr | name         | meaning                                                          |
-//! |------|--------------|------------------------------------------------------------------|
-//! | 0x20 | `STATUS`     | bit 0 `RUNNING`; bit 1 `ENDED`: the StreamEnd record is in the output FIFO (or already read); bit 2 `OVERFLOWED`: the output FIFO dropped records since START (sticky; Overflow records carry the counts) |
-//! | 0x21 | `FIFO_BYTES` | bytes of the packet stream waiting in the output FIFO            |
-//! | 0x22 | `VERSION`    | bits 7:0 packet format version ([`smartagg_model::packet::VERSION`]), bits 15:8 register-map version ([`REGISTER_MAP_VERSION`]) |
-//! | 0x23 | `GEOMETRY`   | sensor width (bits 15:0) and height (bits 31:16), pixels         |
-//! | 0x24 | `GENERATION` | kernel length (7:0), kernel shift a (15:8), ROI side R (23:16), slots M (31:24) |
-//! | 0x25 | `KERNEL_CRC` | CRC-32C of the kernel weights as u16 little-endian ([`kernel_crc`]) |
-//! | 0x26 | `R_ASSOC`    | association radius, pixels (7:0)                                 |
-//! | 0x27 | `MAX_N`      | largest N the delay line holds (block RAM or DDR2 depth)         |
-//!
-//! The generation words (0x23–0x27) are constants of the generated gateware:
-//! the kernel weights, R, M and r_assoc are compile-time constants (§7 of the
-//! design), so the host checks them against the preset before streaming and
-//! refuses a bitfile generated for another preset.
-//!
-//! # Trigger-in 0x40 (host → device, one pulse per bit)
-//!
-//! | bit | name    | meaning                                                              |
-//! |-----|---------|----------------------------------------------------------------------|
-//! | 0   | `RESET` | clear the pipeline, the FIFOs, the mask and the sequence numbers (only while stopped) |
-//! | 1   | `START` | latch the wire-ins, emit StreamStart (sequence 0), start processing bit-planes |
-//! | 2   | `STOP`  | finish as the model's `Pipeline::finish` does (truncate open tracks), emit StreamEnd, stop |
-//!
-//! # Pipes
-//!
-//! | addr | direction | content                                                          |
-//! |------|-----------|------------------------------------------------------------------|
-//! | 0x80 | in        | bit-planes to replay (with `SOURCE_REPLAY`): each plane W·H bits, raster order, packed least significant bit first, padded to whole bytes |
-//! | 0x81 | in        | hot-pixel mask, same packing as one bit-plane (1 = masked); load after RESET, before START |
-//! | 0xA0 | out       | the packet stream of `model/PACKETS.md`                          |
+//! The host's side of the device register map. The map itself (addresses,
+//! bits, versions: the table of wire-ins, wire-outs, triggers and pipes) is
+//! [`smartagg_model::registers`], which the gateware (`hdl/`) uses too, so the
+//! two sides cannot drift apart. Here: the configuration a device gets from a
+//! pipeline configuration ([`DeviceConfig`]), the check of the generation
+//! words against the preset, the configuration sequence over any
+//! [`RegisterBus`], and the vendor requests of the plain-USB firmware
+//! ([`vendor`]), which reach the same registers as FrontPanel's endpoints.
 //!
 //! # Reading the packet stream through FrontPanel
 //!
 //! A FrontPanel pipe-out read must not ask for more than the FIFO holds (the
 //! okPipeOut core would read past the FIFO's end) and its length must be a
-//! multiple of [`PIPE_GRANULE`] bytes. The host therefore reads `FIFO_BYTES`
+//! multiple of [`PIPE_BLOCK_BYTES`] bytes. The host therefore reads `FIFO_BYTES`
 //! rounded down to the granule. At the end of the stream (`ENDED` set), the
 //! gateware pads its last partial granule with zero bytes that `FIFO_BYTES`
 //! does not count; the host reads one whole granule and keeps only the
@@ -76,99 +29,12 @@
 
 use super::TransportError;
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::packet::{crc32c, VERSION as PACKET_VERSION};
+use smartagg_model::packet::VERSION as PACKET_VERSION;
 use smartagg_model::record::StreamStart;
 
-/// Version of this register map, reported in bits 15:8 of wire-out `VERSION`.
-pub const REGISTER_MAP_VERSION: u8 = 1;
-
-/// FrontPanel pipe transfers are whole multiples of this many bytes (USB 3.0
-/// devices such as the XEM6310; see the module docs).
-pub const PIPE_GRANULE: usize = 16;
-
-/// Wire-in addresses (host → device).
-pub mod wire_in {
-    /// `SOURCE_REPLAY` (bit 0) and `MASK_ENABLE` (bit 1).
-    pub const CONTROL: u8 = 0x00;
-    /// Rolling window N, bit-planes.
-    pub const N_WINDOW: u8 = 0x01;
-    /// Integer threshold T_int.
-    pub const THRESHOLD_INT: u8 = 0x02;
-    /// L_min, planes.
-    pub const L_MIN: u8 = 0x03;
-    /// L_max, planes.
-    pub const L_MAX: u8 = 0x04;
-    /// Bit-plane period, ns.
-    pub const PLANE_PERIOD_NS: u8 = 0x05;
-    /// Number of masked pixels.
-    pub const MASKED_PIXELS: u8 = 0x06;
-}
-
-/// Bits of wire-in [`wire_in::CONTROL`].
-// The whole map is written down for the gateware; the host uses part of it.
-#[allow(dead_code)]
-pub mod control {
-    /// Bit-planes come from pipe-in [`super::pipe::REPLAY_IN`] instead of the sensor.
-    pub const SOURCE_REPLAY: u32 = 1 << 0;
-    /// Apply the hot-pixel mask loaded through pipe-in [`super::pipe::MASK_IN`].
-    pub const MASK_ENABLE: u32 = 1 << 1;
-}
-
-/// Wire-out addresses (device → host).
-pub mod wire_out {
-    /// Status bits, see [`super::status`].
-    pub const STATUS: u8 = 0x20;
-    /// Bytes waiting in the output FIFO.
-    pub const FIFO_BYTES: u8 = 0x21;
-    /// Packet format version (7:0) and register-map version (15:8).
-    pub const VERSION: u8 = 0x22;
-    /// Width (15:0) and height (31:16).
-    pub const GEOMETRY: u8 = 0x23;
-    /// Kernel length (7:0), kernel shift (15:8), ROI side (23:16), slots (31:24).
-    pub const GENERATION: u8 = 0x24;
-    /// CRC-32C of the kernel weights (u16 little-endian each).
-    pub const KERNEL_CRC: u8 = 0x25;
-    /// Association radius (7:0).
-    pub const R_ASSOC: u8 = 0x26;
-    /// Largest N the delay line holds.
-    pub const MAX_N: u8 = 0x27;
-}
-
-/// Bits of wire-out [`wire_out::STATUS`].
-// The whole map is written down for the gateware; the host uses part of it.
-#[allow(dead_code)]
-pub mod status {
-    /// The pipeline is processing bit-planes.
-    pub const RUNNING: u32 = 1 << 0;
-    /// The StreamEnd record has been written to the output FIFO.
-    pub const ENDED: u32 = 1 << 1;
-    /// The output FIFO dropped records since START (sticky).
-    pub const OVERFLOWED: u32 = 1 << 2;
-}
-
-/// Trigger-in address and bits.
-pub mod trigger {
-    /// The control trigger-in endpoint.
-    pub const CONTROL: u8 = 0x40;
-    /// Bit: reset the pipeline (while stopped).
-    pub const RESET: u8 = 0;
-    /// Bit: latch the wire-ins and start streaming.
-    pub const START: u8 = 1;
-    /// Bit: finish, emit StreamEnd and stop.
-    pub const STOP: u8 = 2;
-}
-
-/// Pipe addresses.
-// The whole map is written down for the gateware; the host uses part of it.
-#[allow(dead_code)]
-pub mod pipe {
-    /// Bit-planes to replay (pipe-in).
-    pub const REPLAY_IN: u8 = 0x80;
-    /// Hot-pixel mask (pipe-in).
-    pub const MASK_IN: u8 = 0x81;
-    /// The packet stream (pipe-out).
-    pub const STREAM_OUT: u8 = 0xA0;
-}
+pub use smartagg_model::registers::{
+    control, pipe, status, trigger, wire_in, wire_out, PIPE_BLOCK_BYTES, REGISTER_MAP_VERSION,
+};
 
 /// The vendor control requests of the plain-USB (bulk) firmware, which give
 /// the same registers as FrontPanel's wires, triggers and pipes.
@@ -311,8 +177,7 @@ impl DeviceConfig {
 
 /// CRC-32C of kernel weights, each as u16 little-endian (wire-out `KERNEL_CRC`).
 pub fn kernel_crc(kernel: &[u16]) -> u32 {
-    let bytes: Vec<u8> = kernel.iter().flat_map(|w| w.to_le_bytes()).collect();
-    crc32c(&bytes)
+    smartagg_model::registers::kernel_crc(kernel.iter().copied())
 }
 
 /// Register access shared by the FrontPanel and the plain-USB transports (and
@@ -385,10 +250,7 @@ impl Generation {
     #[allow(dead_code)] // for the co-simulation and the tests
     pub fn words_for(cfg: &DeviceConfig, max_n: u32) -> [(u8, u32); 6] {
         [
-            (
-                wire_out::VERSION,
-                PACKET_VERSION as u32 | (REGISTER_MAP_VERSION as u32) << 8,
-            ),
+            (wire_out::VERSION, smartagg_model::registers::version_word()),
             (
                 wire_out::GEOMETRY,
                 cfg.width as u32 | (cfg.height as u32) << 16,
@@ -656,7 +518,10 @@ pub(crate) mod tests {
     #[test]
     fn kernel_crc_is_crc32c_of_le_weights() {
         // [1, 2, 1] as u16 LE = 01 00 02 00 01 00.
-        assert_eq!(kernel_crc(&[1, 2, 1]), crc32c(&[1, 0, 2, 0, 1, 0]));
+        assert_eq!(
+            kernel_crc(&[1, 2, 1]),
+            smartagg_model::packet::crc32c(&[1, 0, 2, 0, 1, 0])
+        );
         assert_ne!(kernel_crc(&[1, 2, 1]), kernel_crc(&[1, 2, 2]));
     }
 

@@ -1,0 +1,219 @@
+//! The device register map: the one place where the host (`host/`) and the
+//! gateware (`hdl/`) agree on endpoint addresses and bit meanings. Both use
+//! these constants; a change here is a change of [`REGISTER_MAP_VERSION`].
+//!
+//! The addresses follow FrontPanel's endpoint ranges (wire-in 0x00–0x1F,
+//! wire-out 0x20–0x3F, trigger-in 0x40–0x5F, pipe-in 0x80–0x9F, pipe-out
+//! 0xA0–0xBF), so the same numbers serve the FrontPanel transport and the
+//! plain-USB firmware, which reaches them with vendor control requests
+//! (the host's `vendor` requests). Every value is a 32-bit little-endian word.
+//!
+//! # Wire-ins (host → device; latched by START, ignored while streaming)
+//!
+//! | addr | name              | meaning                                                    |
+//! |------|-------------------|------------------------------------------------------------|
+//! | 0x00 | `CONTROL`         | bit 0 `SOURCE_REPLAY`: bit-planes come from pipe-in 0x80 instead of the sensor; bit 1 `MASK_ENABLE`: apply the hot-pixel mask loaded through pipe-in 0x81 |
+//! | 0x01 | `N_WINDOW`        | rolling window N, bit-planes (1 ..= `MAX_N`)               |
+//! | 0x02 | `THRESHOLD_INT`   | integer threshold T_int on H (≥ 1)                         |
+//! | 0x03 | `L_MIN`           | planes a track must stay on to be confirmed (≥ 1)          |
+//! | 0x04 | `L_MAX`           | planes after which an on track is cut (≥ max(L_min, N))    |
+//! | 0x05 | `PLANE_PERIOD_NS` | bit-plane period, ns, copied into the StreamStart record   |
+//! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record |
+//!
+//! # Wire-outs (device → host)
+//!
+//! | addr | name         | meaning                                                          |
+//! |------|--------------|------------------------------------------------------------------|
+//! | 0x20 | `STATUS`     | bit 0 `RUNNING`; bit 1 `ENDED`: the StreamEnd record is in the output FIFO (or already read); bit 2 `OVERFLOWED`: the output FIFO dropped records since START (sticky; Overflow records carry the counts); bits 3–7 gateware diagnostics, see [`status`] |
+//! | 0x21 | `FIFO_BYTES` | bytes of the packet stream waiting in the output FIFO            |
+//! | 0x22 | `VERSION`    | bits 7:0 packet format version ([`crate::packet::VERSION`]), bits 15:8 register-map version ([`REGISTER_MAP_VERSION`]) |
+//! | 0x23 | `GEOMETRY`   | sensor width (bits 15:0) and height (bits 31:16), pixels         |
+//! | 0x24 | `GENERATION` | kernel length (7:0), kernel shift a (15:8), ROI side R (23:16), slots M (31:24) |
+//! | 0x25 | `KERNEL_CRC` | CRC-32C of the kernel weights as u16 little-endian ([`kernel_crc`]) |
+//! | 0x26 | `R_ASSOC`    | association radius, pixels (7:0)                                 |
+//! | 0x27 | `MAX_N`      | largest N the delay line holds (block RAM or DDR2 depth)         |
+//!
+//! The generation words (0x23–0x27) are constants of the generated gateware:
+//! the kernel weights, R, M and r_assoc are compile-time constants (§7 of the
+//! design), so the host checks them against the preset before streaming and
+//! refuses a bitfile generated for another preset.
+//!
+//! # Trigger-in 0x40 (host → device, one pulse per bit)
+//!
+//! | bit | name    | meaning                                                              |
+//! |-----|---------|----------------------------------------------------------------------|
+//! | 0   | `RESET` | clear the pipeline, the FIFOs, the mask and the sequence numbers (only while stopped) |
+//! | 1   | `START` | latch the wire-ins, emit StreamStart (sequence 0), start processing bit-planes |
+//! | 2   | `STOP`  | finish as the model's `Pipeline::finish` does (truncate open tracks), emit StreamEnd, stop |
+//!
+//! # Pipes
+//!
+//! | addr | direction | content                                                          |
+//! |------|-----------|------------------------------------------------------------------|
+//! | 0x80 | in        | bit-planes to replay (with `SOURCE_REPLAY`): each plane W·H bits, raster order, packed least significant bit first, padded to whole bytes |
+//! | 0x81 | in        | hot-pixel mask, same packing as one bit-plane (1 = masked); load after RESET, before START |
+//! | 0xA0 | out       | the packet stream of `model/PACKETS.md`                          |
+//!
+//! # Reading the packet stream through FrontPanel
+//!
+//! A FrontPanel pipe-out read must not ask for more than the FIFO holds (the
+//! okPipeOut core would read past the FIFO's end) and its length must be a
+//! multiple of [`PIPE_BLOCK_BYTES`] bytes. The host therefore reads `FIFO_BYTES`
+//! rounded down to the granule. At the end of the stream (`ENDED` set), the
+//! gateware pads its last partial granule with zero bytes that `FIFO_BYTES`
+//! does not count; the host reads one whole granule and keeps only the
+//! `FIFO_BYTES` bytes that belong to the stream, so the padding never reaches
+//! the file or the decoder.
+//!
+//! # Configuration sequence (the host's `configure`, `start`, `stop`)
+//!
+//! 1. read the wire-outs 0x22–0x27 and compare them with the preset: any
+//!    difference is an error naming each field;
+//! 2. pulse `RESET`;
+//! 3. write wire-ins 0x00–0x06 and commit them (FrontPanel `UpdateWireIns`);
+//! 4. if a hot-pixel mask is set, write it to pipe-in 0x81;
+//! 5. `START` pulses trigger 0x40 bit 1; `STOP` bit 2.
+
+use crate::packet::{crc32c, VERSION as PACKET_VERSION};
+
+/// Version of this register map, reported in bits 15:8 of wire-out `VERSION`.
+pub const REGISTER_MAP_VERSION: u8 = 1;
+
+/// FrontPanel pipe transfers are whole multiples of this many bytes (the
+/// USB 3.0 granule of the XEM6310; block-throttled pipes use blocks of it).
+pub const PIPE_BLOCK_BYTES: usize = 16;
+
+/// Wire-in addresses (host → device).
+pub mod wire_in {
+    /// `SOURCE_REPLAY` (bit 0) and `MASK_ENABLE` (bit 1), see [`super::control`].
+    pub const CONTROL: u8 = 0x00;
+    /// Rolling window N, bit-planes.
+    pub const N_WINDOW: u8 = 0x01;
+    /// Integer threshold T_int.
+    pub const THRESHOLD_INT: u8 = 0x02;
+    /// L_min, planes.
+    pub const L_MIN: u8 = 0x03;
+    /// L_max, planes.
+    pub const L_MAX: u8 = 0x04;
+    /// Bit-plane period, ns.
+    pub const PLANE_PERIOD_NS: u8 = 0x05;
+    /// Number of masked pixels.
+    pub const MASKED_PIXELS: u8 = 0x06;
+    /// How many wire-ins there are (0x00 ..= 0x06).
+    pub const COUNT: usize = 7;
+}
+
+/// Bits of wire-in [`wire_in::CONTROL`].
+pub mod control {
+    /// Bit-planes come from pipe-in [`super::pipe::REPLAY_IN`] instead of the sensor.
+    pub const SOURCE_REPLAY: u32 = 1 << 0;
+    /// Apply the hot-pixel mask loaded through pipe-in [`super::pipe::MASK_IN`].
+    pub const MASK_ENABLE: u32 = 1 << 1;
+}
+
+/// Wire-out addresses (device → host).
+pub mod wire_out {
+    /// Status bits, see [`super::status`].
+    pub const STATUS: u8 = 0x20;
+    /// Bytes waiting in the output FIFO.
+    pub const FIFO_BYTES: u8 = 0x21;
+    /// Packet format version (7:0) and register-map version (15:8).
+    pub const VERSION: u8 = 0x22;
+    /// Width (15:0) and height (31:16).
+    pub const GEOMETRY: u8 = 0x23;
+    /// Kernel length (7:0), kernel shift (15:8), ROI side (23:16), slots (31:24).
+    pub const GENERATION: u8 = 0x24;
+    /// CRC-32C of the kernel weights (u16 little-endian each).
+    pub const KERNEL_CRC: u8 = 0x25;
+    /// Association radius (7:0).
+    pub const R_ASSOC: u8 = 0x26;
+    /// Largest N the delay line holds.
+    pub const MAX_N: u8 = 0x27;
+    /// How many wire-outs there are (0x20 ..= 0x27).
+    pub const COUNT: usize = 8;
+}
+
+/// Bits of wire-out [`wire_out::STATUS`]. Bits 0–2 are what the host needs to
+/// stream; bits 3–7 are gateware diagnostics the host shows.
+pub mod status {
+    /// The pipeline is processing bit-planes.
+    pub const RUNNING: u32 = 1 << 0;
+    /// The StreamEnd record is in the output FIFO (or already read).
+    pub const ENDED: u32 = 1 << 1;
+    /// The output FIFO dropped records since START (sticky; Overflow records carry the counts).
+    pub const OVERFLOWED: u32 = 1 << 2;
+    /// START was refused: a register is out of range.
+    pub const CONFIG_ERROR: u32 = 1 << 3;
+    /// A buffer overflowed or the DDR2 delay line under-ran (the stream is not exact).
+    pub const FAULT: u32 = 1 << 4;
+    /// The DDR2 memory has calibrated (START waits for it).
+    pub const MEM_READY: u32 = 1 << 5;
+    /// The source's start-of-plane came inside a plane.
+    pub const FRAMING_ERROR: u32 = 1 << 6;
+    /// The sensor port's clock-crossing FIFO overflowed.
+    pub const SENSOR_OVERFLOW: u32 = 1 << 7;
+}
+
+/// Trigger-in address and bits.
+pub mod trigger {
+    /// The control trigger-in endpoint.
+    pub const CONTROL: u8 = 0x40;
+    /// Bit: reset the pipeline (while stopped).
+    pub const RESET: u8 = 0;
+    /// Bit: latch the wire-ins and start streaming.
+    pub const START: u8 = 1;
+    /// Bit: finish, emit StreamEnd and stop.
+    pub const STOP: u8 = 2;
+}
+
+/// Pipe addresses.
+pub mod pipe {
+    /// Bit-planes to replay (pipe-in).
+    pub const REPLAY_IN: u8 = 0x80;
+    /// Hot-pixel mask (pipe-in).
+    pub const MASK_IN: u8 = 0x81;
+    /// The packet stream (pipe-out).
+    pub const STREAM_OUT: u8 = 0xA0;
+}
+
+/// Wire-out `VERSION`: packet format version (7:0), register-map version (15:8).
+pub fn version_word() -> u32 {
+    PACKET_VERSION as u32 | (REGISTER_MAP_VERSION as u32) << 8
+}
+
+/// Wire-out `KERNEL_CRC`: CRC-32C of the kernel weights, each as u16
+/// little-endian (weights are at most 2^a ≤ 2^15).
+pub fn kernel_crc(weights: impl IntoIterator<Item = u16>) -> u32 {
+    let bytes: Vec<u8> = weights.into_iter().flat_map(u16::to_le_bytes).collect();
+    crc32c(&bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words_follow_the_table() {
+        assert_eq!(version_word(), 0x0101);
+        // CRC-32C of [1, 2, 1] as u16 LE, and it depends on every weight.
+        assert_eq!(kernel_crc([1, 2, 1]), crc32c(&[1, 0, 2, 0, 1, 0]));
+        assert_ne!(kernel_crc([1, 2, 1]), kernel_crc([1, 2, 2]));
+        assert_eq!(
+            wire_out::MAX_N - wire_out::STATUS + 1,
+            wire_out::COUNT as u8
+        );
+        assert_eq!(wire_in::MASKED_PIXELS as usize + 1, wire_in::COUNT);
+        // Every status bit is distinct.
+        let bits = [
+            status::RUNNING,
+            status::ENDED,
+            status::OVERFLOWED,
+            status::CONFIG_ERROR,
+            status::FAULT,
+            status::MEM_READY,
+            status::FRAMING_ERROR,
+            status::SENSOR_OVERFLOW,
+        ];
+        assert_eq!(bits.iter().fold(0, |a, b| a | b).count_ones(), 8);
+    }
+}
