@@ -24,10 +24,10 @@ use crate::config::PipelineConfig;
 use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
 use crate::record::Record;
-use crate::spatial_filter::SpatialFilter;
 use std::collections::VecDeque;
 
-/// Above this fraction of changed pixels a plane is filtered densely.
+/// Above this fraction of changed pixels a plane is filtered densely (a
+/// change costs k² scattered adds, a dense pass about 2k per pixel).
 const DENSE_FRACTION: usize = 8;
 
 /// Incremental stages 1–4.
@@ -37,17 +37,23 @@ pub struct FastFrontEnd {
     height: usize,
     half: usize,
     stride: usize,
-    kernel_2d: Vec<u32>,
     k1: Vec<u32>,
+    /// `K = k1 ⊗ k1`, row-major, for a pixel entering the window.
+    kernel_plus: Vec<u32>,
+    /// `−K` in wrapping arithmetic, for a pixel leaving it (no branch per add).
+    kernel_minus: Vec<u32>,
     threshold_int: u32,
     /// Rolling counts S, raster order (kept for dense recomputation).
     counts: Vec<u16>,
     /// H with a halo of `half` on every side; halo cells are never read.
     filtered: Vec<u32>,
+    /// Scratch of the dense horizontal pass.
+    horiz: Vec<u32>,
     /// Raster indices with H ≥ T_int, ascending.
     above: Vec<u32>,
     candidates: Vec<Candidate>,
-    changed: Vec<(u32, bool)>,
+    /// AVX2 is available: the same code is compiled once more with it.
+    avx2: bool,
 }
 
 impl FastFrontEnd {
@@ -56,25 +62,32 @@ impl FastFrontEnd {
         let k = cfg.kernel.len();
         let half = k / 2;
         let stride = cfg.width + 2 * half;
-        let mut kernel_2d = Vec::with_capacity(k * k);
+        let mut kernel_plus = Vec::with_capacity(k * k);
         for &a in &cfg.kernel {
             for &b in &cfg.kernel {
-                kernel_2d.push(a * b);
+                kernel_plus.push(a * b);
             }
         }
+        let kernel_minus = kernel_plus.iter().map(|w| w.wrapping_neg()).collect();
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
         FastFrontEnd {
             width: cfg.width,
             height: cfg.height,
             half,
             stride,
-            kernel_2d,
             k1: cfg.kernel.clone(),
+            kernel_plus,
+            kernel_minus,
             threshold_int: cfg.threshold_int,
             counts: vec![0; cfg.width * cfg.height],
             filtered: vec![0; stride * (cfg.height + 2 * half)],
+            horiz: vec![0; cfg.width * cfg.height],
             above: Vec::new(),
             candidates: Vec::new(),
-            changed: Vec::new(),
+            avx2,
         }
     }
 
@@ -85,12 +98,23 @@ impl FastFrontEnd {
         window: impl IntoIterator<Item = &'a BitPlane>,
     ) -> FastFrontEnd {
         let mut fe = FastFrontEnd::new(cfg);
+        let total = fe.width * fe.height;
         for plane in window {
-            for (c, b) in fe.counts.iter_mut().zip(plane.bits().iter().by_vals()) {
-                *c += b as u16;
+            // Only the ones count: iterate set bits, word by word.
+            for (wi, &word) in plane.words().iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let idx = wi * 64 + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if idx < total {
+                        fe.counts[idx] += 1;
+                    }
+                }
             }
         }
         fe.recompute_dense();
+        fe.scan_above();
+        fe.find_candidates();
         fe
     }
 
@@ -99,116 +123,235 @@ impl FastFrontEnd {
         self.filtered[(y + self.half) * self.stride + x + self.half]
     }
 
+    /// Rolling count `S_t` at (x, y).
+    pub fn count_at(&self, x: usize, y: usize) -> u32 {
+        u32::from(self.counts[y * self.width + x])
+    }
+
     /// Raster indices of the pixels with `H_t ≥ T_int`, ascending.
     pub fn above(&self) -> &[u32] {
         &self.above
     }
 
+    /// `H = K ⊛ S` over the whole field from the counts: a horizontal pass
+    /// then a vertical one, each over contiguous rows (vectorises).
+    #[inline(always)]
     fn recompute_dense(&mut self) {
-        let counts: Vec<u32> = self.counts.iter().map(|&c| c as u32).collect();
-        let h = SpatialFilter::new(self.k1.clone()).apply(&counts, self.width, self.height);
-        for y in 0..self.height {
-            let dst = (y + self.half) * self.stride + self.half;
-            self.filtered[dst..dst + self.width]
-                .copy_from_slice(&h[y * self.width..(y + 1) * self.width]);
-        }
-    }
-
-    fn add_kernel(&mut self, x: usize, y: usize, plus: bool) {
-        // Fixed kernel sizes let the compiler keep each row in vector registers.
-        match self.k1.len() {
-            3 => self.add_kernel_k::<3>(x, y, plus),
-            5 => self.add_kernel_k::<5>(x, y, plus),
-            7 => self.add_kernel_k::<7>(x, y, plus),
-            9 => self.add_kernel_k::<9>(x, y, plus),
-            11 => self.add_kernel_k::<11>(x, y, plus),
-            13 => self.add_kernel_k::<13>(x, y, plus),
-            _ => self.add_kernel_any(x, y, plus),
-        }
-    }
-
-    fn add_kernel_k<const K: usize>(&mut self, x: usize, y: usize, plus: bool) {
-        for dy in 0..K {
-            let row = (y + dy) * self.stride + x;
-            let dst: &mut [u32; K] = (&mut self.filtered[row..row + K])
-                .try_into()
-                .expect("K cells");
-            let w: &[u32; K] = self.kernel_2d[dy * K..(dy + 1) * K]
-                .try_into()
-                .expect("K weights");
-            if plus {
-                for i in 0..K {
-                    dst[i] = dst[i].wrapping_add(w[i]);
-                }
-            } else {
-                for i in 0..K {
-                    dst[i] = dst[i].wrapping_sub(w[i]);
+        let (w, h, half, k) = (self.width, self.height, self.half, self.k1.len());
+        let mut row = vec![0u32; w + 2 * half];
+        for y in 0..h {
+            for (r, &c) in row[half..half + w]
+                .iter_mut()
+                .zip(&self.counts[y * w..(y + 1) * w])
+            {
+                *r = u32::from(c);
+            }
+            let out = &mut self.horiz[y * w..(y + 1) * w];
+            out.fill(0);
+            for (i, &ki) in self.k1.iter().enumerate() {
+                for (o, &s) in out.iter_mut().zip(&row[i..i + w]) {
+                    *o = o.wrapping_add(ki.wrapping_mul(s));
                 }
             }
         }
-    }
-
-    fn add_kernel_any(&mut self, x: usize, y: usize, plus: bool) {
-        let k = self.k1.len();
-        for dy in 0..k {
-            let row = (y + dy) * self.stride + x;
-            let dst = &mut self.filtered[row..row + k];
-            let w = &self.kernel_2d[dy * k..(dy + 1) * k];
-            if plus {
-                for (d, &kw) in dst.iter_mut().zip(w) {
-                    *d = d.wrapping_add(kw);
-                }
-            } else {
-                for (d, &kw) in dst.iter_mut().zip(w) {
-                    *d = d.wrapping_sub(kw);
-                }
-            }
-        }
-    }
-
-    fn scan_above(&mut self) {
-        self.above.clear();
-        let thr = self.threshold_int;
-        for y in 0..self.height {
-            let start = (y + self.half) * self.stride + self.half;
-            let row = &self.filtered[start..start + self.width];
-            // Cheap rejection of whole 16-pixel blocks first (vectorises).
-            for (bi, block) in row.chunks(16).enumerate() {
-                if block.iter().fold(0u32, |m, &v| m | u32::from(v >= thr)) == 0 {
+        for y in 0..h {
+            let dst = (y + half) * self.stride + half;
+            let out = &mut self.filtered[dst..dst + w];
+            out.fill(0);
+            for j in 0..k {
+                let yy = y + j;
+                if yy < half || yy - half >= h {
                     continue;
                 }
-                for (j, &v) in block.iter().enumerate() {
-                    if v >= thr {
-                        self.above.push((y * self.width + bi * 16 + j) as u32);
+                let kj = self.k1[j];
+                let src = &self.horiz[(yy - half) * w..(yy - half + 1) * w];
+                for (o, &s) in out.iter_mut().zip(src) {
+                    *o = o.wrapping_add(kj.wrapping_mul(s));
+                }
+            }
+        }
+    }
+
+    /// Stages 1–2 and 3–4 for one plane, given as raw words.
+    #[inline(always)]
+    fn push_words(&mut self, live: &[u64], delayed: &[u64]) {
+        let total = self.width * self.height;
+        let words = total.div_ceil(64).min(live.len()).min(delayed.len());
+        // Bits past the field in the last word are unspecified: mask them.
+        let last_mask = match total % 64 {
+            0 => !0u64,
+            r => (1u64 << r) - 1,
+        };
+        let diff = |wi: usize| -> u64 {
+            let d = live[wi] ^ delayed[wi];
+            if wi + 1 == words {
+                d & last_mask
+            } else {
+                d
+            }
+        };
+        let changes: usize = (0..words).map(|wi| diff(wi).count_ones() as usize).sum();
+        if changes * DENSE_FRACTION > total {
+            for wi in 0..words {
+                let mut d = diff(wi);
+                while d != 0 {
+                    let bit = d.trailing_zeros() as usize;
+                    d &= d - 1;
+                    let c = &mut self.counts[wi * 64 + bit];
+                    *c = if (live[wi] >> bit) & 1 == 1 {
+                        *c + 1
+                    } else {
+                        *c - 1
+                    };
+                }
+            }
+            self.recompute_dense();
+        } else {
+            match self.k1.len() {
+                1 => self.sparse::<1>(live, delayed, words, last_mask),
+                3 => self.sparse::<3>(live, delayed, words, last_mask),
+                5 => self.sparse::<5>(live, delayed, words, last_mask),
+                7 => self.sparse::<7>(live, delayed, words, last_mask),
+                9 => self.sparse::<9>(live, delayed, words, last_mask),
+                11 => self.sparse::<11>(live, delayed, words, last_mask),
+                13 => self.sparse::<13>(live, delayed, words, last_mask),
+                15 => self.sparse::<15>(live, delayed, words, last_mask),
+                _ => self.sparse::<0>(live, delayed, words, last_mask),
+            }
+        }
+        self.scan_above();
+        self.find_candidates();
+    }
+
+    /// Adds `±K` around every pixel whose bit entering the window differs
+    /// from the bit leaving it. `K` is the kernel length (0: any length).
+    #[inline(always)]
+    fn sparse<const K: usize>(
+        &mut self,
+        live: &[u64],
+        delayed: &[u64],
+        words: usize,
+        last_mask: u64,
+    ) {
+        let (width, stride, k) = (self.width, self.stride, self.k1.len());
+        let filtered = &mut self.filtered[..];
+        let counts = &mut self.counts[..];
+        for wi in 0..words {
+            let (a, b) = (live[wi], delayed[wi]);
+            let mut d = a ^ b;
+            if wi + 1 == words {
+                d &= last_mask;
+            }
+            if d == 0 {
+                continue;
+            }
+            // Position of the word's first pixel; later pixels by stepping
+            // (one division per word, not per pixel).
+            let first = wi * 64;
+            let (mut y, mut x) = (first / width, first % width);
+            let mut at = first;
+            while d != 0 {
+                let bit = d.trailing_zeros() as usize;
+                d &= d - 1;
+                let idx = first + bit;
+                x += idx - at;
+                at = idx;
+                while x >= width {
+                    x -= width;
+                    y += 1;
+                }
+                let plus = (a >> bit) & 1 == 1;
+                let c = &mut counts[idx];
+                *c = if plus { *c + 1 } else { *c - 1 };
+                let weights = if plus {
+                    &self.kernel_plus[..]
+                } else {
+                    &self.kernel_minus[..]
+                };
+                // The footprint's top-left cell in the haloed layout.
+                let base = y * stride + x;
+                if K == 0 {
+                    for dy in 0..k {
+                        let row = &mut filtered[base + dy * stride..base + dy * stride + k];
+                        for (f, &wk) in row.iter_mut().zip(&weights[dy * k..(dy + 1) * k]) {
+                            *f = f.wrapping_add(wk);
+                        }
+                    }
+                } else {
+                    for dy in 0..K {
+                        let row: &mut [u32; K] = (&mut filtered
+                            [base + dy * stride..base + dy * stride + K])
+                            .try_into()
+                            .expect("K cells");
+                        let wk: &[u32; K] = weights[dy * K..(dy + 1) * K]
+                            .try_into()
+                            .expect("K weights");
+                        for i in 0..K {
+                            row[i] = row[i].wrapping_add(wk[i]);
+                        }
                     }
                 }
             }
         }
     }
 
+    #[inline(always)]
+    fn scan_above(&mut self) {
+        self.above.clear();
+        let thr = self.threshold_int;
+        for y in 0..self.height {
+            let start = (y + self.half) * self.stride + self.half;
+            let row = &self.filtered[start..start + self.width];
+            // Cheap rejection of whole 32-pixel blocks by their maximum (vectorises).
+            for (bi, block) in row.chunks(32).enumerate() {
+                if block.iter().fold(0u32, |m, &v| m.max(v)) < thr {
+                    continue;
+                }
+                for (j, &v) in block.iter().enumerate() {
+                    if v >= thr {
+                        self.above.push((y * self.width + bi * 32 + j) as u32);
+                    }
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
     fn find_candidates(&mut self) {
         self.candidates.clear();
-        let (w, h) = (self.width as i64, self.height as i64);
+        let (w, h, s) = (self.width, self.height, self.stride);
+        let f = &self.filtered[..];
         for &i in &self.above {
-            let (x, y) = (
-                (i as usize % self.width) as i64,
-                (i as usize / self.width) as i64,
-            );
-            let v = self.filtered_at(x as usize, y as usize);
-            let at = |dx: i64, dy: i64| -> Option<u32> {
-                let (xx, yy) = (x + dx, y + dy);
-                (xx >= 0 && yy >= 0 && xx < w && yy < h)
-                    .then(|| self.filtered_at(xx as usize, yy as usize))
-            };
-            let earlier = [(-1, -1), (0, -1), (1, -1), (-1, 0)];
-            let later = [(1, 0), (-1, 1), (0, 1), (1, 1)];
-            if earlier
-                .iter()
-                .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v > n))
-                && later
+            let (x, y) = (i as usize % w, i as usize / w);
+            let c = (y + self.half) * s + x + self.half;
+            let v = f[c];
+            let is_max = if x > 0 && y > 0 && x + 1 < w && y + 1 < h {
+                // Interior: all eight neighbours exist.
+                v > f[c - s - 1]
+                    && v > f[c - s]
+                    && v > f[c - s + 1]
+                    && v > f[c - 1]
+                    && v >= f[c + 1]
+                    && v >= f[c + s - 1]
+                    && v >= f[c + s]
+                    && v >= f[c + s + 1]
+            } else {
+                let (xi, yi) = (x as i64, y as i64);
+                let at = |dx: i64, dy: i64| -> Option<u32> {
+                    let (xx, yy) = (xi + dx, yi + dy);
+                    (xx >= 0 && yy >= 0 && xx < w as i64 && yy < h as i64)
+                        .then(|| self.filtered_at(xx as usize, yy as usize))
+                };
+                let earlier = [(-1, -1), (0, -1), (1, -1), (-1, 0)];
+                let later = [(1, 0), (-1, 1), (0, 1), (1, 1)];
+                earlier
                     .iter()
-                    .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v >= n))
-            {
+                    .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v > n))
+                    && later
+                        .iter()
+                        .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v >= n))
+            };
+            if is_max {
                 self.candidates.push(Candidate {
                     x: x as u16,
                     y: y as u16,
@@ -216,39 +359,26 @@ impl FastFrontEnd {
             }
         }
     }
+
+    /// [`FastFrontEnd::push_words`] compiled for AVX2 (wider adds, compares
+    /// and maxima in the filter and the threshold scan).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn push_words_avx2(&mut self, live: &[u64], delayed: &[u64]) {
+        self.push_words(live, delayed);
+    }
 }
 
 impl FrontEnd for FastFrontEnd {
     fn push(&mut self, live: &BitPlane, delayed: &BitPlane) {
-        self.changed.clear();
         let (lw, dw) = (live.words(), delayed.words());
-        let total = self.width * self.height;
-        for (wi, (&a, &b)) in lw.iter().zip(dw).enumerate() {
-            let mut diff = a ^ b;
-            while diff != 0 {
-                let bit = diff.trailing_zeros() as usize;
-                diff &= diff - 1;
-                let idx = wi * 64 + bit;
-                if idx < total {
-                    self.changed.push((idx as u32, (a >> bit) & 1 == 1));
-                }
-            }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only when the CPU reports AVX2.
+            unsafe { self.push_words_avx2(lw, dw) };
+            return;
         }
-        for &(idx, plus) in &self.changed {
-            let c = &mut self.counts[idx as usize];
-            *c = if plus { *c + 1 } else { *c - 1 };
-        }
-        if self.changed.len() * DENSE_FRACTION > total {
-            self.recompute_dense();
-        } else {
-            let changed = std::mem::take(&mut self.changed);
-            for &(idx, plus) in &changed {
-                self.add_kernel(idx as usize % self.width, idx as usize / self.width, plus);
-            }
-            self.changed = changed;
-        }
-        self.scan_above();
-        self.find_candidates();
+        self.push_words(lw, dw);
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
