@@ -9,6 +9,29 @@ use smartagg_model::pipeline::{FrontEnd, GoldenFrontEnd, Pipeline};
 use smartagg_model::plane::BitPlane;
 use std::time::Instant;
 
+/// CPU time of the calling thread, ns (robust to other jobs sharing the cores).
+fn cpu_ns() -> u64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
+/// A stopwatch of wall and thread CPU time.
+struct Watch(Instant, u64);
+impl Watch {
+    fn start() -> Watch {
+        Watch(Instant::now(), cpu_ns())
+    }
+    /// (planes per wall second, planes per CPU second of this thread).
+    fn rates(&self, planes: usize) -> (f64, f64) {
+        (
+            planes as f64 / self.0.elapsed().as_secs_f64(),
+            planes as f64 / ((cpu_ns() - self.1) as f64 * 1e-9),
+        )
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let planes: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(3000);
@@ -49,36 +72,36 @@ fn main() {
         }
     };
     let gp = planes.min(300);
-    let t = Instant::now();
+    let t = Watch::start();
     let mut g = GoldenFrontEnd::new(&cfg);
     for i in 0..gp {
         g.push(&stream[i], delayed(i));
     }
-    let golden_front = gp as f64 / t.elapsed().as_secs_f64();
-    let t = Instant::now();
+    let golden_front = t.rates(gp);
+    let t = Watch::start();
     let mut f = FastFrontEnd::new(&cfg);
     let mut cands = 0;
     for i in 0..planes {
         f.push(&stream[i], delayed(i));
         cands += f.candidates().len();
     }
-    let fast_front = planes as f64 / t.elapsed().as_secs_f64();
-    let t = Instant::now();
+    let fast_front = t.rates(planes);
+    let t = Watch::start();
     let mut pl = fast_pipeline(cfg.clone()).unwrap();
     let mut recs = 0;
     for pl_ in &stream {
         recs += pl.push_plane(pl_).unwrap().len();
     }
-    let fast_pipe = planes as f64 / t.elapsed().as_secs_f64();
-    let t = Instant::now();
+    let fast_pipe = t.rates(planes);
+    let t = Watch::start();
     let mut gpipe = Pipeline::new(cfg.clone()).unwrap();
     for pl_ in &stream[..gp] {
         gpipe.push_plane(pl_).unwrap();
     }
-    let golden_pipe = gp as f64 / t.elapsed().as_secs_f64();
-    let mut par = [0.0; 2];
+    let golden_pipe = t.rates(gp);
+    let mut par = [(0.0, 0.0); 2];
     for (k, threads) in [1usize, 2].into_iter().enumerate() {
-        let t = Instant::now();
+        let t = Watch::start();
         let mut r = 0;
         run_parallel::<(), _, _>(
             cfg.clone(),
@@ -88,8 +111,11 @@ fn main() {
             |_| r += 1,
         )
         .unwrap();
-        par[k] = planes as f64 / t.elapsed().as_secs_f64();
+        par[k] = t.rates(planes);
     }
     println!("T_int {} candidates {cands} records {recs}", cfg.threshold_int);
-    println!("planes/s: golden front {golden_front:.0}  golden pipeline {golden_pipe:.0}  fast front {fast_front:.0}  fast pipeline {fast_pipe:.0}  parallel x1 {:.0} x2 {:.0}", par[0], par[1]);
+    println!("planes/s (wall, per CPU-s of the main thread):");
+    println!("  golden front {golden_front:.0?}  golden pipeline {golden_pipe:.0?}");
+    println!("  fast front {fast_front:.0?}  fast pipeline {fast_pipe:.0?}");
+    println!("  parallel x1 {:.0?} x2 {:.0?}", par[0], par[1]);
 }

@@ -286,9 +286,7 @@ impl FastFrontEnd {
                         let wk: &[u32; K] = weights[dy * K..(dy + 1) * K]
                             .try_into()
                             .expect("K weights");
-                        for i in 0..K {
-                            row[i] = row[i].wrapping_add(wk[i]);
-                        }
+                        add_row::<K>(row, wk);
                     }
                 }
             }
@@ -302,7 +300,11 @@ impl FastFrontEnd {
         for y in 0..self.height {
             let start = (y + self.half) * self.stride + self.half;
             let row = &self.filtered[start..start + self.width];
-            // Cheap rejection of whole 32-pixel blocks by their maximum (vectorises).
+            // Cheap rejection of whole rows, then of 32-pixel blocks, by their
+            // maximum (lane-wise maxima vectorise; one reduction per row).
+            if row_max(row) < thr {
+                continue;
+            }
             for (bi, block) in row.chunks(32).enumerate() {
                 if block.iter().fold(0u32, |m, &v| m.max(v)) < thr {
                     continue;
@@ -388,6 +390,51 @@ impl FrontEnd for FastFrontEnd {
     fn candidates(&self) -> &[Candidate] {
         &self.candidates
     }
+}
+
+/// `row += w` for one kernel row, as 8-, 4- and 1-lane pieces so that the
+/// compiler emits whole vector adds. Each piece is loaded into registers
+/// before it is stored: after inlining the compiler cannot tell that `row`
+/// and `w` do not overlap, and would otherwise keep the adds scalar.
+#[inline(always)]
+fn add_row<const K: usize>(row: &mut [u32; K], w: &[u32; K]) {
+    let mut i = 0;
+    while i + 8 <= K {
+        let mut r: [u32; 8] = row[i..i + 8].try_into().expect("8 lanes");
+        let v: [u32; 8] = w[i..i + 8].try_into().expect("8 lanes");
+        for l in 0..8 {
+            r[l] = r[l].wrapping_add(v[l]);
+        }
+        row[i..i + 8].copy_from_slice(&r);
+        i += 8;
+    }
+    while i + 4 <= K {
+        let mut r: [u32; 4] = row[i..i + 4].try_into().expect("4 lanes");
+        let v: [u32; 4] = w[i..i + 4].try_into().expect("4 lanes");
+        for l in 0..4 {
+            r[l] = r[l].wrapping_add(v[l]);
+        }
+        row[i..i + 4].copy_from_slice(&r);
+        i += 4;
+    }
+    while i < K {
+        row[i] = row[i].wrapping_add(w[i]);
+        i += 1;
+    }
+}
+
+/// The maximum of a row: eight lane-wise maxima, reduced once.
+#[inline(always)]
+fn row_max(row: &[u32]) -> u32 {
+    let mut lanes = [0u32; 8];
+    let mut blocks = row.chunks_exact(8);
+    for b in &mut blocks {
+        for l in 0..8 {
+            lanes[l] = lanes[l].max(b[l]);
+        }
+    }
+    let tail = blocks.remainder().iter().fold(0, |m, &v| m.max(v));
+    lanes.iter().fold(tail, |m, &v| m.max(v))
 }
 
 /// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.
