@@ -113,7 +113,26 @@ fn main() {
         .unwrap();
         par[k] = t.rates(planes);
     }
-    println!("T_int {} candidates {cands} records {recs}", cfg.threshold_int);
+    let (mask, _) = smartagg_model::hot_pixel_mask::HotPixelMask::from_pixels(
+        w,
+        h,
+        &(0..200)
+            .map(|i| ((i * 37) % w, (i * 91) % h))
+            .collect::<Vec<_>>(),
+    );
+    let t = Watch::start();
+    let mut ones = 0;
+    for pl_ in &stream {
+        ones += mask.apply(pl_).count_ones();
+    }
+    println!(
+        "hot-pixel mask apply: {:.0?} planes/s ({ones} ones)",
+        t.rates(planes)
+    );
+    println!(
+        "T_int {} candidates {cands} records {recs}",
+        cfg.threshold_int
+    );
     println!("planes/s (wall, per CPU-s of the main thread):");
     println!("  golden front {golden_front:.0?}  golden pipeline {golden_pipe:.0?}");
     println!("  fast front {fast_front:.0?}  fast pipeline {fast_pipe:.0?}");

@@ -283,9 +283,8 @@ impl FastFrontEnd {
                             [base + dy * stride..base + dy * stride + K])
                             .try_into()
                             .expect("K cells");
-                        let wk: &[u32; K] = weights[dy * K..(dy + 1) * K]
-                            .try_into()
-                            .expect("K weights");
+                        let wk: &[u32; K] =
+                            weights[dy * K..(dy + 1) * K].try_into().expect("K weights");
                         add_row::<K>(row, wk);
                     }
                 }
@@ -521,32 +520,44 @@ where
     sink(back.start_record());
 
     type Batch = (Vec<BitPlane>, Vec<PlaneFront>);
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Batch, E>>(1);
+    let (in_tx, in_rx) = std::sync::mpsc::sync_channel::<Result<Vec<BitPlane>, E>>(1);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
     let worker_cfg = cfg.clone();
+    let reader_cfg = cfg.clone();
+    let batch_len = threads * chunk;
     std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
-        // Producer: reads planes, computes stages 1–4 of a batch of chunks in
-        // parallel, and hands the batch to the back end.
+        // Reader: pulls planes (decoding or simulating them) and masks hot
+        // pixels, overlapped with the workers' stages 1–4 of the batch before.
         scope.spawn(move || {
             let mut planes = planes;
-            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
             loop {
-                let mut batch = Vec::with_capacity(threads * chunk);
-                for _ in 0..threads * chunk {
+                let mut batch = Vec::with_capacity(batch_len);
+                for _ in 0..batch_len {
                     match planes.next() {
-                        Some(Ok(p)) => batch.push(match &worker_cfg.hot_mask {
+                        Some(Ok(p)) => batch.push(match &reader_cfg.hot_mask {
                             Some(m) => m.apply(&p),
                             None => p,
                         }),
                         Some(Err(e)) => {
-                            let _ = tx.send(Err(e));
+                            let _ = in_tx.send(Err(e));
                             return;
                         }
                         None => break,
                     }
                 }
-                if batch.is_empty() {
+                let full = batch.len() == batch_len;
+                if batch.is_empty() || in_tx.send(Ok(batch)).is_err() || !full {
                     return;
                 }
+            }
+        });
+        // Producer: computes stages 1–4 of a batch of chunks in parallel and
+        // hands the batch to the back end; keeps the last N planes for the
+        // next batch's warm-up.
+        let producer = scope.spawn(move || -> Result<(), E> {
+            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
+            for msg in in_rx {
+                let batch = msg?;
                 let fronts = front_ends(&worker_cfg, &history, &batch, chunk);
                 for p in batch.iter().skip(batch.len().saturating_sub(n)) {
                     if history.len() == n {
@@ -554,14 +565,13 @@ where
                     }
                     history.push_back(p.clone());
                 }
-                let full = batch.len() == threads * chunk;
-                if tx.send(Ok((batch, fronts))).is_err() || !full {
-                    return;
+                if tx.send((batch, fronts)).is_err() {
+                    break;
                 }
             }
+            Ok(())
         });
-        for msg in rx {
-            let (batch, fronts) = msg.map_err(ParallelError::Source)?;
+        for (batch, fronts) in rx {
             back.front_end_mut().queue.extend(fronts);
             for plane in &batch {
                 for r in back.push_plane(plane).map_err(ParallelError::Pipeline)? {
@@ -569,7 +579,10 @@ where
                 }
             }
         }
-        Ok(())
+        producer
+            .join()
+            .expect("the front-end producer panicked")
+            .map_err(ParallelError::Source)
     })?;
     for r in back.finish() {
         sink(r);
