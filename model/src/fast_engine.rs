@@ -36,6 +36,9 @@ pub struct FastFrontEnd {
     width: usize,
     height: usize,
     half: usize,
+    /// Cells around the field: `max(half, 1)`, so that the 3×3 candidate
+    /// test can read a ring of zeros outside the field.
+    pad: usize,
     stride: usize,
     k1: Vec<u32>,
     /// `K = k1 ⊗ k1`, row-major, for a pixel entering the window.
@@ -45,7 +48,9 @@ pub struct FastFrontEnd {
     threshold_int: u32,
     /// Rolling counts S, raster order (kept for dense recomputation).
     counts: Vec<u16>,
-    /// H with a halo of `half` on every side; halo cells are never read.
+    /// H with a halo of `pad` cells on every side. Halo cells collect the
+    /// parts of `±K` that fall outside the field and are never read, except
+    /// the ring next to the field, zeroed before each candidate scan.
     filtered: Vec<u32>,
     /// Scratch of the dense horizontal pass.
     horiz: Vec<u32>,
@@ -61,7 +66,8 @@ impl FastFrontEnd {
     pub fn new(cfg: &PipelineConfig) -> FastFrontEnd {
         let k = cfg.kernel.len();
         let half = k / 2;
-        let stride = cfg.width + 2 * half;
+        let pad = half.max(1);
+        let stride = cfg.width + 2 * pad;
         let mut kernel_plus = Vec::with_capacity(k * k);
         for &a in &cfg.kernel {
             for &b in &cfg.kernel {
@@ -77,13 +83,14 @@ impl FastFrontEnd {
             width: cfg.width,
             height: cfg.height,
             half,
+            pad,
             stride,
             k1: cfg.kernel.clone(),
             kernel_plus,
             kernel_minus,
             threshold_int: cfg.threshold_int,
             counts: vec![0; cfg.width * cfg.height],
-            filtered: vec![0; stride * (cfg.height + 2 * half)],
+            filtered: vec![0; stride * (cfg.height + 2 * pad)],
             horiz: vec![0; cfg.width * cfg.height],
             above: Vec::new(),
             candidates: Vec::new(),
@@ -113,14 +120,13 @@ impl FastFrontEnd {
             }
         }
         fe.recompute_dense();
-        fe.scan_above();
-        fe.find_candidates();
+        fe.scan();
         fe
     }
 
     /// `H_t` at (x, y).
     pub fn filtered_at(&self, x: usize, y: usize) -> u32 {
-        self.filtered[(y + self.half) * self.stride + x + self.half]
+        self.filtered[(y + self.pad) * self.stride + x + self.pad]
     }
 
     /// Rolling count `S_t` at (x, y).
@@ -155,7 +161,7 @@ impl FastFrontEnd {
             }
         }
         for y in 0..h {
-            let dst = (y + half) * self.stride + half;
+            let dst = (y + self.pad) * self.stride + self.pad;
             let out = &mut self.filtered[dst..dst + w];
             out.fill(0);
             for j in 0..k {
@@ -219,8 +225,7 @@ impl FastFrontEnd {
                 _ => self.sparse::<0>(live, delayed, words, last_mask),
             }
         }
-        self.scan_above();
-        self.find_candidates();
+        self.scan();
     }
 
     /// Adds `±K` around every pixel whose bit entering the window differs
@@ -234,6 +239,7 @@ impl FastFrontEnd {
         last_mask: u64,
     ) {
         let (width, stride, k) = (self.width, self.stride, self.k1.len());
+        let (pad, half) = (self.pad, self.half);
         let filtered = &mut self.filtered[..];
         let counts = &mut self.counts[..];
         for wi in 0..words {
@@ -269,7 +275,7 @@ impl FastFrontEnd {
                     &self.kernel_minus[..]
                 };
                 // The footprint's top-left cell in the haloed layout.
-                let base = y * stride + x;
+                let base = (y + pad - half) * stride + x + pad - half;
                 if K == 0 {
                     for dy in 0..k {
                         let row = &mut filtered[base + dy * stride..base + dy * stride + k];
@@ -292,71 +298,66 @@ impl FastFrontEnd {
         }
     }
 
+    /// Stages 3–4: the above-threshold pixels and the candidates among them,
+    /// in raster order, in one pass. Rows whose maximum is below the
+    /// threshold are skipped whole; in the others, eight pixels at a time are
+    /// compared with the threshold and with their eight neighbours (the
+    /// zeroed ring stands for the outside of the field: an above-threshold
+    /// pixel beats 0, which is the same as ignoring those neighbours).
     #[inline(always)]
-    fn scan_above(&mut self) {
+    fn scan(&mut self) {
         self.above.clear();
+        self.candidates.clear();
+        let (w, h, s, pad) = (self.width, self.height, self.stride, self.pad);
         let thr = self.threshold_int;
-        for y in 0..self.height {
-            let start = (y + self.half) * self.stride + self.half;
-            let row = &self.filtered[start..start + self.width];
-            // Cheap rejection of whole rows, then of 32-pixel blocks, by their
-            // maximum (lane-wise maxima vectorise; one reduction per row).
-            if row_max(row) < thr {
+        let f = &mut self.filtered[..];
+        let top = (pad - 1) * s + pad - 1;
+        f[top..top + w + 2].fill(0);
+        let bottom = (pad + h) * s + pad - 1;
+        f[bottom..bottom + w + 2].fill(0);
+        for y in 0..h {
+            let r = (pad + y) * s + pad;
+            f[r - 1] = 0;
+            f[r + w] = 0;
+        }
+        let f = &self.filtered[..];
+        let is_max = |c: usize| -> bool {
+            let v = f[c];
+            (v > f[c - s - 1])
+                & (v > f[c - s])
+                & (v > f[c - s + 1])
+                & (v > f[c - 1])
+                & (v >= f[c + 1])
+                & (v >= f[c + s - 1])
+                & (v >= f[c + s])
+                & (v >= f[c + s + 1])
+        };
+        for y in 0..h {
+            let c0 = (pad + y) * s + pad;
+            if row_max(&f[c0..c0 + w]) < thr {
                 continue;
             }
-            for (bi, block) in row.chunks(32).enumerate() {
-                if block.iter().fold(0u32, |m, &v| m.max(v)) < thr {
-                    continue;
-                }
-                for (j, &v) in block.iter().enumerate() {
-                    if v >= thr {
-                        self.above.push((y * self.width + bi * 32 + j) as u32);
-                    }
-                }
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn find_candidates(&mut self) {
-        self.candidates.clear();
-        let (w, h, s) = (self.width, self.height, self.stride);
-        let f = &self.filtered[..];
-        for &i in &self.above {
-            let (x, y) = (i as usize % w, i as usize / w);
-            let c = (y + self.half) * s + x + self.half;
-            let v = f[c];
-            let is_max = if x > 0 && y > 0 && x + 1 < w && y + 1 < h {
-                // Interior: all eight neighbours exist.
-                v > f[c - s - 1]
-                    && v > f[c - s]
-                    && v > f[c - s + 1]
-                    && v > f[c - 1]
-                    && v >= f[c + 1]
-                    && v >= f[c + s - 1]
-                    && v >= f[c + s]
-                    && v >= f[c + s + 1]
-            } else {
-                let (xi, yi) = (x as i64, y as i64);
-                let at = |dx: i64, dy: i64| -> Option<u32> {
-                    let (xx, yy) = (xi + dx, yi + dy);
-                    (xx >= 0 && yy >= 0 && xx < w as i64 && yy < h as i64)
-                        .then(|| self.filtered_at(xx as usize, yy as usize))
-                };
-                let earlier = [(-1, -1), (0, -1), (1, -1), (-1, 0)];
-                let later = [(1, 0), (-1, 1), (0, 1), (1, 1)];
-                earlier
-                    .iter()
-                    .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v > n))
-                    && later
-                        .iter()
-                        .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v >= n))
-            };
-            if is_max {
-                self.candidates.push(Candidate {
+            let mut x0 = 0;
+            while x0 + 8 <= w {
+                let (above, cands) = block8(f, c0 + x0, s, thr);
+                push_bits(&mut self.above, above, y * w + x0, |i| i as u32);
+                push_bits(&mut self.candidates, cands, x0, |x| Candidate {
                     x: x as u16,
                     y: y as u16,
                 });
+                x0 += 8;
+            }
+            for x in x0..w {
+                let c = c0 + x;
+                if f[c] >= thr {
+                    self.above.push((y * w + x) as u32);
+                    if is_max(c) {
+                        self.candidates.push(Candidate {
+                            x: x as u16,
+                            y: y as u16,
+                        });
+                    }
+                }
             }
         }
     }
@@ -419,6 +420,47 @@ fn add_row<const K: usize>(row: &mut [u32; K], w: &[u32; K]) {
     while i < K {
         row[i] = row[i].wrapping_add(w[i]);
         i += 1;
+    }
+}
+
+/// Eight pixels from cell `c` of the haloed H (row stride `s`): the bit
+/// masks of those at or above `thr`, and of those that are also candidates
+/// (strictly above their four earlier neighbours in raster order, at least
+/// their four later ones). Lane-wise, so that it compiles to vector compares.
+#[inline(always)]
+fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
+    let load = |at: usize| -> [u32; 8] { f[at..at + 8].try_into().expect("8 lanes") };
+    let v = load(c);
+    let mut above = 0u32;
+    for l in 0..8 {
+        above |= u32::from(v[l] >= thr) << l;
+    }
+    if above == 0 {
+        return (0, 0);
+    }
+    let (ul, u, ur, le) = (load(c - s - 1), load(c - s), load(c - s + 1), load(c - 1));
+    let (ri, dl, d, dr) = (load(c + 1), load(c + s - 1), load(c + s), load(c + s + 1));
+    let mut max = 0u32;
+    for l in 0..8 {
+        let m = (v[l] > ul[l])
+            & (v[l] > u[l])
+            & (v[l] > ur[l])
+            & (v[l] > le[l])
+            & (v[l] >= ri[l])
+            & (v[l] >= dl[l])
+            & (v[l] >= d[l])
+            & (v[l] >= dr[l]);
+        max |= u32::from(m) << l;
+    }
+    (above, above & max)
+}
+
+/// Pushes `make(offset + i)` for every set bit i of `bits`, ascending.
+#[inline(always)]
+fn push_bits<T>(out: &mut Vec<T>, mut bits: u32, offset: usize, make: impl Fn(usize) -> T) {
+    while bits != 0 {
+        out.push(make(offset + bits.trailing_zeros() as usize));
+        bits &= bits - 1;
     }
 }
 
