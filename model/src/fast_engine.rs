@@ -59,6 +59,8 @@ pub struct FastFrontEnd {
     candidates: Vec<Candidate>,
     /// AVX2 is available: the same code is compiled once more with it.
     avx2: bool,
+    /// Planes filtered densely (too many changed pixels for the sparse path).
+    dense_planes: u64,
 }
 
 impl FastFrontEnd {
@@ -95,6 +97,7 @@ impl FastFrontEnd {
             above: Vec::new(),
             candidates: Vec::new(),
             avx2,
+            dense_planes: 0,
         }
     }
 
@@ -120,8 +123,26 @@ impl FastFrontEnd {
             }
         }
         fe.recompute_dense();
-        fe.scan();
+        fe.scan::<false>();
         fe
+    }
+
+    /// The same front end without the AVX2 build: the portable code, on any
+    /// CPU (for testing it where AVX2 exists, and for comparing speeds).
+    pub fn portable(mut self) -> FastFrontEnd {
+        self.avx2 = false;
+        self
+    }
+
+    /// Whether pushes run the AVX2 build of the front end.
+    pub fn uses_avx2(&self) -> bool {
+        self.avx2
+    }
+
+    /// Planes so far whose H was recomputed densely, because more than an
+    /// eighth of the pixels changed; the others were updated incrementally.
+    pub fn dense_planes(&self) -> u64 {
+        self.dense_planes
     }
 
     /// `H_t` at (x, y).
@@ -180,7 +201,7 @@ impl FastFrontEnd {
 
     /// Stages 1–2 and 3–4 for one plane, given as raw words.
     #[inline(always)]
-    fn push_words(&mut self, live: &[u64], delayed: &[u64]) {
+    fn push_words<const AVX2: bool>(&mut self, live: &[u64], delayed: &[u64]) {
         let total = self.width * self.height;
         let words = total.div_ceil(64).min(live.len()).min(delayed.len());
         // Bits past the field in the last word are unspecified: mask them.
@@ -212,6 +233,7 @@ impl FastFrontEnd {
                 }
             }
             self.recompute_dense();
+            self.dense_planes += 1;
         } else {
             match self.k1.len() {
                 1 => self.sparse::<1>(live, delayed, words, last_mask),
@@ -225,7 +247,7 @@ impl FastFrontEnd {
                 _ => self.sparse::<0>(live, delayed, words, last_mask),
             }
         }
-        self.scan();
+        self.scan::<AVX2>();
     }
 
     /// Adds `±K` around every pixel whose bit entering the window differs
@@ -305,7 +327,7 @@ impl FastFrontEnd {
     /// zeroed ring stands for the outside of the field: an above-threshold
     /// pixel beats 0, which is the same as ignoring those neighbours).
     #[inline(always)]
-    fn scan(&mut self) {
+    fn scan<const AVX2: bool>(&mut self) {
         self.above.clear();
         self.candidates.clear();
         let (w, h, s, pad) = (self.width, self.height, self.stride, self.pad);
@@ -339,6 +361,15 @@ impl FastFrontEnd {
             }
             let mut x0 = 0;
             while x0 + 8 <= w {
+                #[cfg(target_arch = "x86_64")]
+                let (above, cands) = if AVX2 {
+                    // SAFETY: AVX2 is true only inside `push_words_avx2`,
+                    // which runs only when the CPU reports AVX2.
+                    unsafe { block8_avx2(f, c0 + x0, s, thr) }
+                } else {
+                    block8(f, c0 + x0, s, thr)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
                 let (above, cands) = block8(f, c0 + x0, s, thr);
                 push_bits(&mut self.above, above, y * w + x0, |i| i as u32);
                 push_bits(&mut self.candidates, cands, x0, |x| Candidate {
@@ -367,7 +398,7 @@ impl FastFrontEnd {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn push_words_avx2(&mut self, live: &[u64], delayed: &[u64]) {
-        self.push_words(live, delayed);
+        self.push_words::<true>(live, delayed);
     }
 }
 
@@ -380,7 +411,7 @@ impl FrontEnd for FastFrontEnd {
             unsafe { self.push_words_avx2(lw, dw) };
             return;
         }
-        self.push_words(lw, dw);
+        self.push_words::<false>(lw, dw);
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
@@ -452,6 +483,56 @@ fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
             & (v[l] >= dr[l]);
         max |= u32::from(m) << l;
     }
+    (above, above & max)
+}
+
+/// [`block8`] with AVX2 compares and move-masks (the compiler's own
+/// vectorisation of the lane loops builds the masks lane by lane). Unsigned
+/// order is signed order after flipping the sign bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn block8_avx2(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
+    use std::arch::x86_64::*;
+    #[target_feature(enable = "avx2")]
+    fn load(f: &[u32], at: usize) -> __m256i {
+        let lanes = &f[at..at + 8];
+        // SAFETY: `lanes` is 8 u32 = 32 readable bytes; the load is unaligned.
+        let v = unsafe { _mm256_loadu_si256(lanes.as_ptr().cast()) };
+        _mm256_xor_si256(v, _mm256_set1_epi32(i32::MIN))
+    }
+    #[target_feature(enable = "avx2")]
+    fn mask(v: __m256i) -> u32 {
+        _mm256_movemask_ps(_mm256_castsi256_ps(v)) as u32
+    }
+    let v = load(f, c);
+    let t = _mm256_set1_epi32((thr ^ 0x8000_0000) as i32);
+    // v ≥ thr ⇔ not (thr > v).
+    let above = !mask(_mm256_cmpgt_epi32(t, v)) & 0xff;
+    if above == 0 {
+        return (0, 0);
+    }
+    let earlier = _mm256_and_si256(
+        _mm256_and_si256(
+            _mm256_cmpgt_epi32(v, load(f, c - s - 1)),
+            _mm256_cmpgt_epi32(v, load(f, c - s)),
+        ),
+        _mm256_and_si256(
+            _mm256_cmpgt_epi32(v, load(f, c - s + 1)),
+            _mm256_cmpgt_epi32(v, load(f, c - 1)),
+        ),
+    );
+    // A later neighbour breaks the maximum only if it is strictly greater.
+    let later_greater = _mm256_or_si256(
+        _mm256_or_si256(
+            _mm256_cmpgt_epi32(load(f, c + 1), v),
+            _mm256_cmpgt_epi32(load(f, c + s - 1), v),
+        ),
+        _mm256_or_si256(
+            _mm256_cmpgt_epi32(load(f, c + s), v),
+            _mm256_cmpgt_epi32(load(f, c + s + 1), v),
+        ),
+    );
+    let max = mask(_mm256_andnot_si256(later_greater, earlier));
     (above, above & max)
 }
 

@@ -132,6 +132,44 @@ fn saturated_planes_take_the_dense_path_and_match() {
 }
 
 #[test]
+fn sparse_and_dense_paths_are_both_taken_and_agree() {
+    let (w, h, n) = (40, 30, 5);
+    let cfg = PipelineConfig::new(w, h, n, vec![1, 4, 6, 4, 1], 4, 100);
+    let zero = BitPlane::zeros(w, h);
+    // Light planes (about 2 % of pixels on) keep to the sparse path; every
+    // tenth plane half on forces the dense one, twice (entering and leaving).
+    let mut r = Rng(11);
+    let stream: Vec<BitPlane> = (0..60)
+        .map(|t| {
+            let p = if t % 10 == 9 { 0.5 } else { 0.02 };
+            BitPlane::from_fn(w, h, |_, _| r.unit() < p)
+        })
+        .collect();
+    let mut golden = GoldenFrontEnd::new(&cfg);
+    let mut fast = FastFrontEnd::new(&cfg);
+    let mut candidates = 0;
+    for t in 0..stream.len() {
+        let delayed = if t >= n as usize {
+            &stream[t - n as usize]
+        } else {
+            &zero
+        };
+        golden.push(&stream[t], delayed);
+        fast.push(&stream[t], delayed);
+        let h_fast: Vec<u32> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| fast.filtered_at(x, y))
+            .collect();
+        assert_eq!(h_fast, golden.filtered(), "H at plane {t}");
+        assert_eq!(fast.candidates(), golden.candidates(), "plane {t}");
+        candidates += fast.candidates().len();
+    }
+    // 6 half-on planes entering, 5 leaving (the last leaves after the end).
+    assert_eq!(fast.dense_planes(), 11);
+    assert!(candidates > 0, "the threshold must be reached somewhere");
+}
+
+#[test]
 fn source_errors_stop_the_parallel_run() {
     let cfg = PipelineConfig::new(8, 8, 4, vec![1, 2, 1], 2, 8);
     let src = (0..50).map(|t| {
@@ -167,7 +205,11 @@ fn random_planes(seed: u64, w: usize, h: usize, planes: usize, p_max: f64) -> Ve
     let mut r = Rng(seed);
     (0..planes)
         .map(|_| {
-            let p = if r.next() % 3 == 0 { r.unit() * p_max } else { r.unit() * 0.03 };
+            let p = if r.next() % 3 == 0 {
+                r.unit() * p_max
+            } else {
+                r.unit() * 0.03
+            };
             BitPlane::from_fn(w, h, |_, _| r.unit() < p)
         })
         .collect()
@@ -190,11 +232,17 @@ proptest! {
         let stream = random_planes(seed, w, h, planes, p_max);
         let mut golden = GoldenFrontEnd::new(&cfg);
         let mut fast = FastFrontEnd::new(&cfg);
+        let mut portable = FastFrontEnd::new(&cfg).portable();
+        prop_assert!(!portable.uses_avx2());
         let zero = BitPlane::zeros(w, h);
         for t in 0..planes {
             let delayed = if t >= n as usize { &stream[t - n as usize] } else { &zero };
             golden.push(&stream[t], delayed);
             fast.push(&stream[t], delayed);
+            portable.push(&stream[t], delayed);
+            prop_assert_eq!(portable.above(), fast.above());
+            prop_assert_eq!(portable.candidates(), fast.candidates());
+            prop_assert_eq!(portable.dense_planes(), fast.dense_planes());
             for y in 0..h {
                 for x in 0..w {
                     prop_assert_eq!(fast.count_at(x, y), golden.counts()[y * w + x], "S at ({}, {}) plane {}", x, y, t);
