@@ -173,7 +173,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let planes_n = usize::try_from(args.planes)?.max(args.golden_planes).max(1);
     println!(
-        "{:<8} {:<18} {:>7} {:>10} {:>9} {:>11} {:>8} {:>8}",
+        "{:<8} {:<20} {:>7} {:>10} {:>9} {:>11} {:>8} {:>8}",
         "scene", "engine", "planes", "planes/s", "Mpixel/s", "planes/CPUs", "vs gold", "bytes"
     );
     let mpix = |rate: f64| rate * (w as f64 * h as f64) / 1e6;
@@ -187,7 +187,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let golden_bytes = bytes_of(&golden)?;
         let row = |engine: &str, n: usize, (rate, cpu): (f64, Option<f64>), bytes: usize| {
             println!(
-                "{:<8} {:<18} {:>7} {:>10.0} {:>9.1} {:>11} {:>7.1}x {:>8}",
+                "{:<8} {:<20} {:>7} {:>10.0} {:>9.1} {:>11} {:>7.1}x {:>8}",
                 name,
                 engine,
                 n,
@@ -212,15 +212,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "the fast engine's bytes differ from the golden model's on the {name} scene"
             );
         }
-        // Stages 1–4 alone, to show where the time goes.
-        let t = Timing::start();
-        let mut fe = FastFrontEnd::new(&cfg);
+        // Stages 1–4 alone, to show where the time goes (and what AVX2 adds).
         let zero = BitPlane::zeros(w as usize, h as usize);
         let n = cfg.n_window as usize;
-        for (i, p) in planes.iter().enumerate() {
-            fe.push(p, if i >= n { &planes[i - n] } else { &zero });
+        let simd = FastFrontEnd::new(&cfg).uses_avx2();
+        for (label, portable) in [("stages 1-4", false), ("stages 1-4 portable", true)] {
+            if portable && !simd {
+                continue;
+            }
+            let t = Timing::start();
+            let mut fe = FastFrontEnd::new(&cfg);
+            if portable {
+                fe = fe.portable();
+            }
+            for (i, p) in planes.iter().enumerate() {
+                fe.push(p, if i >= n { &planes[i - n] } else { &zero });
+            }
+            let rates = t.rates(planes.len());
+            let label = if simd && !portable {
+                format!("{label} avx2")
+            } else {
+                label.to_string()
+            };
+            row(&label, planes.len(), rates, 0);
+            if !portable {
+                println!(
+                    "{:<8} {} of {} planes filtered densely (more than 1/8 of the pixels changed)",
+                    "",
+                    fe.dense_planes(),
+                    planes.len()
+                );
+            }
         }
-        row("stages 1-4 only", planes.len(), t.rates(planes.len()), 0);
         let t = Timing::start();
         let fast = run_with(fast_pipeline(cfg.clone())?, planes.iter().cloned())?;
         let single = t.rates(planes.len());
