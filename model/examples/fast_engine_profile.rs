@@ -74,15 +74,15 @@ fn main() {
     let gp = planes.min(300);
     let t = Watch::start();
     let mut g = GoldenFrontEnd::new(&cfg);
-    for i in 0..gp {
-        g.push(&stream[i], delayed(i));
+    for (i, plane) in stream.iter().enumerate().take(gp) {
+        g.push(plane, delayed(i));
     }
     let golden_front = t.rates(gp);
     let t = Watch::start();
     let mut f = FastFrontEnd::new(&cfg);
     let mut cands = 0;
-    for i in 0..planes {
-        f.push(&stream[i], delayed(i));
+    for (i, plane) in stream.iter().enumerate() {
+        f.push(plane, delayed(i));
         cands += f.candidates().len();
     }
     let fast_front = t.rates(planes);

@@ -225,13 +225,13 @@ impl FastFrontEnd {
         };
         let changes: usize = (0..words).map(|wi| diff(wi).count_ones() as usize).sum();
         if changes * DENSE_FRACTION > total {
-            for wi in 0..words {
+            for (wi, &entering) in live.iter().enumerate().take(words) {
                 let mut d = diff(wi);
                 while d != 0 {
                     let bit = d.trailing_zeros() as usize;
                     d &= d - 1;
                     let c = &mut self.counts[wi * 64 + bit];
-                    *c = if (live[wi] >> bit) & 1 == 1 {
+                    *c = if (entering >> bit) & 1 == 1 {
                         *c + 1
                     } else {
                         *c - 1
@@ -469,8 +469,8 @@ fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
     let load = |at: usize| -> [u32; 8] { f[at..at + 8].try_into().expect("8 lanes") };
     let v = load(c);
     let mut above = 0u32;
-    for l in 0..8 {
-        above |= u32::from(v[l] >= thr) << l;
+    for (l, &x) in v.iter().enumerate() {
+        above |= u32::from(x >= thr) << l;
     }
     if above == 0 {
         return (0, 0);

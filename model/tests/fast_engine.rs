@@ -205,7 +205,7 @@ fn random_planes(seed: u64, w: usize, h: usize, planes: usize, p_max: f64) -> Ve
     let mut r = Rng(seed);
     (0..planes)
         .map(|_| {
-            let p = if r.next() % 3 == 0 {
+            let p = if r.next().is_multiple_of(3) {
                 r.unit() * p_max
             } else {
                 r.unit() * 0.03
@@ -272,9 +272,9 @@ proptest! {
             running.push(plane, delayed(t));
         }
         let mut warmed = FastFrontEnd::warmed_up(&cfg, &stream[start.saturating_sub(n as usize)..start]);
-        for t in start..planes {
-            running.push(&stream[t], delayed(t));
-            warmed.push(&stream[t], delayed(t));
+        for (t, plane) in stream.iter().enumerate().skip(start) {
+            running.push(plane, delayed(t));
+            warmed.push(plane, delayed(t));
             for y in 0..h {
                 for x in 0..w {
                     prop_assert_eq!(warmed.filtered_at(x, y), running.filtered_at(x, y));
@@ -294,7 +294,7 @@ proptest! {
         let px: Vec<(usize, usize)> = (0..hot).map(|_| ((r.next() % w as u64) as usize, (r.next() % h as u64) as usize)).collect();
         let (mask, outside) = HotPixelMask::from_pixels(w, h, &px);
         prop_assert!(outside.is_empty());
-        let plane = BitPlane::from_fn(w, h, |_, _| r.next() % 2 == 0);
+        let plane = BitPlane::from_fn(w, h, |_, _| r.next().is_multiple_of(2));
         let out = mask.apply(&plane);
         for y in 0..h {
             for x in 0..w {
