@@ -6,28 +6,34 @@
 //! records) are the golden code itself, through [`Pipeline::with_front_end`].
 //!
 //! * [`FastFrontEnd`] keeps H up to date *incrementally*: H changes only where
-//!   `B_t` and `B_{t−N}` differ (a few percent of pixels at SMLM light levels),
-//!   and each change adds `±K` to the k×k neighbourhood (row slices, vectorised;
-//!   a halo of (k−1)/2 around the field removes every bounds check). When more
-//!   than an eighth of the pixels change (saturated planes) it recomputes H
-//!   densely from the rolling counts instead. Threshold and candidates then
-//!   touch only the pixels above threshold.
+//!   `B_t` and `B_{t−N}` differ (a few percent of pixels at SMLM light
+//!   levels), found 64 pixels at a time as the set bits of `B_t XOR B_{t−N}`;
+//!   each change adds `±K` to its k×k neighbourhood (branch-free: `+K` or the
+//!   wrapping `−K`; each kernel row as whole vector adds; a halo around the
+//!   field removes every bounds test). When more than an eighth of the pixels
+//!   change (saturated planes) it recomputes H densely from the rolling counts
+//!   instead. Threshold and candidates are one pass that skips rows below
+//!   threshold and tests eight pixels at a time against their neighbours.
+//!   On x86-64 with AVX2 (detected at run time) the same code is compiled a
+//!   second time for AVX2, with explicit AVX2 compares in the scan.
 //! * [`run_parallel`] splits the stream into time chunks. H at plane t depends
 //!   only on planes `t−N+1 … t`, so a worker can start a chunk anywhere after
 //!   warming its counts up on the N planes before it; the workers' per-plane
 //!   results (candidates and above-threshold pixels) then feed the one
-//!   sequential tracker, which is cheap. The output is byte-identical to the
-//!   single-threaded golden pipeline for any chunk length and thread count.
+//!   sequential tracker, which is cheap. A reader thread pulls the planes
+//!   meanwhile. The output is byte-identical to the single-threaded golden
+//!   pipeline for any chunk length and thread count, and memory is bounded by
+//!   the batch length, N and the field, not by the stream's length.
 
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
 use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
 use crate::record::Record;
-use crate::spatial_filter::SpatialFilter;
 use std::collections::VecDeque;
 
-/// Above this fraction of changed pixels a plane is filtered densely.
+/// Above this fraction of changed pixels a plane is filtered densely (a
+/// change costs k² scattered adds, a dense pass about 2k per pixel).
 const DENSE_FRACTION: usize = 8;
 
 /// Incremental stages 1–4.
@@ -36,18 +42,31 @@ pub struct FastFrontEnd {
     width: usize,
     height: usize,
     half: usize,
+    /// Cells around the field: `max(half, 1)`, so that the 3×3 candidate
+    /// test can read a ring of zeros outside the field.
+    pad: usize,
     stride: usize,
-    kernel_2d: Vec<u32>,
     k1: Vec<u32>,
+    /// `K = k1 ⊗ k1`, row-major, for a pixel entering the window.
+    kernel_plus: Vec<u32>,
+    /// `−K` in wrapping arithmetic, for a pixel leaving it (no branch per add).
+    kernel_minus: Vec<u32>,
     threshold_int: u32,
     /// Rolling counts S, raster order (kept for dense recomputation).
     counts: Vec<u16>,
-    /// H with a halo of `half` on every side; halo cells are never read.
+    /// H with a halo of `pad` cells on every side. Halo cells collect the
+    /// parts of `±K` that fall outside the field and are never read, except
+    /// the ring next to the field, zeroed before each candidate scan.
     filtered: Vec<u32>,
+    /// Scratch of the dense horizontal pass.
+    horiz: Vec<u32>,
     /// Raster indices with H ≥ T_int, ascending.
     above: Vec<u32>,
     candidates: Vec<Candidate>,
-    changed: Vec<(u32, bool)>,
+    /// AVX2 is available: the same code is compiled once more with it.
+    avx2: bool,
+    /// Planes filtered densely (too many changed pixels for the sparse path).
+    dense_planes: u64,
 }
 
 impl FastFrontEnd {
@@ -55,26 +74,36 @@ impl FastFrontEnd {
     pub fn new(cfg: &PipelineConfig) -> FastFrontEnd {
         let k = cfg.kernel.len();
         let half = k / 2;
-        let stride = cfg.width + 2 * half;
-        let mut kernel_2d = Vec::with_capacity(k * k);
+        let pad = half.max(1);
+        let stride = cfg.width + 2 * pad;
+        let mut kernel_plus = Vec::with_capacity(k * k);
         for &a in &cfg.kernel {
             for &b in &cfg.kernel {
-                kernel_2d.push(a * b);
+                kernel_plus.push(a * b);
             }
         }
+        let kernel_minus = kernel_plus.iter().map(|w| w.wrapping_neg()).collect();
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx2 = false;
         FastFrontEnd {
             width: cfg.width,
             height: cfg.height,
             half,
+            pad,
             stride,
-            kernel_2d,
             k1: cfg.kernel.clone(),
+            kernel_plus,
+            kernel_minus,
             threshold_int: cfg.threshold_int,
             counts: vec![0; cfg.width * cfg.height],
-            filtered: vec![0; stride * (cfg.height + 2 * half)],
+            filtered: vec![0; stride * (cfg.height + 2 * pad)],
+            horiz: vec![0; cfg.width * cfg.height],
             above: Vec::new(),
             candidates: Vec::new(),
-            changed: Vec::new(),
+            avx2,
+            dense_planes: 0,
         }
     }
 
@@ -85,18 +114,51 @@ impl FastFrontEnd {
         window: impl IntoIterator<Item = &'a BitPlane>,
     ) -> FastFrontEnd {
         let mut fe = FastFrontEnd::new(cfg);
+        let total = fe.width * fe.height;
         for plane in window {
-            for (c, b) in fe.counts.iter_mut().zip(plane.bits().iter().by_vals()) {
-                *c += b as u16;
+            // Only the ones count: iterate set bits, word by word.
+            for (wi, &word) in plane.words().iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let idx = wi * 64 + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if idx < total {
+                        fe.counts[idx] += 1;
+                    }
+                }
             }
         }
         fe.recompute_dense();
+        fe.scan::<false>();
         fe
+    }
+
+    /// The same front end without the AVX2 build: the portable code, on any
+    /// CPU (for testing it where AVX2 exists, and for comparing speeds).
+    pub fn portable(mut self) -> FastFrontEnd {
+        self.avx2 = false;
+        self
+    }
+
+    /// Whether pushes run the AVX2 build of the front end.
+    pub fn uses_avx2(&self) -> bool {
+        self.avx2
+    }
+
+    /// Planes so far whose H was recomputed densely, because more than an
+    /// eighth of the pixels changed; the others were updated incrementally.
+    pub fn dense_planes(&self) -> u64 {
+        self.dense_planes
     }
 
     /// `H_t` at (x, y).
     pub fn filtered_at(&self, x: usize, y: usize) -> u32 {
-        self.filtered[(y + self.half) * self.stride + x + self.half]
+        self.filtered[(y + self.pad) * self.stride + x + self.pad]
+    }
+
+    /// Rolling count `S_t` at (x, y).
+    pub fn count_at(&self, x: usize, y: usize) -> u32 {
+        u32::from(self.counts[y * self.width + x])
     }
 
     /// Raster indices of the pixels with `H_t ≥ T_int`, ascending.
@@ -104,151 +166,258 @@ impl FastFrontEnd {
         &self.above
     }
 
+    /// `H = K ⊛ S` over the whole field from the counts: a horizontal pass
+    /// then a vertical one, each over contiguous rows (vectorises).
+    #[inline(always)]
     fn recompute_dense(&mut self) {
-        let counts: Vec<u32> = self.counts.iter().map(|&c| c as u32).collect();
-        let h = SpatialFilter::new(self.k1.clone()).apply(&counts, self.width, self.height);
-        for y in 0..self.height {
-            let dst = (y + self.half) * self.stride + self.half;
-            self.filtered[dst..dst + self.width]
-                .copy_from_slice(&h[y * self.width..(y + 1) * self.width]);
-        }
-    }
-
-    fn add_kernel(&mut self, x: usize, y: usize, plus: bool) {
-        // Fixed kernel sizes let the compiler keep each row in vector registers.
-        match self.k1.len() {
-            3 => self.add_kernel_k::<3>(x, y, plus),
-            5 => self.add_kernel_k::<5>(x, y, plus),
-            7 => self.add_kernel_k::<7>(x, y, plus),
-            9 => self.add_kernel_k::<9>(x, y, plus),
-            11 => self.add_kernel_k::<11>(x, y, plus),
-            13 => self.add_kernel_k::<13>(x, y, plus),
-            _ => self.add_kernel_any(x, y, plus),
-        }
-    }
-
-    fn add_kernel_k<const K: usize>(&mut self, x: usize, y: usize, plus: bool) {
-        for dy in 0..K {
-            let row = (y + dy) * self.stride + x;
-            let dst: &mut [u32; K] = (&mut self.filtered[row..row + K])
-                .try_into()
-                .expect("K cells");
-            let w: &[u32; K] = self.kernel_2d[dy * K..(dy + 1) * K]
-                .try_into()
-                .expect("K weights");
-            if plus {
-                for i in 0..K {
-                    dst[i] = dst[i].wrapping_add(w[i]);
-                }
-            } else {
-                for i in 0..K {
-                    dst[i] = dst[i].wrapping_sub(w[i]);
+        let (w, h, half, k) = (self.width, self.height, self.half, self.k1.len());
+        let mut row = vec![0u32; w + 2 * half];
+        for y in 0..h {
+            for (r, &c) in row[half..half + w]
+                .iter_mut()
+                .zip(&self.counts[y * w..(y + 1) * w])
+            {
+                *r = u32::from(c);
+            }
+            let out = &mut self.horiz[y * w..(y + 1) * w];
+            out.fill(0);
+            for (i, &ki) in self.k1.iter().enumerate() {
+                for (o, &s) in out.iter_mut().zip(&row[i..i + w]) {
+                    *o = o.wrapping_add(ki.wrapping_mul(s));
                 }
             }
         }
-    }
-
-    fn add_kernel_any(&mut self, x: usize, y: usize, plus: bool) {
-        let k = self.k1.len();
-        for dy in 0..k {
-            let row = (y + dy) * self.stride + x;
-            let dst = &mut self.filtered[row..row + k];
-            let w = &self.kernel_2d[dy * k..(dy + 1) * k];
-            if plus {
-                for (d, &kw) in dst.iter_mut().zip(w) {
-                    *d = d.wrapping_add(kw);
-                }
-            } else {
-                for (d, &kw) in dst.iter_mut().zip(w) {
-                    *d = d.wrapping_sub(kw);
-                }
-            }
-        }
-    }
-
-    fn scan_above(&mut self) {
-        self.above.clear();
-        let thr = self.threshold_int;
-        for y in 0..self.height {
-            let start = (y + self.half) * self.stride + self.half;
-            let row = &self.filtered[start..start + self.width];
-            // Cheap rejection of whole 16-pixel blocks first (vectorises).
-            for (bi, block) in row.chunks(16).enumerate() {
-                if block.iter().fold(0u32, |m, &v| m | u32::from(v >= thr)) == 0 {
+        for y in 0..h {
+            let dst = (y + self.pad) * self.stride + self.pad;
+            let out = &mut self.filtered[dst..dst + w];
+            out.fill(0);
+            for j in 0..k {
+                let yy = y + j;
+                if yy < half || yy - half >= h {
                     continue;
                 }
-                for (j, &v) in block.iter().enumerate() {
-                    if v >= thr {
-                        self.above.push((y * self.width + bi * 16 + j) as u32);
+                let kj = self.k1[j];
+                let src = &self.horiz[(yy - half) * w..(yy - half + 1) * w];
+                for (o, &s) in out.iter_mut().zip(src) {
+                    *o = o.wrapping_add(kj.wrapping_mul(s));
+                }
+            }
+        }
+    }
+
+    /// Stages 1–2 and 3–4 for one plane, given as raw words.
+    #[inline(always)]
+    fn push_words<const AVX2: bool>(&mut self, live: &[u64], delayed: &[u64]) {
+        let total = self.width * self.height;
+        let words = total.div_ceil(64).min(live.len()).min(delayed.len());
+        // Bits past the field in the last word are unspecified: mask them.
+        let last_mask = match total % 64 {
+            0 => !0u64,
+            r => (1u64 << r) - 1,
+        };
+        let diff = |wi: usize| -> u64 {
+            let d = live[wi] ^ delayed[wi];
+            if wi + 1 == words {
+                d & last_mask
+            } else {
+                d
+            }
+        };
+        let changes: usize = (0..words).map(|wi| diff(wi).count_ones() as usize).sum();
+        if changes * DENSE_FRACTION > total {
+            for (wi, &entering) in live.iter().enumerate().take(words) {
+                let mut d = diff(wi);
+                while d != 0 {
+                    let bit = d.trailing_zeros() as usize;
+                    d &= d - 1;
+                    let c = &mut self.counts[wi * 64 + bit];
+                    *c = if (entering >> bit) & 1 == 1 {
+                        *c + 1
+                    } else {
+                        *c - 1
+                    };
+                }
+            }
+            self.recompute_dense();
+            self.dense_planes += 1;
+        } else {
+            match self.k1.len() {
+                1 => self.sparse::<1>(live, delayed, words, last_mask),
+                3 => self.sparse::<3>(live, delayed, words, last_mask),
+                5 => self.sparse::<5>(live, delayed, words, last_mask),
+                7 => self.sparse::<7>(live, delayed, words, last_mask),
+                9 => self.sparse::<9>(live, delayed, words, last_mask),
+                11 => self.sparse::<11>(live, delayed, words, last_mask),
+                13 => self.sparse::<13>(live, delayed, words, last_mask),
+                15 => self.sparse::<15>(live, delayed, words, last_mask),
+                _ => self.sparse::<0>(live, delayed, words, last_mask),
+            }
+        }
+        self.scan::<AVX2>();
+    }
+
+    /// Adds `±K` around every pixel whose bit entering the window differs
+    /// from the bit leaving it. `K` is the kernel length (0: any length).
+    #[inline(always)]
+    fn sparse<const K: usize>(
+        &mut self,
+        live: &[u64],
+        delayed: &[u64],
+        words: usize,
+        last_mask: u64,
+    ) {
+        let (width, stride, k) = (self.width, self.stride, self.k1.len());
+        let (pad, half) = (self.pad, self.half);
+        let filtered = &mut self.filtered[..];
+        let counts = &mut self.counts[..];
+        for wi in 0..words {
+            let (a, b) = (live[wi], delayed[wi]);
+            let mut d = a ^ b;
+            if wi + 1 == words {
+                d &= last_mask;
+            }
+            if d == 0 {
+                continue;
+            }
+            // Position of the word's first pixel; later pixels by stepping
+            // (one division per word, not per pixel).
+            let first = wi * 64;
+            let (mut y, mut x) = (first / width, first % width);
+            let mut at = first;
+            while d != 0 {
+                let bit = d.trailing_zeros() as usize;
+                d &= d - 1;
+                let idx = first + bit;
+                x += idx - at;
+                at = idx;
+                while x >= width {
+                    x -= width;
+                    y += 1;
+                }
+                let plus = (a >> bit) & 1 == 1;
+                let c = &mut counts[idx];
+                *c = if plus { *c + 1 } else { *c - 1 };
+                let weights = if plus {
+                    &self.kernel_plus[..]
+                } else {
+                    &self.kernel_minus[..]
+                };
+                // The footprint's top-left cell in the haloed layout.
+                let base = (y + pad - half) * stride + x + pad - half;
+                if K == 0 {
+                    for dy in 0..k {
+                        let row = &mut filtered[base + dy * stride..base + dy * stride + k];
+                        for (f, &wk) in row.iter_mut().zip(&weights[dy * k..(dy + 1) * k]) {
+                            *f = f.wrapping_add(wk);
+                        }
+                    }
+                } else {
+                    for dy in 0..K {
+                        let row: &mut [u32; K] = (&mut filtered
+                            [base + dy * stride..base + dy * stride + K])
+                            .try_into()
+                            .expect("K cells");
+                        let wk: &[u32; K] =
+                            weights[dy * K..(dy + 1) * K].try_into().expect("K weights");
+                        add_row::<K>(row, wk);
                     }
                 }
             }
         }
     }
 
-    fn find_candidates(&mut self) {
+    /// Stages 3–4: the above-threshold pixels and the candidates among them,
+    /// in raster order, in one pass. Rows whose maximum is below the
+    /// threshold are skipped whole; in the others, eight pixels at a time are
+    /// compared with the threshold and with their eight neighbours (the
+    /// zeroed ring stands for the outside of the field: an above-threshold
+    /// pixel beats 0, which is the same as ignoring those neighbours).
+    #[inline(always)]
+    fn scan<const AVX2: bool>(&mut self) {
+        self.above.clear();
         self.candidates.clear();
-        let (w, h) = (self.width as i64, self.height as i64);
-        for &i in &self.above {
-            let (x, y) = (
-                (i as usize % self.width) as i64,
-                (i as usize / self.width) as i64,
-            );
-            let v = self.filtered_at(x as usize, y as usize);
-            let at = |dx: i64, dy: i64| -> Option<u32> {
-                let (xx, yy) = (x + dx, y + dy);
-                (xx >= 0 && yy >= 0 && xx < w && yy < h)
-                    .then(|| self.filtered_at(xx as usize, yy as usize))
-            };
-            let earlier = [(-1, -1), (0, -1), (1, -1), (-1, 0)];
-            let later = [(1, 0), (-1, 1), (0, 1), (1, 1)];
-            if earlier
-                .iter()
-                .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v > n))
-                && later
-                    .iter()
-                    .all(|&(dx, dy)| at(dx, dy).is_none_or(|n| v >= n))
-            {
-                self.candidates.push(Candidate {
+        let (w, h, s, pad) = (self.width, self.height, self.stride, self.pad);
+        let thr = self.threshold_int;
+        let f = &mut self.filtered[..];
+        let top = (pad - 1) * s + pad - 1;
+        f[top..top + w + 2].fill(0);
+        let bottom = (pad + h) * s + pad - 1;
+        f[bottom..bottom + w + 2].fill(0);
+        for y in 0..h {
+            let r = (pad + y) * s + pad;
+            f[r - 1] = 0;
+            f[r + w] = 0;
+        }
+        let f = &self.filtered[..];
+        let is_max = |c: usize| -> bool {
+            let v = f[c];
+            (v > f[c - s - 1])
+                & (v > f[c - s])
+                & (v > f[c - s + 1])
+                & (v > f[c - 1])
+                & (v >= f[c + 1])
+                & (v >= f[c + s - 1])
+                & (v >= f[c + s])
+                & (v >= f[c + s + 1])
+        };
+        for y in 0..h {
+            let c0 = (pad + y) * s + pad;
+            if row_max(&f[c0..c0 + w]) < thr {
+                continue;
+            }
+            let mut x0 = 0;
+            while x0 + 8 <= w {
+                #[cfg(target_arch = "x86_64")]
+                let (above, cands) = if AVX2 {
+                    // SAFETY: AVX2 is true only inside `push_words_avx2`,
+                    // which runs only when the CPU reports AVX2.
+                    unsafe { block8_avx2(f, c0 + x0, s, thr) }
+                } else {
+                    block8(f, c0 + x0, s, thr)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (above, cands) = block8(f, c0 + x0, s, thr);
+                push_bits(&mut self.above, above, y * w + x0, |i| i as u32);
+                push_bits(&mut self.candidates, cands, x0, |x| Candidate {
                     x: x as u16,
                     y: y as u16,
                 });
+                x0 += 8;
+            }
+            for x in x0..w {
+                let c = c0 + x;
+                if f[c] >= thr {
+                    self.above.push((y * w + x) as u32);
+                    if is_max(c) {
+                        self.candidates.push(Candidate {
+                            x: x as u16,
+                            y: y as u16,
+                        });
+                    }
+                }
             }
         }
+    }
+
+    /// [`FastFrontEnd::push_words`] compiled for AVX2 (wider adds, compares
+    /// and maxima in the filter and the threshold scan).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn push_words_avx2(&mut self, live: &[u64], delayed: &[u64]) {
+        self.push_words::<true>(live, delayed);
     }
 }
 
 impl FrontEnd for FastFrontEnd {
     fn push(&mut self, live: &BitPlane, delayed: &BitPlane) {
-        self.changed.clear();
         let (lw, dw) = (live.words(), delayed.words());
-        let total = self.width * self.height;
-        for (wi, (&a, &b)) in lw.iter().zip(dw).enumerate() {
-            let mut diff = a ^ b;
-            while diff != 0 {
-                let bit = diff.trailing_zeros() as usize;
-                diff &= diff - 1;
-                let idx = wi * 64 + bit;
-                if idx < total {
-                    self.changed.push((idx as u32, (a >> bit) & 1 == 1));
-                }
-            }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only when the CPU reports AVX2.
+            unsafe { self.push_words_avx2(lw, dw) };
+            return;
         }
-        for &(idx, plus) in &self.changed {
-            let c = &mut self.counts[idx as usize];
-            *c = if plus { *c + 1 } else { *c - 1 };
-        }
-        if self.changed.len() * DENSE_FRACTION > total {
-            self.recompute_dense();
-        } else {
-            let changed = std::mem::take(&mut self.changed);
-            for &(idx, plus) in &changed {
-                self.add_kernel(idx as usize % self.width, idx as usize / self.width, plus);
-            }
-            self.changed = changed;
-        }
-        self.scan_above();
-        self.find_candidates();
+        self.push_words::<false>(lw, dw);
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
@@ -258,6 +427,142 @@ impl FrontEnd for FastFrontEnd {
     fn candidates(&self) -> &[Candidate] {
         &self.candidates
     }
+}
+
+/// `row += w` for one kernel row, as 8-, 4- and 1-lane pieces so that the
+/// compiler emits whole vector adds. Each piece is loaded into registers
+/// before it is stored: after inlining the compiler cannot tell that `row`
+/// and `w` do not overlap, and would otherwise keep the adds scalar.
+#[inline(always)]
+fn add_row<const K: usize>(row: &mut [u32; K], w: &[u32; K]) {
+    let mut i = 0;
+    while i + 8 <= K {
+        let mut r: [u32; 8] = row[i..i + 8].try_into().expect("8 lanes");
+        let v: [u32; 8] = w[i..i + 8].try_into().expect("8 lanes");
+        for l in 0..8 {
+            r[l] = r[l].wrapping_add(v[l]);
+        }
+        row[i..i + 8].copy_from_slice(&r);
+        i += 8;
+    }
+    while i + 4 <= K {
+        let mut r: [u32; 4] = row[i..i + 4].try_into().expect("4 lanes");
+        let v: [u32; 4] = w[i..i + 4].try_into().expect("4 lanes");
+        for l in 0..4 {
+            r[l] = r[l].wrapping_add(v[l]);
+        }
+        row[i..i + 4].copy_from_slice(&r);
+        i += 4;
+    }
+    while i < K {
+        row[i] = row[i].wrapping_add(w[i]);
+        i += 1;
+    }
+}
+
+/// Eight pixels from cell `c` of the haloed H (row stride `s`): the bit
+/// masks of those at or above `thr`, and of those that are also candidates
+/// (strictly above their four earlier neighbours in raster order, at least
+/// their four later ones). Lane-wise, so that it compiles to vector compares.
+#[inline(always)]
+fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
+    let load = |at: usize| -> [u32; 8] { f[at..at + 8].try_into().expect("8 lanes") };
+    let v = load(c);
+    let mut above = 0u32;
+    for (l, &x) in v.iter().enumerate() {
+        above |= u32::from(x >= thr) << l;
+    }
+    if above == 0 {
+        return (0, 0);
+    }
+    let (ul, u, ur, le) = (load(c - s - 1), load(c - s), load(c - s + 1), load(c - 1));
+    let (ri, dl, d, dr) = (load(c + 1), load(c + s - 1), load(c + s), load(c + s + 1));
+    let mut max = 0u32;
+    for l in 0..8 {
+        let m = (v[l] > ul[l])
+            & (v[l] > u[l])
+            & (v[l] > ur[l])
+            & (v[l] > le[l])
+            & (v[l] >= ri[l])
+            & (v[l] >= dl[l])
+            & (v[l] >= d[l])
+            & (v[l] >= dr[l]);
+        max |= u32::from(m) << l;
+    }
+    (above, above & max)
+}
+
+/// [`block8`] with AVX2 compares and move-masks (the compiler's own
+/// vectorisation of the lane loops builds the masks lane by lane). Unsigned
+/// order is signed order after flipping the sign bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn block8_avx2(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
+    use std::arch::x86_64::*;
+    #[target_feature(enable = "avx2")]
+    fn load(f: &[u32], at: usize) -> __m256i {
+        let lanes = &f[at..at + 8];
+        // SAFETY: `lanes` is 8 u32 = 32 readable bytes; the load is unaligned.
+        let v = unsafe { _mm256_loadu_si256(lanes.as_ptr().cast()) };
+        _mm256_xor_si256(v, _mm256_set1_epi32(i32::MIN))
+    }
+    #[target_feature(enable = "avx2")]
+    fn mask(v: __m256i) -> u32 {
+        _mm256_movemask_ps(_mm256_castsi256_ps(v)) as u32
+    }
+    let v = load(f, c);
+    let t = _mm256_set1_epi32((thr ^ 0x8000_0000) as i32);
+    // v ≥ thr ⇔ not (thr > v).
+    let above = !mask(_mm256_cmpgt_epi32(t, v)) & 0xff;
+    if above == 0 {
+        return (0, 0);
+    }
+    let earlier = _mm256_and_si256(
+        _mm256_and_si256(
+            _mm256_cmpgt_epi32(v, load(f, c - s - 1)),
+            _mm256_cmpgt_epi32(v, load(f, c - s)),
+        ),
+        _mm256_and_si256(
+            _mm256_cmpgt_epi32(v, load(f, c - s + 1)),
+            _mm256_cmpgt_epi32(v, load(f, c - 1)),
+        ),
+    );
+    // A later neighbour breaks the maximum only if it is strictly greater.
+    let later_greater = _mm256_or_si256(
+        _mm256_or_si256(
+            _mm256_cmpgt_epi32(load(f, c + 1), v),
+            _mm256_cmpgt_epi32(load(f, c + s - 1), v),
+        ),
+        _mm256_or_si256(
+            _mm256_cmpgt_epi32(load(f, c + s), v),
+            _mm256_cmpgt_epi32(load(f, c + s + 1), v),
+        ),
+    );
+    let max = mask(_mm256_andnot_si256(later_greater, earlier));
+    (above, above & max)
+}
+
+/// Pushes `make(offset + i)` for every set bit i of `bits`, ascending.
+#[inline(always)]
+fn push_bits<T>(out: &mut Vec<T>, mut bits: u32, offset: usize, make: impl Fn(usize) -> T) {
+    while bits != 0 {
+        out.push(make(offset + bits.trailing_zeros() as usize));
+        bits &= bits - 1;
+    }
+}
+
+/// The maximum of a row: eight lane-wise maxima, reduced once.
+#[inline(always)]
+fn row_max(row: &[u32]) -> u32 {
+    let mut lanes = [0u32; 8];
+    let mut blocks = row.chunks_exact(8);
+    for b in &mut blocks {
+        for l in 0..8 {
+            lanes[l] = lanes[l].max(b[l]);
+        }
+    }
+    let tail = blocks.remainder().iter().fold(0, |m, &v| m.max(v));
+    lanes.iter().fold(tail, |m, &v| m.max(v))
 }
 
 /// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.
@@ -344,32 +649,44 @@ where
     sink(back.start_record());
 
     type Batch = (Vec<BitPlane>, Vec<PlaneFront>);
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Batch, E>>(1);
+    let (in_tx, in_rx) = std::sync::mpsc::sync_channel::<Result<Vec<BitPlane>, E>>(1);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
     let worker_cfg = cfg.clone();
+    let reader_cfg = cfg.clone();
+    let batch_len = threads * chunk;
     std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
-        // Producer: reads planes, computes stages 1–4 of a batch of chunks in
-        // parallel, and hands the batch to the back end.
+        // Reader: pulls planes (decoding or simulating them) and masks hot
+        // pixels, overlapped with the workers' stages 1–4 of the batch before.
         scope.spawn(move || {
             let mut planes = planes;
-            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
             loop {
-                let mut batch = Vec::with_capacity(threads * chunk);
-                for _ in 0..threads * chunk {
+                let mut batch = Vec::with_capacity(batch_len);
+                for _ in 0..batch_len {
                     match planes.next() {
-                        Some(Ok(p)) => batch.push(match &worker_cfg.hot_mask {
+                        Some(Ok(p)) => batch.push(match &reader_cfg.hot_mask {
                             Some(m) => m.apply(&p),
                             None => p,
                         }),
                         Some(Err(e)) => {
-                            let _ = tx.send(Err(e));
+                            let _ = in_tx.send(Err(e));
                             return;
                         }
                         None => break,
                     }
                 }
-                if batch.is_empty() {
+                let full = batch.len() == batch_len;
+                if batch.is_empty() || in_tx.send(Ok(batch)).is_err() || !full {
                     return;
                 }
+            }
+        });
+        // Producer: computes stages 1–4 of a batch of chunks in parallel and
+        // hands the batch to the back end; keeps the last N planes for the
+        // next batch's warm-up.
+        let producer = scope.spawn(move || -> Result<(), E> {
+            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
+            for msg in in_rx {
+                let batch = msg?;
                 let fronts = front_ends(&worker_cfg, &history, &batch, chunk);
                 for p in batch.iter().skip(batch.len().saturating_sub(n)) {
                     if history.len() == n {
@@ -377,14 +694,13 @@ where
                     }
                     history.push_back(p.clone());
                 }
-                let full = batch.len() == threads * chunk;
-                if tx.send(Ok((batch, fronts))).is_err() || !full {
-                    return;
+                if tx.send((batch, fronts)).is_err() {
+                    break;
                 }
             }
+            Ok(())
         });
-        for msg in rx {
-            let (batch, fronts) = msg.map_err(ParallelError::Source)?;
+        for (batch, fronts) in rx {
             back.front_end_mut().queue.extend(fronts);
             for plane in &batch {
                 for r in back.push_plane(plane).map_err(ParallelError::Pipeline)? {
@@ -392,7 +708,10 @@ where
                 }
             }
         }
-        Ok(())
+        producer
+            .join()
+            .expect("the front-end producer panicked")
+            .map_err(ParallelError::Source)
     })?;
     for r in back.finish() {
         sink(r);

@@ -2,9 +2,9 @@
 
 use proptest::prelude::*;
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::fast_engine::{fast_pipeline, run_parallel, ParallelError};
+use smartagg_model::fast_engine::{fast_pipeline, run_parallel, FastFrontEnd, ParallelError};
 use smartagg_model::hot_pixel_mask::HotPixelMask;
-use smartagg_model::pipeline::{run, run_with};
+use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd};
 use smartagg_model::plane::BitPlane;
 use smartagg_model::record::Record;
 
@@ -132,6 +132,44 @@ fn saturated_planes_take_the_dense_path_and_match() {
 }
 
 #[test]
+fn sparse_and_dense_paths_are_both_taken_and_agree() {
+    let (w, h, n) = (40, 30, 5);
+    let cfg = PipelineConfig::new(w, h, n, vec![1, 4, 6, 4, 1], 4, 100);
+    let zero = BitPlane::zeros(w, h);
+    // Light planes (about 2 % of pixels on) keep to the sparse path; every
+    // tenth plane half on forces the dense one, twice (entering and leaving).
+    let mut r = Rng(11);
+    let stream: Vec<BitPlane> = (0..60)
+        .map(|t| {
+            let p = if t % 10 == 9 { 0.5 } else { 0.02 };
+            BitPlane::from_fn(w, h, |_, _| r.unit() < p)
+        })
+        .collect();
+    let mut golden = GoldenFrontEnd::new(&cfg);
+    let mut fast = FastFrontEnd::new(&cfg);
+    let mut candidates = 0;
+    for t in 0..stream.len() {
+        let delayed = if t >= n as usize {
+            &stream[t - n as usize]
+        } else {
+            &zero
+        };
+        golden.push(&stream[t], delayed);
+        fast.push(&stream[t], delayed);
+        let h_fast: Vec<u32> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| fast.filtered_at(x, y))
+            .collect();
+        assert_eq!(h_fast, golden.filtered(), "H at plane {t}");
+        assert_eq!(fast.candidates(), golden.candidates(), "plane {t}");
+        candidates += fast.candidates().len();
+    }
+    // 6 half-on planes entering, 5 leaving (the last leaves after the end).
+    assert_eq!(fast.dense_planes(), 11);
+    assert!(candidates > 0, "the threshold must be reached somewhere");
+}
+
+#[test]
 fn source_errors_stop_the_parallel_run() {
     let cfg = PipelineConfig::new(8, 8, 4, vec![1, 2, 1], 2, 8);
     let src = (0..50).map(|t| {
@@ -146,16 +184,139 @@ fn source_errors_stop_the_parallel_run() {
     assert!(matches!(e, ParallelError::Source("disk on fire")));
 }
 
+/// 1-D kernels of the tests: the specialised lengths 3, 5, 1 and 9 (the
+/// SPCImager's), and 17, which takes the any-length path.
+fn kernels() -> Vec<(Vec<u32>, u8)> {
+    let mut k17 = vec![1u32; 17];
+    k17[8] = 16;
+    vec![
+        (vec![1, 2, 1], 2),
+        (vec![1, 4, 6, 4, 1], 4),
+        (vec![16], 4),
+        (vec![2, 9, 26, 49, 84, 49, 26, 9, 2], 8),
+        (k17, 5),
+    ]
+}
+
+/// Random planes with per-plane density drawn from `p_max`, so that some
+/// planes take the sparse path and others (more than 1/8 of the pixels
+/// changing) the dense one.
+fn random_planes(seed: u64, w: usize, h: usize, planes: usize, p_max: f64) -> Vec<BitPlane> {
+    let mut r = Rng(seed);
+    (0..planes)
+        .map(|_| {
+            let p = if r.next().is_multiple_of(3) {
+                r.unit() * p_max
+            } else {
+                r.unit() * 0.03
+            };
+            BitPlane::from_fn(w, h, |_, _| r.unit() < p)
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Stages 1–2 of the fast front end equal the golden ones at every pixel
+    /// of every plane (counts and H), on sparse and dense planes, for every
+    /// kernel path; and the candidates are the same.
+    #[test]
+    fn fast_front_end_equals_golden_stage_outputs(
+        seed in any::<u64>(), w in 1usize..90, h in 1usize..12, planes in 1usize..60,
+        n in 1u32..12, kernel in 0usize..5, p_max in 0.0f64..0.6, thr in 1u32..200,
+    ) {
+        let (k1, shift) = kernels()[kernel].clone();
+        let thr = ((thr as u64 * (1u64 << (2 * shift))) / 16).max(1) as u32;
+        let cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
+        let stream = random_planes(seed, w, h, planes, p_max);
+        let mut golden = GoldenFrontEnd::new(&cfg);
+        let mut fast = FastFrontEnd::new(&cfg);
+        let mut portable = FastFrontEnd::new(&cfg).portable();
+        prop_assert!(!portable.uses_avx2());
+        let zero = BitPlane::zeros(w, h);
+        for t in 0..planes {
+            let delayed = if t >= n as usize { &stream[t - n as usize] } else { &zero };
+            golden.push(&stream[t], delayed);
+            fast.push(&stream[t], delayed);
+            portable.push(&stream[t], delayed);
+            prop_assert_eq!(portable.above(), fast.above());
+            prop_assert_eq!(portable.candidates(), fast.candidates());
+            prop_assert_eq!(portable.dense_planes(), fast.dense_planes());
+            for y in 0..h {
+                for x in 0..w {
+                    prop_assert_eq!(fast.count_at(x, y), golden.counts()[y * w + x], "S at ({}, {}) plane {}", x, y, t);
+                    prop_assert_eq!(fast.filtered_at(x, y), golden.filtered()[y * w + x], "H at ({}, {}) plane {}", x, y, t);
+                    prop_assert_eq!(golden.neighbourhood_on(x, y), fast.neighbourhood_on(x, y));
+                }
+            }
+            let above: Vec<u32> = (0..(w * h) as u32).filter(|&i| golden.filtered()[i as usize] >= thr).collect();
+            prop_assert_eq!(fast.above(), &above[..]);
+            prop_assert_eq!(fast.candidates(), golden.candidates());
+        }
+    }
+
+    /// A front end warmed up on the N planes before a point of the stream
+    /// continues exactly like one that ran from the start.
+    #[test]
+    fn warmed_up_front_end_continues_like_a_running_one(
+        seed in any::<u64>(), w in 1usize..70, h in 1usize..10, n in 1u32..10, start in 0usize..25, p_max in 0.0f64..0.5,
+    ) {
+        let cfg = PipelineConfig::new(w, h, n, vec![1, 4, 6, 4, 1], 4, 40);
+        let planes = start + 10;
+        let stream = random_planes(seed, w, h, planes, p_max);
+        let zero = BitPlane::zeros(w, h);
+        let delayed = |t: usize| if t >= n as usize { &stream[t - n as usize] } else { &zero };
+        let mut running = FastFrontEnd::new(&cfg);
+        for (t, plane) in stream.iter().enumerate().take(start) {
+            running.push(plane, delayed(t));
+        }
+        let mut warmed = FastFrontEnd::warmed_up(&cfg, &stream[start.saturating_sub(n as usize)..start]);
+        for (t, plane) in stream.iter().enumerate().skip(start) {
+            running.push(plane, delayed(t));
+            warmed.push(plane, delayed(t));
+            for y in 0..h {
+                for x in 0..w {
+                    prop_assert_eq!(warmed.filtered_at(x, y), running.filtered_at(x, y));
+                }
+            }
+            prop_assert_eq!(warmed.candidates(), running.candidates());
+        }
+    }
+
+    /// Hot-pixel masking (applied word by word) reads 0 exactly at the masked
+    /// pixels and passes every other pixel unchanged.
+    #[test]
+    fn hot_pixel_mask_zeroes_exactly_the_masked_pixels(
+        seed in any::<u64>(), w in 1usize..150, h in 1usize..6, hot in 0usize..20,
+    ) {
+        let mut r = Rng(seed);
+        let px: Vec<(usize, usize)> = (0..hot).map(|_| ((r.next() % w as u64) as usize, (r.next() % h as u64) as usize)).collect();
+        let (mask, outside) = HotPixelMask::from_pixels(w, h, &px);
+        prop_assert!(outside.is_empty());
+        let plane = BitPlane::from_fn(w, h, |_, _| r.next().is_multiple_of(2));
+        let out = mask.apply(&plane);
+        for y in 0..h {
+            for x in 0..w {
+                let masked = px.contains(&(x, y));
+                prop_assert_eq!(out.get(x, y), plane.get(x, y) && !masked, "pixel ({}, {})", x, y);
+            }
+        }
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
     #[test]
     fn fast_and_parallel_equal_golden_on_random_scenes(
-        seed in any::<u64>(), w in 3usize..24, h in 3usize..20, planes in 1usize..160, n in 1u32..20,
+        seed in any::<u64>(), w in 3usize..72, h in 3usize..16, planes in 1usize..160, n in 1u32..20,
         spots in 0usize..8, p in 0.0f64..0.08, thr in 1u32..400, slots in 1usize..6, l_min in 1u32..8,
-        threads in 1usize..4, chunk in 1usize..50, masked in 0usize..4, kernel in 0usize..3,
+        threads in 1usize..4, chunk in 1usize..50, masked in 0usize..4, kernel in 0usize..5,
     ) {
-        let (k1, shift) = [(vec![1u32, 2, 1], 2u8), (vec![1, 4, 6, 4, 1], 4), (vec![16], 4)][kernel].clone();
+        let (k1, shift) = kernels()[kernel].clone();
+        // Thresholds scaled to the kernel's sum so that every kernel sees blinks.
+        let thr = ((thr as u64 * (1u64 << (2 * shift))) / 16).max(1) as u32;
         let mut cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
         cfg.slots = slots;
         cfg.l_min = l_min;

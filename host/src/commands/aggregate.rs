@@ -93,7 +93,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let pb = progress.clone();
             let planes = reader.inspect(move |_| pb.inc(1));
             let mut failed: Option<anyhow::Error> = None;
-            run_parallel(cfg.clone(), planes, threads, 1024, |r| {
+            run_parallel(cfg.clone(), planes, threads, 512, |r| {
                 if failed.is_none() {
                     if let Err(e) = write_record(r, &mut summary) {
                         failed = Some(e);

@@ -1,7 +1,10 @@
 //! `smartagg bench aggregate`: golden and fast engines side by side on the
 //! same simulated bit-planes, at typical SMLM density and a dense worst case.
-//! Prints planes/s and Mpixel/s, checks the bytes are identical, and (with
-//! `--stream`) shows that memory stays flat over a long streamed run.
+//! Prints planes/s and Mpixel/s (wall clock) and planes per CPU-second (the
+//! rate one free core would give: the machine may be shared), checks that the
+//! bytes are identical, and gives the 1- vs T-thread speed-up. With
+//! `--stream` it streams `--planes` planes through the fast engine and prints
+//! the resident memory as it goes, to show that it stays flat.
 
 use crate::setup::{self, PipelineArgs};
 use smartagg_model::config::PipelineConfig;
@@ -16,17 +19,23 @@ use smartagg_scene::scene::{Blinking, Layout, OnTime, Scene};
 use smartagg_scene::spad::SpadSimulator;
 use std::time::Instant;
 
+/// Planes per time chunk of the parallel engine (as `smartagg aggregate`).
+const CHUNK: usize = 512;
+
 /// Arguments of `smartagg bench aggregate`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     pub pipeline: PipelineArgs,
-    /// Planes per measurement (the golden engine runs on at most `--golden-planes`).
+    /// Planes per measurement of the fast engine (with `--stream`: planes streamed).
     #[arg(long, default_value_t = 3000)]
-    pub planes: usize,
+    pub planes: u64,
     /// Planes for the (slow) golden engine.
     #[arg(long, default_value_t = 300)]
     pub golden_planes: usize,
+    /// Worker threads of the multi-threaded run (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
     /// Field width (default: the sensor).
     #[arg(long)]
     pub width: Option<u32>,
@@ -36,10 +45,15 @@ pub struct Args {
     /// Random seed of the simulated scene.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Instead: stream this many planes from the simulator through the fast
-    /// engine (2 threads) and print the resident memory as it goes.
+    /// Instead: stream `--planes` planes through the fast engine (`--threads`
+    /// workers) and print the resident memory at intervals. The planes are a
+    /// pool of simulated planes replayed cyclically, so the generator costs
+    /// only a copy per plane and holds a fixed amount of memory.
     #[arg(long)]
-    pub stream: Option<u64>,
+    pub stream: bool,
+    /// Planes simulated for the `--stream` pool.
+    #[arg(long, default_value_t = 1024)]
+    pub pool: usize,
 }
 
 fn simulate(
@@ -69,18 +83,62 @@ fn parallel(
         cfg.clone(),
         planes.iter().cloned().map(Ok),
         threads,
-        1024,
+        CHUNK,
         |r| out.push(r),
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(out)
 }
 
-fn rss_mib() -> Option<f64> {
+/// A `/proc/self/status` field in MiB (VmRSS: resident now, VmHWM: peak).
+fn status_mib(field: &str) -> Option<f64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let line = s.lines().find(|l| l.starts_with(field))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
+}
+
+/// CPU seconds used by the whole process so far, all threads (user + system),
+/// from `/proc/self/stat` in clock ticks of 1/100 s; `None` off Linux.
+fn cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let rest = &s[s.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = f.get(11)?.parse().ok()?;
+    let stime: f64 = f.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+/// The 1-minute load average, to judge how shared the machine was.
+fn load_average() -> Option<String> {
+    let s = std::fs::read_to_string("/proc/loadavg").ok()?;
+    Some(s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+}
+
+/// Wall and CPU time of one measurement.
+struct Timing {
+    wall: Instant,
+    cpu: Option<f64>,
+}
+
+impl Timing {
+    fn start() -> Timing {
+        Timing {
+            wall: Instant::now(),
+            cpu: cpu_seconds(),
+        }
+    }
+
+    /// (planes per wall second, planes per CPU-second).
+    fn rates(&self, planes: usize) -> (f64, Option<f64>) {
+        let wall = planes as f64 / self.wall.elapsed().as_secs_f64().max(1e-9);
+        let cpu = match (self.cpu, cpu_seconds()) {
+            (Some(a), Some(b)) if b > a => Some(planes as f64 / (b - a)),
+            _ => None,
+        };
+        (wall, cpu)
+    }
 }
 
 /// Runs the benchmark.
@@ -93,9 +151,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (w, h) = (args.width.unwrap_or(sw), args.height.unwrap_or(sh));
     let cfg = setup::pipeline_config(&args.pipeline, w, h, 100_000)?;
     println!("{}", setup::describe(&cfg));
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = args.threads.unwrap_or(cores).max(1);
+    println!(
+        "load average at start: {} ({cores} cores)",
+        load_average().unwrap_or_else(|| "unknown".into())
+    );
     let typical = Scene::smlm(&preset).with_field(w, h);
-    if let Some(n) = args.stream {
-        return stream(&preset, &typical, &cfg, n, args.seed);
+    if args.stream {
+        return stream(&preset, &typical, &cfg, &args, threads);
     }
     let dense = Scene {
         layout: Layout::Random {
@@ -107,84 +171,114 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..typical.clone()
     };
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let planes_n = usize::try_from(args.planes)?.max(args.golden_planes).max(1);
     println!(
-        "{:<10} {:<22} {:>8} {:>12} {:>11} {:>8} {:>10}",
-        "scene", "engine", "planes", "planes/s", "Mpixel/s", "vs gold", "bytes"
+        "{:<8} {:<20} {:>7} {:>10} {:>9} {:>11} {:>8} {:>8}",
+        "scene", "engine", "planes", "planes/s", "Mpixel/s", "planes/CPUs", "vs gold", "bytes"
     );
+    let mpix = |rate: f64| rate * (w as f64 * h as f64) / 1e6;
     for (name, scene) in [("typical", &typical), ("dense", &dense)] {
-        let planes = simulate(
-            &preset,
-            scene,
-            args.planes.max(args.golden_planes),
-            args.seed,
-        )?;
+        let planes = simulate(&preset, scene, planes_n, args.seed)?;
         let on = scene.expected_on(&preset.camera).unwrap_or(0.0);
         let gp = &planes[..args.golden_planes.min(planes.len())];
-        let t = Instant::now();
+        let t = Timing::start();
         let golden = run_with(Pipeline::new(cfg.clone())?, gp.iter().cloned())?;
-        let golden_rate = gp.len() as f64 / t.elapsed().as_secs_f64();
+        let (golden_rate, golden_cpu) = t.rates(gp.len());
         let golden_bytes = bytes_of(&golden)?;
-        let row = |engine: &str, n: usize, rate: f64, bytes: usize| {
+        let row = |engine: &str, n: usize, (rate, cpu): (f64, Option<f64>), bytes: usize| {
             println!(
-                "{:<10} {:<22} {:>8} {:>12.0} {:>11.1} {:>7.1}x {:>10}",
+                "{:<8} {:<20} {:>7} {:>10.0} {:>9.1} {:>11} {:>7.1}x {:>8}",
                 name,
                 engine,
                 n,
                 rate,
-                rate * (w as f64 * h as f64) / 1e6,
+                mpix(rate),
+                cpu.map_or("-".into(), |c| format!("{c:.0}")),
                 rate / golden_rate,
                 bytes
             );
         };
-        row("golden", gp.len(), golden_rate, golden_bytes.len());
+        row(
+            "golden",
+            gp.len(),
+            (golden_rate, golden_cpu),
+            golden_bytes.len(),
+        );
         // The fast engines on the golden planes: bytes must be identical.
         let fast_same = run_with(fast_pipeline(cfg.clone())?, gp.iter().cloned())?;
-        let par_same = parallel(&cfg, gp, cores)?;
+        let par_same = parallel(&cfg, gp, threads.max(2))?;
         if bytes_of(&fast_same)? != golden_bytes || bytes_of(&par_same)? != golden_bytes {
             anyhow::bail!(
                 "the fast engine's bytes differ from the golden model's on the {name} scene"
             );
         }
-        // Stages 1–4 alone, to show where the time goes.
-        let t = Instant::now();
-        let mut fe = FastFrontEnd::new(&cfg);
+        // Stages 1–4 alone, to show where the time goes (and what AVX2 adds).
         let zero = BitPlane::zeros(w as usize, h as usize);
         let n = cfg.n_window as usize;
-        for (i, p) in planes.iter().enumerate() {
-            fe.push(p, if i >= n { &planes[i - n] } else { &zero });
+        let simd = FastFrontEnd::new(&cfg).uses_avx2();
+        for (label, portable) in [("stages 1-4", false), ("stages 1-4 portable", true)] {
+            if portable && !simd {
+                continue;
+            }
+            let t = Timing::start();
+            let mut fe = FastFrontEnd::new(&cfg);
+            if portable {
+                fe = fe.portable();
+            }
+            for (i, p) in planes.iter().enumerate() {
+                fe.push(p, if i >= n { &planes[i - n] } else { &zero });
+            }
+            let rates = t.rates(planes.len());
+            let label = if simd && !portable {
+                format!("{label} avx2")
+            } else {
+                label.to_string()
+            };
+            row(&label, planes.len(), rates, 0);
+            if !portable {
+                println!(
+                    "{:<8} {} of {} planes filtered densely (more than 1/8 of the pixels changed)",
+                    "",
+                    fe.dense_planes(),
+                    planes.len()
+                );
+            }
         }
-        row(
-            "stages 1-4 only",
-            planes.len(),
-            planes.len() as f64 / t.elapsed().as_secs_f64(),
-            0,
-        );
-        let t = Instant::now();
+        let t = Timing::start();
         let fast = run_with(fast_pipeline(cfg.clone())?, planes.iter().cloned())?;
+        let single = t.rates(planes.len());
         row(
             "fast, 1 thread",
             planes.len(),
-            planes.len() as f64 / t.elapsed().as_secs_f64(),
+            single,
             bytes_of(&fast)?.len(),
         );
-        for threads in [1, 2, cores]
+        // Chunked runs: x1 overlaps one worker with the reader and the
+        // sequential back end; xT adds workers.
+        let mut chunked = vec![(0, single.0)];
+        for th in [1, threads]
             .into_iter()
             .collect::<std::collections::BTreeSet<_>>()
         {
-            let t = Instant::now();
-            let par = parallel(&cfg, &planes, threads)?;
-            let rate = planes.len() as f64 / t.elapsed().as_secs_f64();
+            let t = Timing::start();
+            let par = parallel(&cfg, &planes, th)?;
+            let rates = t.rates(planes.len());
             if par != fast {
-                anyhow::bail!(
-                    "parallel run ({threads} threads) differs from the single-threaded one"
-                );
+                anyhow::bail!("parallel run ({th} threads) differs from the single-threaded one");
             }
             row(
-                &format!("fast, chunked x{threads}"),
+                &format!("fast, chunked x{th}"),
                 planes.len(),
-                rate,
+                rates,
                 bytes_of(&par)?.len(),
+            );
+            chunked.push((th, rates.0));
+        }
+        if let Some(&(tn, many)) = chunked.last() {
+            println!(
+                "{:<8} speed-up, chunked x{tn} over the single-threaded fast engine (wall, same run): {:.2}x",
+                "",
+                many / single.0
             );
         }
         let blinks = fast
@@ -196,11 +290,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             _ => None,
         });
         println!(
-            "{:<10} about {:.1} molecules on at a time; {} blinks, {:?}; golden bytes identical: yes",
-            "", on, blinks, end.map(|e| (e.unconfirmed, e.dropped_candidates))
+            "{:<8} about {:.1} molecules on at a time; {} blinks; unconfirmed {}, dropped candidates {}; golden bytes identical: yes",
+            "",
+            on,
+            blinks,
+            end.as_ref().map_or(0, |e| e.unconfirmed),
+            end.as_ref().map_or(0, |e| e.dropped_candidates)
         );
     }
-    println!("(real time for the SPCImager: 10,000 planes/s; {cores} cores available)");
+    println!(
+        "(real time for the SPCImager: 10,000 planes/s; planes/CPUs = planes per CPU-second of all threads; load average now {})",
+        load_average().unwrap_or_else(|| "unknown".into())
+    );
     Ok(())
 }
 
@@ -208,14 +309,18 @@ fn stream(
     preset: &Preset,
     scene: &Scene,
     cfg: &PipelineConfig,
-    planes: u64,
-    seed: u64,
+    args: &Args,
+    threads: usize,
 ) -> anyhow::Result<()> {
-    let Camera::Spad(cam) = &preset.camera else {
-        anyhow::bail!("bench aggregate needs a bit-plane (SPAD) preset");
-    };
-    let mut sim = SpadSimulator::new(cam, scene, seed)?;
-    let t = Instant::now();
+    let planes = args.planes;
+    let pool_len = args.pool.max(1);
+    let t = Timing::start();
+    let pool = simulate(preset, scene, pool_len, args.seed)?;
+    println!(
+        "pool of {pool_len} simulated planes in {:.1} s; streaming {planes} planes through the fast engine on {threads} threads (chunks of {CHUNK})",
+        t.wall.elapsed().as_secs_f64()
+    );
+    let t = Timing::start();
     let report_every = (planes / 10).max(1);
     let mut done = 0u64;
     let mut records = 0u64;
@@ -223,27 +328,31 @@ fn stream(
     let mut packetiser = Packetiser::new();
     let mut buf = Vec::new();
     println!(
-        "{:>12} {:>10} {:>12} {:>10}",
-        "planes", "seconds", "planes/s", "RSS MiB"
+        "{:>10} {:>8} {:>10} {:>11} {:>8} {:>8}",
+        "planes", "seconds", "planes/s", "planes/CPUs", "RSS MiB", "HWM MiB"
     );
+    let mib = |f: &str| status_mib(f).map_or("-".into(), |v| format!("{v:.1}"));
     let src = std::iter::from_fn(|| {
         if done == planes {
             return None;
         }
+        let plane = pool[(done % pool_len as u64) as usize].clone();
         done += 1;
         if done.is_multiple_of(report_every) {
-            let s = t.elapsed().as_secs_f64();
+            let (rate, cpu) = t.rates(done as usize);
             println!(
-                "{:>12} {:>10.1} {:>12.0} {:>10.1}",
+                "{:>10} {:>8.1} {:>10.0} {:>11} {:>8} {:>8}",
                 done,
-                s,
-                done as f64 / s,
-                rss_mib().unwrap_or(f64::NAN)
+                t.wall.elapsed().as_secs_f64(),
+                rate,
+                cpu.map_or("-".into(), |c| format!("{c:.0}")),
+                mib("VmRSS:"),
+                mib("VmHWM:")
             );
         }
-        Some(Ok::<_, std::convert::Infallible>(sim.next_plane()))
+        Some(Ok::<_, std::convert::Infallible>(plane))
     });
-    run_parallel(cfg.clone(), src, 2, 1024, |r| {
+    run_parallel(cfg.clone(), src, threads, CHUNK, |r| {
         records += 1;
         buf.clear();
         if packetiser.push(&r, &mut buf).is_ok() {
@@ -251,6 +360,9 @@ fn stream(
         }
     })
     .map_err(|e| anyhow::anyhow!("{e}"))?;
-    println!("{records} records, {bytes} bytes; simulation and aggregation together (simulator included in the rate)");
+    println!(
+        "{records} records, {bytes} bytes of packets; planes counted when read, so the rate includes the replay copy; load average now {}",
+        load_average().unwrap_or_else(|| "unknown".into())
+    );
     Ok(())
 }
