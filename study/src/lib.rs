@@ -67,6 +67,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod experiment;
 pub mod frames;
 pub mod item;
 pub mod matching;

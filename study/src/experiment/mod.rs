@@ -1,0 +1,62 @@
+//! The paper's experiment (§4.1, Figs. 4 right, 5, 6, 7) and the detection
+//! statistics of §3, in simulation: `nanoruler`, `emccd-frames`,
+//! `blink-durations` and `detection`. Each writes a CSV of every point, a
+//! PNG and a Markdown summary like the other studies, but runs as one job
+//! (no shards): these are single recordings or small sweeps.
+
+pub mod common;
+pub mod nanoruler;
+pub mod notes;
+
+use crate::error::StudyError;
+use std::path::{Path, PathBuf};
+
+/// The experiment studies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Experiment {
+    /// Nanorulers imaged by the SPCIMAGER and an EMCCD behind a splitter.
+    Nanoruler,
+}
+
+impl Experiment {
+    /// Every experiment study.
+    pub const ALL: [Experiment; 1] = [Experiment::Nanoruler];
+
+    /// Command-line name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Experiment::Nanoruler => "nanoruler",
+        }
+    }
+
+    /// The study called `s`, if it is an experiment study.
+    pub fn parse(s: &str) -> Option<Experiment> {
+        Experiment::ALL.into_iter().find(|e| e.as_str() == s)
+    }
+}
+
+/// Options shared by the experiment studies.
+#[derive(Debug, Clone, Copy)]
+pub struct ExperimentOptions {
+    /// Master seed.
+    pub seed: u64,
+    /// Smaller run (tests).
+    pub quick: bool,
+    /// Blinks per point (studies with points), default when `None`.
+    pub blinks_per_point: Option<u32>,
+}
+
+/// Runs `exp` and writes its outputs to `out`; returns the files written
+/// and warnings (a plot that could not be drawn).
+pub fn run(
+    exp: Experiment,
+    o: &ExperimentOptions,
+    out: &Path,
+) -> Result<(Vec<PathBuf>, Vec<String>), StudyError> {
+    match exp {
+        Experiment::Nanoruler => {
+            let r = nanoruler::compute(&nanoruler::NanorulerOptions::new(o.seed, o.quick))?;
+            nanoruler::write(out, &r)
+        }
+    }
+}

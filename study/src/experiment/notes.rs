@@ -1,0 +1,5 @@
+//! Where the experiment studies differ from the paper, and why (filled in
+//! from measured runs).
+
+/// Notes of the `nanoruler` study.
+pub const NANORULER: &str = "(to be written from the measured runs)";
