@@ -41,6 +41,9 @@ pub const DENSITY_RADIUS_NM: f64 = 30.0;
 pub const DENSITY_MIN: usize = 3;
 /// Localisations this close to a ruler's centre belong to it, nm.
 pub const RULER_RADIUS_NM: f64 = 160.0;
+/// Light of the sample relative to the study's: twice, so that each camera
+/// behind the 50/50 splitter gets the study's light.
+pub const SOURCE: f64 = 2.0;
 /// Truth matching radius, nm.
 pub const MATCH_NM: f64 = 53.3;
 /// Field side in the sample, nm (48 SPCIMAGER or 24 EMCCD pixels at 150×).
@@ -56,7 +59,16 @@ const RULER_CENTRES: [(f64, f64); 6] = [
 ];
 
 /// The schemes compared.
-pub const SCHEMES: [&str; 3] = ["EMCCD 64 ms frames", "SPCIMAGER fixed 640 planes", "SPCIMAGER smart"];
+pub const SCHEMES: [&str; 4] = [
+    "EMCCD 64 ms frames",
+    "SPCIMAGER fixed 640 planes",
+    "SPCIMAGER smart",
+    "SPCIMAGER smart r_assoc 3",
+];
+
+/// Association radius of the second smart scheme (the demo's choice: about
+/// 2σ, one track per blink where the local maximum wanders).
+pub const WIDE_R_ASSOC: u32 = 3;
 
 /// Options of the nanoruler study.
 #[derive(Debug, Clone, Copy)]
@@ -145,7 +157,7 @@ pub struct NanorulerResult {
     /// Every marker found.
     pub markers: Vec<Marker>,
     /// Smart aggregation's N, T_int, L_min.
-    pub smart_params: (u32, u32, u32),
+    pub smart_params: (u32, u32, u32, u32),
 }
 
 impl NanorulerResult {
@@ -284,19 +296,19 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
         })
         .collect();
 
-    // SPCIMAGER behind the splitter: half the light, statistics for it.
-    let mut spad = Preset::new(PresetName::Spcimager, 150)?;
-    spad.light.flux_hz *= 0.5;
-    spad.light.background_per_um2_hz *= 0.5;
+    // Behind the splitter each camera gets half of the sample's light; the
+    // sample is set so that this half is the study's light (50,000
+    // photons/s per molecule, 70,000 photons/s/µm² background), the levels
+    // the paper inferred from its camera outputs and fed to its simulations.
+    let spad = Preset::new(PresetName::Spcimager, 150)?;
     let spad_px = spad.pixel_nm();
     let spad_side = (FIELD_NM / spad_px).round() as u32;
     let (_, cfg) = smart_config(&spad, spad_side, None)?;
+    let (_, cfg_wide) = smart_config(&spad, spad_side, Some(WIDE_R_ASSOC))?;
     let Camera::Spad(spad_cam) = spad.camera.clone() else {
         unreachable!("SPCIMAGER is a SPAD")
     };
     let mut emccd = Preset::new(PresetName::Emccd, 150)?;
-    emccd.light.flux_hz *= 0.5;
-    emccd.light.background_per_um2_hz *= 0.5;
     let em_cam = emccd_experiment(&mut emccd)?;
     let em_px = emccd.pixel_nm();
     let em_side = (FIELD_NM / em_px).round() as u32;
@@ -305,8 +317,8 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
     let planes = (opts.seconds / spad_cam.plane_period_s).round() as u64;
     let period = spad_cam.plane_period_s;
 
-    let spad_scene = explicit_scene(&spad, spad_side, spad_side, 1.0, blinks.clone());
-    let em_scene = explicit_scene(&emccd, em_side, em_side, 1.0, blinks.clone());
+    let spad_scene = explicit_scene(&spad, spad_side, spad_side, SOURCE * 0.5, blinks.clone());
+    let em_scene = explicit_scene(&emccd, em_side, em_side, SOURCE * 0.5, blinks.clone());
     let (spad_res, em_res) = rayon::join(
         || -> Result<_, StudyError> {
             let t = Instant::now();
@@ -315,7 +327,7 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
                 &spad_scene,
                 seed_spad,
                 planes,
-                std::slice::from_ref(&cfg),
+                &[cfg.clone(), cfg_wide.clone()],
                 Some(640),
             )?;
             let shared = run.simulate_s;
@@ -327,7 +339,15 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
                 spad.sigma_px(),
                 period,
             );
-            let smart_s = run.pipeline_s + a.elapsed().as_secs_f64();
+            let (wide, _, wide_failed) = fit_records(
+                &run.records[1],
+                spad_side,
+                spad_px,
+                spad.sigma_px(),
+                period,
+            );
+            // The two pipelines ran on the same planes: half the pipeline time each.
+            let smart_s = run.pipeline_s / 2.0 + a.elapsed().as_secs_f64() / 2.0;
             let a = Instant::now();
             let fixed = localize_frames(
                 &run.frames,
@@ -343,6 +363,7 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
             let _ = t;
             Ok((
                 (smart, run.records[0].len(), smart_failed, shared + smart_s),
+                (wide, run.records[1].len(), wide_failed, shared + smart_s),
                 (fixed, shared + fixed_s),
             ))
         },
@@ -363,14 +384,11 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
             Ok((l, sim_s + a.elapsed().as_secs_f64()))
         },
     );
-    let ((smart, fixed), em) = (spad_res?, em_res?);
-    let ((smart_locs, smart_n, smart_failed, smart_s), ((fl, fc, ff), fixed_s)) = (smart, fixed);
+    let ((smart, wide, fixed), em) = (spad_res?, em_res?);
+    let ((fl, fc, ff), fixed_s) = fixed;
     let ((el, ec, ef), em_s) = em;
-    let inputs: [(Vec<TLoc>, usize, usize, f64); 3] = [
-        (el, ec, ef, em_s),
-        (fl, fc, ff, fixed_s),
-        (smart_locs, smart_n, smart_failed, smart_s),
-    ];
+    let inputs: [(Vec<TLoc>, usize, usize, f64); 4] =
+        [(el, ec, ef, em_s), (fl, fc, ff, fixed_s), smart, wide];
     let mut schemes = Vec::new();
     let mut markers = Vec::new();
     for (s, (locs, detections, failed, seconds)) in inputs.into_iter().enumerate() {
@@ -471,7 +489,7 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
         blinks: blinks.len(),
         schemes,
         markers,
-        smart_params: (cfg.n_window, cfg.threshold_int, cfg.l_min),
+        smart_params: (cfg.n_window, cfg.threshold_int, cfg.l_min, cfg.r_assoc),
     })
 }
 
@@ -534,7 +552,7 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
     let o = &r.opts;
     let _ = writeln!(m, "# Study `nanoruler`: GATTA-PAINT 80G rulers, EMCCD vs SPCIMAGER fixed vs smart (paper Figs. 6, 7)\n");
     let _ = writeln!(m, "![nanoruler](nanoruler.png)\n\n## Set-up\n");
-    let (n, t, l) = r.smart_params;
+    let (n, t, l, ra) = r.smart_params;
     let _ = writeln!(
         m,
         "- **Sample**: {} rulers (3 markers {SPACING_NM} nm apart, random orientation) on a {:.0} nm field; every marker switches independently, on Exp({:.0} ms), off Exp({:.1} s); {:.0} s acquisition, {} true blinks ({:.0} per marker). Both cameras see the same blinks (explicit blinks of the scene simulator).",
@@ -546,10 +564,10 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
         r.blinks,
         r.blinks as f64 / (3 * r.rulers.len()) as f64
     );
-    let _ = writeln!(m, "- **50/50 splitter**: each camera gets half the molecule photons (25,000/s) and half the background (35,000 photons/s/µm²), at 150×.");
+    let _ = writeln!(m, "- **50/50 splitter**: the sample gives 100,000 photons/s per molecule and 140,000 photons/s/µm² of background; each camera gets half, the study's 50,000/s and 70,000/s/µm² (the paper fed the levels it inferred from its camera outputs into its simulations, which use these). At half of the study's light the SPCIMAGER would need N = 326 and L_min = 613 planes (61 ms) and would detect 16 % of these 30 ms blinks (measured), so the split is applied to a sample twice as bright. 150× objective.");
     let _ = writeln!(m, "- **EMCCD**: 24×24 pixels of 106.7 nm, 64 ms frames with 34 ms exposure (30 ms dead time), ThunderSTORM detection, EMCCD Poisson MLE (σ fitted), no merging.");
     let _ = writeln!(m, "- **SPCIMAGER fixed**: 48×48 pixels of 53.3 nm, the same bit-planes summed in 640-plane (64 ms) frames, ThunderSTORM detection, Poisson MLE.");
-    let _ = writeln!(m, "- **SPCIMAGER smart**: the model's pipeline (fast engine) and packet path on the same bit-planes, N = {n}, T_int = {t} from the paper's statistics for the halved light, L_min = {l} planes from the false-alarm statistics (1 false blink/s over the field), r_assoc = model default; every record's 9×9 ROI fitted with the Poisson MLE (σ fitted).");
+    let _ = writeln!(m, "- **SPCIMAGER smart**: the model's pipeline (fast engine) and packet path on the same bit-planes, N = {n}, T_int = {t} from the paper's statistics for the light reaching it, L_min = {l} planes from the false-alarm statistics (1 false blink/s over the field), r_assoc = {ra} px (the model's default); **SPCIMAGER smart r_assoc 3**: the same with r_assoc = {WIDE_R_ASSOC} px (the demo's choice), on the same bit-planes; every record's 9×9 ROI fitted with the Poisson MLE (σ fitted).");
     let _ = writeln!(m, "- **Analysis** (no truth used): density filter keeps localisations with ≥ {DENSITY_MIN} others within {DENSITY_RADIUS_NM} nm; localisations within {RULER_RADIUS_NM} nm of a ruler's centre belong to it; principal axis; 1-D k-means (3 clusters) along it; marker = cluster centroid; spread = per-axis standard deviation about it; neighbour distances between consecutive centroids.");
     let _ = writeln!(m, "- **Truth matching** (for detection, FP and RMS only): a localisation matches a blink within {MATCH_NM} nm whose on-time overlaps its data's time span (record's planes, frame exposure); nearest wins; unmatched detections are false positives.\n");
     let _ = writeln!(m, "## Results\n");
@@ -582,7 +600,7 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
         );
     }
     let _ = writeln!(m, "\nTimes are wall seconds of one worker: EMCCD simulation + fits; SPAD simulation (shared) + pipeline + fits for smart, + frame fits for fixed. Every marker and distance is in `points.csv` and `distances.csv`; the filtered localisations in `locs.csv`.\n");
-    let _ = writeln!(m, "### Spread per marker (nm)\n\n| ruler | marker | EMCCD | fixed | smart |\n|---|---|---|---|---|");
+    let _ = writeln!(m, "### Spread per marker (nm)\n\n| ruler | marker | EMCCD | fixed | smart | smart r_assoc 3 |\n|---|---|---|---|---|---|");
     for ruler in 0..r.rulers.len() {
         for k in 0..3 {
             let get = |s: usize| {
@@ -592,29 +610,39 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
                     .map(|mk| format!("{:.1} ({} locs)", mk.spread_nm, mk.locs))
                     .unwrap_or_else(|| "—".into())
             };
-            let _ = writeln!(m, "| {ruler} | {k} | {} | {} | {} |", get(0), get(1), get(2));
+            let _ = writeln!(
+                m,
+                "| {ruler} | {k} | {} | {} | {} | {} |",
+                get(0),
+                get(1),
+                get(2),
+                get(3)
+            );
         }
     }
-    let sp: Vec<Option<f64>> = (0..3).map(|s| r.median_spread(s)).collect();
-    let dd: Vec<Option<f64>> = (0..3).map(|s| r.median_distance(s)).collect();
+    let sp: Vec<Option<f64>> = (0..4).map(|s| r.median_spread(s)).collect();
+    let dd: Vec<Option<f64>> = (0..4).map(|s| r.median_distance(s)).collect();
     let _ = writeln!(m, "\n## The paper's claims on this run\n");
-    let smaller = matches!((sp[2], sp[1], sp[0]), (Some(a), Some(b), Some(c)) if a < b && a < c);
-    let _ = writeln!(
-        m,
-        "- **{}** — smart aggregation gives a smaller marker spread than fixed aggregation and EMCCD: median spread {} nm (smart) vs {} nm (fixed) and {} nm (EMCCD).",
-        if smaller { "holds" } else { "does not hold" },
-        fmt(sp[2]),
-        fmt(sp[1]),
-        fmt(sp[0])
-    );
+    for (s, what) in [(2, "smart"), (3, "smart with r_assoc 3")] {
+        let smaller = matches!((sp[s], sp[1], sp[0]), (Some(a), Some(b), Some(c)) if a < b && a < c);
+        let _ = writeln!(
+            m,
+            "- **{}** — {what} gives a smaller marker spread than fixed aggregation and EMCCD: median spread {} nm ({what}) vs {} nm (fixed) and {} nm (EMCCD).",
+            if smaller { "holds" } else { "does not hold" },
+            fmt(sp[s]),
+            fmt(sp[1]),
+            fmt(sp[0])
+        );
+    }
     let near = dd.iter().all(|d| d.is_some_and(|d| (d - SPACING_NM).abs() <= 5.0));
     let _ = writeln!(
         m,
-        "- **{}** — median neighbour distances within a few nm (here ≤ 5 nm) of 80 nm for every scheme: EMCCD {}, fixed {}, smart {} nm.",
+        "- **{}** — median neighbour distances within a few nm (here ≤ 5 nm) of 80 nm for every scheme: EMCCD {}, fixed {}, smart {}, smart r_assoc 3 {} nm.",
         if near { "holds" } else { "does not hold" },
         fmt(dd[0]),
         fmt(dd[1]),
-        fmt(dd[2])
+        fmt(dd[2]),
+        fmt(dd[3])
     );
     let _ = writeln!(m, "\n## Where this differs from the paper, and why\n");
     let _ = writeln!(m, "{}", super::notes::NANORULER);
@@ -625,10 +653,10 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
 }
 
 fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
-    let root = BitMapBackend::new(path, (1500, 1000)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1600, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let (top, bottom) = root.split_vertically(500);
-    let imgs = top.split_evenly((1, 3));
+    let (top, bottom) = root.split_vertically(420);
+    let imgs = top.split_evenly((1, 4));
     let panels = bottom.split_evenly((1, 3));
     // Fig. 6: one ruler per scheme, rendered (Gaussian of 8 nm per
     // localisation, 4 nm pixels), and its cross-section along the axis.
@@ -781,7 +809,7 @@ fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
         .y_desc("spread σ per axis (nm)")
         .draw()
         .map_err(|e| plot_err(path, e))?;
-    for s in 0..3 {
+    for s in 0..SCHEMES.len() {
         let col = colour(s);
         chart
             .draw_series(
@@ -813,14 +841,14 @@ fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(55)
-        .build_cartesian_2d(-0.5..2.5, lo..hi)
+        .build_cartesian_2d(-0.5..3.5, lo..hi)
         .map_err(|e| plot_err(path, e))?;
     chart
         .configure_mesh()
-        .x_labels(3)
+        .x_labels(4)
         .x_label_formatter(&|x: &f64| {
             let i = x.round() as i64;
-            ["EMCCD", "fixed", "smart"]
+            ["EMCCD", "fixed", "smart", "smart r3"]
                 .get(i as usize)
                 .filter(|_| (x - i as f64).abs() < 0.01)
                 .map_or(String::new(), |s| s.to_string())
@@ -830,7 +858,7 @@ fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
         .map_err(|e| plot_err(path, e))?;
     chart
         .draw_series(std::iter::once(PathElement::new(
-            vec![(-0.5, SPACING_NM), (2.5, SPACING_NM)],
+            vec![(-0.5, SPACING_NM), (3.5, SPACING_NM)],
             BLACK.stroke_width(1),
         )))
         .map_err(|e| plot_err(path, e))?;
