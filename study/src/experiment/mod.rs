@@ -5,6 +5,7 @@
 //! (no shards): these are single recordings or small sweeps.
 
 pub mod common;
+pub mod emccd_frames;
 pub mod nanoruler;
 pub mod notes;
 
@@ -16,16 +17,19 @@ use std::path::{Path, PathBuf};
 pub enum Experiment {
     /// Nanorulers imaged by the SPCIMAGER and an EMCCD behind a splitter.
     Nanoruler,
+    /// EMCCD error against blink duration, merged or not (Fig. 4 right).
+    EmccdFrames,
 }
 
 impl Experiment {
     /// Every experiment study.
-    pub const ALL: [Experiment; 1] = [Experiment::Nanoruler];
+    pub const ALL: [Experiment; 2] = [Experiment::Nanoruler, Experiment::EmccdFrames];
 
     /// Command-line name.
     pub fn as_str(self) -> &'static str {
         match self {
             Experiment::Nanoruler => "nanoruler",
+            Experiment::EmccdFrames => "emccd-frames",
         }
     }
 
@@ -57,6 +61,10 @@ pub fn run(
         Experiment::Nanoruler => {
             let r = nanoruler::compute(&nanoruler::NanorulerOptions::new(o.seed, o.quick))?;
             nanoruler::write(out, &r)
+        }
+        Experiment::EmccdFrames => {
+            let r = emccd_frames::compute(o.seed, o.quick, o.blinks_per_point)?;
+            emccd_frames::write(out, &r)
         }
     }
 }

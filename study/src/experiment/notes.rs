@@ -3,3 +3,6 @@
 
 /// Notes of the `nanoruler` study.
 pub const NANORULER: &str = "(to be written from the measured runs)";
+
+/// Notes of the `emccd-frames` study.
+pub const EMCCD_FRAMES: &str = "(to be written from the measured runs)";
