@@ -4,6 +4,7 @@
 //! PNG and a Markdown summary like the other studies, but runs as one job
 //! (no shards): these are single recordings or small sweeps.
 
+pub mod blink_durations;
 pub mod common;
 pub mod emccd_frames;
 pub mod nanoruler;
@@ -19,17 +20,24 @@ pub enum Experiment {
     Nanoruler,
     /// EMCCD error against blink duration, merged or not (Fig. 4 right).
     EmccdFrames,
+    /// Estimated blink durations against the truth (Fig. 5).
+    BlinkDurations,
 }
 
 impl Experiment {
     /// Every experiment study.
-    pub const ALL: [Experiment; 2] = [Experiment::Nanoruler, Experiment::EmccdFrames];
+    pub const ALL: [Experiment; 3] = [
+        Experiment::Nanoruler,
+        Experiment::EmccdFrames,
+        Experiment::BlinkDurations,
+    ];
 
     /// Command-line name.
     pub fn as_str(self) -> &'static str {
         match self {
             Experiment::Nanoruler => "nanoruler",
             Experiment::EmccdFrames => "emccd-frames",
+            Experiment::BlinkDurations => "blink-durations",
         }
     }
 
@@ -65,6 +73,10 @@ pub fn run(
         Experiment::EmccdFrames => {
             let r = emccd_frames::compute(o.seed, o.quick, o.blinks_per_point)?;
             emccd_frames::write(out, &r)
+        }
+        Experiment::BlinkDurations => {
+            let r = blink_durations::compute(o.seed, o.quick, o.blinks_per_point)?;
+            blink_durations::write(out, &r)
         }
     }
 }

@@ -6,3 +6,6 @@ pub const NANORULER: &str = "(to be written from the measured runs)";
 
 /// Notes of the `emccd-frames` study.
 pub const EMCCD_FRAMES: &str = "(to be written from the measured runs)";
+
+/// Notes of the `blink-durations` study.
+pub const BLINK_DURATIONS: &str = "(to be written from the measured runs)";
