@@ -6,6 +6,7 @@
 
 pub mod blink_durations;
 pub mod common;
+pub mod detection;
 pub mod emccd_frames;
 pub mod nanoruler;
 pub mod notes;
@@ -22,14 +23,17 @@ pub enum Experiment {
     EmccdFrames,
     /// Estimated blink durations against the truth (Fig. 5).
     BlinkDurations,
+    /// Detection and false-alarm probabilities against N and T; error against N.
+    Detection,
 }
 
 impl Experiment {
     /// Every experiment study.
-    pub const ALL: [Experiment; 3] = [
+    pub const ALL: [Experiment; 4] = [
         Experiment::Nanoruler,
         Experiment::EmccdFrames,
         Experiment::BlinkDurations,
+        Experiment::Detection,
     ];
 
     /// Command-line name.
@@ -38,6 +42,7 @@ impl Experiment {
             Experiment::Nanoruler => "nanoruler",
             Experiment::EmccdFrames => "emccd-frames",
             Experiment::BlinkDurations => "blink-durations",
+            Experiment::Detection => "detection",
         }
     }
 
@@ -77,6 +82,10 @@ pub fn run(
         Experiment::BlinkDurations => {
             let r = blink_durations::compute(o.seed, o.quick, o.blinks_per_point)?;
             blink_durations::write(out, &r)
+        }
+        Experiment::Detection => {
+            let r = detection::compute(o.seed, o.quick, o.blinks_per_point)?;
+            detection::write(out, &r)
         }
     }
 }

@@ -9,3 +9,6 @@ pub const EMCCD_FRAMES: &str = "(to be written from the measured runs)";
 
 /// Notes of the `blink-durations` study.
 pub const BLINK_DURATIONS: &str = "(to be written from the measured runs)";
+
+/// Notes of the `detection` study.
+pub const DETECTION: &str = "(to be written from the measured runs)";
