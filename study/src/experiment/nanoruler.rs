@@ -4,7 +4,7 @@
 //! Six rulers (three markers 80 nm apart, random orientation) on a 2.56 µm
 //! field: 48×48 SPCIMAGER pixels (53.3 nm) and 24×24 EMCCD pixels (106.7 nm)
 //! at 150×. Every marker switches independently (on Exp(30 ms), off
-//! Exp(1 s)); both cameras see **the same blinks** with half the photons
+//! Exp(3 s), as `Scene::nanorulers`); both cameras see **the same blinks** with half the photons
 //! (molecule and background). Schemes: EMCCD frames (64 ms period, 34 ms
 //! exposure: 30 ms dead time), SPCIMAGER fixed aggregation (640-plane =
 //! 64 ms frames) and SPCIMAGER smart aggregation (N and T from the paper's
@@ -85,12 +85,12 @@ pub struct NanorulerOptions {
 }
 
 impl NanorulerOptions {
-    /// Defaults (60 s), or 20 s with `quick`.
+    /// Defaults (300 s, off Exp(3 s) as `Scene::nanorulers`), or 100 s with `quick`.
     pub fn new(seed: u64, quick: bool) -> NanorulerOptions {
         NanorulerOptions {
             seed,
-            seconds: if quick { 40.0 } else { 120.0 },
-            mean_off_s: 1.0,
+            seconds: if quick { 100.0 } else { 300.0 },
+            mean_off_s: 3.0,
             mean_on_s: 0.030,
         }
     }
