@@ -78,7 +78,7 @@ fn emccd_frames_merging_helps_long_blinks_and_dead_time_costs_short_ones() {
     // lowers the error (its 95 % interval below the unmerged estimate).
     let (plain, merged) = (at(100.0, 0), at(100.0, 1));
     assert!(plain.matches as f64 / plain.detected as f64 > 1.5);
-    assert!(merged.matches as f64 / merged.detected as f64 < 1.1);
+    assert!((merged.matches as f64) / (merged.detected as f64) < 1.1);
     assert!(
         merged.rms.hi.unwrap() < plain.rms.value.unwrap(),
         "{merged:?} vs {plain:?}"
