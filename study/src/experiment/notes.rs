@@ -68,14 +68,15 @@ pub const DETECTION: &str = "\
 lattice statistics predict the measured detection probability to within its interval at every (N, T). The Gaussian \
 approximation is good for detection (the on-signal sums many photons) but **misses the background tail**: the exact \
 false-alarm probability per pixel-plane at Eq. 7's threshold is about 2× the Gaussian 1.35e-3, and 3–13× at z = 3.5–4 or \
-small N, because H of the background is a sum of few Bernoulli counts and is right-skewed. The measured false-alarm \
-rate is at or somewhat above the exact value: all (N, z) share one background recording whose mean count came out a few \
-tenths of a percent above the model (a fluctuation that moves every tail the same way), and the intervals treat \
-neighbouring pixels, which share bits through the kernel, as independent, so they are too narrow.\n\
+small N, because H of the background is a sum of few Bernoulli counts and is right-skewed. In the default run the \
+measured false-alarm rate matches the exact value (2.79e-3 against 2.77e-3 at the derived N and T). The intervals treat \
+neighbouring pixels, which share bits through the kernel, as independent, so they are somewhat too narrow; all (N, z) \
+share one background recording, so a fluctuation of its mean count moves every tail the same way (the `--quick` run's \
+came out ≈ 15 % above exact).\n\
 2. **The per-window promise is not the per-blink detection rate.** A real blink is detected only if the track lasts \
-L_min planes: in part B, blinks of Exp(30 ms) durations are detected 45–73 %, limited by L_min (which must grow with \
+L_min planes: in part B, blinks of Exp(30 ms) durations are detected 42–71 %, limited by L_min (which must grow with \
 the false-alarm rate of a shorter window) and by blinks shorter than the window.\n\
 3. **Time resolution against precision.** A quarter of the derived N (2.7 ms window) localises more of the short blinks \
-(more localisations per second of acquisition) but with a noisier H, so tracks split (≈ 3.6 records per blink) and \
-each localisation is poorer (RMS ≈ 27 nm); twice N gives the best error per localisation but detects under half of the \
+(70 % against 60 % of the blinks) but with a noisier H, so tracks split (≈ 3.3 records per blink, which inflates the \
+localisations per second) and each localisation is poorer (RMS ≈ 27 nm against 19 nm); twice N gives the best error per localisation but detects under half of the \
 blinks. The paper's N sits where the detection per window reaches 99 %.";
