@@ -19,7 +19,11 @@ fn nanoruler_distances_and_spreads() {
     let r = nanoruler::compute(&NanorulerOptions::new(1, true)).unwrap();
     assert!(r.rulers.len() >= 5);
     // Every marker blinks many times.
-    assert!(r.blinks as f64 / (3 * r.rulers.len()) as f64 >= 30.0, "{}", r.blinks);
+    assert!(
+        r.blinks as f64 / (3 * r.rulers.len()) as f64 >= 30.0,
+        "{}",
+        r.blinks
+    );
     for (s, name) in nanoruler::SCHEMES.iter().enumerate() {
         let d = r.median_distance(s).unwrap_or(f64::NAN);
         // Issue: median neighbour distance within a few nm (here 5 nm, as
@@ -48,8 +52,16 @@ fn nanoruler_distances_and_spreads() {
     assert!(em < smart_spread, "EMCCD {em} vs smart {smart_spread}");
     // Smart aggregation with the model's r_assoc = 1 gives more records per
     // blink than with r_assoc = 3 (duplicated concurrent tracks).
-    assert!(r.schemes[2].locs_per_blink > 1.3, "{}", r.schemes[2].locs_per_blink);
-    assert!(r.schemes[3].locs_per_blink < 1.2, "{}", r.schemes[3].locs_per_blink);
+    assert!(
+        r.schemes[2].locs_per_blink > 1.3,
+        "{}",
+        r.schemes[2].locs_per_blink
+    );
+    assert!(
+        r.schemes[3].locs_per_blink < 1.2,
+        "{}",
+        r.schemes[3].locs_per_blink
+    );
     // Detection and false positives are measured for every scheme.
     for sr in &r.schemes {
         assert!(sr.detection > 0.2 && sr.detection <= 1.0);
@@ -107,7 +119,10 @@ fn blink_durations_bias_is_derived_and_splits_are_concurrent_tracks() {
         r.derived_bias_ms
     );
     let (corrected, _, _) = r.bias(0, true).unwrap();
-    assert!(corrected.abs() < 1.0 + 2.0 * sd / (k as f64).sqrt(), "{corrected}");
+    assert!(
+        corrected.abs() < 1.0 + 2.0 * sd / (k as f64).sqrt(),
+        "{corrected}"
+    );
     // The window does not add N − 1 planes: k* is a large part of N.
     assert!(r.derived_bias_ms < 0.5 * (r.n_window as f64 - 1.0) * 0.1);
     // Split blinks: with r_assoc = 1 a 40–60 ms blink gives well over one
@@ -151,7 +166,11 @@ fn detection_promise_and_the_gaussian_tail() {
     assert!((0.8..1.25).contains(&ratio), "measured/exact {ratio}");
     assert!(d.p_fa / d.p_fa_gauss > 1.6, "{d:?}");
     // Along N at z = 3: detection rises with N; at N/4 it is far below 99 %.
-    let z3: Vec<_> = r.windows.iter().filter(|w| (w.z - 3.0).abs() < 1e-9).collect();
+    let z3: Vec<_> = r
+        .windows
+        .iter()
+        .filter(|w| (w.z - 3.0).abs() < 1e-9)
+        .collect();
     assert!(z3.first().unwrap().p_det < 0.8);
     for w in z3.windows(2) {
         assert!(w[1].p_det >= w[0].p_det - 0.002);
@@ -182,7 +201,10 @@ fn run_writes_every_output_of_a_study() {
         assert!(files.iter().any(|p| p.ends_with(f)), "{f}");
         assert!(std::fs::metadata(dir.path().join(f)).unwrap().len() > 100);
     }
-    assert_eq!(Experiment::parse("blink-durations"), Some(Experiment::BlinkDurations));
+    assert_eq!(
+        Experiment::parse("blink-durations"),
+        Some(Experiment::BlinkDurations)
+    );
     assert_eq!(Experiment::parse("smart-vs-fixed"), None);
 }
 
@@ -221,10 +243,16 @@ fn analysis_helpers_find_known_markers() {
     let pts: Vec<(f64, f64)> = kept.iter().map(|l| (l.x_nm, l.y_nm)).collect();
     let ((ax, ay), (mx, my)) = principal_axis(&pts);
     assert!((ax * ux + ay * uy).abs() > 0.99);
-    let proj: Vec<f64> = pts.iter().map(|p| (p.0 - mx) * ax + (p.1 - my) * ay).collect();
+    let proj: Vec<f64> = pts
+        .iter()
+        .map(|p| (p.0 - mx) * ax + (p.1 - my) * ay)
+        .collect();
     let a = kmeans3(&proj);
     let comps = gaussian_mixture(&pts, &a);
-    let mut along: Vec<f64> = comps.iter().map(|c| (c.x - 500.0) * ux + (c.y - 400.0) * uy).collect();
+    let mut along: Vec<f64> = comps
+        .iter()
+        .map(|c| (c.x - 500.0) * ux + (c.y - 400.0) * uy)
+        .collect();
     along.sort_by(f64::total_cmp);
     for (got, want) in along.iter().zip([-80.0, 0.0, 80.0]) {
         assert!((got - want).abs() < 5.0, "{along:?}");

@@ -182,14 +182,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             if a.shard.is_some() {
                 bail!("study {name} runs as one job: --shard is not supported");
             }
-            let exp = smartagg_study::experiment::Experiment::parse(name)
-                .context("experiment study")?;
+            let exp =
+                smartagg_study::experiment::Experiment::parse(name).context("experiment study")?;
             let t0 = Instant::now();
             let o = smartagg_study::experiment::ExperimentOptions {
                 seed: a.seed,
                 quick: a.quick,
-                blinks_per_point: (a.blinks_per_point
-                    != smartagg_study::spec::DEFAULT_BLINKS)
+                blinks_per_point: (a.blinks_per_point != smartagg_study::spec::DEFAULT_BLINKS)
                     .then_some(a.blinks_per_point),
             };
             let (_, warnings) = smartagg_study::experiment::run(exp, &o, &a.out)

@@ -169,7 +169,13 @@ impl BlinkDurationsResult {
             .iter()
             .filter(|b| b.records[r] == 1)
             .filter_map(|b| b.est_ms[r].map(|e| e - b.duration_ms))
-            .map(|e| if corrected { e - self.derived_bias_ms } else { e })
+            .map(|e| {
+                if corrected {
+                    e - self.derived_bias_ms
+                } else {
+                    e
+                }
+            })
             .collect();
         if d.len() < 2 {
             return None;
@@ -225,7 +231,11 @@ fn explicit(v: &[(f64, f64, f64, f64)], s: &Setup) -> Vec<ExplicitBlink> {
 }
 
 /// Runs the study: `blinks` true blinks (default 1000, quick 400).
-pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<BlinkDurationsResult, StudyError> {
+pub fn compute(
+    seed: u64,
+    quick: bool,
+    blinks: Option<u32>,
+) -> Result<BlinkDurationsResult, StudyError> {
     let n = blinks.unwrap_or(if quick { 400 } else { 1000 }) as usize;
     let spad = Setup::new(PresetName::Spcimager, 150)?;
     let (det, _) = smart_config(&spad.preset, spad.field, None)?;
@@ -250,7 +260,14 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<BlinkDurat
             let t0 = Instant::now();
             let sb = explicit(&v, &spad);
             let scene = explicit_scene(&spad.preset, spad.field, spad.field, 1.0, sb.clone());
-            let run = run_spad(&cam, &scene, derive_seed(&[s, 1]), (end_s / period).ceil() as u64, &cfgs, None)?;
+            let run = run_spad(
+                &cam,
+                &scene,
+                derive_seed(&[s, 1]),
+                (end_s / period).ceil() as u64,
+                &cfgs,
+                None,
+            )?;
             let spad_s = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let eb = explicit(&v, &em);
@@ -287,7 +304,13 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<BlinkDurat
                 })
                 .collect();
             let a = crate::matching::assign(&truth, &lv, 53.3);
-            let _ = outcome(&truth, &lv, 53.3, (locs.len() + failed) as u32, failed as u32);
+            let _ = outcome(
+                &truth,
+                &lv,
+                53.3,
+                (locs.len() + failed) as u32,
+                failed as u32,
+            );
             let mut em_frames = vec![0u32; m];
             for (l, k) in locs.iter().zip(&a) {
                 if let Some(k) = k {
@@ -391,7 +414,10 @@ fn f1(v: Option<f64>) -> String {
 
 /// Writes points.csv (one row per true blink), records.csv,
 /// blink-durations.png and summary.md.
-pub fn write(dir: &Path, r: &BlinkDurationsResult) -> Result<(Vec<PathBuf>, Vec<String>), StudyError> {
+pub fn write(
+    dir: &Path,
+    r: &BlinkDurationsResult,
+) -> Result<(Vec<PathBuf>, Vec<String>), StudyError> {
     std::fs::create_dir_all(dir).map_err(|e| StudyError::io(dir, e))?;
     let (mut files, mut warnings) = (Vec::new(), Vec::new());
     let mut csv = String::from("duration_ms,records_r1,est_ms_r1,concurrent_r1,sequential_r1,anchor_spread_r1,records_r3,est_ms_r3,concurrent_r3,sequential_r3,anchor_spread_r3,emccd_frames\n");
@@ -447,22 +473,54 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
     let em_det = r.blinks.iter().filter(|b| b.emccd_frames > 0).count();
     let matched = r.record_ms.iter().filter(|x| x.1).count();
     let _ = writeln!(m, "## Results\n\n| quantity | value |\n|---|---|");
-    let _ = writeln!(m, "| blinks detected, smart r_assoc 1 / 3 | {:.1} % / {:.1} % |", 100.0 * det(0) as f64 / n as f64, 100.0 * det(1) as f64 / n as f64);
-    let _ = writeln!(m, "| blinks detected, EMCCD | {:.1} % |", 100.0 * em_det as f64 / n as f64);
-    let _ = writeln!(m, "| smart records (r_assoc 1) matching no blink (FP) | {} of {} ({:.1} %) |", r.record_ms.len() - matched, r.record_ms.len(), 100.0 * (r.record_ms.len() - matched) as f64 / r.record_ms.len().max(1) as f64);
-    let _ = writeln!(m, "| N; mean crossing on-count k* = N·√V_off/(√V_off+√V_on) | {}; {:.1} planes |", r.n_window, r.k_star);
-    let _ = writeln!(m, "| derived bias of t_e − t_s: N − 2k* + 1 | {:.2} ms |", r.derived_bias_ms);
+    let _ = writeln!(
+        m,
+        "| blinks detected, smart r_assoc 1 / 3 | {:.1} % / {:.1} % |",
+        100.0 * det(0) as f64 / n as f64,
+        100.0 * det(1) as f64 / n as f64
+    );
+    let _ = writeln!(
+        m,
+        "| blinks detected, EMCCD | {:.1} % |",
+        100.0 * em_det as f64 / n as f64
+    );
+    let _ = writeln!(
+        m,
+        "| smart records (r_assoc 1) matching no blink (FP) | {} of {} ({:.1} %) |",
+        r.record_ms.len() - matched,
+        r.record_ms.len(),
+        100.0 * (r.record_ms.len() - matched) as f64 / r.record_ms.len().max(1) as f64
+    );
+    let _ = writeln!(
+        m,
+        "| N; mean crossing on-count k* = N·√V_off/(√V_off+√V_on) | {}; {:.1} planes |",
+        r.n_window, r.k_star
+    );
+    let _ = writeln!(
+        m,
+        "| derived bias of t_e − t_s: N − 2k* + 1 | {:.2} ms |",
+        r.derived_bias_ms
+    );
     for (i, ra) in R_ASSOC.iter().enumerate() {
         if let Some((mu, sd, k)) = r.bias(i, false) {
             let _ = writeln!(m, "| measured bias (estimate − truth), r_assoc {ra}, blinks with one record ({k}) | {mu:.2} ms (sd {sd:.2} ms) |");
         }
         if let Some((mu, sd, _)) = r.bias(i, true) {
-            let _ = writeln!(m, "| after subtracting the derived bias, r_assoc {ra} | {mu:.2} ms (sd {sd:.2} ms) |");
+            let _ = writeln!(
+                m,
+                "| after subtracting the derived bias, r_assoc {ra} | {mu:.2} ms (sd {sd:.2} ms) |"
+            );
         }
     }
     let _ = writeln!(m, "| wall time: SPAD simulation + 2 pipelines; EMCCD simulation + fits (summed over workers) | {:.1} s; {:.1} s |\n", r.seconds.0, r.seconds.1);
     let _ = writeln!(m, "### Records per detected blink, and how a blink is split\n\n| true duration ms | blinks | records/blink r_assoc 1 | r_assoc 3 | split blinks r1 | concurrent pairs r1 | sequential pairs r1 | median anchor spread of split blinks r1 (px) | median delay of the 2nd track r1 (ms) | EMCCD frames/blink |\n|---|---|---|---|---|---|---|---|---|---|");
-    for (lo, hi) in [(0.0, 20.0), (20.0, 40.0), (40.0, 60.0), (60.0, 100.0), (100.0, 1e9)] {
+    for (lo, hi) in [
+        (0.0, 20.0),
+        (20.0, 40.0),
+        (40.0, 60.0),
+        (60.0, 100.0),
+        (100.0, 1e9),
+    ] {
         let sel: Vec<&BlinkRow> = r
             .blinks
             .iter()
@@ -483,7 +541,11 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
             m,
             "| {}–{} | {} | {} | {} | {} of {} | {} | {} | {} | {} | {} |",
             lo,
-            if hi > 1e8 { "∞".to_string() } else { hi.to_string() },
+            if hi > 1e8 {
+                "∞".to_string()
+            } else {
+                hi.to_string()
+            },
             sel.len(),
             f1(r.records_per_blink(0, lo, hi)),
             f1(r.records_per_blink(1, lo, hi)),
@@ -497,7 +559,11 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
         );
     }
     let _ = writeln!(m, "\nA *concurrent* pair: the second track opened (t_cross) before the first dropped — a local maximum of H more than r_assoc from the first anchor while the blink was on; both tracks then stay on (each tests the 3×3 around its own anchor, which still sees the molecule) and each record sums the same planes into an ROI shifted by the anchor distance: duplicates, not shares, of the photons. A *sequential* pair: the first track dropped (two planes below T) and a new one opened later in the same blink.\n");
-    let _ = writeln!(m, "## Where this differs from the paper, and why\n\n{}", super::notes::BLINK_DURATIONS);
+    let _ = writeln!(
+        m,
+        "## Where this differs from the paper, and why\n\n{}",
+        super::notes::BLINK_DURATIONS
+    );
     for w in warnings {
         let _ = writeln!(m, "\n**Warning**: {w}");
     }
@@ -538,7 +604,10 @@ fn plot(path: &Path, r: &BlinkDurationsResult) -> Result<(), StudyError> {
         .collect();
     let series: [(&str, Vec<(f64, f64)>); 3] = [
         ("true durations", hist(&truth, 10.0, max, nb)),
-        ("smart: t_e − t_s, first record of each blink", hist(&raw, 10.0, max, nb)),
+        (
+            "smart: t_e − t_s, first record of each blink",
+            hist(&raw, 10.0, max, nb),
+        ),
         ("smart, derived bias subtracted", hist(&corr, 10.0, max, nb)),
     ];
     let ymax = series
@@ -547,7 +616,10 @@ fn plot(path: &Path, r: &BlinkDurationsResult) -> Result<(), StudyError> {
         .fold(0.0, f64::max)
         * 1.15;
     let mut chart = ChartBuilder::on(&panels[0])
-        .caption("SPCIMAGER smart aggregation (10 ms bins)", ("sans-serif", 20))
+        .caption(
+            "SPCIMAGER smart aggregation (10 ms bins)",
+            ("sans-serif", 20),
+        )
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
@@ -594,9 +666,12 @@ fn plot(path: &Path, r: &BlinkDurationsResult) -> Result<(), StudyError> {
         .y_desc("blinks per ms, per true blink")
         .draw()
         .map_err(|e| plot_err(path, e))?;
-    for (i, (name, h)) in [("true durations", th), ("EMCCD frames × 64 ms (detected blinks)", eh)]
-        .into_iter()
-        .enumerate()
+    for (i, (name, h)) in [
+        ("true durations", th),
+        ("EMCCD frames × 64 ms (detected blinks)", eh),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let col = if i == 0 { BLACK } else { colour(3) };
         let steps: Vec<(f64, f64)> = h.iter().flat_map(|&(x, y)| [(x, y), (x + p, y)]).collect();

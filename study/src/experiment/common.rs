@@ -99,7 +99,14 @@ pub fn smart_config(
     r_assoc: Option<u32>,
 ) -> Result<(Detection, PipelineConfig), StudyError> {
     let det = stats::derive(&DetectionInputs::from_preset(preset, None)?)?;
-    let cfg = config_for(preset, &det, field, det.n_window, det.threshold_int, r_assoc)?;
+    let cfg = config_for(
+        preset,
+        &det,
+        field,
+        det.n_window,
+        det.threshold_int,
+        r_assoc,
+    )?;
     Ok((det, cfg))
 }
 

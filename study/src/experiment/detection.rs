@@ -198,7 +198,11 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
         unreachable!("SPCIMAGER is a SPAD")
     };
     let t_a = Instant::now();
-    let (mol_planes, bg_planes) = if quick { (400_000, 60_000) } else { (2_000_000, 200_000) };
+    let (mol_planes, bg_planes) = if quick {
+        (400_000, 60_000)
+    } else {
+        (2_000_000, 200_000)
+    };
     let k1 = det.kernel_weights.clone();
     let h = k1.len() / 2;
     let px = setup.pixel_nm;
@@ -225,16 +229,30 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
         .collect();
     let (mol, bg) = rayon::join(
         || -> Result<Vec<Vec<u64>>, StudyError> {
-            let scene = explicit_scene(&setup.preset, side_m as u32, side_m as u32, 1.0, mol_blinks);
+            let scene =
+                explicit_scene(&setup.preset, side_m as u32, side_m as u32, 1.0, mol_blinks);
             let maps = SpadMaps::uniform(&cam, side_m as u32, side_m as u32);
-            let mut sim = SpadSimulator::with_maps(&cam, &scene, maps, derive_seed(&[seed, key_hash("det-mol")]))?;
+            let mut sim = SpadSimulator::with_maps(
+                &cam,
+                &scene,
+                maps,
+                derive_seed(&[seed, key_hash("det-mol")]),
+            )?;
             Ok(filtered_series(&mut sim, side_m, mol_planes, &k1, &centres))
         },
         || -> Result<Vec<Vec<u64>>, StudyError> {
-            let scene = explicit_scene(&setup.preset, side_b as u32, side_b as u32, 1.0, Vec::new());
+            let scene =
+                explicit_scene(&setup.preset, side_b as u32, side_b as u32, 1.0, Vec::new());
             let maps = SpadMaps::uniform(&cam, side_b as u32, side_b as u32);
-            let mut sim = SpadSimulator::with_maps(&cam, &scene, maps, derive_seed(&[seed, key_hash("det-bg")]))?;
-            Ok(filtered_series(&mut sim, side_b, bg_planes, &k1, &bg_pixels))
+            let mut sim = SpadSimulator::with_maps(
+                &cam,
+                &scene,
+                maps,
+                derive_seed(&[seed, key_hash("det-bg")]),
+            )?;
+            Ok(filtered_series(
+                &mut sim, side_b, bg_planes, &k1, &bg_pixels,
+            ))
         },
     );
     let prefix = |v: Vec<Vec<u64>>| -> Vec<Vec<u64>> {
@@ -351,7 +369,14 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
         .iter()
         .map(|&f| {
             let n = ((det.n_window as f64 * f).round() as u32).max(1);
-            config_for(&setup.preset, &det, setup.field, n, threshold(&det, n, 3.0), None)
+            config_for(
+                &setup.preset,
+                &det,
+                setup.field,
+                n,
+                threshold(&det, n, 3.0),
+                None,
+            )
         })
         .collect::<Result<_, _>>()?;
     let scene = explicit_scene(&setup.preset, setup.field, setup.field, 1.0, bl);
@@ -370,8 +395,13 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
                 None,
             )?;
             let recs = &run.records[0];
-            let (locs, _, failed) =
-                fit_records(recs, setup.field, setup.pixel_nm, setup.sigma_px, cam.plane_period_s);
+            let (locs, _, failed) = fit_records(
+                recs,
+                setup.field,
+                setup.pixel_nm,
+                setup.sigma_px,
+                cam.plane_period_s,
+            );
             let lv: Vec<Loc> = locs
                 .iter()
                 .map(|l| Loc {
@@ -428,8 +458,19 @@ pub fn write(dir: &Path, r: &DetectionResult) -> Result<(Vec<PathBuf>, Vec<Strin
         let _ = writeln!(
             csv,
             "{},{},{},{},{},{},{},{},{},{},{},{},{}",
-            w.n, w.z, w.t_int, w.p_det, w.p_det_ci.0, w.p_det_ci.1, w.p_det_exact, w.p_det_gauss,
-            w.p_fa, w.p_fa_ci.0, w.p_fa_ci.1, w.p_fa_exact, w.p_fa_gauss
+            w.n,
+            w.z,
+            w.t_int,
+            w.p_det,
+            w.p_det_ci.0,
+            w.p_det_ci.1,
+            w.p_det_exact,
+            w.p_det_gauss,
+            w.p_fa,
+            w.p_fa_ci.0,
+            w.p_fa_ci.1,
+            w.p_fa_exact,
+            w.p_fa_gauss
         );
     }
     let p = dir.join("points.csv");
@@ -441,8 +482,18 @@ pub fn write(dir: &Path, r: &DetectionResult) -> Result<(Vec<PathBuf>, Vec<Strin
         let _ = writeln!(
             csv,
             "{},{},{},{},{},{},{},{},{},{},{},{:.2}",
-            p.n, p.t_int, p.l_min, p.blinks, p.detected, p.matches, p.records, p.false_pos,
-            o(p.rms.value), o(p.rms.lo), o(p.rms.hi), p.seconds
+            p.n,
+            p.t_int,
+            p.l_min,
+            p.blinks,
+            p.detected,
+            p.matches,
+            p.records,
+            p.false_pos,
+            o(p.rms.value),
+            o(p.rms.lo),
+            o(p.rms.hi),
+            p.seconds
         );
     }
     let p = dir.join("precision.csv");
@@ -477,7 +528,11 @@ pub fn write(dir: &Path, r: &DetectionResult) -> Result<(Vec<PathBuf>, Vec<Strin
             w.p_fa_exact / w.p_fa_gauss.max(1e-300)
         );
     }
-    let _ = writeln!(m, "\nTime: part A took {:.1} s wall (simulation, filtering, exact statistics).\n", r.seconds_a);
+    let _ = writeln!(
+        m,
+        "\nTime: part A took {:.1} s wall (simulation, filtering, exact statistics).\n",
+        r.seconds_a
+    );
     let _ = writeln!(m, "## Part B: localisation error against N\n\n| N | window ms | T_int | L_min (ms) | detection | FP | records/blink | RMS nm [95 % CI] | localisations per s of acquisition | time s |\n|---|---|---|---|---|---|---|---|---|---|");
     for p in &r.precision {
         let _ = writeln!(
@@ -512,13 +567,23 @@ fn plot(path: &Path, r: &DetectionResult) -> Result<(), StudyError> {
     let root = BitMapBackend::new(path, (1500, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
     let panels = root.split_evenly((1, 3));
-    let z3: Vec<&WindowPoint> = r.windows.iter().filter(|w| (w.z - 3.0).abs() < 1e-9).collect();
+    let z3: Vec<&WindowPoint> = r
+        .windows
+        .iter()
+        .filter(|w| (w.z - 3.0).abs() < 1e-9)
+        .collect();
     let nmax = r.windows.iter().map(|w| w.n).max().unwrap_or(1) as f64 * 1.05;
     // Miss probability (log) against N at z = 3.
     let lg = |p: f64| p.max(1e-7).log10();
     for (k, (title, ylab)) in [
-        ("Miss probability 1 − P(detect), z = 3 (Eq. 7)", "log10 P(miss)"),
-        ("False alarms per pixel-plane, z = 3", "log10 P(false alarm)"),
+        (
+            "Miss probability 1 − P(detect), z = 3 (Eq. 7)",
+            "log10 P(miss)",
+        ),
+        (
+            "False alarms per pixel-plane, z = 3",
+            "log10 P(false alarm)",
+        ),
     ]
     .into_iter()
     .enumerate()
@@ -558,9 +623,14 @@ fn plot(path: &Path, r: &DetectionResult) -> Result<(), StudyError> {
                 ))
                 .map_err(|e| plot_err(path, e))?
                 .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2))
+                });
             chart
-                .draw_series(z3.iter().map(|w| Circle::new((w.n as f64, lg(get(w))), 4, col.filled())))
+                .draw_series(
+                    z3.iter()
+                        .map(|w| Circle::new((w.n as f64, lg(get(w))), 4, col.filled())),
+                )
                 .map_err(|e| plot_err(path, e))?;
         }
         if k == 0 {
@@ -571,7 +641,9 @@ fn plot(path: &Path, r: &DetectionResult) -> Result<(), StudyError> {
                 )))
                 .map_err(|e| plot_err(path, e))?
                 .label("1 % miss (Eq. 5's 99 %)")
-                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1))
+                });
         }
         chart
             .configure_series_labels()
@@ -588,7 +660,10 @@ fn plot(path: &Path, r: &DetectionResult) -> Result<(), StudyError> {
         .max(1.0)
         * 1.15;
     let mut chart = ChartBuilder::on(&panels[2])
-        .caption("Part B: RMS error and detection against N", ("sans-serif", 17))
+        .caption(
+            "Part B: RMS error and detection against N",
+            ("sans-serif", 17),
+        )
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(55)
@@ -631,9 +706,12 @@ fn plot(path: &Path, r: &DetectionResult) -> Result<(), StudyError> {
     let c1 = colour(1);
     chart
         .draw_secondary_series(LineSeries::new(
-            r.precision
-                .iter()
-                .map(|p| (p.n as f64, 100.0 * p.detected as f64 / p.blinks.max(1) as f64)),
+            r.precision.iter().map(|p| {
+                (
+                    p.n as f64,
+                    100.0 * p.detected as f64 / p.blinks.max(1) as f64,
+                )
+            }),
             c1.stroke_width(2),
         ))
         .map_err(|e| plot_err(path, e))?

@@ -78,7 +78,11 @@ pub fn durations(quick: bool) -> Vec<f64> {
 }
 
 /// Runs the study.
-pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<EmccdFramesResult, StudyError> {
+pub fn compute(
+    seed: u64,
+    quick: bool,
+    blinks: Option<u32>,
+) -> Result<EmccdFramesResult, StudyError> {
     let n = blinks.unwrap_or(if quick { 300 } else { 500 }) as usize;
     let mut setup = Setup::new(PresetName::Emccd, 150)?;
     let cam = emccd_experiment(&mut setup.preset)?;
@@ -139,7 +143,11 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<EmccdFrame
                     })
                     .collect();
                 // Merged: a chain is one detection; failed fits stay as they are.
-                let detections = if merge { locs.len() + failed } else { candidates };
+                let detections = if merge {
+                    locs.len() + failed
+                } else {
+                    candidates
+                };
                 let o = outcome(&truth, &loc, 53.3, detections as u32, failed as u32);
                 let b: &[BlinkOutcome] = &o.blinks;
                 out.push(FramePoint {
@@ -267,7 +275,8 @@ fn plot(path: &Path, r: &EmccdFramesResult) -> Result<(), StudyError> {
         let pts: Vec<&FramePoint> = r.points.iter().filter(|p| p.scheme == s).collect();
         chart
             .draw_series(LineSeries::new(
-                pts.iter().filter_map(|p| p.rms.value.map(|v| (p.blink_ms, v))),
+                pts.iter()
+                    .filter_map(|p| p.rms.value.map(|v| (p.blink_ms, v))),
                 col.stroke_width(2),
             ))
             .map_err(|e| plot_err(path, e))?
@@ -284,7 +293,11 @@ fn plot(path: &Path, r: &EmccdFramesResult) -> Result<(), StudyError> {
             }
             if let Some(v) = p.rms.value {
                 chart
-                    .draw_series(std::iter::once(Circle::new((p.blink_ms, v), 4, col.filled())))
+                    .draw_series(std::iter::once(Circle::new(
+                        (p.blink_ms, v),
+                        4,
+                        col.filled(),
+                    )))
                     .map_err(|e| plot_err(path, e))?;
             }
         }

@@ -202,7 +202,12 @@ fn ruler_positions(seed: u64) -> Vec<[Position; 3]> {
 /// Keeps localisations with at least `min` others within `r` nm.
 pub fn density_filter(locs: &[TLoc], r: f64, min: usize) -> Vec<TLoc> {
     let cell = r;
-    let key = |l: &TLoc| ((l.x_nm / cell).floor() as i64, (l.y_nm / cell).floor() as i64);
+    let key = |l: &TLoc| {
+        (
+            (l.x_nm / cell).floor() as i64,
+            (l.y_nm / cell).floor() as i64,
+        )
+    };
     let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> = Default::default();
     for (i, l) in locs.iter().enumerate() {
         grid.entry(key(l)).or_default().push(i);
@@ -419,20 +424,10 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
             )?;
             let shared = run.simulate_s;
             let a = Instant::now();
-            let (smart, _, smart_failed) = fit_records(
-                &run.records[0],
-                spad_side,
-                spad_px,
-                spad.sigma_px(),
-                period,
-            );
-            let (wide, _, wide_failed) = fit_records(
-                &run.records[1],
-                spad_side,
-                spad_px,
-                spad.sigma_px(),
-                period,
-            );
+            let (smart, _, smart_failed) =
+                fit_records(&run.records[0], spad_side, spad_px, spad.sigma_px(), period);
+            let (wide, _, wide_failed) =
+                fit_records(&run.records[1], spad_side, spad_px, spad.sigma_px(), period);
             // The two pipelines ran on the same planes: half the pipeline time each.
             let smart_s = run.pipeline_s / 2.0 + a.elapsed().as_secs_f64() / 2.0;
             let a = Instant::now();
@@ -730,7 +725,8 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
     let dd: Vec<Option<f64>> = (0..4).map(|s| r.median_distance(s)).collect();
     let _ = writeln!(m, "\n## The paper's claims on this run\n");
     for (s, what) in [(2, "smart"), (3, "smart with r_assoc 3")] {
-        let smaller = matches!((sp[s], sp[1], sp[0]), (Some(a), Some(b), Some(c)) if a < b && a < c);
+        let smaller =
+            matches!((sp[s], sp[1], sp[0]), (Some(a), Some(b), Some(c)) if a < b && a < c);
         let _ = writeln!(
             m,
             "- **{}** — {what} gives a smaller marker spread than fixed aggregation and EMCCD: median spread {} nm ({what}) vs {} nm (fixed) and {} nm (EMCCD).",
@@ -740,7 +736,9 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
             fmt(sp[0])
         );
     }
-    let near = dd.iter().all(|d| d.is_some_and(|d| (d - SPACING_NM).abs() <= 5.0));
+    let near = dd
+        .iter()
+        .all(|d| d.is_some_and(|d| (d - SPACING_NM).abs() <= 5.0));
     let _ = writeln!(
         m,
         "- **{}** — median neighbour distances within a few nm (here ≤ 5 nm) of 80 nm for every scheme: EMCCD {}, fixed {}, smart {}, smart r_assoc 3 {} nm.",
@@ -867,7 +865,10 @@ fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
         .max(0.01)
         * 1.15;
     let mut chart = ChartBuilder::on(&panels[0])
-        .caption("Cross-section of ruler 0 along its axis", ("sans-serif", 18))
+        .caption(
+            "Cross-section of ruler 0 along its axis",
+            ("sans-serif", 18),
+        )
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(55)
@@ -915,17 +916,18 @@ fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
         .y_desc("spread σ per axis (nm)")
         .draw()
         .map_err(|e| plot_err(path, e))?;
-    for s in 0..SCHEMES.len() {
+    for (s, name) in SCHEMES.iter().enumerate() {
         let col = colour(s);
         chart
-            .draw_series(
-                r.markers
-                    .iter()
-                    .filter(|m| m.scheme == s)
-                    .map(|m| Circle::new(((m.ruler * 3 + m.marker) as f64, m.spread_nm), 5, col.filled())),
-            )
+            .draw_series(r.markers.iter().filter(|m| m.scheme == s).map(|m| {
+                Circle::new(
+                    ((m.ruler * 3 + m.marker) as f64, m.spread_nm),
+                    5,
+                    col.filled(),
+                )
+            }))
             .map_err(|e| plot_err(path, e))?
-            .label(SCHEMES[s])
+            .label(*name)
             .legend(move |(x, y)| Circle::new((x + 10, y), 5, col.filled()));
     }
     chart
@@ -976,23 +978,30 @@ fn plot(path: &Path, r: &NanorulerResult) -> Result<(), StudyError> {
         };
         let x = s as f64;
         let col = colour(s);
-        let (mn, mx) = d
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &v| (a.0.min(v), a.1.max(v)));
+        let (mn, mx) = d.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, &v| {
+            (a.0.min(v), a.1.max(v))
+        });
         let el = [
             PathElement::new(vec![(x, mn), (x, q1)], col.stroke_width(2)),
             PathElement::new(vec![(x, q3), (x, mx)], col.stroke_width(2)),
             PathElement::new(vec![(x - 0.25, q2), (x + 0.25, q2)], col.stroke_width(3)),
             PathElement::new(
-                vec![(x - 0.25, q1), (x + 0.25, q1), (x + 0.25, q3), (x - 0.25, q3), (x - 0.25, q1)],
+                vec![
+                    (x - 0.25, q1),
+                    (x + 0.25, q1),
+                    (x + 0.25, q3),
+                    (x - 0.25, q3),
+                    (x - 0.25, q1),
+                ],
                 col.stroke_width(2),
             ),
         ];
+        chart.draw_series(el).map_err(|e| plot_err(path, e))?;
         chart
-            .draw_series(el.into_iter())
-            .map_err(|e| plot_err(path, e))?;
-        chart
-            .draw_series(d.iter().map(|&v| Circle::new((x + 0.32, v), 3, col.filled())))
+            .draw_series(
+                d.iter()
+                    .map(|&v| Circle::new((x + 0.32, v), 3, col.filled())),
+            )
             .map_err(|e| plot_err(path, e))?;
     }
     root.present().map_err(|e| plot_err(path, e))?;
