@@ -7,7 +7,7 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum StudyError {
     /// A study name that is not one of [`crate::StudyName::ALL`].
-    #[error("unknown study `{0}`: expected one of smart-vs-fixed, future-spad, cameras, objective, hot-pixels, localizers")]
+    #[error("unknown study `{0}`: expected one of smart-vs-fixed, future-spad, cameras, objective, hot-pixels, localizers, nanoruler, emccd-frames, blink-durations, detection")]
     UnknownStudy(String),
     /// An option outside its range.
     #[error("invalid option `{name}`: {why}")]

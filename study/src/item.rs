@@ -286,7 +286,7 @@ pub fn run_item(
 }
 
 /// Pixel maps of a record's ROI: pixels outside the sensor are left out.
-fn record_maps(rec: &BlinkRecord, field: u32) -> Option<PixelMaps> {
+pub(crate) fn record_maps(rec: &BlinkRecord, field: u32) -> Option<PixelMaps> {
     if !rec.has(flags::EDGE) {
         return None;
     }
@@ -301,7 +301,7 @@ fn record_maps(rec: &BlinkRecord, field: u32) -> Option<PixelMaps> {
     Some(m)
 }
 
-fn roi_view<'a>(data: &'a [f64], maps: Option<&'a PixelMaps>) -> RoiView<'a> {
+pub(crate) fn roi_view<'a>(data: &'a [f64], maps: Option<&'a PixelMaps>) -> RoiView<'a> {
     let side = (data.len() as f64).sqrt().round() as usize;
     RoiView { side, data, maps }
 }

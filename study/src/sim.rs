@@ -188,7 +188,7 @@ pub struct SpadData {
 
 /// The blink records of a finished stream, through the packet path: every
 /// record is encoded by the packetiser and decoded back; any loss is an error.
-fn through_packets(records: &[Record]) -> Result<(Vec<BlinkRecord>, u64), StudyError> {
+pub(crate) fn through_packets(records: &[Record]) -> Result<(Vec<BlinkRecord>, u64), StudyError> {
     let bytes = encode_stream(records)?;
     let decoded = decode_all(&bytes);
     if decoded.stats.any_loss() {

@@ -12,6 +12,8 @@ use std::time::Instant;
 #[derive(clap::Args, Debug)]
 #[command(
     after_help = "Studies: smart-vs-fixed, future-spad, cameras, objective, hot-pixels, localizers, \
+nanoruler, emccd-frames, blink-durations, detection (the experiment of the paper's section 4.1 and \
+the detection statistics of section 3; one job each, no shards), \
 all (every study into OUT/NAME). `smartagg study merge --out OUT SHARD_DIR...` merges the outputs \
 of `--shard I/N` runs (e.g. a Slurm job array) into exactly what one run would have written."
 )]
@@ -170,6 +172,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             for s in StudyName::ALL {
                 run_one(&a, s, &a.out.join(s.as_str()))?;
+            }
+            Ok(())
+        }
+        name if smartagg_study::experiment::Experiment::parse(name).is_some() => {
+            if !a.dirs.is_empty() {
+                bail!("unexpected arguments after the study name: {:?}", a.dirs);
+            }
+            if a.shard.is_some() {
+                bail!("study {name} runs as one job: --shard is not supported");
+            }
+            let exp =
+                smartagg_study::experiment::Experiment::parse(name).context("experiment study")?;
+            let t0 = Instant::now();
+            let o = smartagg_study::experiment::ExperimentOptions {
+                seed: a.seed,
+                quick: a.quick,
+                blinks_per_point: (a.blinks_per_point != smartagg_study::spec::DEFAULT_BLINKS)
+                    .then_some(a.blinks_per_point),
+            };
+            let (_, warnings) = smartagg_study::experiment::run(exp, &o, &a.out)
+                .with_context(|| format!("study {name}"))?;
+            eprintln!(
+                "study {name}: {:.1} s wall; wrote {}",
+                t0.elapsed().as_secs_f64(),
+                a.out.display()
+            );
+            for w in &warnings {
+                eprintln!("smartagg: warning: {w}");
             }
             Ok(())
         }
