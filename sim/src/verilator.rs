@@ -164,7 +164,7 @@ pub struct BuildOptions {
 }
 
 /// Bumped whenever the shim or the flags change, so old caches are not reused.
-const SHIM_VERSION: u32 = 3;
+const SHIM_VERSION: u32 = 4;
 
 fn cache_root() -> PathBuf {
     if let Some(p) = std::env::var_os("SMARTAGG_VERILATOR_CACHE") {
@@ -228,11 +228,14 @@ fn shim_source(ports: &[Port], opts: &BuildOptions) -> String {
          h->m->final(); delete h->m; delete h->ctx; delete h; }\n\
          void sa_eval(void* p) { ((SaHandle*)p)->m->eval(); }\n",
     );
+    // Two evaluations per clock: the falling edge doubles as the settling
+    // of the inputs set for the next rising edge.
     let _ = writeln!(
         s,
-        "void sa_tick(void* p, uint64_t n) {{ SaHandle* h = (SaHandle*)p; \
-         for (uint64_t i = 0; i < n; i++) {{ h->m->{c} = 1; h->m->eval(); sa_dump(h); \
-         h->m->{c} = 0; h->m->eval(); sa_dump(h); }} }}",
+        "void sa_low(void* p) {{ SaHandle* h = (SaHandle*)p; h->m->{c} = 0; h->m->eval(); }}\n\
+         void sa_tick(void* p, uint64_t n) {{ SaHandle* h = (SaHandle*)p; \
+         for (uint64_t i = 0; i < n; i++) {{ if (i > 0) {{ h->m->{c} = 0; h->m->eval(); }} \
+         sa_dump(h); h->m->{c} = 1; h->m->eval(); sa_dump(h); }} }}",
         c = opts.clock
     );
     // Setters and getters by port index.
@@ -495,7 +498,7 @@ impl Model {
         // SAFETY: symbols of our generated shim with the declared signatures.
         unsafe {
             let f_new: FnNew = *build.lib.get(b"sa_new").map_err(|e| load(&p, e))?;
-            let f_eval: FnPtr = *build.lib.get(b"sa_eval").map_err(|e| load(&p, e))?;
+            let f_eval: FnPtr = *build.lib.get(b"sa_low").map_err(|e| load(&p, e))?;
             let f_tick: FnTick = *build.lib.get(b"sa_tick").map_err(|e| load(&p, e))?;
             let f_set: FnSet = *build.lib.get(b"sa_set").map_err(|e| load(&p, e))?;
             let f_get: FnGet = *build.lib.get(b"sa_get").map_err(|e| load(&p, e))?;
@@ -583,20 +586,26 @@ impl Model {
         }
     }
 
-    /// Evaluates the model.
+    /// Evaluates the model with the clock low (settling the inputs).
     pub fn eval(&mut self) {
         // SAFETY: valid handle.
         unsafe { (self.f_eval)(self.h) };
         self.dirty = false;
     }
 
-    /// Runs `n` clock cycles (rising then falling edge).
+    /// Runs `n` clock cycles: settles the inputs with the clock low (if not
+    /// done since they changed), then rising edges (and falling edges between).
     #[inline]
     pub fn tick(&mut self, n: u64) {
+        if n == 0 {
+            return;
+        }
+        self.settle();
         // SAFETY: valid handle.
         unsafe { (self.f_tick)(self.h, n) };
         self.cycles += n;
-        self.dirty = false;
+        // Outputs changed at the edge: the next read settles with the clock low.
+        self.dirty = true;
     }
 
     /// Starts writing a VCD of every signal to `path`; false if the build
