@@ -279,6 +279,7 @@ pub struct Cosim {
     debug: Option<Arc<Build>>,
     /// Directory for VCDs.
     pub vcd_dir: PathBuf,
+    trace: Option<PathBuf>,
 }
 
 /// How a run goes: which build, probes, VCD window.
@@ -305,6 +306,24 @@ impl Cosim {
             fast,
             debug: None,
             vcd_dir,
+            trace: None,
+        })
+    }
+
+    /// As [`Cosim::with_top`], running every case on the debug build (stage
+    /// probes and tracing compiled in): one build instead of two for a
+    /// design that is expected to fail, as in fault injection.
+    pub fn with_top_debug(spec: DesignSpec, top: String) -> Result<Cosim, HarnessError> {
+        let v = spec.cosim_verilog(&top, true)?;
+        let b = Build::get(&v, &DesignSpec::build_options(true)).map_err(DesignError::from)?;
+        let vcd_dir = b.dir.join("vcd");
+        Ok(Cosim {
+            spec,
+            top,
+            fast: b.clone(),
+            debug: Some(b),
+            vcd_dir,
+            trace: None,
         })
     }
 
@@ -349,8 +368,25 @@ impl Cosim {
         Ok(cfg)
     }
 
+    /// Makes [`Cosim::check`] run the traced debug build and write a VCD
+    /// of the whole run to `path` (slow: for short runs).
+    pub fn trace_whole_run(&mut self, path: PathBuf) {
+        self.trace = Some(path);
+    }
+
     /// Runs the case on the gateware only.
-    pub fn run(&self, case: &Case) -> Result<Outcome, HarnessError> {
+    pub fn run(&mut self, case: &Case) -> Result<Outcome, HarnessError> {
+        if let Some(path) = self.trace.clone() {
+            let debug = self.debug_build()?;
+            return self.run_on(
+                &debug,
+                case,
+                RunMode {
+                    debug: false,
+                    vcd: Some((&path, 0, u64::MAX)),
+                },
+            );
+        }
         self.run_on(
             &self.fast,
             case,
@@ -1450,4 +1486,137 @@ pub fn threshold_at_quantile(cfg: &PipelineConfig, planes: &[BitPlane], q: f64) 
         }
     }
     hist.keys().next_back().copied().unwrap_or(1).max(1)
+}
+
+/// The XEM6310 core as a device: its FrontPanel endpoints driven one host
+/// operation at a time, for the host's `cosim:` transport. Clocks run only
+/// inside these calls.
+pub struct Device {
+    host: XemHost,
+    /// Pipe words of planes still to replay.
+    replay: VecDeque<u32>,
+    /// Bytes read and not yet handed out.
+    taken: usize,
+}
+
+impl Device {
+    /// Verilates (or loads) a DDR2 configuration and powers it up.
+    pub fn open(spec: DesignSpec) -> Result<Device, HarnessError> {
+        if !spec.config.ddr() {
+            return Err(HarnessError::Design(DesignError::Unsupported {
+                what: format!("{} as a device", spec.config.name()),
+                why: "only the DDR2 configurations are generated with the XEM6310 core".into(),
+            }));
+        }
+        let cosim = Cosim::new(spec)?;
+        let model = Model::new(cosim.fast.clone()).map_err(DesignError::from)?;
+        let case = Case {
+            n: 1,
+            threshold: 1,
+            l_min: 1,
+            l_max: 1,
+            planes: Vec::new(),
+            hot: Vec::new(),
+            mask_enable: false,
+            source: Source::Replay,
+            input_stall: 0,
+            read_stall: 0,
+            hold_reads: false,
+            seed: 1,
+        };
+        let mut host = XemHost::new(model, &cosim, &case, None, None)?;
+        host.limit = u64::MAX;
+        Ok(Device {
+            host,
+            replay: VecDeque::new(),
+            taken: 0,
+        })
+    }
+
+    /// Reads a wire-out.
+    pub fn wire_out(&mut self, addr: u8) -> u32 {
+        self.host.wire_out(addr)
+    }
+
+    /// Sets a wire-in (takes effect at the next clock).
+    pub fn set_wire_in(&mut self, addr: u8, value: u32) -> Result<(), HarnessError> {
+        let i = *self
+            .host
+            .p
+            .wire_in
+            .get(addr as usize)
+            .ok_or_else(|| HarnessError::Gateware(format!("no wire-in {addr:#04x}")))?;
+        self.host.sh.set(&mut self.host.m, i, value as u64);
+        Ok(())
+    }
+
+    /// Pulses a trigger bit for one clock.
+    pub fn trigger(&mut self, bit: u8) {
+        self.host.trigger(bit);
+    }
+
+    /// Writes the mask pipe-in (whole 16-byte blocks; the end is zero-padded).
+    pub fn write_mask(&mut self, bytes: &[u8]) -> Result<(), HarnessError> {
+        let mut words: Vec<u32> = bytes
+            .chunks(4)
+            .map(|c| {
+                let mut b = [0u8; 4];
+                b[..c.len()].copy_from_slice(c);
+                u32::from_le_bytes(b)
+            })
+            .collect();
+        words.resize(words.len().div_ceil(4) * 4, 0);
+        self.host.write_pipe(true, &words, 0)
+    }
+
+    /// Queues bit-planes for the replay pipe-in (sent while [`Device::run`] runs).
+    pub fn queue_planes(&mut self, planes: &[BitPlane]) {
+        self.replay.extend(pipe_words(planes));
+    }
+
+    /// Replay words not yet sent.
+    pub fn queued_words(&self) -> usize {
+        self.replay.len()
+    }
+
+    /// Runs up to `clocks` clocks: replays queued words when the pipe-in
+    /// takes a block, reads pipe-out blocks when offered. Returns the new
+    /// packet bytes (the pipe-out's end padding is withheld once the stream
+    /// has ended and FIFO_BYTES says nothing is left).
+    pub fn run(&mut self, clocks: u64) -> Result<Vec<u8>, HarnessError> {
+        let end = self.host.m.cycles + clocks;
+        while self.host.m.cycles < end {
+            if self.replay.len() >= 4 && self.host.m.get(self.host.p.replay_ready) != 0 {
+                let block: Vec<u32> = self.replay.drain(..4).collect();
+                self.host.write_pipe(false, &block, 0)?;
+            }
+            self.host.read_blocks(true);
+            self.host.clock();
+            if self.wire_out(wire_out::STATUS) & status::FAULT != 0 {
+                return Err(HarnessError::Gateware(self.host.fault_source()));
+            }
+        }
+        let ended = self.ended();
+        let upto = if ended {
+            strip_padding(&self.host.read).len()
+        } else {
+            // Hold back a block: it may be padding.
+            self.host.read.len().saturating_sub(16)
+        };
+        let out = self.host.read[self.taken.min(upto)..upto].to_vec();
+        self.taken = self.taken.max(upto);
+        Ok(out)
+    }
+
+    /// The stream has ended and every byte has been read.
+    pub fn ended(&mut self) -> bool {
+        self.wire_out(wire_out::STATUS) & status::ENDED != 0
+            && self.wire_out(wire_out::FIFO_BYTES) == 0
+            && self.host.pending == 0
+    }
+
+    /// Clocks run.
+    pub fn cycles(&self) -> u64 {
+        self.host.m.cycles
+    }
 }

@@ -13,7 +13,7 @@ fn an_injected_filter_fault_is_caught_and_named() {
     let top = spec.top_verilog().unwrap();
     let faulty = inject_filter_fault(&top).unwrap();
     assert_ne!(top, faulty);
-    let mut c = Cosim::with_top(spec, faulty).unwrap();
+    let mut c = Cosim::with_top_debug(spec, faulty).unwrap();
     let planes = generate(
         &SceneSpec {
             width: REDUCED.0,
