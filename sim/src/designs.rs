@@ -150,8 +150,7 @@ pub const P: usize = 16;
 pub type Spcimager150Reduced =
     XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
 /// SPCImager 60× core on 64×32 (kernel of the 60× PSF).
-pub type Spcimager60Reduced =
-    XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
 /// Projected SPCImager 150× pipeline (block-RAM delay line) on 64×32.
 pub type Projected150Reduced =
     Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
@@ -330,10 +329,12 @@ const MCB: [&str; 13] = [
 
 /// The top's ports allowing rust-hdl's `$` (vector elements).
 fn top_ports(verilog: &str) -> Result<Vec<(String, Dir, usize)>, DesignError> {
-    let start = verilog.find("module top(").ok_or_else(|| DesignError::Unsupported {
-        what: "Verilog".into(),
-        why: "no module `top`".into(),
-    })?;
+    let start = verilog
+        .find("module top(")
+        .ok_or_else(|| DesignError::Unsupported {
+            what: "Verilog".into(),
+            why: "no module `top`".into(),
+        })?;
     let body = &verilog[start..];
     let end = body.find("endmodule").unwrap_or(body.len());
     let mut v = Vec::new();

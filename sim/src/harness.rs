@@ -397,7 +397,12 @@ impl Cosim {
         )
     }
 
-    fn run_on(&self, build: &Arc<Build>, case: &Case, mode: RunMode) -> Result<Outcome, HarnessError> {
+    fn run_on(
+        &self,
+        build: &Arc<Build>,
+        case: &Case,
+        mode: RunMode,
+    ) -> Result<Outcome, HarnessError> {
         let model = Model::new(build.clone()).map_err(DesignError::from)?;
         let probes = if mode.debug {
             Some(Probes::new(&model, self, case)?)
@@ -557,7 +562,8 @@ pub fn compare_lossy(bytes: &[u8], records: &[Record], want: &[u8]) -> Result<u6
         want.len(),
         first.or(Some(bytes.len().min(want.len())))
     );
-    let bad = s.crc_errors + s.malformed + s.bytes_skipped + s.lost_in_transport + s.truncated_tail_bytes;
+    let bad =
+        s.crc_errors + s.malformed + s.bytes_skipped + s.lost_in_transport + s.truncated_tail_bytes;
     if bad > 0 {
         return Err(format!("{head}; corrupt stream: {s:?}"));
     }
@@ -598,7 +604,11 @@ pub fn compare_lossy(bytes: &[u8], records: &[Record], want: &[u8]) -> Result<u6
 fn first_differing_record_plane(bytes: &[u8], records: &[Record]) -> u64 {
     let d = decode_all(bytes);
     for (i, r) in records.iter().enumerate() {
-        let got = d.packets.iter().find(|p| p.seq as usize == i).map(|p| &p.record);
+        let got = d
+            .packets
+            .iter()
+            .find(|p| p.seq as usize == i)
+            .map(|p| &p.record);
         if got != Some(r) {
             return match r {
                 Record::Blink(b) => b.t_drop,
@@ -679,7 +689,9 @@ impl Expect {
             let (w, h) = (live.width(), live.height());
             self.masked.push_back(live.clone());
             let delayed = if self.masked.len() as u64 > self.n {
-                self.masked.pop_front().unwrap_or_else(|| BitPlane::zeros(w, h))
+                self.masked
+                    .pop_front()
+                    .unwrap_or_else(|| BitPlane::zeros(w, h))
             } else {
                 BitPlane::zeros(w, h)
             };
@@ -1185,7 +1197,10 @@ impl XemHost {
         let b = self.m.build().clone();
         let mut why = Vec::new();
         for (port, what) in [
-            ("fault_back", "a back-half buffer overflowed (input too dense for the tracker)"),
+            (
+                "fault_back",
+                "a back-half buffer overflowed (input too dense for the tracker)",
+            ),
             ("fault_underrun", "the DDR2 delay line underran"),
             ("fault_write", "the DDR2 write FIFO was full"),
         ] {
@@ -1323,7 +1338,8 @@ impl BramHost {
         for idx in 0..self.wpp {
             self.sh.set(&mut self.m, load, 1);
             self.sh.set(&mut self.m, load_address, idx as u64);
-            self.sh.set(&mut self.m, load_data, stream_word(&mask_plane, p, idx));
+            self.sh
+                .set(&mut self.m, load_data, stream_word(&mask_plane, p, idx));
             self.clock();
         }
         self.sh.set(&mut self.m, load, 0);
@@ -1361,8 +1377,14 @@ impl BramHost {
                 "overflowed",
             ]
             .map(|n| self.port(n));
-        let (running, accepting, config_error, in_valid, in_sop, in_live) =
-            (running?, accepting?, config_error?, in_valid?, in_sop?, in_live?);
+        let (running, accepting, config_error, in_valid, in_sop, in_live) = (
+            running?,
+            accepting?,
+            config_error?,
+            in_valid?,
+            in_sop?,
+            in_live?,
+        );
         let (stop, out_pop, out_valid, out_data, ended, fault, framing, overflowed) = (
             stop?,
             out_pop?,
@@ -1406,9 +1428,11 @@ impl BramHost {
             } else {
                 self.sh.set(&mut self.m, in_valid, 0);
             }
-            self.sh.set(&mut self.m, stop, (sent + took as usize == total) as u64);
-            let pop = !(case.hold_reads && self.m.get(ended) == 0)
-                && !(case.read_stall > 0 && self.rng.gen_range(0..100) < case.read_stall);
+            self.sh
+                .set(&mut self.m, stop, (sent + took as usize == total) as u64);
+            let held = case.hold_reads && self.m.get(ended) == 0;
+            let stalled = case.read_stall > 0 && self.rng.gen_range(0..100) < case.read_stall;
+            let pop = !held && !stalled;
             self.sh.set(&mut self.m, out_pop, pop as u64);
             if pop && self.m.get(out_valid) != 0 {
                 bytes.push(self.m.get(out_data) as u8);

@@ -332,8 +332,11 @@ impl std::fmt::Debug for Build {
     }
 }
 
-fn builds() -> &'static Mutex<HashMap<String, Arc<Mutex<Option<Arc<Build>>>>>> {
-    static B: OnceLock<Mutex<HashMap<String, Arc<Mutex<Option<Arc<Build>>>>>>> = OnceLock::new();
+/// One slot per cache key: filled by the first thread that builds it.
+type BuildSlot = Arc<Mutex<Option<Arc<Build>>>>;
+
+fn builds() -> &'static Mutex<HashMap<String, BuildSlot>> {
+    static B: OnceLock<Mutex<HashMap<String, BuildSlot>>> = OnceLock::new();
     B.get_or_init(Default::default)
 }
 
@@ -356,14 +359,17 @@ impl Build {
         if let Some(b) = slot.as_ref() {
             return Ok(b.clone());
         }
-        let b = Arc::new(Self::build(verilog, opts, &key)?);
+        let b = Arc::new(Self::verilate(verilog, opts, &key)?);
         *slot = Some(b.clone());
         Ok(b)
     }
 
-    fn build(verilog: &str, opts: &BuildOptions, key: &str) -> Result<Build, VerilatorError> {
+    fn verilate(verilog: &str, opts: &BuildOptions, key: &str) -> Result<Build, VerilatorError> {
         let ports = parse_ports(verilog, &opts.top)?;
-        if !ports.iter().any(|p| p.name == opts.clock && p.dir == Dir::In) {
+        if !ports
+            .iter()
+            .any(|p| p.name == opts.clock && p.dir == Dir::In)
+        {
             return Err(VerilatorError::NoPort(opts.clock.clone()));
         }
         let root = cache_root();

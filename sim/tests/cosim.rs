@@ -47,7 +47,19 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
         0.0f64..0.5,
     )
         .prop_map(
-            |(seed, n, l_min, extra, mask_enable, input_stall, read_stall, emitters, background, quantile, edge)| Params {
+            |(
+                seed,
+                n,
+                l_min,
+                extra,
+                mask_enable,
+                input_stall,
+                read_stall,
+                emitters,
+                background,
+                quantile,
+                edge,
+            )| Params {
                 seed,
                 n,
                 l_min,
@@ -63,10 +75,21 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
         )
 }
 
-fn scene(w: usize, h: usize, planes: usize, p: &Params) -> (Vec<smartagg_model::plane::BitPlane>, Vec<(usize, usize)>) {
+fn scene(
+    w: usize,
+    h: usize,
+    planes: usize,
+    p: &Params,
+) -> (Vec<smartagg_model::plane::BitPlane>, Vec<(usize, usize)>) {
     let hot = vec![
-        ((p.seed % w as u64) as usize, ((p.seed >> 8) % h as u64) as usize),
-        (((p.seed >> 16) % w as u64) as usize, ((p.seed >> 24) % h as u64) as usize),
+        (
+            (p.seed % w as u64) as usize,
+            ((p.seed >> 8) % h as u64) as usize,
+        ),
+        (
+            ((p.seed >> 16) % w as u64) as usize,
+            ((p.seed >> 24) % h as u64) as usize,
+        ),
     ];
     let spec = SceneSpec {
         width: w,
@@ -85,7 +108,13 @@ fn scene(w: usize, h: usize, planes: usize, p: &Params) -> (Vec<smartagg_model::
     (generate(&spec, p.seed), hot)
 }
 
-fn case_of(c: &Cosim, planes: Vec<smartagg_model::plane::BitPlane>, hot: Vec<(usize, usize)>, p: &Params, source: Source) -> Case {
+fn case_of(
+    c: &Cosim,
+    planes: Vec<smartagg_model::plane::BitPlane>,
+    hot: Vec<(usize, usize)>,
+    p: &Params,
+    source: Source,
+) -> Case {
     let mut case = Case {
         n: p.n,
         threshold: 1,
@@ -109,8 +138,14 @@ fn case_of(c: &Cosim, planes: Vec<smartagg_model::plane::BitPlane>, hot: Vec<(us
 fn check(c: &mut Cosim, case: &Case) -> Result<Coverage, String> {
     match c.check(case) {
         Ok(Ok(cov)) => Ok(cov),
-        Ok(Err(m)) => Err(format!("{} (case: n {} T {} L_min {} L_max {} seed {})", m, case.n, case.threshold, case.l_min, case.l_max, case.seed)),
-        Err(e) => Err(format!("{e} (case: n {} T {} L_min {} L_max {} seed {})", case.n, case.threshold, case.l_min, case.l_max, case.seed)),
+        Ok(Err(m)) => Err(format!(
+            "{} (case: n {} T {} L_min {} L_max {} seed {})",
+            m, case.n, case.threshold, case.l_min, case.l_max, case.seed
+        )),
+        Err(e) => Err(format!(
+            "{e} (case: n {} T {} L_min {} L_max {} seed {})",
+            case.n, case.threshold, case.l_min, case.l_max, case.seed
+        )),
     }
 }
 
@@ -129,9 +164,9 @@ fn directed(c: &mut Cosim, seed: u64, hold_reads: bool) -> Coverage {
         mask_enable: true,
         input_stall: 10,
         read_stall: 0,
-        emitters: 70,
+        emitters: 50,
         background: 0.002,
-        quantile: 0.97,
+        quantile: 0.98,
         edge: 0.3,
     };
     let spec = SceneSpec {
@@ -141,8 +176,8 @@ fn directed(c: &mut Cosim, seed: u64, hold_reads: bool) -> Coverage {
         background: p.background,
         emitters: p.emitters,
         peak: 0.6,
-        mean_on: 30.0,
-        mean_off: 30.0,
+        mean_on: 40.0,
+        mean_off: 20.0,
         edge_fraction: p.edge,
         dip: 0.05,
         hot: vec![(5, 5)],
@@ -183,6 +218,7 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
         })
         .unwrap_or_else(|e| panic!("{}: {e}", config.name()));
     total.add(&cov.borrow());
+    println!("{} random cases: {total}", config.name());
     let c = cell.into_inner();
     total.add(&directed(c, seed ^ 1, false));
     total.add(&directed(c, seed ^ 2, true));
@@ -195,7 +231,10 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     assert!(total.output_fifo_full > 0, "output FIFO full: {total}");
     assert!(total.edge_rois > 0, "edge ROIs: {total}");
     if config.ddr() {
-        assert!(total.refresh_collisions > 0, "DDR2 refresh collisions: {total}");
+        assert!(
+            total.refresh_collisions > 0,
+            "DDR2 refresh collisions: {total}"
+        );
     }
     total
 }

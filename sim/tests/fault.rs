@@ -54,5 +54,8 @@ fn an_injected_filter_fault_is_caught_and_named() {
     assert_eq!(m.stage, Stage::SpatialFilter, "{m}");
     let vcd = m.vcd.as_ref().expect("a VCD of the window");
     let text = std::fs::read_to_string(vcd).unwrap();
-    assert!(text.contains("$enddefinitions") && text.contains("filter"), "VCD {vcd:?}");
+    assert!(
+        text.contains("$enddefinitions") && text.contains("filter"),
+        "VCD {vcd:?}"
+    );
 }

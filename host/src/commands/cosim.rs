@@ -59,7 +59,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let n = args.n.unwrap_or(config.n_max().min(108));
     if n == 0 || n > config.n_max() {
-        bail!("--n {n}: must be 1..={} for {}", config.n_max(), config.name());
+        bail!(
+            "--n {n}: must be 1..={} for {}",
+            config.n_max(),
+            config.name()
+        );
     }
     eprintln!(
         "{} on {w}x{h}: generating and verilating (cached by the Verilog's hash)...",
@@ -71,7 +75,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "design ready in {:.1} s ({}, {})",
         t.elapsed().as_secs_f64(),
         c.build().dir.display(),
-        if c.build().fresh { "verilated now" } else { "from the cache" }
+        if c.build().fresh {
+            "verilated now"
+        } else {
+            "from the cache"
+        }
     );
     let hot = vec![(w / 3, h / 2)];
     let planes = generate(

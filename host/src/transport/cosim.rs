@@ -113,9 +113,14 @@ impl RegisterBus for CosimSource {
 
     fn write_pipe_in(&mut self, addr: u8, data: &[u8]) -> Result<(), TransportError> {
         if addr != registers::pipe::MASK_IN {
-            return Err(sim_err("pipe-in", format!("no pipe-in {addr:#04x} for the host")));
+            return Err(sim_err(
+                "pipe-in",
+                format!("no pipe-in {addr:#04x} for the host"),
+            ));
         }
-        self.dev.write_mask(data).map_err(|e| sim_err("mask pipe-in", e))
+        self.dev
+            .write_mask(data)
+            .map_err(|e| sim_err("mask pipe-in", e))
     }
 }
 
