@@ -166,7 +166,10 @@ impl PacketSource for CosimSource {
     fn start(&mut self) -> Result<(), TransportError> {
         // START is taken once the DDR2 has calibrated.
         let mut clocks = 0;
-        while self.dev.wire_out(registers::wire_out::STATUS) & smartagg_hdl::registers::status::MEM_READY == 0 {
+        while self.dev.wire_out(registers::wire_out::STATUS)
+            & smartagg_hdl::registers::status::MEM_READY
+            == 0
+        {
             self.dev.run(64).map_err(|e| sim_err("calibration", e))?;
             clocks += 64;
             if clocks > 1_000_000 {
