@@ -149,8 +149,9 @@ pub const P: usize = 16;
 /// SPCImager 150× core on 64×32.
 pub type Spcimager150Reduced =
     XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
-/// SPCImager 60× core on 64×32 (kernel of the 60× PSF).
-pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+/// SPCImager 60× core on 64×32 (the model's kernel for the 60× PSF:
+/// σ = 0.61 px, k = 5, a = 8; R = 5).
+pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 7, 17, 9, 7, 6, 233, 464, 65, 9, 12>;
 /// Projected SPCImager 150× pipeline (block-RAM delay line) on 64×32.
 pub type Projected150Reduced =
     Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;

@@ -68,7 +68,7 @@ pub struct Case {
     pub input_stall: u32,
     /// Percent of host opportunities skipped on the output side.
     pub read_stall: u32,
-    /// The host reads nothing until the stream has ended (forces overflow).
+    /// The host reads nothing until every plane has gone in (forces overflow).
     pub hold_reads: bool,
     /// Seed of the host stalls.
     pub seed: u64,
@@ -1153,7 +1153,9 @@ impl XemHost {
             if st & status::FAULT != 0 {
                 return Err(HarnessError::Gateware(self.fault_source()));
             }
-            self.read_blocks(ended);
+            // After STOP the host reads (a held reader would deadlock: the
+            // StreamEnd record needs room in the output FIFO).
+            self.read_blocks(true);
             self.clock();
             if self.m.cycles - t0 > self.limit {
                 return Err(HarnessError::Gateware(format!(
@@ -1430,7 +1432,7 @@ impl BramHost {
             }
             self.sh
                 .set(&mut self.m, stop, (sent + took as usize == total) as u64);
-            let held = case.hold_reads && self.m.get(ended) == 0;
+            let held = case.hold_reads && sent < total;
             let stalled = case.read_stall > 0 && self.rng.gen_range(0..100) < case.read_stall;
             let pop = !held && !stalled;
             self.sh.set(&mut self.m, out_pop, pop as u64);
