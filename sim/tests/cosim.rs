@@ -189,6 +189,40 @@ fn directed(c: &mut Cosim, seed: u64, hold_reads: bool) -> Coverage {
     check(c, &case).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// Slot exhaustion in a burst: a quiet scene in which, for four planes, 40
+/// bright spots light up at once on an 8×5 grid — more candidates than the
+/// M = 32 slots. (A sustained 32 ROIs would exceed the reduced field's ROI
+/// sweep rate — a 64×32 plane is only 256 clocks — and the back half would
+/// raise FAULT, as designed.)
+fn burst(c: &mut Cosim, seed: u64) -> Coverage {
+    let (w, h) = (c.spec.width, c.spec.height);
+    let p = Params {
+        seed,
+        n: 3,
+        l_min: 2,
+        extra: 20,
+        mask_enable: false,
+        input_stall: 5,
+        read_stall: 10,
+        emitters: 2,
+        background: 0.001,
+        quantile: 0.99,
+        edge: 0.0,
+    };
+    let (mut planes, hot) = scene(w, h, 160, &p);
+    for plane in planes.iter_mut().skip(80).take(4) {
+        let old = plane.clone();
+        *plane = smartagg_model::plane::BitPlane::from_fn(w, h, |x, y| {
+            let (gx, gy) = (x % 8, y % 6);
+            old.get(x, y) || ((3..=5).contains(&gx) && (2..=4).contains(&gy) && y < 30)
+        });
+    }
+    let mut case = case_of(c, planes, hot, &p, Source::Replay);
+    // A threshold the spots cross and the background does not.
+    case.threshold = threshold_at_quantile(&c.model_config(&case).unwrap(), &case.planes, 0.999);
+    check(c, &case).unwrap_or_else(|e| panic!("{e}"))
+}
+
 fn run_configuration(config: Config, seed: u64) -> Coverage {
     let spec = DesignSpec::new(config, REDUCED.0, REDUCED.1).unwrap();
     let mut c = Cosim::new(spec).unwrap();
@@ -222,6 +256,7 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     let c = cell.into_inner();
     total.add(&directed(c, seed ^ 1, false));
     total.add(&directed(c, seed ^ 2, true));
+    total.add(&burst(c, seed ^ 3));
     println!("{}: {total}", config.name());
     assert!(total.planes >= 6_000, "{total}");
     assert!(total.confirmed_blinks > 0, "confirmed blinks: {total}");
