@@ -444,9 +444,9 @@ fn wrapper(
     Ok(v)
 }
 
-/// A deliberate fault in the spatial filter: the horizontal pass's first
-/// symmetric tap pair adds the wrong neighbour (an off-by-one in the tap
-/// index), as a wrongly indexed line-buffer read would.
+/// A deliberate fault in the spatial filter: the vertical pass's symmetric
+/// tap pair nearest the centre adds the centre line instead of the line
+/// beside it (an off-by-one in the line-buffer index).
 pub fn inject_filter_fault(verilog: &str) -> Result<String, DesignError> {
     let start = verilog
         .find("module top$pipe$front$filter(")
@@ -456,54 +456,44 @@ pub fn inject_filter_fault(verilog: &str) -> Result<String, DesignError> {
         + verilog[start..]
             .find("endmodule")
             .ok_or_else(|| DesignError::Fault("unterminated filter module".into()))?;
-    let needle = "hpair$0$d = hwid$0$y + hwid$";
-    let at = start
-        + verilog[start..end]
-            .find(needle)
-            .ok_or_else(|| DesignError::Fault(format!("no `{needle}` in the filter")))?;
-    let idx_start = at + needle.len();
-    let idx_len = verilog[idx_start..]
-        .find(|c: char| !c.is_ascii_digit())
-        .unwrap_or(0);
-    let k: usize = verilog[idx_start..idx_start + idx_len]
+    // Lane 0's pairs `vpair$i$d = tap$a + tap$b;` come first; the one with
+    // the smallest b − a is next to the centre.
+    let mut best: Option<(usize, usize, usize)> = None; // (gap, position of b, length of b)
+    let mut at = start;
+    while let Some(off) = verilog[at..end].find("vpair$") {
+        let line_start = at + off;
+        let line_end = line_start + verilog[line_start..end].find(';').unwrap_or(0);
+        let line = &verilog[line_start..line_end];
+        at = line_end.max(line_start + 1);
+        let Some((_, rhs)) = line.split_once("$d = tap$") else {
+            continue;
+        };
+        let Some((a, b)) = rhs.split_once(" + tap$") else {
+            continue;
+        };
+        let (Ok(a), Ok(b)) = (a.trim().parse::<usize>(), b.trim().parse::<usize>()) else {
+            continue;
+        };
+        if a == 0 && best.is_some() {
+            break;
+        }
+        if b > a + 1 && best.is_none_or(|(g, _, _)| b - a < g) {
+            let bpos = line_start + line.rfind("tap$").unwrap_or(0) + 4;
+            best = Some((b - a, bpos, b.to_string().len()));
+        }
+        if b.saturating_sub(a) <= 2 {
+            break;
+        }
+    }
+    let (_, bpos, blen) =
+        best.ok_or_else(|| DesignError::Fault("no vertical tap pair in the filter".into()))?;
+    let b: usize = verilog[bpos..bpos + blen]
         .parse()
         .map_err(|_| DesignError::Fault("tap index".into()))?;
-    if k == 0 {
-        return Err(DesignError::Fault("tap index 0".into()));
-    }
     Ok(format!(
         "{}{}{}",
-        &verilog[..idx_start],
-        k - 1,
-        &verilog[idx_start + idx_len..]
+        &verilog[..bpos],
+        b - 1,
+        &verilog[bpos + blen..]
     ))
-}
-
-/// rust-hdl distributes the clock through combinational `always @(*)`
-/// blocks (`child$clock = clock;`), which makes Verilator re-evaluate those
-/// whole blocks on every clock edge and treat every child clock as a
-/// derived clock. The same netlist with the clock distributed by wires
-/// (`wire child$clock = clock;`) is equivalent and several times faster to
-/// simulate: this rewrites exactly those declarations and assignments.
-pub fn clock_wires(verilog: &str) -> String {
-    let mut out = String::with_capacity(verilog.len());
-    for line in verilog.lines() {
-        let t = line.trim();
-        if let Some(name) = t
-            .strip_prefix("reg  ")
-            .and_then(|r| r.strip_suffix(';'))
-            .filter(|n| n.ends_with("$clock") && !n.contains(' '))
-        {
-            out.push_str(&format!("    wire {name} = clock;\n"));
-            continue;
-        }
-        if let Some(name) = t.strip_suffix(" = clock;") {
-            if name.ends_with("$clock") && !name.contains(' ') {
-                continue;
-            }
-        }
-        out.push_str(line);
-        out.push('\n');
-    }
-    out
 }
