@@ -36,6 +36,8 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Localise molecules in blink-ROI packets (.rois) or a TIFF frame stack; ThunderSTORM CSV out.
     Localize(commands::localize::Args),
+    /// Co-simulate the generated gateware (Verilator) against the golden model on a simulated scene.
+    Cosim(commands::cosim::Args),
     /// Receive the blink-ROI packet stream from a board, a file or the co-simulation into a .rois file.
     Download(commands::download::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
@@ -73,6 +75,7 @@ fn main() {
         Command::Render(a) => commands::render::run(a),
         Command::Calibrate(a) => commands::calibrate::run(a),
         Command::Download(a) => commands::download::run(a),
+        Command::Cosim(a) => commands::cosim::run(a),
         Command::Study(a) => commands::study::run(a),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),

@@ -6,6 +6,7 @@ pub mod bench_false_blinks;
 pub mod bench_localize;
 pub mod bench_simulate;
 pub mod calibrate;
+pub mod cosim;
 pub mod demo;
 pub mod download;
 pub mod localize;

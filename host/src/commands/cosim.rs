@@ -1,0 +1,151 @@
+//! `smartagg cosim`: the generated gateware (Verilog, verilated) against the
+//! golden model on a simulated scene: prints match or the first mismatch
+//! (stage, bit-plane, VCD), packets compared, clocks per bit-plane and
+//! simulated clock cycles per second.
+
+use anyhow::{bail, Context};
+use smartagg_model::params::PresetName;
+use smartagg_sim::designs::{Config, DesignSpec, REDUCED};
+use smartagg_sim::harness::{threshold_at_quantile, Case, Cosim, Source};
+use smartagg_sim::scene::{generate, SceneSpec};
+use std::path::PathBuf;
+
+/// Arguments of `smartagg cosim`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Camera preset (spcimager, spcimager-projected).
+    #[arg(long, default_value = "spcimager")]
+    pub preset: String,
+    /// Objective magnification (150 or 60).
+    #[arg(long, default_value_t = 150)]
+    pub objective: u32,
+    /// Bit-planes to stream.
+    #[arg(long, default_value_t = 500)]
+    pub planes: usize,
+    /// Scene and host-stall seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Field width (a generated field: 64 for every configuration, 320 for spcimager 150x).
+    #[arg(long, requires = "height")]
+    pub width: Option<usize>,
+    /// Field height (32, or 240 with width 320).
+    #[arg(long, requires = "width")]
+    pub height: Option<usize>,
+    /// Rolling window N (default: the configuration's N_max, at most 108).
+    #[arg(long)]
+    pub n: Option<u32>,
+    /// Feed the planes through the sensor port instead of the replay pipe-in.
+    #[arg(long)]
+    pub sensor: bool,
+    /// Write a VCD of the whole run to this file (debug build, slow).
+    #[arg(long)]
+    pub vcd: Option<PathBuf>,
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let name = PresetName::parse(&args.preset)?;
+    let config = Config::for_preset(name, args.objective)?;
+    let (w, h) = match (args.width, args.height) {
+        (Some(w), Some(h)) => (w, h),
+        _ => REDUCED,
+    };
+    let spec = DesignSpec::new(config, w, h)?;
+    if args.planes == 0 {
+        bail!("--planes must be at least 1");
+    }
+    if args.sensor && !config.ddr() {
+        bail!("--sensor: {} is simulated without the XEM6310 core (block-RAM pipeline); its input is the pipeline's word port", config.name());
+    }
+    let n = args.n.unwrap_or(config.n_max().min(108));
+    if n == 0 || n > config.n_max() {
+        bail!(
+            "--n {n}: must be 1..={} for {}",
+            config.n_max(),
+            config.name()
+        );
+    }
+    eprintln!(
+        "{} on {w}x{h}: generating and verilating (cached by the Verilog's hash)...",
+        config.name()
+    );
+    let t = std::time::Instant::now();
+    let mut c = Cosim::new(spec).context("building the co-simulation")?;
+    eprintln!(
+        "design ready in {:.1} s ({}, {})",
+        t.elapsed().as_secs_f64(),
+        c.build().dir.display(),
+        if c.build().fresh {
+            "verilated now"
+        } else {
+            "from the cache"
+        }
+    );
+    let hot = vec![(w / 3, h / 2)];
+    let planes = generate(
+        &SceneSpec {
+            width: w,
+            height: h,
+            planes: args.planes,
+            background: 0.001,
+            emitters: (w * h / 150).max(4),
+            peak: 0.4,
+            mean_on: 12.0,
+            mean_off: 60.0,
+            edge_fraction: 0.2,
+            dip: 0.05,
+            hot: hot.clone(),
+            hot_rate: 0.3,
+        },
+        args.seed,
+    );
+    let mut case = Case {
+        n,
+        threshold: 1,
+        l_min: 3,
+        l_max: n + 100,
+        planes,
+        hot,
+        mask_enable: true,
+        source: if args.sensor {
+            Source::Sensor
+        } else {
+            Source::Replay
+        },
+        input_stall: 10,
+        read_stall: 20,
+        hold_reads: false,
+        seed: args.seed,
+    };
+    case.threshold = threshold_at_quantile(&c.model_config(&case)?, &case.planes, 0.995);
+    if let Some(path) = &args.vcd {
+        c.trace_whole_run(path.clone());
+    }
+    match c.check(&case)? {
+        Ok(cov) => {
+            println!(
+                "match: {} packets compared byte for byte over {} bit-planes (N {n}, T_int {}, L_min {}, L_max {})",
+                cov.packets, cov.planes, case.threshold, case.l_min, case.l_max
+            );
+            if cov.records_lost > 0 {
+                println!(
+                    "  output FIFO overflowed: {} records missing, every one announced by Overflow records",
+                    cov.records_lost
+                );
+            }
+            println!("  {cov}");
+            println!(
+                "  {:.0} clocks per bit-plane ({} words of P = {} pixels; the source runs at the sensor's duty cycle, one word every other clock); {:.3} M simulated clock cycles/s",
+                cov.cycles as f64 / cov.planes as f64,
+                w * h / smartagg_sim::designs::P,
+                smartagg_sim::designs::P,
+                cov.cycles as f64 / cov.seconds.max(1e-9) / 1e6
+            );
+            if let Some(p) = &args.vcd {
+                println!("  VCD: {}", p.display());
+            }
+            Ok(())
+        }
+        Err(m) => bail!("{m}"),
+    }
+}

@@ -1,0 +1,1648 @@
+//! The co-simulation harness: one bit-plane stream through the Verilated
+//! gateware and through the golden model, the packet byte streams compared.
+//!
+//! **Host side.** DDR2 configurations are driven as the host drives the
+//! XEM6310 through FrontPanel: RESET, the hot-pixel mask through pipe-in
+//! 0x81, wire-ins, START, the planes through the block-throttled replay
+//! pipe-in 0x80 (or the sensor port's FIFO), STOP, and the packet stream
+//! read in 16-byte blocks from pipe-out 0xA0, with random host stalls on
+//! both pipes (a stalled reader makes the output FIFO overflow). The
+//! block-RAM configuration (projected SPCImager) is the pipeline itself,
+//! driven word by word with source stalls and output back-pressure.
+//!
+//! **Comparison.** With no loss the bytes equal the model's exactly. With
+//! output-FIFO overflow they must be the model's records with exactly the
+//! records the Overflow records account for missing, every delivered record
+//! equal to the model's record of the same sequence number (DESIGN.md §3).
+//!
+//! **Diagnosis.** On a mismatch the same case runs again on a debug build
+//! whose wrapper exposes every stage's output words (delay line, rolling
+//! count, spatial filter, threshold and candidates); they are compared with
+//! the model's stages plane by plane to name the first stage and bit-plane
+//! that differ, and a third run writes a VCD of the clocks around it.
+
+use crate::designs::{DesignError, DesignSpec};
+use crate::verilator::{Build, Model};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use smartagg_hdl::registers::{control, status, trigger, wire_in, wire_out};
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::hot_pixel_mask::HotPixelMask;
+use smartagg_model::packet::decode_all;
+use smartagg_model::packetiser::encode_stream;
+use smartagg_model::plane::BitPlane;
+use smartagg_model::record::{flags, Record};
+use std::collections::{BTreeMap, VecDeque};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Where the planes enter the design.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// The replay pipe-in (hardware-in-the-loop path).
+    Replay,
+    /// The sensor port's FIFO (DDR2 configurations).
+    Sensor,
+}
+
+/// One co-simulation case: runtime registers, planes, host behaviour.
+#[derive(Debug, Clone)]
+pub struct Case {
+    /// Rolling window N.
+    pub n: u32,
+    /// Threshold T_int.
+    pub threshold: u32,
+    /// L_min.
+    pub l_min: u32,
+    /// L_max.
+    pub l_max: u32,
+    /// The bit-planes.
+    pub planes: Vec<BitPlane>,
+    /// Hot pixels of the mask (loaded in any case, applied if `mask_enable`).
+    pub hot: Vec<(usize, usize)>,
+    /// MASK_ENABLE.
+    pub mask_enable: bool,
+    /// Input path.
+    pub source: Source,
+    /// Percent of host opportunities skipped on the input side.
+    pub input_stall: u32,
+    /// Percent of host opportunities skipped on the output side.
+    pub read_stall: u32,
+    /// The host reads nothing until every plane has gone in (forces overflow).
+    pub hold_reads: bool,
+    /// Seed of the host stalls.
+    pub seed: u64,
+}
+
+/// Plane period written to the register (ns).
+pub const PLANE_PERIOD_NS: u32 = 100_000;
+
+/// What one run of the gateware produced.
+#[derive(Debug, Clone, Default)]
+pub struct Outcome {
+    /// The packet bytes (end padding removed).
+    pub bytes: Vec<u8>,
+    /// Clocks from START to the end of the stream.
+    pub stream_cycles: u64,
+    /// Clocks run in all.
+    pub cycles: u64,
+    /// Wall time of the run, seconds.
+    pub seconds: f64,
+    /// Final status wire.
+    pub status: u32,
+    /// DDR2 refreshes that began while commands waited.
+    pub refresh_collisions: u64,
+    /// DDR2 refreshes.
+    pub refreshes: u64,
+    /// The output overflowed (status).
+    pub overflowed: bool,
+    /// Stage probes: the first mismatch of each stage (debug builds).
+    pub stage_mismatches: Vec<StageMismatch>,
+}
+
+/// A pipeline stage with a probe.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Stage {
+    /// Stage 0 + 1a: the masked live word `B_t` out of the delay line.
+    MaskAndDelayLive,
+    /// Stage 1a: `B_{t−N}` out of the delay line.
+    DelayLine,
+    /// Stage 1: rolling count S.
+    RollingCount,
+    /// Stage 2: spatial filter H.
+    SpatialFilter,
+    /// Stage 3: threshold `H ≥ T_int`.
+    Threshold,
+    /// Stage 4: candidates (3×3 local maxima).
+    Candidates,
+    /// Stages 5–7: tracker, ROI aggregator, packetiser, output FIFO.
+    BackHalf,
+}
+
+impl Stage {
+    /// The stage's name in the paper's and the model's words.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::MaskAndDelayLive => "hot-pixel mask (live bit-plane)",
+            Stage::DelayLine => "delay line (B_{t-N})",
+            Stage::RollingCount => "rolling count",
+            Stage::SpatialFilter => "spatial filter",
+            Stage::Threshold => "threshold",
+            Stage::Candidates => "candidates",
+            Stage::BackHalf => "back half (blink tracker, ROI aggregator, packetiser)",
+        }
+    }
+}
+
+/// The first difference of one stage.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StageMismatch {
+    /// Which stage.
+    pub stage: Stage,
+    /// Bit-plane.
+    pub plane: u64,
+    /// Word within the plane (P pixels, raster order).
+    pub word: usize,
+    /// Clock of the run at which it came out.
+    pub cycle: u64,
+    /// Lane values, gateware.
+    pub got: Vec<u64>,
+    /// Lane values, model.
+    pub want: Vec<u64>,
+}
+
+/// The first mismatch of a case, named.
+#[derive(Debug, Clone)]
+pub struct Mismatch {
+    /// The first stage that differs.
+    pub stage: Stage,
+    /// The first bit-plane at which it differs.
+    pub plane: u64,
+    /// What differs.
+    pub detail: String,
+    /// VCD of the clocks around it, if written.
+    pub vcd: Option<PathBuf>,
+}
+
+impl std::fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "first mismatch in stage `{}` at bit-plane {}: {}",
+            self.stage.name(),
+            self.plane,
+            self.detail
+        )?;
+        if let Some(v) = &self.vcd {
+            write!(f, " (VCD: {})", v.display())?;
+        }
+        Ok(())
+    }
+}
+
+/// Coverage of what the cases exercised (summed over cases).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Coverage {
+    /// Cases run.
+    pub cases: u64,
+    /// Bit-planes streamed.
+    pub planes: u64,
+    /// Packets compared (model records).
+    pub packets: u64,
+    /// Confirmed blinks (Blink records).
+    pub confirmed_blinks: u64,
+    /// Single-plane dips bridged.
+    pub bridged_dips: u64,
+    /// Tracks shorter than L_min (unconfirmed).
+    pub unconfirmed_tracks: u64,
+    /// Candidates dropped for want of a free slot.
+    pub slot_exhaustion: u64,
+    /// Cases whose output FIFO overflowed.
+    pub output_fifo_full: u64,
+    /// Records lost to output overflow, all announced.
+    pub records_lost: u64,
+    /// DDR2 refreshes that collided with waiting commands.
+    pub refresh_collisions: u64,
+    /// Blink ROIs touching the field's edge.
+    pub edge_rois: u64,
+    /// Clock cycles simulated.
+    pub cycles: u64,
+    /// Wall time simulating, seconds.
+    pub seconds: f64,
+}
+
+impl Coverage {
+    /// Adds another's counts.
+    pub fn add(&mut self, o: &Coverage) {
+        self.cases += o.cases;
+        self.planes += o.planes;
+        self.packets += o.packets;
+        self.confirmed_blinks += o.confirmed_blinks;
+        self.bridged_dips += o.bridged_dips;
+        self.unconfirmed_tracks += o.unconfirmed_tracks;
+        self.slot_exhaustion += o.slot_exhaustion;
+        self.output_fifo_full += o.output_fifo_full;
+        self.records_lost += o.records_lost;
+        self.refresh_collisions += o.refresh_collisions;
+        self.edge_rois += o.edge_rois;
+        self.cycles += o.cycles;
+        self.seconds += o.seconds;
+    }
+}
+
+impl std::fmt::Display for Coverage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "cases {} planes {} packets {} | confirmed blinks {} bridged dips {} unconfirmed tracks {} \
+             slot exhaustion {} output FIFO full {} (records lost {}) DDR2 refresh collisions {} edge ROIs {} \
+             | {} cycles in {:.2} s ({:.2} M cycles/s)",
+            self.cases,
+            self.planes,
+            self.packets,
+            self.confirmed_blinks,
+            self.bridged_dips,
+            self.unconfirmed_tracks,
+            self.slot_exhaustion,
+            self.output_fifo_full,
+            self.records_lost,
+            self.refresh_collisions,
+            self.edge_rois,
+            self.cycles,
+            self.seconds,
+            self.cycles as f64 / self.seconds.max(1e-9) / 1e6
+        )
+    }
+}
+
+/// Errors of the harness (not mismatches: those are [`Mismatch`]).
+#[derive(Debug, thiserror::Error)]
+pub enum HarnessError {
+    /// Building the design.
+    #[error(transparent)]
+    Design(#[from] DesignError),
+    /// The model refused the case.
+    #[error("model: {0}")]
+    Model(String),
+    /// The gateware refused or broke the stream.
+    #[error("gateware: {0}")]
+    Gateware(String),
+}
+
+/// A configuration verilated and ready to run cases.
+pub struct Cosim {
+    /// The configuration.
+    pub spec: DesignSpec,
+    /// The generated top's Verilog (as `hdl` writes it; possibly with an injected fault).
+    pub top: String,
+    fast: Arc<Build>,
+    debug: Option<Arc<Build>>,
+    /// Directory for VCDs.
+    pub vcd_dir: PathBuf,
+    trace: Option<PathBuf>,
+}
+
+/// How a run goes: which build, probes, VCD window.
+struct RunMode<'a> {
+    debug: bool,
+    vcd: Option<(&'a Path, u64, u64)>,
+}
+
+impl Cosim {
+    /// Generates, verilates (or loads from the cache) and loads `spec`.
+    pub fn new(spec: DesignSpec) -> Result<Cosim, HarnessError> {
+        let top = spec.top_verilog()?;
+        Self::with_top(spec, top)
+    }
+
+    /// As [`Cosim::new`] with the given top Verilog (e.g. with a fault injected).
+    pub fn with_top(spec: DesignSpec, top: String) -> Result<Cosim, HarnessError> {
+        let v = spec.cosim_verilog(&top, false)?;
+        let fast = Build::get(&v, &DesignSpec::build_options(false)).map_err(DesignError::from)?;
+        let vcd_dir = fast.dir.join("vcd");
+        Ok(Cosim {
+            spec,
+            top,
+            fast,
+            debug: None,
+            vcd_dir,
+            trace: None,
+        })
+    }
+
+    /// As [`Cosim::with_top`], running every case on the debug build (stage
+    /// probes and tracing compiled in): one build instead of two for a
+    /// design that is expected to fail, as in fault injection.
+    pub fn with_top_debug(spec: DesignSpec, top: String) -> Result<Cosim, HarnessError> {
+        let v = spec.cosim_verilog(&top, true)?;
+        let b = Build::get(&v, &DesignSpec::build_options(true)).map_err(DesignError::from)?;
+        let vcd_dir = b.dir.join("vcd");
+        Ok(Cosim {
+            spec,
+            top,
+            fast: b.clone(),
+            debug: Some(b),
+            vcd_dir,
+            trace: None,
+        })
+    }
+
+    /// The fast build.
+    pub fn build(&self) -> &Arc<Build> {
+        &self.fast
+    }
+
+    fn debug_build(&mut self) -> Result<Arc<Build>, HarnessError> {
+        if let Some(b) = &self.debug {
+            return Ok(b.clone());
+        }
+        let v = self.spec.cosim_verilog(&self.top, true)?;
+        let b = Build::get(&v, &DesignSpec::build_options(true)).map_err(DesignError::from)?;
+        self.debug = Some(b.clone());
+        Ok(b)
+    }
+
+    /// The model configuration of a case.
+    pub fn model_config(&self, case: &Case) -> Result<PipelineConfig, HarnessError> {
+        let back = self.spec.back()?;
+        let f = &back.front;
+        let mut cfg = PipelineConfig::new(
+            f.width,
+            f.height,
+            case.n,
+            f.kernel.clone(),
+            f.kernel_shift,
+            case.threshold,
+        );
+        cfg.slots = back.slots;
+        cfg.roi_size = back.roi_size;
+        cfg.r_assoc = back.r_assoc;
+        cfg.l_min = case.l_min;
+        cfg.l_max = case.l_max;
+        cfg.plane_period_ns = PLANE_PERIOD_NS;
+        if case.mask_enable {
+            cfg.hot_mask = Some(HotPixelMask::from_pixels(f.width, f.height, &case.hot).0);
+        }
+        cfg.validate()
+            .map_err(|e| HarnessError::Model(e.to_string()))?;
+        Ok(cfg)
+    }
+
+    /// Makes [`Cosim::check`] run the traced debug build and write a VCD
+    /// of the whole run to `path` (slow: for short runs).
+    pub fn trace_whole_run(&mut self, path: PathBuf) {
+        self.trace = Some(path);
+    }
+
+    /// Runs the case on the gateware only.
+    pub fn run(&mut self, case: &Case) -> Result<Outcome, HarnessError> {
+        if let Some(path) = self.trace.clone() {
+            let debug = self.debug_build()?;
+            return self.run_on(
+                &debug,
+                case,
+                RunMode {
+                    debug: false,
+                    vcd: Some((&path, 0, u64::MAX)),
+                },
+            );
+        }
+        self.run_on(
+            &self.fast,
+            case,
+            RunMode {
+                debug: false,
+                vcd: None,
+            },
+        )
+    }
+
+    fn run_on(
+        &self,
+        build: &Arc<Build>,
+        case: &Case,
+        mode: RunMode,
+    ) -> Result<Outcome, HarnessError> {
+        let model = Model::new(build.clone()).map_err(DesignError::from)?;
+        let probes = if mode.debug {
+            Some(Probes::new(&model, self, case)?)
+        } else {
+            None
+        };
+        let started = std::time::Instant::now();
+        let mut out = if self.spec.config.ddr() {
+            XemHost::new(model, self, case, probes, mode.vcd)?.run(case)?
+        } else {
+            BramHost::new(model, self, case, probes, mode.vcd)?.run(case)?
+        };
+        out.seconds = started.elapsed().as_secs_f64();
+        Ok(out)
+    }
+
+    /// Runs the case on the gateware and the model and compares the packet
+    /// streams; on a mismatch, names the first stage and bit-plane that
+    /// differ and writes a VCD around it.
+    pub fn check(&mut self, case: &Case) -> Result<Result<Coverage, Mismatch>, HarnessError> {
+        let cfg = self.model_config(case)?;
+        let records = smartagg_model::pipeline::run(cfg, case.planes.clone())
+            .map_err(|e| HarnessError::Model(e.to_string()))?;
+        let want = encode_stream(&records).map_err(|e| HarnessError::Model(e.to_string()))?;
+        let out = self.run(case)?;
+        let mut cov = coverage_of(&records, case);
+        cov.cycles = out.cycles;
+        cov.seconds = out.seconds;
+        cov.refresh_collisions = out.refresh_collisions;
+        let verdict = if out.bytes == want {
+            if out.overflowed {
+                Err("status OVERFLOWED set but every record arrived".to_string())
+            } else {
+                Ok(0)
+            }
+        } else {
+            compare_lossy(&out.bytes, &records, &want)
+        };
+        match verdict {
+            Ok(lost) => {
+                if lost > 0 {
+                    cov.output_fifo_full = 1;
+                    cov.records_lost = lost;
+                }
+                Ok(Ok(cov))
+            }
+            Err(detail) => Ok(Err(self.diagnose(case, &records, detail)?)),
+        }
+    }
+
+    /// Reruns a failing case with probes and names the first stage that differs.
+    fn diagnose(
+        &mut self,
+        case: &Case,
+        records: &[Record],
+        detail: String,
+    ) -> Result<Mismatch, HarnessError> {
+        let debug = self.debug_build()?;
+        let out = self.run_on(
+            &debug,
+            case,
+            RunMode {
+                debug: true,
+                vcd: None,
+            },
+        )?;
+        let first = out
+            .stage_mismatches
+            .iter()
+            .min_by_key(|m| (m.stage, m.plane))
+            .cloned();
+        let wpp = self.spec.width * self.spec.height / crate::designs::P;
+        let (stage, plane, detail, cycle) = match first {
+            Some(m) => (
+                m.stage,
+                m.plane,
+                format!(
+                    "word {} (row {}, column {}): gateware lanes {:?}, model lanes {:?}; packets: {detail}",
+                    m.word,
+                    m.word * crate::designs::P / self.spec.width,
+                    m.word * crate::designs::P % self.spec.width,
+                    m.got,
+                    m.want
+                ),
+                Some(m.cycle),
+            ),
+            None => {
+                let plane = first_differing_record_plane(&out.bytes, records);
+                (Stage::BackHalf, plane, detail, None)
+            }
+        };
+        let vcd = match cycle {
+            Some(c) => {
+                std::fs::create_dir_all(&self.vcd_dir).ok();
+                let path = self
+                    .vcd_dir
+                    .join(format!("mismatch-seed{}-plane{plane}.vcd", case.seed));
+                let margin = 4 * wpp as u64 + 200;
+                self.run_on(
+                    &debug,
+                    case,
+                    RunMode {
+                        debug: false,
+                        vcd: Some((&path, c.saturating_sub(margin), c + margin)),
+                    },
+                )?;
+                path.exists().then_some(path)
+            }
+            None => None,
+        };
+        Ok(Mismatch {
+            stage,
+            plane,
+            detail,
+            vcd,
+        })
+    }
+}
+
+/// Counters of the model's records for a case.
+fn coverage_of(records: &[Record], case: &Case) -> Coverage {
+    let mut c = Coverage {
+        cases: 1,
+        planes: case.planes.len() as u64,
+        packets: records.len() as u64,
+        ..Default::default()
+    };
+    for r in records {
+        match r {
+            Record::Blink(b) => {
+                c.confirmed_blinks += 1;
+                if b.flags & flags::EDGE != 0 {
+                    c.edge_rois += 1;
+                }
+            }
+            Record::End(e) => {
+                c.bridged_dips += e.bridged_dips;
+                c.unconfirmed_tracks += e.unconfirmed;
+                c.slot_exhaustion += e.dropped_candidates;
+            }
+            _ => {}
+        }
+    }
+    c
+}
+
+/// Whether `bytes` are the model's records with some missing, every gap
+/// announced by an Overflow record with the exact count, nothing corrupted:
+/// Ok(records lost) or what is wrong.
+pub fn compare_lossy(bytes: &[u8], records: &[Record], want: &[u8]) -> Result<u64, String> {
+    let d = decode_all(bytes);
+    let s = &d.stats;
+    let first = bytes.iter().zip(want).position(|(a, b)| a != b);
+    let head = format!(
+        "byte streams differ ({} bytes vs the model's {}, first difference at byte {:?})",
+        bytes.len(),
+        want.len(),
+        first.or(Some(bytes.len().min(want.len())))
+    );
+    let bad =
+        s.crc_errors + s.malformed + s.bytes_skipped + s.lost_in_transport + s.truncated_tail_bytes;
+    if bad > 0 {
+        return Err(format!("{head}; corrupt stream: {s:?}"));
+    }
+    if s.lost_on_device == 0 {
+        return Err(format!("{head}; no Overflow record accounts for it"));
+    }
+    let mut delivered = 0u64;
+    for p in &d.packets {
+        match &p.record {
+            Record::Overflow(_) => {}
+            r => {
+                if records.get(p.seq as usize) != Some(r) {
+                    return Err(format!(
+                        "{head}; record seq {} differs: gateware {r:?}, model {:?}",
+                        p.seq,
+                        records.get(p.seq as usize)
+                    ));
+                }
+                delivered += 1;
+            }
+        }
+    }
+    if delivered + s.lost_on_device != records.len() as u64 {
+        return Err(format!(
+            "{head}; {delivered} delivered + {} announced lost != {} model records",
+            s.lost_on_device,
+            records.len()
+        ));
+    }
+    if !matches!(d.packets.last().map(|p| &p.record), Some(Record::End(_))) {
+        return Err(format!("{head}; the stream does not end with StreamEnd"));
+    }
+    Ok(s.lost_on_device)
+}
+
+/// The plane of the first record that differs (its completion plane), for
+/// back-half mismatches.
+fn first_differing_record_plane(bytes: &[u8], records: &[Record]) -> u64 {
+    let d = decode_all(bytes);
+    for (i, r) in records.iter().enumerate() {
+        let got = d
+            .packets
+            .iter()
+            .find(|p| p.seq as usize == i)
+            .map(|p| &p.record);
+        if got != Some(r) {
+            return match r {
+                Record::Blink(b) => b.t_drop,
+                Record::Dropped(x) => x.plane,
+                Record::End(e) => e.planes,
+                _ => 0,
+            };
+        }
+    }
+    0
+}
+
+/// Pipe words of planes: 32 pixels a word, pixel i of the stream in bit i.
+pub fn pipe_words(planes: &[BitPlane]) -> Vec<u32> {
+    let mut words = Vec::new();
+    let mut acc = 0u32;
+    let mut n = 0;
+    for p in planes {
+        for b in p.bits().iter().by_vals() {
+            acc |= (b as u32) << n;
+            n += 1;
+            if n == 32 {
+                words.push(acc);
+                acc = 0;
+                n = 0;
+            }
+        }
+    }
+    if n > 0 {
+        words.push(acc);
+    }
+    words
+}
+
+/// Stream word `idx` (P pixels) of a plane.
+fn stream_word(plane: &BitPlane, p: usize, idx: usize) -> u64 {
+    let bits = plane.bits();
+    let mut w = 0u64;
+    for i in 0..p {
+        if bits[idx * p + i] {
+            w |= 1 << i;
+        }
+    }
+    w
+}
+
+/// Expected stage outputs of one plane (model).
+struct ExpPlane {
+    live: BitPlane,
+    delayed: BitPlane,
+    counts: Vec<u32>,
+    filtered: Vec<u32>,
+    cand: Vec<bool>,
+}
+
+/// The model's stages, advanced plane by plane as the probes need them.
+struct Expect {
+    model: smartagg_model::pipeline::Pipeline,
+    mask: Option<HotPixelMask>,
+    planes: Vec<BitPlane>,
+    n: u64,
+    cache: BTreeMap<u64, ExpPlane>,
+    masked: VecDeque<BitPlane>,
+    next: u64,
+}
+
+impl Expect {
+    fn get(&mut self, t: u64) -> Option<&ExpPlane> {
+        if t as usize >= self.planes.len() {
+            return None;
+        }
+        while self.next <= t {
+            let i = self.next as usize;
+            let live = match &self.mask {
+                Some(m) => m.apply(&self.planes[i]),
+                None => self.planes[i].clone(),
+            };
+            let (w, h) = (live.width(), live.height());
+            self.masked.push_back(live.clone());
+            let delayed = if self.masked.len() as u64 > self.n {
+                self.masked
+                    .pop_front()
+                    .unwrap_or_else(|| BitPlane::zeros(w, h))
+            } else {
+                BitPlane::zeros(w, h)
+            };
+            self.model.push_plane(&self.planes[i]).ok()?;
+            let mut cand = vec![false; w * h];
+            for c in self.model.candidates() {
+                cand[c.y as usize * w + c.x as usize] = true;
+            }
+            self.cache.insert(
+                self.next,
+                ExpPlane {
+                    live,
+                    delayed,
+                    counts: self.model.counts().to_vec(),
+                    filtered: self.model.filtered().to_vec(),
+                    cand,
+                },
+            );
+            self.next += 1;
+            // Keep a few planes: the stages lag each other by less than one.
+            while self.cache.len() > 4 {
+                let k = *self.cache.keys().next().unwrap_or(&0);
+                self.cache.remove(&k);
+            }
+        }
+        self.cache.get(&t)
+    }
+}
+
+/// Probe ports of one stage and how many words it has put out.
+struct StageProbe {
+    stage: Stage,
+    valid: usize,
+    flush: usize,
+    data: usize,
+    words: u64,
+    first: Option<StageMismatch>,
+}
+
+/// Stage probes of a debug build, compared with the model as words come out.
+struct Probes {
+    stages: Vec<StageProbe>,
+    expect: Expect,
+    threshold: u32,
+    wpp: usize,
+    width: usize,
+    cw: usize,
+    hw: usize,
+}
+
+impl Probes {
+    fn new(m: &Model, cosim: &Cosim, case: &Case) -> Result<Probes, HarnessError> {
+        let b = m.build();
+        let port = |n: &str| b.port(n).map_err(|e| HarnessError::Design(e.into()));
+        let mut stages = Vec::new();
+        for (stage, tag, data) in [
+            (Stage::MaskAndDelayLive, "d", "d_live"),
+            (Stage::DelayLine, "d", "d_delayed"),
+            (Stage::RollingCount, "c", "c_counts"),
+            (Stage::SpatialFilter, "f", "f_h"),
+            (Stage::Threshold, "k", "k_above"),
+            (Stage::Candidates, "k", "k_cand"),
+        ] {
+            stages.push(StageProbe {
+                stage,
+                valid: port(&format!("{tag}_valid"))?,
+                flush: port(&format!("{tag}_flush"))?,
+                data: port(data)?,
+                words: 0,
+                first: None,
+            });
+        }
+        let cfg = cosim.model_config(case)?;
+        let f = cosim.spec.front()?;
+        Ok(Probes {
+            stages,
+            expect: Expect {
+                model: smartagg_model::pipeline::Pipeline::new(cfg.clone())
+                    .map_err(|e| HarnessError::Model(e.to_string()))?,
+                mask: cfg.hot_mask.clone(),
+                planes: case.planes.clone(),
+                n: case.n as u64,
+                cache: BTreeMap::new(),
+                masked: VecDeque::new(),
+                next: 0,
+            },
+            threshold: case.threshold,
+            wpp: f.words_per_plane(),
+            width: f.width,
+            cw: f.count_bits(),
+            hw: f.filtered_bits(),
+        })
+    }
+
+    /// Samples every probe for this clock (before the edge).
+    fn sample(&mut self, m: &mut Model) {
+        let p = crate::designs::P;
+        for s in &mut self.stages {
+            if s.first.is_some() {
+                continue;
+            }
+            if m.get(s.valid) == 0 || m.get(s.flush) != 0 {
+                continue;
+            }
+            let t = s.words / self.wpp as u64;
+            let idx = (s.words % self.wpp as u64) as usize;
+            s.words += 1;
+            let words = m.get_words(s.data);
+            let Some(e) = self.expect.get(t) else {
+                continue;
+            };
+            let lane_bits = match s.stage {
+                Stage::RollingCount => self.cw,
+                Stage::SpatialFilter => self.hw,
+                _ => 1,
+            };
+            let got: Vec<u64> = (0..p)
+                .map(|i| extract(&words, i * lane_bits, lane_bits))
+                .collect();
+            let want: Vec<u64> = (0..p)
+                .map(|i| {
+                    let px = idx * p + i;
+                    let (x, y) = (px % self.width, px / self.width);
+                    match s.stage {
+                        Stage::MaskAndDelayLive => e.live.get(x, y) as u64,
+                        Stage::DelayLine => e.delayed.get(x, y) as u64,
+                        Stage::RollingCount => e.counts[px] as u64,
+                        Stage::SpatialFilter => e.filtered[px] as u64,
+                        Stage::Threshold => (e.filtered[px] >= self.threshold) as u64,
+                        Stage::Candidates => e.cand[px] as u64,
+                        Stage::BackHalf => 0,
+                    }
+                })
+                .collect();
+            if got != want {
+                s.first = Some(StageMismatch {
+                    stage: s.stage,
+                    plane: t,
+                    word: idx,
+                    cycle: m.cycles,
+                    got,
+                    want,
+                });
+            }
+        }
+    }
+
+    fn mismatches(&self) -> Vec<StageMismatch> {
+        self.stages.iter().filter_map(|s| s.first.clone()).collect()
+    }
+}
+
+/// Bits `at .. at + n` of little-endian 32-bit words.
+fn extract(words: &[u32], at: usize, n: usize) -> u64 {
+    let mut v = 0u64;
+    for k in 0..n {
+        let b = at + k;
+        if (words[b / 32] >> (b % 32)) & 1 != 0 {
+            v |= 1 << k;
+        }
+    }
+    v
+}
+
+/// Input shadow: sets a port only when its value changes.
+struct Shadow {
+    vals: Vec<Option<u64>>,
+}
+
+impl Shadow {
+    fn set(&mut self, m: &mut Model, i: usize, v: u64) {
+        if self.vals[i] != Some(v) {
+            m.set(i, v);
+            self.vals[i] = Some(v);
+        }
+    }
+}
+
+/// The VCD window of a run.
+struct Vcd {
+    path: PathBuf,
+    from: u64,
+    to: u64,
+    open: bool,
+}
+
+impl Vcd {
+    fn step(&mut self, m: &mut Model) {
+        if !self.open && m.cycles >= self.from && m.cycles < self.to {
+            self.open = m.trace_open(&self.path);
+        } else if self.open && m.cycles >= self.to {
+            m.trace_close();
+            self.open = false;
+        }
+    }
+}
+
+/// Drives the XEM6310 core as the host does through FrontPanel.
+struct XemHost {
+    m: Model,
+    sh: Shadow,
+    rng: ChaCha8Rng,
+    p: XemPorts,
+    read: Vec<u8>,
+    pending: usize,
+    issued: bool,
+    probes: Option<Probes>,
+    vcd: Option<Vcd>,
+    sensor: VecDeque<u64>,
+    read_stall: u32,
+    hold_reads: bool,
+    limit: u64,
+}
+
+struct XemPorts {
+    wire_in: Vec<usize>,
+    trigger: usize,
+    replay_write: usize,
+    replay_data: usize,
+    replay_ready: usize,
+    mask_write: usize,
+    mask_data: usize,
+    mask_ready: usize,
+    out_read: usize,
+    out_data: usize,
+    out_ready: usize,
+    sensor_empty: usize,
+    sensor_word: usize,
+    sensor_read: usize,
+    wire_out: Vec<usize>,
+    ddr_error: usize,
+    collisions: usize,
+    refreshes: usize,
+}
+
+fn vcd_of(vcd: Option<(&Path, u64, u64)>) -> Option<Vcd> {
+    vcd.map(|(p, from, to)| Vcd {
+        path: p.to_path_buf(),
+        from,
+        to,
+        open: false,
+    })
+}
+
+impl XemHost {
+    fn new(
+        m: Model,
+        cosim: &Cosim,
+        case: &Case,
+        probes: Option<Probes>,
+        vcd: Option<(&Path, u64, u64)>,
+    ) -> Result<XemHost, HarnessError> {
+        let b = m.build().clone();
+        let port = |n: &str| b.port(n).map_err(|e| HarnessError::Design(e.into()));
+        let p = XemPorts {
+            wire_in: (0..7)
+                .map(|i| port(&format!("wire_in_{i}")))
+                .collect::<Result<_, _>>()?,
+            trigger: port("trigger")?,
+            replay_write: port("replay_write")?,
+            replay_data: port("replay_data")?,
+            replay_ready: port("replay_ready")?,
+            mask_write: port("mask_write")?,
+            mask_data: port("mask_data")?,
+            mask_ready: port("mask_ready")?,
+            out_read: port("out_read")?,
+            out_data: port("out_data")?,
+            out_ready: port("out_ready")?,
+            sensor_empty: port("sensor_empty")?,
+            sensor_word: port("sensor_word")?,
+            sensor_read: port("sensor_read")?,
+            wire_out: (0..8)
+                .map(|i| port(&format!("wire_out_{i}")))
+                .collect::<Result<_, _>>()?,
+            ddr_error: port("ddr_error")?,
+            collisions: port("ddr_refresh_collisions")?,
+            refreshes: port("ddr_refreshes")?,
+        };
+        let n = b.ports.len();
+        let wpp = cosim.spec.width * cosim.spec.height / crate::designs::P;
+        let mut h = XemHost {
+            m,
+            sh: Shadow {
+                vals: vec![None; n],
+            },
+            rng: ChaCha8Rng::seed_from_u64(case.seed),
+            p,
+            read: Vec::new(),
+            pending: 0,
+            issued: false,
+            probes,
+            vcd: vcd_of(vcd),
+            sensor: VecDeque::new(),
+            read_stall: case.read_stall,
+            hold_reads: case.hold_reads,
+            limit: 100_000 + (case.planes.len() as u64 + case.n as u64 + 4) * wpp as u64 * 12,
+        };
+        let se = h.p.sensor_empty;
+        h.sh.set(&mut h.m, se, 1);
+        Ok(h)
+    }
+
+    fn clock(&mut self) {
+        let m = &mut self.m;
+        if self.issued {
+            let w = m.get(self.p.out_data) as u32;
+            self.read.extend_from_slice(&w.to_le_bytes());
+            self.pending -= 1;
+        }
+        // Sensor FIFO head (sop in bit P).
+        if let Some(&w) = self.sensor.front() {
+            self.sh.set(m, self.p.sensor_empty, 0);
+            self.sh.set(m, self.p.sensor_word, w);
+            if m.get(self.p.sensor_read) != 0 {
+                self.sensor.pop_front();
+            }
+        } else {
+            self.sh.set(m, self.p.sensor_empty, 1);
+        }
+        if let Some(pr) = &mut self.probes {
+            pr.sample(m);
+        }
+        if let Some(v) = &mut self.vcd {
+            v.step(m);
+        }
+        self.issued = self.sh.vals[self.p.out_read] == Some(1);
+        m.tick(1);
+        for i in [
+            self.p.trigger,
+            self.p.replay_write,
+            self.p.mask_write,
+            self.p.out_read,
+        ] {
+            self.sh.set(m, i, 0);
+        }
+    }
+
+    fn wire_out(&mut self, addr: u8) -> u32 {
+        let i = self.p.wire_out[(addr - wire_out::STATUS) as usize];
+        self.m.get(i) as u32
+    }
+
+    fn trigger(&mut self, bit: u8) {
+        let t = self.p.trigger;
+        self.sh.set(&mut self.m, t, 1 << bit);
+        self.clock();
+    }
+
+    /// Reads one 16-byte block if the pipe-out offers one and the host is not stalled.
+    fn read_blocks(&mut self, ended: bool) {
+        if self.hold_reads && !ended {
+            return;
+        }
+        if self.pending == 0 && self.m.get(self.p.out_ready) != 0 {
+            if !ended && self.read_stall > 0 && self.rng.gen_range(0..100) < self.read_stall {
+                return;
+            }
+            for _ in 0..4 {
+                let r = self.p.out_read;
+                self.sh.set(&mut self.m, r, 1);
+                self.pending += 1;
+                self.clock();
+            }
+            self.clock();
+        }
+    }
+
+    fn write_pipe(&mut self, mask: bool, words: &[u32], stall: u32) -> Result<(), HarnessError> {
+        let (ready, write, data) = if mask {
+            (self.p.mask_ready, self.p.mask_write, self.p.mask_data)
+        } else {
+            (self.p.replay_ready, self.p.replay_write, self.p.replay_data)
+        };
+        for block in words.chunks(4) {
+            let start = self.m.cycles;
+            while self.m.get(ready) == 0 || (stall > 0 && self.rng.gen_range(0..100) < stall) {
+                self.read_blocks(false);
+                self.clock();
+                if self.m.cycles - start > self.limit {
+                    return Err(HarnessError::Gateware("pipe-in never ready".into()));
+                }
+            }
+            for k in 0..4 {
+                let w = block.get(k).copied().unwrap_or(0);
+                self.sh.set(&mut self.m, write, 1);
+                self.sh.set(&mut self.m, data, w as u64);
+                self.clock();
+            }
+        }
+        Ok(())
+    }
+
+    fn run(mut self, case: &Case) -> Result<Outcome, HarnessError> {
+        self.trigger(trigger::RESET);
+        // The mask, whole blocks (the padding falls past the plane).
+        let (wd, ht) = self.geometry();
+        let (mask, _) = HotPixelMask::from_pixels(wd, ht, &case.hot);
+        let mask_plane = BitPlane::from_fn(wd, ht, |x, y| mask.is_masked(x as i64, y as i64));
+        let mut mw = pipe_words(&[mask_plane]);
+        mw.resize(mw.len().div_ceil(4) * 4, 0);
+        self.write_pipe(true, &mw, 0)?;
+        let t0 = self.m.cycles;
+        while self.wire_out(wire_out::STATUS) & status::MEM_READY == 0 {
+            self.clock();
+            if self.m.cycles - t0 > 1_000_000 {
+                return Err(HarnessError::Gateware("DDR2 never calibrated".into()));
+            }
+        }
+        let ctl = if case.source == Source::Replay {
+            control::SOURCE_REPLAY
+        } else {
+            0
+        } | if case.mask_enable {
+            control::MASK_ENABLE
+        } else {
+            0
+        };
+        let regs = [
+            (wire_in::CONTROL, ctl),
+            (wire_in::N_WINDOW, case.n),
+            (wire_in::THRESHOLD_INT, case.threshold),
+            (wire_in::L_MIN, case.l_min),
+            (wire_in::L_MAX, case.l_max),
+            (wire_in::PLANE_PERIOD_NS, PLANE_PERIOD_NS),
+            (wire_in::MASKED_PIXELS, mask.count() as u32),
+        ];
+        for (a, v) in regs {
+            let i = self.p.wire_in[a as usize];
+            self.sh.set(&mut self.m, i, v as u64);
+        }
+        self.trigger(trigger::START);
+        let start_cycle = self.m.cycles;
+        let t0 = self.m.cycles;
+        while self.wire_out(wire_out::STATUS) & status::RUNNING == 0 {
+            if self.wire_out(wire_out::STATUS) & status::CONFIG_ERROR != 0 {
+                return Err(HarnessError::Gateware(
+                    "START refused the registers (CONFIG_ERROR)".into(),
+                ));
+            }
+            self.clock();
+            if self.m.cycles - t0 > 10_000 {
+                return Err(HarnessError::Gateware("never RUNNING".into()));
+            }
+        }
+        match case.source {
+            Source::Replay => {
+                self.write_pipe(false, &pipe_words(&case.planes), case.input_stall)?;
+            }
+            Source::Sensor => self.feed_sensor(case)?,
+        }
+        self.trigger(trigger::STOP);
+        let t0 = self.m.cycles;
+        loop {
+            let st = self.wire_out(wire_out::STATUS);
+            let ended = st & status::ENDED != 0;
+            if ended && self.wire_out(wire_out::FIFO_BYTES) == 0 && self.pending == 0 {
+                break;
+            }
+            if st & status::FAULT != 0 {
+                return Err(HarnessError::Gateware(self.fault_source()));
+            }
+            // After STOP the host reads (a held reader would deadlock: the
+            // StreamEnd record needs room in the output FIFO).
+            self.read_blocks(true);
+            self.clock();
+            if self.m.cycles - t0 > self.limit {
+                return Err(HarnessError::Gateware(format!(
+                    "the stream did not end (status {st:#x})"
+                )));
+            }
+        }
+        let status = self.wire_out(wire_out::STATUS);
+        if status & (status::FAULT | status::FRAMING_ERROR | status::SENSOR_OVERFLOW) != 0 {
+            return Err(HarnessError::Gateware(format!("status {status:#x}")));
+        }
+        if self.m.get(self.p.ddr_error) != 0 {
+            return Err(HarnessError::Gateware("DDR2 model protocol error".into()));
+        }
+        let stream_cycles = self.m.cycles - start_cycle;
+        let bytes = strip_padding(&self.read);
+        if let Some(v) = &mut self.vcd {
+            if v.open {
+                self.m.trace_close();
+            }
+        }
+        Ok(Outcome {
+            bytes,
+            stream_cycles,
+            cycles: self.m.cycles,
+            seconds: 0.0,
+            status,
+            refresh_collisions: self.m.get(self.p.collisions),
+            refreshes: self.m.get(self.p.refreshes),
+            overflowed: status & status::OVERFLOWED != 0,
+            stage_mismatches: self
+                .probes
+                .as_ref()
+                .map(|p| p.mismatches())
+                .unwrap_or_default(),
+        })
+    }
+
+    /// Which sticky fault flag rose.
+    fn fault_source(&mut self) -> String {
+        let b = self.m.build().clone();
+        let mut why = Vec::new();
+        for (port, what) in [
+            (
+                "fault_back",
+                "a back-half buffer overflowed (input too dense for the tracker)",
+            ),
+            ("fault_underrun", "the DDR2 delay line underran"),
+            ("fault_write", "the DDR2 write FIFO was full"),
+        ] {
+            if let Ok(i) = b.port(port) {
+                if self.m.get(i) != 0 {
+                    why.push(what);
+                }
+            }
+        }
+        format!("FAULT at clock {}: {}", self.m.cycles, why.join(", "))
+    }
+
+    fn geometry(&mut self) -> (usize, usize) {
+        let g = self.wire_out(wire_out::GEOMETRY);
+        ((g & 0xffff) as usize, (g >> 16) as usize)
+    }
+
+    /// The sensor port: a word every other clock (the sensor's duty cycle at
+    /// P = 16), with random extra gaps, into a 32-word FIFO.
+    fn feed_sensor(&mut self, case: &Case) -> Result<(), HarnessError> {
+        let p = crate::designs::P;
+        let wpp = self.geometry();
+        let wpp = wpp.0 * wpp.1 / p;
+        let total = case.planes.len() * wpp;
+        let mut sent = 0;
+        let mut phase = false;
+        while sent < total {
+            phase = !phase;
+            let stall = case.input_stall > 0 && self.rng.gen_range(0..100) < case.input_stall;
+            if phase && !stall {
+                if self.sensor.len() >= 1 << smartagg_hdl::xem6310::SENSOR_FIFO_BITS {
+                    return Err(HarnessError::Gateware("sensor FIFO overflow".into()));
+                }
+                let (t, idx) = (sent / wpp, sent % wpp);
+                let word = stream_word(&case.planes[t], p, idx) | ((idx == 0) as u64) << p;
+                self.sensor.push_back(word);
+                sent += 1;
+            }
+            self.read_blocks(false);
+            self.clock();
+        }
+        let t0 = self.m.cycles;
+        while !self.sensor.is_empty() {
+            self.clock();
+            if self.m.cycles - t0 > 10_000 {
+                return Err(HarnessError::Gateware("sensor FIFO not drained".into()));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The packet bytes without the pipe-out's end padding: the shortest
+/// prefix (at most 15 zero bytes removed) that decodes cleanly to a stream
+/// ending with StreamEnd.
+fn strip_padding(read: &[u8]) -> Vec<u8> {
+    let zeros = read.iter().rev().take(15).take_while(|&&b| b == 0).count();
+    for k in (0..=zeros).rev() {
+        let cand = &read[..read.len() - k];
+        let d = decode_all(cand);
+        let s = &d.stats;
+        if s.crc_errors + s.malformed + s.bytes_skipped + s.truncated_tail_bytes == 0
+            && matches!(d.packets.last().map(|p| &p.record), Some(Record::End(_)))
+        {
+            return cand.to_vec();
+        }
+    }
+    read.to_vec()
+}
+
+/// Drives the block-RAM pipeline directly (projected SPCImager).
+struct BramHost {
+    m: Model,
+    sh: Shadow,
+    rng: ChaCha8Rng,
+    probes: Option<Probes>,
+    vcd: Option<Vcd>,
+    wpp: usize,
+    width: usize,
+    height: usize,
+    limit: u64,
+}
+
+impl BramHost {
+    fn new(
+        m: Model,
+        cosim: &Cosim,
+        case: &Case,
+        probes: Option<Probes>,
+        vcd: Option<(&Path, u64, u64)>,
+    ) -> Result<BramHost, HarnessError> {
+        let n = m.build().ports.len();
+        let wpp = cosim.spec.width * cosim.spec.height / crate::designs::P;
+        Ok(BramHost {
+            m,
+            sh: Shadow {
+                vals: vec![None; n],
+            },
+            rng: ChaCha8Rng::seed_from_u64(case.seed),
+            probes,
+            vcd: vcd_of(vcd),
+            wpp,
+            width: cosim.spec.width,
+            height: cosim.spec.height,
+            limit: 100_000 + (case.planes.len() as u64 + case.n as u64 + 4) * wpp as u64 * 12,
+        })
+    }
+
+    fn port(&self, n: &str) -> Result<usize, HarnessError> {
+        self.m
+            .build()
+            .port(n)
+            .map_err(|e| HarnessError::Design(e.into()))
+    }
+
+    fn clock(&mut self) {
+        if let Some(pr) = &mut self.probes {
+            pr.sample(&mut self.m);
+        }
+        if let Some(v) = &mut self.vcd {
+            v.step(&mut self.m);
+        }
+        self.m.tick(1);
+    }
+
+    fn run(mut self, case: &Case) -> Result<Outcome, HarnessError> {
+        let p = crate::designs::P;
+        let [load, load_address, load_data] =
+            ["load", "load_address", "load_data"].map(|n| self.port(n));
+        let (load, load_address, load_data) = (load?, load_address?, load_data?);
+        let (mask, _) = HotPixelMask::from_pixels(self.width, self.height, &case.hot);
+        let mask_plane = BitPlane::from_fn(self.width, self.height, |x, y| {
+            mask.is_masked(x as i64, y as i64)
+        });
+        for idx in 0..self.wpp {
+            self.sh.set(&mut self.m, load, 1);
+            self.sh.set(&mut self.m, load_address, idx as u64);
+            self.sh
+                .set(&mut self.m, load_data, stream_word(&mask_plane, p, idx));
+            self.clock();
+        }
+        self.sh.set(&mut self.m, load, 0);
+        for (n, v) in [
+            ("reg_n", case.n as u64),
+            ("reg_threshold", case.threshold as u64),
+            ("reg_l_min", case.l_min as u64),
+            ("reg_l_max", case.l_max as u64),
+            ("reg_period", PLANE_PERIOD_NS as u64),
+            ("reg_masked", mask.count() as u64),
+            ("reg_mask_enable", case.mask_enable as u64),
+        ] {
+            let i = self.port(n)?;
+            self.sh.set(&mut self.m, i, v);
+        }
+        let start = self.port("start")?;
+        self.sh.set(&mut self.m, start, 1);
+        self.clock();
+        self.sh.set(&mut self.m, start, 0);
+        let [running, accepting, config_error, in_valid, in_sop, in_live, stop, out_pop, out_valid, out_data, ended, fault, framing, overflowed] =
+            [
+                "running",
+                "accepting",
+                "config_error",
+                "in_valid",
+                "in_sop",
+                "in_live",
+                "stop",
+                "out_pop",
+                "out_valid",
+                "out_data",
+                "ended",
+                "fault",
+                "framing_error",
+                "overflowed",
+            ]
+            .map(|n| self.port(n));
+        let (running, accepting, config_error, in_valid, in_sop, in_live) = (
+            running?,
+            accepting?,
+            config_error?,
+            in_valid?,
+            in_sop?,
+            in_live?,
+        );
+        let (stop, out_pop, out_valid, out_data, ended, fault, framing, overflowed) = (
+            stop?,
+            out_pop?,
+            out_valid?,
+            out_data?,
+            ended?,
+            fault?,
+            framing?,
+            overflowed?,
+        );
+        if self.m.get(config_error) != 0 {
+            return Err(HarnessError::Gateware(
+                "START refused the registers (config_error)".into(),
+            ));
+        }
+        let start_cycle = self.m.cycles;
+        while self.m.get(running) == 0 {
+            self.clock();
+            if self.m.cycles - start_cycle > 10_000 {
+                return Err(HarnessError::Gateware("never running".into()));
+            }
+        }
+        let total = case.planes.len() * self.wpp;
+        let mut sent = 0;
+        let mut bytes = Vec::new();
+        let mut phase = false;
+        loop {
+            // A word every other clock (the sensor's duty cycle) with stalls.
+            phase = !phase;
+            let offer = sent < total
+                && phase
+                && !(case.input_stall > 0 && self.rng.gen_range(0..100) < case.input_stall);
+            let mut took = false;
+            if offer && self.m.get(accepting) != 0 {
+                let (t, idx) = (sent / self.wpp, sent % self.wpp);
+                self.sh.set(&mut self.m, in_valid, 1);
+                self.sh.set(&mut self.m, in_sop, (idx == 0) as u64);
+                self.sh
+                    .set(&mut self.m, in_live, stream_word(&case.planes[t], p, idx));
+                took = true;
+            } else {
+                self.sh.set(&mut self.m, in_valid, 0);
+            }
+            self.sh
+                .set(&mut self.m, stop, (sent + took as usize == total) as u64);
+            let held = case.hold_reads && sent < total;
+            let stalled = case.read_stall > 0 && self.rng.gen_range(0..100) < case.read_stall;
+            let pop = !held && !stalled;
+            self.sh.set(&mut self.m, out_pop, pop as u64);
+            if pop && self.m.get(out_valid) != 0 {
+                bytes.push(self.m.get(out_data) as u8);
+            }
+            if self.m.get(fault) != 0 {
+                return Err(HarnessError::Gateware(format!(
+                    "fault at clock {}: a back-half buffer overflowed (input too dense for the tracker)",
+                    self.m.cycles
+                )));
+            }
+            let done = self.m.get(ended) != 0 && self.m.get(out_valid) == 0;
+            if took {
+                sent += 1;
+            }
+            self.clock();
+            if done {
+                break;
+            }
+            if self.m.cycles - start_cycle > self.limit {
+                return Err(HarnessError::Gateware("the stream did not end".into()));
+            }
+        }
+        if self.m.get(framing) != 0 {
+            return Err(HarnessError::Gateware("framing error".into()));
+        }
+        if let Some(v) = &mut self.vcd {
+            if v.open {
+                self.m.trace_close();
+            }
+        }
+        Ok(Outcome {
+            bytes,
+            stream_cycles: self.m.cycles - start_cycle,
+            cycles: self.m.cycles,
+            seconds: 0.0,
+            status: 0,
+            refresh_collisions: 0,
+            refreshes: 0,
+            overflowed: self.m.get(overflowed) != 0,
+            stage_mismatches: self
+                .probes
+                .as_ref()
+                .map(|p| p.mismatches())
+                .unwrap_or_default(),
+        })
+    }
+}
+
+/// A threshold T_int at quantile `q` (0..1) of the model's H over the
+/// planes (ignoring zeros): the cases' way to put the threshold where some
+/// but few pixels cross it, whatever the scene's density.
+pub fn threshold_at_quantile(cfg: &PipelineConfig, planes: &[BitPlane], q: f64) -> u32 {
+    let Ok(mut p) = smartagg_model::pipeline::Pipeline::new(cfg.clone()) else {
+        return 1;
+    };
+    let mut hist: BTreeMap<u32, u64> = BTreeMap::new();
+    let mut total = 0u64;
+    for pl in planes {
+        if p.push_plane(pl).is_err() {
+            break;
+        }
+        for &h in p.filtered() {
+            if h > 0 {
+                *hist.entry(h).or_default() += 1;
+                total += 1;
+            }
+        }
+    }
+    let target = (total as f64 * q.clamp(0.0, 1.0)) as u64;
+    let mut acc = 0;
+    for (&h, &n) in &hist {
+        acc += n;
+        if acc > target {
+            return h.max(1);
+        }
+    }
+    hist.keys().next_back().copied().unwrap_or(1).max(1)
+}
+
+/// The XEM6310 core as a device: its FrontPanel endpoints driven one host
+/// operation at a time, for the host's `cosim:` transport. Clocks run only
+/// inside these calls.
+pub struct Device {
+    host: XemHost,
+    /// Pipe words of planes still to replay.
+    replay: VecDeque<u32>,
+    /// Bytes read and not yet handed out.
+    taken: usize,
+}
+
+impl Device {
+    /// Verilates (or loads) a DDR2 configuration and powers it up.
+    pub fn open(spec: DesignSpec) -> Result<Device, HarnessError> {
+        if !spec.config.ddr() {
+            return Err(HarnessError::Design(DesignError::Unsupported {
+                what: format!("{} as a device", spec.config.name()),
+                why: "only the DDR2 configurations are generated with the XEM6310 core".into(),
+            }));
+        }
+        let cosim = Cosim::new(spec)?;
+        let model = Model::new(cosim.fast.clone()).map_err(DesignError::from)?;
+        let case = Case {
+            n: 1,
+            threshold: 1,
+            l_min: 1,
+            l_max: 1,
+            planes: Vec::new(),
+            hot: Vec::new(),
+            mask_enable: false,
+            source: Source::Replay,
+            input_stall: 0,
+            read_stall: 0,
+            hold_reads: false,
+            seed: 1,
+        };
+        let mut host = XemHost::new(model, &cosim, &case, None, None)?;
+        host.limit = u64::MAX;
+        Ok(Device {
+            host,
+            replay: VecDeque::new(),
+            taken: 0,
+        })
+    }
+
+    /// Reads a wire-out.
+    pub fn wire_out(&mut self, addr: u8) -> u32 {
+        self.host.wire_out(addr)
+    }
+
+    /// Sets a wire-in (takes effect at the next clock).
+    pub fn set_wire_in(&mut self, addr: u8, value: u32) -> Result<(), HarnessError> {
+        let i = *self
+            .host
+            .p
+            .wire_in
+            .get(addr as usize)
+            .ok_or_else(|| HarnessError::Gateware(format!("no wire-in {addr:#04x}")))?;
+        self.host.sh.set(&mut self.host.m, i, value as u64);
+        Ok(())
+    }
+
+    /// Pulses a trigger bit for one clock.
+    pub fn trigger(&mut self, bit: u8) {
+        self.host.trigger(bit);
+    }
+
+    /// Writes the mask pipe-in (whole 16-byte blocks; the end is zero-padded).
+    pub fn write_mask(&mut self, bytes: &[u8]) -> Result<(), HarnessError> {
+        let mut words: Vec<u32> = bytes
+            .chunks(4)
+            .map(|c| {
+                let mut b = [0u8; 4];
+                b[..c.len()].copy_from_slice(c);
+                u32::from_le_bytes(b)
+            })
+            .collect();
+        words.resize(words.len().div_ceil(4) * 4, 0);
+        self.host.write_pipe(true, &words, 0)
+    }
+
+    /// Queues bit-planes for the replay pipe-in (sent while [`Device::run`] runs).
+    pub fn queue_planes(&mut self, planes: &[BitPlane]) {
+        self.replay.extend(pipe_words(planes));
+    }
+
+    /// Replay words not yet sent.
+    pub fn queued_words(&self) -> usize {
+        self.replay.len()
+    }
+
+    /// Runs up to `clocks` clocks: replays queued words when the pipe-in
+    /// takes a block, reads pipe-out blocks when offered. Returns the new
+    /// packet bytes (the pipe-out's end padding is withheld once the stream
+    /// has ended and FIFO_BYTES says nothing is left).
+    pub fn run(&mut self, clocks: u64) -> Result<Vec<u8>, HarnessError> {
+        let end = self.host.m.cycles + clocks;
+        while self.host.m.cycles < end {
+            if self.replay.len() >= 4 && self.host.m.get(self.host.p.replay_ready) != 0 {
+                let block: Vec<u32> = self.replay.drain(..4).collect();
+                self.host.write_pipe(false, &block, 0)?;
+            }
+            self.host.read_blocks(true);
+            self.host.clock();
+            if self.wire_out(wire_out::STATUS) & status::FAULT != 0 {
+                return Err(HarnessError::Gateware(self.host.fault_source()));
+            }
+        }
+        let ended = self.ended();
+        let upto = if ended {
+            strip_padding(&self.host.read).len()
+        } else {
+            // Hold back a block: it may be padding.
+            self.host.read.len().saturating_sub(16)
+        };
+        let out = self.host.read[self.taken.min(upto)..upto].to_vec();
+        self.taken = self.taken.max(upto);
+        Ok(out)
+    }
+
+    /// The stream has ended and every byte has been read.
+    pub fn ended(&mut self) -> bool {
+        self.wire_out(wire_out::STATUS) & status::ENDED != 0
+            && self.wire_out(wire_out::FIFO_BYTES) == 0
+            && self.host.pending == 0
+    }
+
+    /// Clocks run.
+    pub fn cycles(&self) -> u64 {
+        self.host.m.cycles
+    }
+}

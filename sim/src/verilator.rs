@@ -1,0 +1,666 @@
+//! A thin binding of Verilator: Verilog text in, a loaded shared library out.
+//!
+//! [`Build::get`] writes the Verilog to a cache directory keyed by a hash of
+//! the text and the build options (`target/verilator-cache/<hash>/`, or
+//! `$SMARTAGG_VERILATOR_CACHE/<hash>/`), runs `verilator --cc --exe --build`
+//! on it together with a C++ shim generated from the top module's port list,
+//! links the lot into `libcosim.so` and loads it with `libloading`. The
+//! same text with the same options is verilated once: later calls (in this
+//! process or the next) load the cached library.
+//!
+//! The shim is generic over the top's ports: port `i` of the parsed
+//! [`Port`] table is set and read as little-endian 32-bit words
+//! (`sa_set(h, i, words)`, `sa_get(h, i, words)`), whatever its width.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// Errors of building or loading a Verilated model.
+#[derive(Debug, thiserror::Error)]
+pub enum VerilatorError {
+    /// A tool could not be started.
+    #[error("cannot run `{tool}` (is it installed?): {source}")]
+    Spawn {
+        /// The tool.
+        tool: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A tool ran and failed.
+    #[error("`{tool}` failed in {dir}:\n{log}")]
+    Failed {
+        /// The tool.
+        tool: String,
+        /// Its working directory.
+        dir: PathBuf,
+        /// The tail of its output.
+        log: String,
+    },
+    /// The cache directory could not be written.
+    #[error("cache directory {path}: {source}")]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The Verilog has no module of that name, or a port the shim cannot handle.
+    #[error("Verilog: {0}")]
+    Verilog(String),
+    /// The shared library could not be loaded.
+    #[error("loading {path}: {source}")]
+    Load {
+        /// The library.
+        path: PathBuf,
+        /// Why.
+        source: libloading::Error,
+    },
+    /// No port of that name.
+    #[error("the Verilated top has no port `{0}`")]
+    NoPort(String),
+}
+
+/// Direction of a top-level port.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dir {
+    /// Driven from Rust.
+    In,
+    /// Read from Rust.
+    Out,
+}
+
+/// One top-level port of the Verilated module.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Port {
+    /// Its Verilog name (also the C++ member name: letters, digits, `_`).
+    pub name: String,
+    /// Its direction.
+    pub dir: Dir,
+    /// Bits.
+    pub width: usize,
+}
+
+impl Port {
+    /// 32-bit words the port occupies.
+    pub fn words(&self) -> usize {
+        self.width.div_ceil(32)
+    }
+}
+
+/// The port table of module `module` in `verilog` (non-ANSI declarations,
+/// `input wire [a:0] name;` as rust-hdl writes them and as the co-simulation
+/// wrappers are written), in declaration order.
+pub fn parse_ports(verilog: &str, module: &str) -> Result<Vec<Port>, VerilatorError> {
+    let head = format!("module {module}(");
+    let start = verilog
+        .find(&head)
+        .ok_or_else(|| VerilatorError::Verilog(format!("no `module {module}`")))?;
+    let body = &verilog[start..];
+    let end = body.find("endmodule").unwrap_or(body.len());
+    let mut ports = Vec::new();
+    for line in body[..end].lines() {
+        let t = line.trim();
+        let (dir, rest) = if let Some(r) = t.strip_prefix("input ") {
+            (Dir::In, r)
+        } else if let Some(r) = t.strip_prefix("output ") {
+            (Dir::Out, r)
+        } else {
+            continue;
+        };
+        let rest = rest.trim_end_matches(';').trim();
+        let rest = rest
+            .strip_prefix("wire")
+            .or_else(|| rest.strip_prefix("reg"))
+            .unwrap_or(rest)
+            .trim();
+        let (width, name) = if let Some(r) = rest.strip_prefix('[') {
+            let (range, name) = r
+                .split_once(']')
+                .ok_or_else(|| VerilatorError::Verilog(format!("bad range in `{t}`")))?;
+            let (hi, lo) = range
+                .split_once(':')
+                .ok_or_else(|| VerilatorError::Verilog(format!("bad range in `{t}`")))?;
+            let hi: usize = hi
+                .trim()
+                .parse()
+                .map_err(|_| VerilatorError::Verilog(format!("bad range in `{t}`")))?;
+            let lo: usize = lo
+                .trim()
+                .parse()
+                .map_err(|_| VerilatorError::Verilog(format!("bad range in `{t}`")))?;
+            (hi + 1 - lo, name.trim())
+        } else {
+            (1, rest)
+        };
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(VerilatorError::Verilog(format!(
+                "port `{name}` of `{module}`: the shim needs names of letters, digits and `_`"
+            )));
+        }
+        ports.push(Port {
+            name: name.to_string(),
+            dir,
+            width,
+        });
+    }
+    if ports.is_empty() {
+        return Err(VerilatorError::Verilog(format!("`{module}` has no ports")));
+    }
+    Ok(ports)
+}
+
+/// Options of a Verilator build (part of the cache key).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct BuildOptions {
+    /// Compile VCD tracing in (`--trace`).
+    pub trace: bool,
+    /// The top module's name.
+    pub top: String,
+    /// The clock port (toggled by `sa_tick`).
+    pub clock: String,
+}
+
+/// Bumped whenever the shim or the flags change, so old caches are not reused.
+const SHIM_VERSION: u32 = 4;
+
+fn cache_root() -> PathBuf {
+    if let Some(p) = std::env::var_os("SMARTAGG_VERILATOR_CACHE") {
+        return PathBuf::from(p);
+    }
+    // CARGO_TARGET_DIR if set, else the workspace's target/ (two levels up from sim/).
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../target"));
+    target.join("verilator-cache")
+}
+
+/// A 64-bit hash of the text (CRC-64), hex: the cache key.
+pub fn text_hash(text: &str) -> String {
+    let crc = crc::Crc::<u64>::new(&crc::CRC_64_ECMA_182);
+    format!("{:016x}", crc.checksum(text.as_bytes()))
+}
+
+fn shim_source(ports: &[Port], opts: &BuildOptions) -> String {
+    let cls = format!("V{}", opts.top);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "// Generated by smartagg-sim: a C ABI over the ports of {cls}.\n\
+         #include \"{cls}.h\"\n#include \"verilated.h\"\n#include <cstdint>\n#include <cstring>"
+    );
+    if opts.trace {
+        s.push_str("#include \"verilated_vcd_c.h\"\n");
+    }
+    s.push_str(
+        "struct SaHandle { VerilatedContext* ctx; MODEL* m; void* tr; uint64_t time; };\n"
+            .replace("MODEL", &cls)
+            .as_str(),
+    );
+    s.push_str("extern \"C\" {\n");
+    let _ = writeln!(
+        s,
+        "void* sa_new() {{ SaHandle* h = new SaHandle; h->ctx = new VerilatedContext; \
+         h->ctx->traceEverOn({trace}); h->m = new {cls}(h->ctx, \"TOP\"); h->tr = nullptr; \
+         h->time = 0; return h; }}",
+        trace = opts.trace
+    );
+    if opts.trace {
+        s.push_str(
+            "static void sa_dump(SaHandle* h) { if (h->tr) ((VerilatedVcdC*)h->tr)->dump(h->time); h->time++; }\n\
+             int sa_trace_open(void* p, const char* path) { SaHandle* h = (SaHandle*)p; \
+             if (h->tr) return 0; VerilatedVcdC* t = new VerilatedVcdC; h->m->trace(t, 99); \
+             t->open(path); h->tr = t; return 1; }\n\
+             void sa_trace_close(void* p) { SaHandle* h = (SaHandle*)p; \
+             if (h->tr) { ((VerilatedVcdC*)h->tr)->close(); delete (VerilatedVcdC*)h->tr; h->tr = nullptr; } }\n",
+        );
+    } else {
+        s.push_str(
+            "static void sa_dump(SaHandle* h) { h->time++; }\n\
+             int sa_trace_open(void*, const char*) { return 0; }\n\
+             void sa_trace_close(void*) {}\n",
+        );
+    }
+    s.push_str(
+        "void sa_delete(void* p) { SaHandle* h = (SaHandle*)p; sa_trace_close(p); \
+         h->m->final(); delete h->m; delete h->ctx; delete h; }\n\
+         void sa_eval(void* p) { ((SaHandle*)p)->m->eval(); }\n",
+    );
+    // Two evaluations per clock: the falling edge doubles as the settling
+    // of the inputs set for the next rising edge.
+    let _ = writeln!(
+        s,
+        "void sa_low(void* p) {{ SaHandle* h = (SaHandle*)p; h->m->{c} = 0; h->m->eval(); }}\n\
+         void sa_tick(void* p, uint64_t n) {{ SaHandle* h = (SaHandle*)p; \
+         for (uint64_t i = 0; i < n; i++) {{ if (i > 0) {{ h->m->{c} = 0; h->m->eval(); }} \
+         sa_dump(h); h->m->{c} = 1; h->m->eval(); sa_dump(h); }} }}",
+        c = opts.clock
+    );
+    // Setters and getters by port index.
+    s.push_str("void sa_set(void* p, int i, const uint32_t* w) { auto m = ((SaHandle*)p)->m; switch (i) {\n");
+    for (i, p) in ports.iter().enumerate() {
+        if p.dir != Dir::In {
+            continue;
+        }
+        let n = &p.name;
+        let body = if p.width <= 32 {
+            format!("m->{n} = w[0];")
+        } else if p.width <= 64 {
+            format!("m->{n} = ((uint64_t)w[1] << 32) | w[0];")
+        } else {
+            format!("for (int k = 0; k < {}; k++) m->{n}[k] = w[k];", p.words())
+        };
+        let _ = writeln!(s, "case {i}: {body} break;");
+    }
+    s.push_str("default: break; } }\n");
+    s.push_str(
+        "void sa_get(void* p, int i, uint32_t* w) { auto m = ((SaHandle*)p)->m; switch (i) {\n",
+    );
+    for (i, p) in ports.iter().enumerate() {
+        let n = &p.name;
+        let body = if p.width <= 32 {
+            format!("w[0] = m->{n};")
+        } else if p.width <= 64 {
+            format!("w[0] = (uint32_t)m->{n}; w[1] = (uint32_t)(m->{n} >> 32);")
+        } else {
+            format!("for (int k = 0; k < {}; k++) w[k] = m->{n}[k];", p.words())
+        };
+        let _ = writeln!(s, "case {i}: {body} break;");
+    }
+    s.push_str("default: break; } }\n}\n");
+    s
+}
+
+fn run(cmd: &mut Command, dir: &Path, tool: &str) -> Result<(), VerilatorError> {
+    let out = cmd
+        .current_dir(dir)
+        .output()
+        .map_err(|source| VerilatorError::Spawn {
+            tool: tool.into(),
+            source,
+        })?;
+    if out.status.success() {
+        return Ok(());
+    }
+    let mut log = String::from_utf8_lossy(&out.stdout).into_owned();
+    log.push_str(&String::from_utf8_lossy(&out.stderr));
+    let tail: String = log
+        .lines()
+        .rev()
+        .take(40)
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect::<Vec<_>>()
+        .join("\n");
+    Err(VerilatorError::Failed {
+        tool: tool.into(),
+        dir: dir.to_path_buf(),
+        log: tail,
+    })
+}
+
+type FnNew = unsafe extern "C" fn() -> *mut std::ffi::c_void;
+type FnPtr = unsafe extern "C" fn(*mut std::ffi::c_void);
+type FnTick = unsafe extern "C" fn(*mut std::ffi::c_void, u64);
+type FnSet = unsafe extern "C" fn(*mut std::ffi::c_void, i32, *const u32);
+type FnGet = unsafe extern "C" fn(*mut std::ffi::c_void, i32, *mut u32);
+type FnTraceOpen = unsafe extern "C" fn(*mut std::ffi::c_void, *const std::ffi::c_char) -> i32;
+
+/// A Verilated design, built (or found in the cache) and loaded.
+pub struct Build {
+    lib: libloading::Library,
+    /// The top's ports, in the order the shim numbers them.
+    pub ports: Vec<Port>,
+    /// The cache directory of this build.
+    pub dir: PathBuf,
+    /// Whether it was verilated now (false: found in the cache).
+    pub fresh: bool,
+    /// The options it was built with.
+    pub options: BuildOptions,
+}
+
+impl std::fmt::Debug for Build {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Build")
+            .field("dir", &self.dir)
+            .field("ports", &self.ports.len())
+            .field("fresh", &self.fresh)
+            .finish()
+    }
+}
+
+/// One slot per cache key: filled by the first thread that builds it.
+type BuildSlot = Arc<Mutex<Option<Arc<Build>>>>;
+
+fn builds() -> &'static Mutex<HashMap<String, BuildSlot>> {
+    static B: OnceLock<Mutex<HashMap<String, BuildSlot>>> = OnceLock::new();
+    B.get_or_init(Default::default)
+}
+
+impl Build {
+    /// The Verilated model of `verilog` (top module `opts.top`), from this
+    /// process's builds, the disk cache, or verilated now.
+    pub fn get(verilog: &str, opts: &BuildOptions) -> Result<Arc<Build>, VerilatorError> {
+        let key = text_hash(&format!(
+            "{SHIM_VERSION}\n{opts:?}\n{}\n{verilog}",
+            verilator_version()
+        ));
+        // One build per key in this process, even with tests in parallel threads.
+        let slot = builds()
+            .lock()
+            .expect("build table")
+            .entry(key.clone())
+            .or_default()
+            .clone();
+        let mut slot = slot.lock().expect("build slot");
+        if let Some(b) = slot.as_ref() {
+            return Ok(b.clone());
+        }
+        let b = Arc::new(Self::verilate(verilog, opts, &key)?);
+        *slot = Some(b.clone());
+        Ok(b)
+    }
+
+    fn verilate(verilog: &str, opts: &BuildOptions, key: &str) -> Result<Build, VerilatorError> {
+        let ports = parse_ports(verilog, &opts.top)?;
+        if !ports
+            .iter()
+            .any(|p| p.name == opts.clock && p.dir == Dir::In)
+        {
+            return Err(VerilatorError::NoPort(opts.clock.clone()));
+        }
+        let root = cache_root();
+        let dir = root.join(key);
+        let lib_path = dir.join("libcosim.so");
+        let mut fresh = false;
+        if !lib_path.exists() {
+            fresh = true;
+            let io = |path: &Path| {
+                let path = path.to_path_buf();
+                move |source| VerilatorError::Io { path, source }
+            };
+            let tmp = root.join(format!("{key}.tmp-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&tmp);
+            std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
+            std::fs::write(tmp.join("cosim.v"), verilog).map_err(io(&tmp))?;
+            std::fs::write(tmp.join("shim.cpp"), shim_source(&ports, opts)).map_err(io(&tmp))?;
+            let mut cmd = Command::new("verilator");
+            cmd.args([
+                "--cc",
+                "--exe",
+                "--build",
+                "-j",
+                "2",
+                "-O3",
+                "--x-assign",
+                "fast",
+                "--x-initial",
+                "fast",
+                "--noassert",
+                "-Wno-fatal",
+                "-Wno-lint",
+                "-Wno-style",
+                "--top-module",
+                &opts.top,
+                "--Mdir",
+                "obj",
+                "-CFLAGS",
+                "-fPIC",
+                "-LDFLAGS",
+                "-shared",
+                // -O1: half the compile time of -O2 on rust-hdl's flat
+                // Verilog; the run-time cost is measured by `smartagg cosim`.
+                "-MAKEFLAGS",
+                "OPT_FAST=-O1 OPT_SLOW=-O0 OPT_GLOBAL=-O1",
+                "-o",
+                "../libcosim.so",
+            ]);
+            if opts.trace {
+                cmd.arg("--trace");
+            }
+            cmd.args(["cosim.v", "shim.cpp"]);
+            run(&mut cmd, &tmp, "verilator")?;
+            // Keep the Verilog, the shim and the library; the objects are large.
+            let _ = std::fs::remove_dir_all(tmp.join("obj"));
+            match std::fs::rename(&tmp, &dir) {
+                Ok(()) => {}
+                // Another process finished the same build first: use its copy.
+                Err(_) if lib_path.exists() => {
+                    let _ = std::fs::remove_dir_all(&tmp);
+                }
+                Err(e) => return Err(io(&dir)(e)),
+            }
+        }
+        // SAFETY: the library is the one just built from our shim; loading
+        // runs only Verilator's static initialisers.
+        let lib = unsafe { libloading::Library::new(&lib_path) }.map_err(|source| {
+            VerilatorError::Load {
+                path: lib_path.clone(),
+                source,
+            }
+        })?;
+        Ok(Build {
+            lib,
+            ports,
+            dir,
+            fresh,
+            options: opts.clone(),
+        })
+    }
+
+    /// Index of a port by name.
+    pub fn port(&self, name: &str) -> Result<usize, VerilatorError> {
+        self.ports
+            .iter()
+            .position(|p| p.name == name)
+            .ok_or_else(|| VerilatorError::NoPort(name.into()))
+    }
+}
+
+fn verilator_version() -> String {
+    static V: OnceLock<String> = OnceLock::new();
+    V.get_or_init(|| {
+        Command::new("verilator")
+            .arg("--version")
+            .output()
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+            .unwrap_or_default()
+    })
+    .clone()
+}
+
+/// One instance of a Verilated model (its own `VerilatedContext`).
+pub struct Model {
+    build: Arc<Build>,
+    h: *mut std::ffi::c_void,
+    f_eval: FnPtr,
+    f_tick: FnTick,
+    f_set: FnSet,
+    f_get: FnGet,
+    f_delete: FnPtr,
+    f_trace_open: FnTraceOpen,
+    f_trace_close: FnPtr,
+    /// Clock cycles run.
+    pub cycles: u64,
+    dirty: bool,
+    buf: Vec<u32>,
+}
+
+// SAFETY: the handle is owned by this value alone and Verilator models have
+// no thread affinity; the value is moved between threads, never shared.
+unsafe impl Send for Model {}
+
+impl Model {
+    /// A new instance (all registers as Verilator's `--x-initial fast` leaves them).
+    pub fn new(build: Arc<Build>) -> Result<Model, VerilatorError> {
+        let load = |path: &Path, e| VerilatorError::Load {
+            path: path.to_path_buf(),
+            source: e,
+        };
+        let p = build.dir.join("libcosim.so");
+        // SAFETY: symbols of our generated shim with the declared signatures.
+        unsafe {
+            let f_new: FnNew = *build.lib.get(b"sa_new").map_err(|e| load(&p, e))?;
+            let f_eval: FnPtr = *build.lib.get(b"sa_low").map_err(|e| load(&p, e))?;
+            let f_tick: FnTick = *build.lib.get(b"sa_tick").map_err(|e| load(&p, e))?;
+            let f_set: FnSet = *build.lib.get(b"sa_set").map_err(|e| load(&p, e))?;
+            let f_get: FnGet = *build.lib.get(b"sa_get").map_err(|e| load(&p, e))?;
+            let f_delete: FnPtr = *build.lib.get(b"sa_delete").map_err(|e| load(&p, e))?;
+            let f_trace_open: FnTraceOpen =
+                *build.lib.get(b"sa_trace_open").map_err(|e| load(&p, e))?;
+            let f_trace_close: FnPtr =
+                *build.lib.get(b"sa_trace_close").map_err(|e| load(&p, e))?;
+            let h = f_new();
+            let mut m = Model {
+                build,
+                h,
+                f_eval,
+                f_tick,
+                f_set,
+                f_get,
+                f_delete,
+                f_trace_open,
+                f_trace_close,
+                cycles: 0,
+                dirty: true,
+                buf: vec![0; 64],
+            };
+            m.eval();
+            Ok(m)
+        }
+    }
+
+    /// The build this instance runs.
+    pub fn build(&self) -> &Arc<Build> {
+        &self.build
+    }
+
+    /// Sets input port `i` (see [`Build::port`]) to `v` (ports up to 64 bits).
+    #[inline]
+    pub fn set(&mut self, i: usize, v: u64) {
+        let w = [v as u32, (v >> 32) as u32];
+        // SAFETY: the shim reads at most words() ≤ 2 words for such ports.
+        unsafe { (self.f_set)(self.h, i as i32, w.as_ptr()) };
+        self.dirty = true;
+    }
+
+    /// Sets a wide input port from 32-bit words (least significant first).
+    pub fn set_words(&mut self, i: usize, w: &[u32]) {
+        let n = self.build.ports[i].words();
+        let mut v = w.to_vec();
+        v.resize(n, 0);
+        // SAFETY: the shim reads exactly `n` words.
+        unsafe { (self.f_set)(self.h, i as i32, v.as_ptr()) };
+        self.dirty = true;
+    }
+
+    /// Reads port `i` (ports up to 64 bits), after settling the logic on
+    /// inputs set since the last clock.
+    #[inline]
+    pub fn get(&mut self, i: usize) -> u64 {
+        self.settle();
+        let mut w = [0u32; 2];
+        // SAFETY: the shim writes at most words() ≤ 2 words for such ports;
+        // wider ports write into `buf`.
+        if self.build.ports[i].width > 64 {
+            return self.get_words(i)[0] as u64;
+        }
+        unsafe { (self.f_get)(self.h, i as i32, w.as_mut_ptr()) };
+        w[0] as u64 | (w[1] as u64) << 32
+    }
+
+    /// Reads a port of any width as 32-bit words.
+    pub fn get_words(&mut self, i: usize) -> Vec<u32> {
+        self.settle();
+        let n = self.build.ports[i].words();
+        if self.buf.len() < n {
+            self.buf.resize(n, 0);
+        }
+        // SAFETY: `buf` holds at least `n` words.
+        unsafe { (self.f_get)(self.h, i as i32, self.buf.as_mut_ptr()) };
+        self.buf[..n].to_vec()
+    }
+
+    /// Evaluates the combinational logic if an input changed.
+    #[inline]
+    pub fn settle(&mut self) {
+        if self.dirty {
+            self.eval();
+        }
+    }
+
+    /// Evaluates the model with the clock low (settling the inputs).
+    pub fn eval(&mut self) {
+        // SAFETY: valid handle.
+        unsafe { (self.f_eval)(self.h) };
+        self.dirty = false;
+    }
+
+    /// Runs `n` clock cycles: settles the inputs with the clock low (if not
+    /// done since they changed), then rising edges (and falling edges between).
+    #[inline]
+    pub fn tick(&mut self, n: u64) {
+        if n == 0 {
+            return;
+        }
+        self.settle();
+        // SAFETY: valid handle.
+        unsafe { (self.f_tick)(self.h, n) };
+        self.cycles += n;
+        // Outputs changed at the edge: the next read settles with the clock low.
+        self.dirty = true;
+    }
+
+    /// Starts writing a VCD of every signal to `path`; false if the build
+    /// has no tracing compiled in.
+    pub fn trace_open(&mut self, path: &Path) -> bool {
+        let Ok(c) = std::ffi::CString::new(path.to_string_lossy().as_bytes()) else {
+            return false;
+        };
+        // SAFETY: valid handle and NUL-terminated path.
+        unsafe { (self.f_trace_open)(self.h, c.as_ptr()) != 0 }
+    }
+
+    /// Closes the VCD (flushing it).
+    pub fn trace_close(&mut self) {
+        // SAFETY: valid handle.
+        unsafe { (self.f_trace_close)(self.h) };
+    }
+}
+
+impl Drop for Model {
+    fn drop(&mut self) {
+        // SAFETY: the handle was made by sa_new and is deleted once.
+        unsafe { (self.f_delete)(self.h) };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ports_are_parsed_with_widths() {
+        let v = "module cosim(clock,a,b,c);\n input wire clock;\n input wire [31:0] a;\n\
+                 output reg [99:0] b;\n output wire c;\nendmodule\nmodule other(x);\n input wire x;\nendmodule\n";
+        let p = parse_ports(v, "cosim").unwrap();
+        assert_eq!(p.len(), 4);
+        assert_eq!(
+            p[1],
+            Port {
+                name: "a".into(),
+                dir: Dir::In,
+                width: 32
+            }
+        );
+        assert_eq!(p[2].width, 100);
+        assert_eq!(p[2].words(), 4);
+        assert_eq!(p[3].dir, Dir::Out);
+        assert!(parse_ports(v, "nothere").is_err());
+        let bad = "module m(a$0);\n input wire a$0;\nendmodule\n";
+        assert!(parse_ports(bad, "m").is_err());
+    }
+}
