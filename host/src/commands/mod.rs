@@ -8,6 +8,7 @@ pub mod bench_simulate;
 pub mod calibrate;
 pub mod demo;
 pub mod download;
+pub mod hdl;
 pub mod localize;
 pub mod params;
 pub mod presets;
