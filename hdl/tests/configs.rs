@@ -1,6 +1,8 @@
 //! The generated designs of `smartagg_hdl::configs`: every (preset,
 //! objective) generates, its widths match its type, its kernel is the
-//! model's, and its Verilog passes Verilator lint.
+//! model's; the SPCImager 150× top passes Verilator lint (all four are
+//! linted by `cargo run -p smartagg-hdl --release --example resources --
+//! lint`, minutes each: too slow for the test suite).
 
 use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind, XC6SLX150, XC6SLX45};
 use smartagg_hdl::synth::verilator_lint;
@@ -8,7 +10,7 @@ use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};
 
 #[test]
-fn every_design_generates_and_passes_verilator_lint() {
+fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
     let designs = Design::all().unwrap();
     assert_eq!(designs.len(), 4);
     for d in &designs {
@@ -36,6 +38,9 @@ fn every_design_generates_and_passes_verilator_lint() {
         }
         // Generation is deterministic: the hash names the file.
         assert_eq!(text_hash(&v), text_hash(&d.verilog().unwrap()));
+        if d.name() != "spcimager-150x" {
+            continue;
+        }
         let dir = std::env::temp_dir().join(format!(
             "smartagg-hdl-cfg-{}-{}",
             d.name(),
