@@ -27,6 +27,7 @@
 //! [`smartagg_hdl::front_half::spcimager150_config`].
 
 use smartagg_hdl::config::GatewareConfig;
+use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
@@ -34,7 +35,6 @@ use smartagg_hdl::pipeline::{
     projected150_back_config, spcimager150_back_config, test_back_config, Projected150Pipeline,
     TestPipeline,
 };
-use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_hdl::xem6310::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};

@@ -155,7 +155,8 @@ impl Design {
             )));
         }
         let p = Preset::new(preset, objective).map_err(|e| unsupported(e.to_string()))?;
-        let inputs = DetectionInputs::from_preset(&p, None).map_err(|e| unsupported(e.to_string()))?;
+        let inputs =
+            DetectionInputs::from_preset(&p, None).map_err(|e| unsupported(e.to_string()))?;
         let det = stats::derive(&inputs).map_err(|e| unsupported(e.to_string()))?;
         let (width, height) = p.camera.size();
         let device = match preset {
@@ -164,10 +165,15 @@ impl Design {
         };
         let plane_bits = width as u64 * height as u64;
         let n_bram = det.n_window.div_ceil(8) * 8;
-        let (delay_line, n_max, top) = if 2 * n_bram as u64 * plane_bits <= device.block_ram_bits() {
+        let (delay_line, n_max, top) = if 2 * n_bram as u64 * plane_bits <= device.block_ram_bits()
+        {
             (DelayLineKind::BlockRam, n_bram, TopKind::PipelineCore)
         } else {
-            (DelayLineKind::Ddr2, DDR2_N_MAX.max(det.n_window), TopKind::Xem6310)
+            (
+                DelayLineKind::Ddr2,
+                DDR2_N_MAX.max(det.n_window),
+                TopKind::Xem6310,
+            )
         };
         let front = GatewareConfig {
             width: width as usize,
@@ -273,8 +279,7 @@ impl Design {
 pub type Spcimager150Xem = crate::xem6310::Spcimager150Xem;
 
 /// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
-pub type Spcimager60Xem =
-    Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 464, 65, 9, 12>;
+pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 464, 65, 9, 12>;
 
 /// The pipeline core of the projected SPCImager at 150× (k = 9, N_max = 24,
 /// block RAM).

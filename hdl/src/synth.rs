@@ -190,7 +190,10 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
     r.logic_depth = log.rfind("Longest topological path in").and_then(|i| {
         let rest = &log[i..];
         let at = rest.find("length=")? + "length=".len();
-        let digits: String = rest[at..].chars().take_while(|c| c.is_ascii_digit()).collect();
+        let digits: String = rest[at..]
+            .chars()
+            .take_while(|c| c.is_ascii_digit())
+            .collect();
         digits.parse().ok()
     });
     let end = log[start..]

@@ -26,7 +26,12 @@ fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
         assert!(det.n_window <= d.config.front.n_max, "{}", d.name());
         // The delay line stays on chip exactly when it takes at most half the block RAM.
         let on_chip = 2 * d.delay_line_bits() <= d.device.block_ram_bits();
-        assert_eq!(on_chip, d.delay_line == DelayLineKind::BlockRam, "{}", d.name());
+        assert_eq!(
+            on_chip,
+            d.delay_line == DelayLineKind::BlockRam,
+            "{}",
+            d.name()
+        );
         let v = d.verilog().unwrap_or_else(|e| panic!("{}: {e}", d.name()));
         assert!(v.contains("module top("), "{}", d.name());
         match d.top {
@@ -52,7 +57,13 @@ fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
         let _ = std::fs::remove_dir_all(dir);
     }
     let spc = Design::new(PresetName::Spcimager, 150).unwrap();
-    assert_eq!((spc.device, spc.delay_line), (XC6SLX45, DelayLineKind::Ddr2));
+    assert_eq!(
+        (spc.device, spc.delay_line),
+        (XC6SLX45, DelayLineKind::Ddr2)
+    );
     let proj = Design::new(PresetName::SpcimagerProjected, 150).unwrap();
-    assert_eq!((proj.device, proj.delay_line), (XC6SLX150, DelayLineKind::BlockRam));
+    assert_eq!(
+        (proj.device, proj.delay_line),
+        (XC6SLX150, DelayLineKind::BlockRam)
+    );
 }

@@ -84,7 +84,10 @@ fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
     // The printed and the written hash are those of the file on disk.
     assert!(stdout.contains(&hash), "{stdout}");
     assert_eq!(read(&out, "top.v.hash").trim(), format!("{hash}  top.v"));
-    assert!(stdout.contains("XC6SLX45") && stdout.contains("DDR2"), "{stdout}");
+    assert!(
+        stdout.contains("XC6SLX45") && stdout.contains("DDR2"),
+        "{stdout}"
+    );
     // The UCF places every bit of every top port, once, on distinct pins,
     // and nothing else.
     let ucf = read(&out, "xem6310.ucf");
@@ -108,7 +111,15 @@ fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
     // The ISE script adds the generated files for the LX45 and asks for the
     // vendor cores.
     let tcl = read(&out, "build.tcl");
-    for needle in ["top.v", "xem6310.ucf", "xc6slx45", "fgg484", &hash, "mig_dir", "fp_dir"] {
+    for needle in [
+        "top.v",
+        "xem6310.ucf",
+        "xc6slx45",
+        "fgg484",
+        &hash,
+        "mig_dir",
+        "fp_dir",
+    ] {
         assert!(tcl.contains(needle), "build.tcl lacks {needle}:\n{tcl}");
     }
 }
@@ -153,7 +164,13 @@ fn resources_synthesises_the_given_file_and_reports_its_hash() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("small.v");
     std::fs::write(&file, SMALL).unwrap();
-    let out = ok(&["hdl", "resources", "--verilog", file.to_str().unwrap(), "--json"]);
+    let out = ok(&[
+        "hdl",
+        "resources",
+        "--verilog",
+        file.to_str().unwrap(),
+        "--json",
+    ]);
     let j: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(j["verilog_crc64"], text_hash(SMALL));
     assert_eq!(j["memory_bits"], 32 * 8);

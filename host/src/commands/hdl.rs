@@ -163,7 +163,10 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
     if let Some(u) = ucf {
         write(&a.out.join("xem6310.ucf"), u)?;
     }
-    write(&a.out.join("build.tcl"), &build_tcl(&d, &hash, ucf.is_some()))?;
+    write(
+        &a.out.join("build.tcl"),
+        &build_tcl(&d, &hash, ucf.is_some()),
+    )?;
     println!(
         "{}: {} for the {} ({} delay line, N_max = {}, k = {}, M = {}, R = {})",
         d.name(),
