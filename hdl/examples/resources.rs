@@ -136,7 +136,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let names: Vec<String> = designs.iter().map(|d| d.name()).collect();
     for d in designs {
         let name = d.name();
-        let explicit = args.iter().any(|a| *a == name);
+        let explicit = args.contains(&name);
         if !(explicit || want("lint")) {
             continue;
         }
