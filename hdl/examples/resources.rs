@@ -6,7 +6,10 @@
 //! (all of them, in turn, when no name is given). The whole designs take
 //! from minutes (test, pipe) to hours (xem150, proj150) of yosys time.
 //!
-//! Configurations:
+//! Configurations: every generated design by its name (`spcimager-150x`,
+//! `spcimager-60x`, `spcimager-projected-150x`, `spcimager-projected-60x`:
+//! [`smartagg_hdl::configs::Design`], the same Verilog as `smartagg hdl
+//! generate`), `lint` (Verilator `--lint-only -Wall` of all four), and:
 //! * `test`: the small test front half (16×6, block-RAM delay line).
 //! * `pipe`: the small test pipeline (16×6, M = 4, 3×3 ROIs).
 //! * `spc150`: the SPCImager 150× front half (320×240, P = 16, N_max = 128,
@@ -24,6 +27,7 @@
 //! [`smartagg_hdl::front_half::spcimager150_config`].
 
 use smartagg_hdl::config::GatewareConfig;
+use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
@@ -31,7 +35,7 @@ use smartagg_hdl::pipeline::{
     projected150_back_config, spcimager150_back_config, test_back_config, Projected150Pipeline,
     TestPipeline,
 };
-use smartagg_hdl::synth::{yosys_resources, Resources, YOSYS_SCRIPT};
+use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_hdl::xem6310::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};
 
@@ -128,6 +132,38 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::env::temp_dir().join("smartagg-hdl-resources");
     let args: Vec<String> = std::env::args().skip(1).collect();
     let want = |name: &str| args.is_empty() || args.iter().any(|a| a == name);
+    let designs = Design::all()?;
+    let names: Vec<String> = designs.iter().map(|d| d.name()).collect();
+    for d in designs {
+        let name = d.name();
+        let explicit = args.contains(&name);
+        if !(explicit || want("lint")) {
+            continue;
+        }
+        let v = d.verilog()?;
+        println!(
+            "{name}: {} bytes of Verilog, CRC-64/XZ {}, {}",
+            v.len(),
+            text_hash(&v),
+            d.device.name
+        );
+        if want("lint") && !explicit {
+            let t0 = std::time::Instant::now();
+            verilator_lint(&v, &dir.join(format!("lint-{name}")))?;
+            println!(
+                "{name}: verilator --lint-only -Wall clean ({:.0} s)",
+                t0.elapsed().as_secs_f64()
+            );
+            continue;
+        }
+        let t0 = std::time::Instant::now();
+        let r = yosys_resources(&v, &dir.join(&name))?;
+        println!("{name}: yosys {:.0} s", t0.elapsed().as_secs_f64());
+        print(&name, &r);
+    }
+    if !args.is_empty() && args.iter().all(|a| a == "lint" || names.contains(a)) {
+        return Ok(());
+    }
     if want("test") {
         let small = test_config();
         let r = yosys_resources(&verilog(TestFrontHalf::new(&small)?), &dir.join("test"))?;

@@ -37,6 +37,7 @@ pub mod blink_tracker;
 pub mod bram;
 pub mod candidates;
 pub mod config;
+pub mod configs;
 pub mod delay_line;
 pub mod delay_line_ddr;
 pub mod fifo;

@@ -872,6 +872,10 @@ pub struct Pipeline<
     pub overflowed: Signal<Out, Bit>,
     /// An internal buffer overflowed.
     pub fault: Signal<Out, Bit>,
+    /// The mask load port is open: no stream is starting or running. Loads
+    /// while it is low are ignored, so the mask a stream uses is the one
+    /// loaded before its START.
+    pub mask_loadable: Signal<Out, Bit>,
     control: StreamControl<P, CW, HW>,
     mask: HotPixelMask<P, CAW>,
     delay: DelayLine<P, DAW, CW>,
@@ -931,6 +935,7 @@ impl<
             framing_error: Default::default(),
             overflowed: Default::default(),
             fault: Default::default(),
+            mask_loadable: Default::default(),
             control: StreamControl::new(cfg)?,
             mask: HotPixelMask::new(f)?,
             delay: DelayLine::new(f)?,
@@ -980,7 +985,9 @@ impl<
         self.control.in_sop.next = self.in_sop.val();
         self.control.in_live.next = self.in_live.val();
         // Stage 0: hot-pixel mask.
-        self.mask.load.next = self.load.val();
+        // The mask is latched with the registers: loads only while stopped.
+        self.mask_loadable.next = !self.control.running.val() & !self.control.starting.val();
+        self.mask.load.next = self.load.val() & self.mask_loadable.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
         self.mask.valid.next = self.control.w_valid.val();
@@ -1127,6 +1134,10 @@ pub struct PipelineDdr<
     pub overflowed: Signal<Out, Bit>,
     /// An internal buffer overflowed, or the DDR2 delay line under-ran.
     pub fault: Signal<Out, Bit>,
+    /// The mask load port is open: no stream is starting or running. Loads
+    /// while it is low are ignored, so the mask a stream uses is the one
+    /// loaded before its START.
+    pub mask_loadable: Signal<Out, Bit>,
     /// The DDR2 memory has calibrated (START waits for it).
     pub mem_ready: Signal<Out, Bit>,
     /// MCB: calibration done.
@@ -1214,6 +1225,7 @@ impl<
             framing_error: Default::default(),
             overflowed: Default::default(),
             fault: Default::default(),
+            mask_loadable: Default::default(),
             mem_ready: Default::default(),
             calib_done: Default::default(),
             cmd_en: Default::default(),
@@ -1277,7 +1289,9 @@ impl<
         self.control.in_sop.next = self.in_sop.val();
         self.control.in_live.next = self.in_live.val();
         // Stage 0: hot-pixel mask.
-        self.mask.load.next = self.load.val();
+        // The mask is latched with the registers: loads only while stopped.
+        self.mask_loadable.next = !self.control.running.val() & !self.control.starting.val();
+        self.mask.load.next = self.load.val() & self.mask_loadable.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
         self.mask.valid.next = self.control.w_valid.val();

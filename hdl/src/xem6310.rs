@@ -748,10 +748,11 @@ impl<
         self.mshift.next =
             self.maskf.out_data.val() >> (bit_cast::<32, 8>(self.msub.q.val()) << self.log2p.val());
         self.maskf.pop.next = false;
-        self.pipe.load.next = self.maskf.out_valid.val();
+        // Mask words sent while a stream runs wait in the FIFO for its end.
+        self.pipe.load.next = self.maskf.out_valid.val() & self.pipe.mask_loadable.val();
         self.pipe.load_address.next = self.maddr.q.val();
         self.pipe.load_data.next = self.mshift.val().get_bits::<P>(0);
-        if self.maskf.out_valid.val() {
+        if self.maskf.out_valid.val() & self.pipe.mask_loadable.val() {
             self.maddr.d.next = self.maddr.q.val() + 1;
             self.msub.d.next = self.msub.q.val() + 1;
             if self.msub.q.val() == self.sub_last.val() {

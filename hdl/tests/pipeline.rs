@@ -64,6 +64,12 @@ fn start(b: &mut Bench<TestPipeline>, s: &Stream, mask_count: u64) {
 /// Runs a stream through the gateware; returns the bytes it put out and the
 /// number of clocks.
 fn gateware(s: &Stream, stall_percent: u64, seed: u64) -> (Vec<u8>, u64) {
+    gateware_with(s, stall_percent, seed, false)
+}
+
+/// [`gateware`]; with `scramble`, once the stream runs the host rewrites
+/// every register and tries to load a different mask on every clock.
+fn gateware_with(s: &Stream, stall_percent: u64, seed: u64, scramble: bool) -> (Vec<u8>, u64) {
     let cfg = test_back_config(4, 3, 1).unwrap();
     let mut b = Bench::new(TestPipeline::new(&cfg).unwrap(), |u| &mut u.clock);
     // Load the mask (it is kept across streams; loaded while stopped).
@@ -101,6 +107,18 @@ fn gateware(s: &Stream, stall_percent: u64, seed: u64) -> (Vec<u8>, u64) {
         }
         u.stop.next = sent == total;
         u.out_pop.next = true;
+        if scramble {
+            let c = b.cycles;
+            u.reg_n.next = (c % 9).to_bits();
+            u.reg_threshold.next = (c % 5).to_bits();
+            u.reg_l_min.next = (1 + c % 3).to_bits();
+            u.reg_l_max.next = (c % 70).to_bits();
+            u.reg_mask_enable.next = c % 2 == 0;
+            u.reg_masked.next = c.to_bits();
+            u.load.next = true;
+            u.load_address.next = ((c as usize) % wpp).to_bits();
+            u.load_data.next = (c.wrapping_mul(0x9e37_79b9) & 0xf).to_bits();
+        }
         settle(u);
         if u.out_valid.val() {
             out.push(u.out_data.val().to_u64() as u8);
@@ -338,6 +356,21 @@ fn pipeline_with_ddr2_delay_line_bytes_equal_the_model() {
     );
     let s = stream(7, 14, 7, 1, 2, false);
     check_with(&s, 40, 4, true, false);
+}
+
+#[test]
+fn registers_and_mask_are_latched_at_stream_start() {
+    let s = stream(5, 24, 4, 2, 4, true);
+    let recs = model_run(model_config(&s), s.planes.clone()).unwrap();
+    let want = encode_stream(&recs).unwrap();
+    // The same stream, with the registers and the mask rewritten while it runs.
+    let (got, _) = gateware_with(&s, 30, 1, true);
+    assert_eq!(got, want, "writes after START change nothing");
+    let blinks = recs
+        .iter()
+        .filter(|r| matches!(r, Record::Blink(_)))
+        .count();
+    assert!(blinks >= 2, "the stream exercises blinks: {recs:?}");
 }
 
 #[test]

@@ -49,6 +49,9 @@ enum Command {
     /// Measure speed and accuracy (figures printed, nothing asserted).
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Gateware: generate a preset's Verilog, UCF and ISE script; report its Spartan-6 resources.
+    #[command(subcommand)]
+    Hdl(commands::hdl::Command),
 }
 
 #[derive(Subcommand, Debug)]
@@ -77,6 +80,7 @@ fn main() {
         Command::Download(a) => commands::download::run(a),
         Command::Cosim(a) => commands::cosim::run(a),
         Command::Study(a) => commands::study::run(a),
+        Command::Hdl(c) => commands::hdl::run(c),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),

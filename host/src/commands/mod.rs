@@ -9,6 +9,7 @@ pub mod calibrate;
 pub mod cosim;
 pub mod demo;
 pub mod download;
+pub mod hdl;
 pub mod localize;
 pub mod params;
 pub mod presets;

@@ -1,0 +1,190 @@
+//! `smartagg hdl`: generate writes the design's Verilog, hash, UCF and ISE
+//! script; the UCF places every port of the generated top; resources runs
+//! yosys on a given file (a small one here) and reports its hash.
+
+use smartagg_hdl::configs::text_hash;
+use std::collections::HashSet;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn smartagg(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smartagg"))
+        .args(args)
+        .output()
+        .expect("the smartagg binary runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = smartagg(args);
+    assert!(
+        out.status.success(),
+        "smartagg {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn err(args: &[&str]) -> String {
+    let out = smartagg(args);
+    assert!(!out.status.success(), "smartagg {args:?} should fail");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn read(dir: &Path, name: &str) -> String {
+    std::fs::read_to_string(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// The bits of the top module's ports (`name` or `name[i]`).
+fn top_port_bits(v: &str) -> Vec<String> {
+    let start = v.find("module top(").expect("top module");
+    let body = &v[start..];
+    let end = body.find("endmodule").expect("end of top");
+    let mut bits = Vec::new();
+    for line in body[..end].lines() {
+        let line = line.trim();
+        let Some(decl) = ["input wire ", "output reg ", "output wire ", "inout wire "]
+            .iter()
+            .find_map(|k| line.strip_prefix(k))
+        else {
+            continue;
+        };
+        let decl = decl.trim().trim_end_matches(';').trim();
+        if let Some(rest) = decl.strip_prefix('[') {
+            let (range, name) = rest.split_once(']').unwrap();
+            let (hi, lo) = range.split_once(':').unwrap();
+            let (hi, lo): (usize, usize) = (hi.parse().unwrap(), lo.parse().unwrap());
+            for i in lo..=hi {
+                bits.push(format!("{}[{i}]", name.trim()));
+            }
+        } else {
+            bits.push(decl.to_string());
+        }
+    }
+    bits
+}
+
+#[test]
+fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("spc150");
+    let o = out.to_str().unwrap();
+    let stdout = ok(&[
+        "hdl",
+        "generate",
+        "--preset",
+        "spcimager",
+        "--objective",
+        "150",
+        "--out",
+        o,
+    ]);
+    let v = read(&out, "top.v");
+    let hash = text_hash(&v);
+    // The printed and the written hash are those of the file on disk.
+    assert!(stdout.contains(&hash), "{stdout}");
+    assert_eq!(read(&out, "top.v.hash").trim(), format!("{hash}  top.v"));
+    assert!(
+        stdout.contains("XC6SLX45") && stdout.contains("DDR2"),
+        "{stdout}"
+    );
+    // The UCF places every bit of every top port, once, on distinct pins,
+    // and nothing else.
+    let ucf = read(&out, "xem6310.ucf");
+    let ports = top_port_bits(&v);
+    assert!(ports.iter().any(|p| p == "okUH[0]"), "{ports:?}");
+    let mut placed = HashSet::new();
+    let mut pins = HashSet::new();
+    for line in ucf.lines().map(|l| l.split('#').next().unwrap()) {
+        if !line.contains("LOC") {
+            continue;
+        }
+        let q: Vec<&str> = line.split('"').collect();
+        let net = q[1].replace('<', "[").replace('>', "]");
+        assert!(ports.contains(&net), "LOC for {net}, not a port of top.v");
+        assert!(placed.insert(net.clone()), "{net} placed twice");
+        assert!(pins.insert(q[3].to_string()), "pin {} used twice", q[3]);
+    }
+    for p in &ports {
+        assert!(placed.contains(p), "port bit {p} has no LOC");
+    }
+    // The ISE script adds the generated files for the LX45 and asks for the
+    // vendor cores.
+    let tcl = read(&out, "build.tcl");
+    for needle in [
+        "top.v",
+        "xem6310.ucf",
+        "xc6slx45",
+        "fgg484",
+        &hash,
+        "mig_dir",
+        "fp_dir",
+    ] {
+        assert!(tcl.contains(needle), "build.tcl lacks {needle}:\n{tcl}");
+    }
+}
+
+#[test]
+fn generate_rejects_a_frame_camera_and_an_unknown_objective() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = dir.path().join("x");
+    let o = o.to_str().unwrap();
+    let e = err(&["hdl", "generate", "--preset", "emccd", "--out", o]);
+    assert!(e.contains("emccd") && e.contains("bit-planes"), "{e}");
+    let e = err(&["hdl", "generate", "--preset", "nope", "--out", o]);
+    assert!(e.contains("nope"), "{e}");
+    let e = err(&[
+        "hdl",
+        "generate",
+        "--preset",
+        "spcimager",
+        "--objective",
+        "100",
+        "--out",
+        o,
+    ]);
+    assert!(e.contains("100"), "{e}");
+    assert!(!dir.path().join("x").join("top.v").exists());
+}
+
+/// A small design: a counter and a 32-word memory.
+const SMALL: &str = "module top(input wire clock, input wire [4:0] a, input wire we,
+    input wire [7:0] d, output reg [7:0] q, output reg [7:0] count);
+reg [7:0] mem [0:31];
+always @(posedge clock) begin
+    q <= mem[a];
+    if (we) mem[a] <= d;
+    count <= count + d;
+end
+endmodule
+";
+
+#[test]
+fn resources_synthesises_the_given_file_and_reports_its_hash() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("small.v");
+    std::fs::write(&file, SMALL).unwrap();
+    let out = ok(&[
+        "hdl",
+        "resources",
+        "--verilog",
+        file.to_str().unwrap(),
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(j["verilog_crc64"], text_hash(SMALL));
+    assert_eq!(j["memory_bits"], 32 * 8);
+    assert_eq!(j["ramb16_floor"], 1);
+    assert!(j["luts"].as_u64().unwrap() >= 8, "{j}");
+    assert!(j["ffs"].as_u64().unwrap() >= 16, "{j}");
+    let depth = j["logic_depth"].as_u64().unwrap();
+    assert!((1..20).contains(&depth), "{j}");
+    let devices = j["devices"].as_array().unwrap();
+    assert_eq!(devices[0]["device"], "XC6SLX45");
+    assert_eq!(devices[0]["fits"], true);
+    // A file without a `top` module is refused by name.
+    let bad = dir.path().join("bad.v");
+    std::fs::write(&bad, "module other(); endmodule\n").unwrap();
+    let e = err(&["hdl", "resources", "--verilog", bad.to_str().unwrap()]);
+    assert!(e.contains("bad.v") && e.contains("top"), "{e}");
+}
