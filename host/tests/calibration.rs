@@ -532,3 +532,85 @@ fn scmos_stacks_give_offset_read_noise_and_gain_maps() {
         .unwrap()
         .contains("preset scmos"));
 }
+
+/// `smartagg study --calibration`: the study runs on the calibrated sensor's
+/// maps, its summary and manifest name the calibration, and the studies it
+/// does not apply to, or a sensor smaller than the study field, are refused.
+#[test]
+fn the_study_simulates_a_calibrated_sensor() {
+    let fx = Fixture::new(3);
+    let side = 48;
+    let p = Preset::new(PresetName::Spcimager, 150).unwrap();
+    let maps = SpadMaps::generate(&camera(), side, side, 5);
+    let mut sim =
+        SpadSimulator::with_maps(&camera(), &empty_scene(&p, side, 0.0), maps, 6).unwrap();
+    let planes = 4000;
+    let dark = fx.path("dark48.spad");
+    let f = BufWriter::new(std::fs::File::create(&dark).unwrap());
+    let mut wr = RecordingWriter::new(f, sim.recording_header(planes, BitOrder::LsbFirst)).unwrap();
+    for _ in 0..planes {
+        wr.write_plane(&sim.next_plane()).unwrap();
+    }
+    wr.finish().unwrap();
+    let cal = fx.path("calib48");
+    ok(&smartagg(&[
+        "calibrate",
+        "--dark",
+        s(&dark),
+        "--out",
+        s(&cal),
+        "--allow-short",
+        "--quiet",
+    ]));
+    let out = fx.path("svf");
+    let run = |study: &str, out: &Path, cal: &Path| {
+        smartagg(&[
+            "study",
+            study,
+            "--calibration",
+            s(cal),
+            "--out",
+            s(out),
+            "--points",
+            "50",
+            "--blinks-per-point",
+            "12",
+            "--bootstrap",
+            "10",
+            "--quiet",
+        ])
+    };
+    ok(&run("smart-vs-fixed", &out, &cal));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(summary.contains("**Calibrated sensor**"), "{summary}");
+    assert!(summary.contains("calib48 (48x48 px, 4000 dark planes, maps CRC-32C "));
+    let manifest = std::fs::read_to_string(out.join("manifest.json")).unwrap();
+    assert!(manifest.contains("calib48 (48x48 px"), "{manifest}");
+
+    for (study, why) in [
+        ("hot-pixels", "sweeps synthetic hot-pixel fractions"),
+        ("nanoruler", "simulates its own cameras"),
+    ] {
+        let o = run(study, &fx.path("no"), &cal);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(why), "{study}: {err}");
+    }
+    // The 16x16 sensor of the other tests is smaller than the study field.
+    let small = fx.path("calib16");
+    record(&fx.path("dark16.spad"), &fx.maps, 0.0, 4000, 8, None);
+    ok(&smartagg(&[
+        "calibrate",
+        "--dark",
+        s(&fx.path("dark16.spad")),
+        "--out",
+        s(&small),
+        "--allow-short",
+        "--quiet",
+    ]));
+    let o = run("smart-vs-fixed", &fx.path("no16"), &small);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("16x16") && err.contains("smaller"),
+        "{err}"
+    );
+}

@@ -138,6 +138,11 @@ pub fn run_item(
                 frames,
                 hot,
             )?;
+            let masked: &[bool] = if data.masked { &data.hot } else { &[] };
+            let sensor = SensorView {
+                masked,
+                gain: &data.gain,
+            };
             let main = if want_main { &data.records[0][..] } else { &[] };
             let paper = if want_paper {
                 &data.records[pipelines.len() - 1][..]
@@ -163,13 +168,20 @@ pub fn run_item(
                         let recs = if m == Method::Smart { main } else { paper };
                         let a = Instant::now();
                         let opts = fit_options(setup.sigma_px, fit_sigma, NoiseModel::Poisson);
-                        let r = localize_records(setup, recs, &truth, radius, |roi, _, maps| {
-                            fit_roi(
-                                smartagg_localize::Estimator::Mle,
-                                &roi_view(roi, maps),
-                                &opts,
-                            )
-                        });
+                        let r = localize_records(
+                            setup,
+                            &sensor,
+                            recs,
+                            &truth,
+                            radius,
+                            |roi, _, maps| {
+                                fit_roi(
+                                    smartagg_localize::Estimator::Mle,
+                                    &roi_view(roi, maps),
+                                    &opts,
+                                )
+                            },
+                        );
                         timings.push(Timing {
                             stage: format!("fit {}", plan.schemes[s].id),
                             count: r.fitted as u64,
@@ -190,9 +202,14 @@ pub fn run_item(
                             }
                         };
                         let a = Instant::now();
-                        let r = localize_records(setup, main, &truth, radius, |roi, rec, maps| {
-                            estimate(est, setup.sigma_px, roi, rec, maps)
-                        });
+                        let r = localize_records(
+                            setup,
+                            &sensor,
+                            main,
+                            &truth,
+                            radius,
+                            |roi, rec, maps| estimate(est, setup.sigma_px, roi, rec, maps),
+                        );
                         timings.push(Timing {
                             stage: format!("fit {}", plan.schemes[s].id),
                             count: r.fitted as u64,
@@ -287,7 +304,30 @@ pub fn run_item(
 
 /// Pixel maps of a record's ROI: pixels outside the sensor are left out.
 pub(crate) fn record_maps(rec: &BlinkRecord, field: u32) -> Option<PixelMaps> {
-    if !rec.has(flags::EDGE) {
+    record_maps_calibrated(rec, field, &SensorView::default())
+}
+
+/// What the localisers know of a calibrated field: the pixels the pipeline
+/// masked (they read 0) and the relative detection efficiency, raster order
+/// over the field (empty when absent).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct SensorView<'a> {
+    /// Masked pixels.
+    pub masked: &'a [bool],
+    /// PRNU.
+    pub gain: &'a [f64],
+}
+
+/// Pixel maps of a record's ROI on a calibrated field: pixels outside the
+/// sensor and masked pixels are left out of the likelihood, the PRNU scales
+/// each pixel's light; `None` when every pixel is nominal.
+pub(crate) fn record_maps_calibrated(
+    rec: &BlinkRecord,
+    field: u32,
+    sensor: &SensorView,
+) -> Option<PixelMaps> {
+    let masked = rec.has(flags::MASKED) && !sensor.masked.is_empty();
+    if !rec.has(flags::EDGE) && !masked && sensor.gain.is_empty() {
         return None;
     }
     let side = rec.roi_size as usize;
@@ -295,7 +335,18 @@ pub(crate) fn record_maps(rec: &BlinkRecord, field: u32) -> Option<PixelMaps> {
     for j in 0..side {
         for i in 0..side {
             let (x, y) = (rec.roi_x0() + i as i32, rec.roi_y0() + j as i32);
-            m.ignore[j * side + i] = x < 0 || y < 0 || x >= field as i32 || y >= field as i32;
+            let k = j * side + i;
+            if x < 0 || y < 0 || x >= field as i32 || y >= field as i32 {
+                m.ignore[k] = true;
+                continue;
+            }
+            let f = y as usize * field as usize + x as usize;
+            if masked {
+                m.ignore[k] = sensor.masked[f];
+            }
+            if let Some(&g) = sensor.gain.get(f) {
+                m.gain[k] = g;
+            }
         }
     }
     Some(m)
@@ -350,6 +401,7 @@ fn could_match(
 /// Localises the records that could match a blink with `fit`.
 fn localize_records(
     setup: &Setup,
+    sensor: &SensorView,
     records: &[BlinkRecord],
     truth: &[Truth],
     radius: f64,
@@ -366,7 +418,7 @@ fn localize_records(
             continue;
         }
         out.fitted += 1;
-        let maps = record_maps(rec, setup.field);
+        let maps = record_maps_calibrated(rec, setup.field, sensor);
         let data: Vec<f64> = rec.counts.iter().map(|&c| c as f64).collect();
         let f = fit(&data, rec, maps.as_ref());
         if !f.status.is_ok() {

@@ -80,6 +80,7 @@ pub mod matching;
 pub mod notes;
 pub mod report;
 pub mod run;
+pub mod sensor;
 pub mod sim;
 pub mod spec;
 pub mod stats;

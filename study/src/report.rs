@@ -325,6 +325,13 @@ fn describe_setups(plan: &Plan, setups: &[Setup]) -> String {
         }
         s.push('\n');
     }
+    if let Some(cal) = &plan.options.calibration {
+        let _ = writeln!(
+            s,
+            "- **Calibrated sensor**: the SPCIMAGER configurations simulate the maps of `{}` (`smartagg calibrate`) instead of the preset's synthetic ones: each work item takes a field-sized crop at an offset drawn from its seed; dark counts are the measured DCR of each pixel, detection efficiency PDE x fill factor x the measured PRNU; pixels whose dark counts alone would cross the configuration's T_int (the calibration's criterion at its N and T_int) are masked in the smart pipeline, left out of the record fits and handled by the fixed-frame hot-pixel curves. The other cameras are not the calibrated one and keep their synthetic maps.",
+            cal.id
+        );
+    }
     s
 }
 

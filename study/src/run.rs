@@ -13,7 +13,8 @@ pub fn setups(plan: &Plan) -> Result<Vec<Setup>, StudyError> {
         .iter()
         .map(|c| {
             Setup::new(c.preset, c.objective)?
-                .with_pipeline(plan.options.l_min, plan.options.r_assoc)
+                .with_pipeline(plan.options.l_min, plan.options.r_assoc)?
+                .with_sensor(plan.options.calibration.as_ref())
         })
         .collect()
 }
@@ -38,6 +39,14 @@ pub fn run(
     shard: Shard,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Vec<ItemResult>, StudyError> {
+    if let Some(cal) = &plan.options.calibration {
+        if cal.maps.is_none() {
+            return Err(crate::StudyError::Option {
+                name: "calibration",
+                why: format!("{}: the maps are not loaded, cannot simulate", cal.id),
+            });
+        }
+    }
     let setups = setups(plan)?;
     let items = shard_items(plan, shard);
     let total = items.len();

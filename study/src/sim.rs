@@ -16,11 +16,13 @@
 
 use crate::error::StudyError;
 use crate::frames::FrameMaps;
+use crate::sensor::{CalibratedSetup, SensorCalibration};
 use crate::spec::{LMin, FIXED_FRAME_PLANES, ROI_SIDE};
 use crate::timeline::BlinkNm;
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::false_alarm::l_min_for_target;
 use smartagg_model::fast_engine::fast_pipeline;
+use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packet::decode_all;
 use smartagg_model::packetiser::encode_stream;
 use smartagg_model::params::{Camera, Preset, PresetName, SpadCamera};
@@ -48,6 +50,8 @@ pub struct Setup {
     pub spad: Option<(Detection, PipelineConfig)>,
     /// SPAD only: the same pipeline with the paper's literal `L_min = 1`.
     pub paper: Option<PipelineConfig>,
+    /// SPCImager only: a calibrated sensor whose maps replace the synthetic ones.
+    pub sensor: Option<CalibratedSetup>,
 }
 
 impl Setup {
@@ -88,6 +92,7 @@ impl Setup {
             margin_nm,
             paper: spad.as_ref().map(|(_, c)| c.clone()),
             spad,
+            sensor: None,
         })
     }
 
@@ -127,6 +132,50 @@ impl Setup {
                 ..cfg.clone()
             });
         }
+        Ok(self)
+    }
+
+    /// The same setup simulating a calibrated sensor, if it applies: only the
+    /// SPCImager presets (the other cameras are not the calibrated one).
+    /// Errors if the sensor is smaller than the study field, if the maps are
+    /// bad, or if the hot-pixel criterion cannot be derived for this N and T.
+    /// Without maps (options read back from a manifest) nothing changes:
+    /// [`crate::run::run`] refuses to simulate then.
+    pub fn with_sensor(mut self, cal: Option<&SensorCalibration>) -> Result<Setup, StudyError> {
+        let Some(cal) = cal else { return Ok(self) };
+        if self.preset.name != PresetName::Spcimager {
+            return Ok(self);
+        }
+        let bad = |why: String| StudyError::Option {
+            name: "calibration",
+            why,
+        };
+        // Read back from a manifest (merge, report): the identity only.
+        let Some(maps) = cal.maps.clone() else {
+            return Ok(self);
+        };
+        maps.validate()
+            .map_err(|e| bad(format!("{}: {e}", cal.id)))?;
+        if maps.width < self.field || maps.height < self.field {
+            return Err(bad(format!(
+                "{}: the calibrated sensor is {}x{} pixels, smaller than the {}x{} study field",
+                cal.id, maps.width, maps.height, self.field, self.field
+            )));
+        }
+        let (n, t) = match &self.spad {
+            Some((_, cfg)) => (cfg.n_window, u64::from(cfg.threshold_int)),
+            None => return Ok(self),
+        };
+        let critical_dcr_hz = (maps.critical_dcr)(n, t).map_err(|e| {
+            bad(format!(
+                "{}: hot-pixel criterion for N = {n}, T_int = {t}: {e}",
+                cal.id
+            ))
+        })?;
+        self.sensor = Some(CalibratedSetup {
+            maps,
+            critical_dcr_hz,
+        });
         Ok(self)
     }
 
@@ -176,6 +225,11 @@ pub struct SpadData {
     pub frames: Vec<Vec<u32>>,
     /// The hot-pixel map of the simulated camera.
     pub hot: Vec<bool>,
+    /// Whether the pipelines masked the pixels of `hot` (calibrated sensor).
+    pub masked: bool,
+    /// Relative detection efficiency of the field's pixels (calibrated PRNU),
+    /// raster order; empty when uniform.
+    pub gain: Vec<f64>,
     /// Bit-planes simulated.
     pub planes: u64,
     /// Packet bytes of the smart-aggregation streams.
@@ -234,13 +288,38 @@ pub fn record_spad(
     }
     let scene = setup.scene(blinks);
     let t0 = Instant::now();
-    let mut sim = SpadSimulator::new(&camera, &scene, seed)?;
+    let field = setup.field;
+    // A calibrated sensor: this item's crop of the measured maps, its hot
+    // pixels masked in every pipeline (as `aggregate --calibration` does).
+    let (mut sim, mask, gain) = match &setup.sensor {
+        Some(cal) if hot_fraction.is_none() => {
+            let at = cal.maps.offset(field, seed);
+            let maps = cal.maps.crop(&camera, field, at, cal.critical_dcr_hz);
+            let gain: Vec<f64> = (0..field * field)
+                .map(|i| cal.maps.prnu_at(at.0 + i % field, at.1 + i / field))
+                .collect();
+            let hot: Vec<(usize, usize)> = (0..maps.hot.len())
+                .filter(|&i| maps.hot[i])
+                .map(|i| (i % field as usize, i / field as usize))
+                .collect();
+            let (mask, _) = HotPixelMask::from_pixels(field as usize, field as usize, &hot);
+            let sim = SpadSimulator::with_maps(&camera, &scene, maps, seed)?;
+            (sim, Some(mask), gain)
+        }
+        _ => (SpadSimulator::new(&camera, &scene, seed)?, None, Vec::new()),
+    };
     let mut simulate_s = t0.elapsed().as_secs_f64();
     let planes = (end_s / camera.plane_period_s).round() as u64;
-    let n_px = (setup.field * setup.field) as usize;
+    let n_px = (field * field) as usize;
     let mut pipes = pipelines
         .iter()
-        .map(|c| fast_pipeline(c.clone()))
+        .map(|c| {
+            let mut c = c.clone();
+            if mask.is_some() {
+                c.hot_mask = mask.clone();
+            }
+            fast_pipeline(c)
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let mut streams: Vec<Vec<Record>> = pipes.iter().map(|p| vec![p.start_record()]).collect();
     let mut pipeline_s = 0.0;
@@ -276,6 +355,8 @@ pub fn record_spad(
     let mut data = SpadData {
         frames: out_frames,
         hot: sim.maps().hot.clone(),
+        masked: mask.is_some(),
+        gain,
         planes,
         simulate_s,
         ..Default::default()

@@ -108,6 +108,10 @@ pub struct StudyOptions {
     /// Frame detection threshold in units of std of the first wavelet level
     /// (ThunderSTORM-like default 1.5).
     pub frame_threshold: f64,
+    /// A calibrated sensor (`smartagg calibrate`) whose maps replace the
+    /// synthetic ones of the SPCImager configurations ([`crate::sensor`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<crate::sensor::SensorCalibration>,
 }
 
 /// The pipeline's confirmation length L_min.
@@ -189,6 +193,7 @@ impl Default for StudyOptions {
             },
             r_assoc: None,
             frame_threshold: 1.5,
+            calibration: None,
         }
     }
 }
@@ -482,6 +487,12 @@ impl Plan {
     /// The plan of `study` with `options`.
     pub fn new(study: StudyName, options: StudyOptions) -> Result<Plan, StudyError> {
         options.validate()?;
+        if options.calibration.is_some() && study == StudyName::HotPixels {
+            return Err(StudyError::Option {
+                name: "calibration",
+                why: "the hot-pixels study sweeps synthetic hot-pixel fractions; a calibrated sensor has its own (run the other studies with it)".into(),
+            });
+        }
         use Method::*;
         use PresetName::*;
         let spc150 = Config::new(Spcimager, 150);

@@ -3,9 +3,11 @@
 //! The work is in the `smartagg-study` crate; this is the command line.
 
 use anyhow::{bail, Context};
+use smartagg_study::sensor::{SensorCalibration, SensorMaps};
 use smartagg_study::spec::LMin;
 use smartagg_study::{run, Plan, Shard, StudyName, StudyOptions};
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments.
@@ -68,9 +70,57 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// SPAD calibration folder (`smartagg calibrate`): the SPCIMAGER
+    /// configurations simulate its measured DCR, hot pixels and PRNU (a crop
+    /// per work item) instead of the preset's synthetic maps, and mask its
+    /// hot pixels. Not for the hot-pixels study or the experiment studies.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
 }
 
-fn options(a: &Args) -> anyhow::Result<StudyOptions> {
+/// The calibrated sensor of `--calibration`: its maps, the hot-pixel
+/// criterion re-derived for any N and T_int, and an identity (folder and a
+/// CRC-32C of the maps) that the manifest records.
+fn sensor(path: &std::path::Path) -> anyhow::Result<SensorCalibration> {
+    let cal = crate::calibration::Calibration::load(path)
+        .with_context(|| format!("loading calibration {}", path.display()))?;
+    let mut bytes = Vec::with_capacity(cal.dcr_hz.len() * 16);
+    for d in &cal.dcr_hz {
+        bytes.extend_from_slice(&d.to_le_bytes());
+    }
+    for p in cal.prnu.iter().flatten() {
+        bytes.extend_from_slice(&p.to_le_bytes());
+    }
+    let id = format!(
+        "{} ({}x{} px, {} dark planes, maps CRC-32C {:08x})",
+        path.display(),
+        cal.width,
+        cal.height,
+        cal.planes,
+        smartagg_model::packet::crc32c(&bytes)
+    );
+    let criterion = cal.hot_criterion.clone();
+    let maps = SensorMaps {
+        width: cal.width,
+        height: cal.height,
+        dcr_hz: cal.dcr_hz,
+        prnu: cal.prnu,
+        critical_dcr: Box::new(move |n, t| {
+            criterion
+                .with_threshold(n, t)
+                .map(|c| c.dcr_critical_hz)
+                .map_err(|e| e.to_string())
+        }),
+    };
+    maps.validate()
+        .map_err(|e| anyhow::anyhow!("calibration {}: {e}", path.display()))?;
+    Ok(SensorCalibration {
+        id,
+        maps: Some(Arc::new(maps)),
+    })
+}
+
+fn options(a: &Args, calibration: Option<&SensorCalibration>) -> anyhow::Result<StudyOptions> {
     Ok(StudyOptions {
         blinks_per_point: a.blinks_per_point,
         seed: a.seed,
@@ -83,6 +133,7 @@ fn options(a: &Args) -> anyhow::Result<StudyOptions> {
         l_min: LMin::parse(&a.l_min)?,
         r_assoc: a.r_assoc,
         frame_threshold: a.frame_threshold,
+        calibration: calibration.cloned(),
     })
 }
 
@@ -102,8 +153,13 @@ fn bar(quiet: bool, label: &str) -> indicatif::ProgressBar {
     pb
 }
 
-fn run_one(a: &Args, study: StudyName, out: &std::path::Path) -> anyhow::Result<()> {
-    let plan = Plan::new(study, options(a)?)?;
+fn run_one(
+    a: &Args,
+    study: StudyName,
+    out: &std::path::Path,
+    calibration: Option<&SensorCalibration>,
+) -> anyhow::Result<()> {
+    let plan = Plan::new(study, options(a, calibration)?)?;
     let shard = match &a.shard {
         Some(s) => Shard::parse(s)?,
         None => Shard::ALL,
@@ -170,8 +226,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             if !a.dirs.is_empty() {
                 bail!("unexpected arguments after `all`: {:?}", a.dirs);
             }
+            let cal = a.calibration.as_deref().map(sensor).transpose()?;
             for s in StudyName::ALL {
-                run_one(&a, s, &a.out.join(s.as_str()))?;
+                if cal.is_some() && s == StudyName::HotPixels {
+                    eprintln!(
+                        "study hot-pixels skipped: it sweeps synthetic hot-pixel fractions, the calibrated sensor has its own"
+                    );
+                    continue;
+                }
+                run_one(&a, s, &a.out.join(s.as_str()), cal.as_ref())?;
             }
             Ok(())
         }
@@ -181,6 +244,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             if a.shard.is_some() {
                 bail!("study {name} runs as one job: --shard is not supported");
+            }
+            if a.calibration.is_some() {
+                bail!("study {name} simulates its own cameras: --calibration applies to smart-vs-fixed, future-spad, cameras, objective and localizers");
             }
             let exp =
                 smartagg_study::experiment::Experiment::parse(name).context("experiment study")?;
@@ -210,7 +276,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     a.dirs
                 );
             }
-            run_one(&a, StudyName::parse(name)?, &a.out)
+            let cal = a.calibration.as_deref().map(sensor).transpose()?;
+            run_one(&a, StudyName::parse(name)?, &a.out, cal.as_ref())
         }
     }
 }
