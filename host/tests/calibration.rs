@@ -614,3 +614,65 @@ fn the_study_simulates_a_calibrated_sensor() {
         "{err}"
     );
 }
+
+/// `download --calibration`: the calibration's hot pixels (judged at the
+/// device's N and T_int) are loaded into the gateware's mask through the
+/// register map — here the Verilated XEM6310 core of `--source cosim` — and
+/// the device's StreamStart reports them.
+#[test]
+fn download_loads_the_calibrated_hot_pixels_into_the_device() {
+    let fx = Fixture::new(4);
+    let (w, h) = (320u32, 240u32);
+    let p = Preset::new(PresetName::Spcimager, 150).unwrap();
+    let cam = camera();
+    let mut maps = SpadMaps::uniform(&cam, w, h);
+    // Twelve pixels that fire in nearly every plane: hot under any criterion.
+    let hot: Vec<usize> = (0..12).map(|i| 1000 + i * 6007).collect();
+    for &i in &hot {
+        maps.dcr_hz[i] = 2e5;
+        maps.hot[i] = true;
+    }
+    let mut scene = empty_scene(&p, w, 0.0);
+    scene.height = h;
+    let mut sim = SpadSimulator::with_maps(&cam, &scene, maps, 2).unwrap();
+    let planes = 1500;
+    let dark = fx.path("dark-full.spad");
+    let f = BufWriter::new(std::fs::File::create(&dark).unwrap());
+    let mut wr = RecordingWriter::new(f, sim.recording_header(planes, BitOrder::LsbFirst)).unwrap();
+    for _ in 0..planes {
+        wr.write_plane(&sim.next_plane()).unwrap();
+    }
+    wr.finish().unwrap();
+    let cal = fx.path("calib-full");
+    ok(&smartagg(&[
+        "calibrate",
+        "--dark",
+        s(&dark),
+        "--out",
+        s(&cal),
+        "--allow-short",
+        "--quiet",
+    ]));
+    let out = fx.path("o.rois");
+    let o = smartagg(&[
+        "download",
+        "--source",
+        "cosim:spcimager:3",
+        "--calibration",
+        s(&cal),
+        "--quiet",
+        "--timeout",
+        "600",
+        "--out",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains(": 12 hot pixels masked"), "{err}");
+    let d = smartagg_model::packet::decode_all(&std::fs::read(&out).unwrap());
+    assert!(!d.stats.any_loss(), "{}", d.stats);
+    match &d.packets.first().map(|p| &p.record) {
+        Some(smartagg_model::record::Record::Start(s)) => assert_eq!(s.masked_pixels, 12),
+        other => panic!("the stream starts with {other:?}"),
+    }
+}

@@ -65,7 +65,16 @@ fn the_calibrated_hot_pixels_are_simulated_and_masked_at_the_items_crop() {
     let t = Timeline::one_at_a_time(2, 5, 0.05);
     let blinks = place(&t.blinks, s.field_nm(), s.margin_nm);
     let seed = 77;
-    let d = record_spad(&s, &blinks, t.end_s, seed, std::slice::from_ref(&cfg), true, None).unwrap();
+    let d = record_spad(
+        &s,
+        &blinks,
+        t.end_s,
+        seed,
+        std::slice::from_ref(&cfg),
+        true,
+        None,
+    )
+    .unwrap();
     // The hot map is the lattice at this item's crop offset.
     let (x0, y0) = sensor.maps.offset(s.field, seed);
     let f = s.field;
