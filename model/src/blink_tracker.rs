@@ -394,9 +394,8 @@ mod tests {
             if absorbed {
                 continue;
             }
-            let free = (0..tr.slots.len()).find(|&i| {
-                tr.free_prev[i] && !opened.contains(&i) && tr.slots[i] == Slot::Free
-            });
+            let free = (0..tr.slots.len())
+                .find(|&i| tr.free_prev[i] && !opened.contains(&i) && tr.slots[i] == Slot::Free);
             match free {
                 Some(i) => {
                     tr.slots[i] = Slot::Busy(Segment {

@@ -37,6 +37,11 @@ impl DelayLine {
         }
     }
 
+    /// The plane pushed last (`B_t`; zero before the first push).
+    pub fn newest(&self) -> &BitPlane {
+        self.planes.back().unwrap_or(&self.zero)
+    }
+
     /// The plane that will come out `i + 1` pushes from now (`i < N`), i.e.
     /// `B_{t−N+1+i}` after `B_t` went in; zero where that plane precedes the stream.
     /// Used to drain pre-rolls at stream end.
@@ -62,6 +67,7 @@ mod tests {
             .collect();
         for (t, p) in planes.iter().enumerate() {
             let out = d.push(p.clone());
+            assert_eq!(d.newest(), p);
             if t < 3 {
                 assert_eq!(out.count_ones(), 0);
             } else {

@@ -21,9 +21,10 @@
 //!   warming its counts up on the N planes before it; the workers' per-plane
 //!   results (candidates and above-threshold pixels) then feed the one
 //!   sequential tracker, which is cheap. A reader thread pulls the planes
-//!   meanwhile. The output is byte-identical to the single-threaded golden
-//!   pipeline for any chunk length and thread count, and memory is bounded by
-//!   the batch length, N and the field, not by the stream's length.
+//!   meanwhile, and each worker takes the next chunk as soon as it is free.
+//!   The output is byte-identical to the single-threaded golden pipeline for
+//!   any chunk length and thread count, and memory is bounded by the chunk
+//!   length, the threads, N and the field, not by the stream's length.
 
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
@@ -615,11 +616,32 @@ impl FrontEnd for ReplayFrontEnd {
     }
 }
 
+/// A time chunk of the stream on its way to a worker: its planes and the
+/// (up to N) planes before it, oldest first.
+struct Job {
+    index: usize,
+    history: Vec<BitPlane>,
+    planes: Vec<BitPlane>,
+}
+
+/// A chunk back from a worker, with stages 1–4 of each of its planes.
+struct Done {
+    index: usize,
+    planes: Vec<BitPlane>,
+    fronts: Vec<PlaneFront>,
+}
+
 /// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
 /// calling `sink` with every record in stream order (start record first,
-/// stream-end record last). Memory is bounded by `threads × chunk + N` planes,
-/// whatever the length of the stream. Errors from the plane source stop the
-/// run and are returned.
+/// stream-end record last). Errors from the plane source stop the run and are
+/// returned.
+///
+/// A reader thread pulls the planes (decoding or simulating them) and masks
+/// hot pixels; each worker takes the next chunk as soon as it is free (no
+/// barrier between chunks) and computes its stages 1–4; the calling thread
+/// runs the sequential stages 5–7 on the chunks in stream order. At most
+/// `3·threads + 1` chunks are in flight, so memory is bounded by
+/// `(3·threads + 1)·chunk + threads·N` planes, whatever the stream's length.
 pub fn run_parallel<E, I, S>(
     cfg: PipelineConfig,
     planes: I,
@@ -648,70 +670,119 @@ where
     .map_err(ParallelError::Pipeline)?;
     sink(back.start_record());
 
-    type Batch = (Vec<BitPlane>, Vec<PlaneFront>);
-    let (in_tx, in_rx) = std::sync::mpsc::sync_channel::<Result<Vec<BitPlane>, E>>(1);
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
-    let worker_cfg = cfg.clone();
-    let reader_cfg = cfg.clone();
-    let batch_len = threads * chunk;
+    let (job_tx, job_rx) = std::sync::mpsc::sync_channel::<Job>(threads);
+    // Shared by the workers only: when the last one stops, the reader's
+    // sends fail and it stops too.
+    let job_rx = std::sync::Arc::new(std::sync::Mutex::new(job_rx));
+    let (done_tx, done_rx) = std::sync::mpsc::sync_channel::<Done>(threads);
+    // Credits bound the chunks between the reader and the back end, however
+    // unevenly the workers finish.
+    let in_flight = 3 * threads + 1;
+    let (credit_tx, credit_rx) = std::sync::mpsc::sync_channel::<()>(in_flight);
+    for _ in 0..in_flight {
+        credit_tx
+            .send(())
+            .expect("the credit channel holds them all");
+    }
+    let worker_cfg = &cfg;
     std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
-        // Reader: pulls planes (decoding or simulating them) and masks hot
-        // pixels, overlapped with the workers' stages 1–4 of the batch before.
-        scope.spawn(move || {
+        let reader_cfg = cfg.clone();
+        let reader = scope.spawn(move || -> Result<(), ParallelError<E>> {
             let mut planes = planes;
-            loop {
-                let mut batch = Vec::with_capacity(batch_len);
-                for _ in 0..batch_len {
+            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
+            let (w, h) = (reader_cfg.width, reader_cfg.height);
+            for index in 0.. {
+                let mut batch = Vec::with_capacity(chunk);
+                for _ in 0..chunk {
                     match planes.next() {
+                        // A plane of another size never reaches a worker.
+                        Some(Ok(p)) if (p.width(), p.height()) != (w, h) => {
+                            return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
+                                plane: (index * chunk + batch.len()) as u64,
+                                got_w: p.width(),
+                                got_h: p.height(),
+                                want_w: w,
+                                want_h: h,
+                            }));
+                        }
                         Some(Ok(p)) => batch.push(match &reader_cfg.hot_mask {
                             Some(m) => m.apply(&p),
                             None => p,
                         }),
-                        Some(Err(e)) => {
-                            let _ = in_tx.send(Err(e));
-                            return;
-                        }
+                        Some(Err(e)) => return Err(ParallelError::Source(e)),
                         None => break,
                     }
                 }
-                let full = batch.len() == batch_len;
-                if batch.is_empty() || in_tx.send(Ok(batch)).is_err() || !full {
-                    return;
+                if batch.is_empty() {
+                    break;
                 }
-            }
-        });
-        // Producer: computes stages 1–4 of a batch of chunks in parallel and
-        // hands the batch to the back end; keeps the last N planes for the
-        // next batch's warm-up.
-        let producer = scope.spawn(move || -> Result<(), E> {
-            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
-            for msg in in_rx {
-                let batch = msg?;
-                let fronts = front_ends(&worker_cfg, &history, &batch, chunk);
+                let full = batch.len() == chunk;
+                let job_history: Vec<BitPlane> = history.iter().cloned().collect();
                 for p in batch.iter().skip(batch.len().saturating_sub(n)) {
                     if history.len() == n {
                         history.pop_front();
                     }
                     history.push_back(p.clone());
                 }
-                if tx.send((batch, fronts)).is_err() {
+                let job = Job {
+                    index,
+                    history: job_history,
+                    planes: batch,
+                };
+                if credit_rx.recv().is_err() || job_tx.send(job).is_err() || !full {
                     break;
                 }
             }
             Ok(())
         });
-        for (batch, fronts) in rx {
-            back.front_end_mut().queue.extend(fronts);
-            for plane in &batch {
-                for r in back.push_plane(plane).map_err(ParallelError::Pipeline)? {
-                    sink(r);
+        for _ in 0..threads {
+            let (rx, tx) = (job_rx.clone(), done_tx.clone());
+            scope.spawn(move || loop {
+                let job = match rx.lock() {
+                    Ok(rx) => rx.recv(),
+                    Err(_) => return,
+                };
+                let Ok(job) = job else { return };
+                let fronts = chunk_fronts(worker_cfg, &job.history, &job.planes);
+                let done = Done {
+                    index: job.index,
+                    planes: job.planes,
+                    fronts,
+                };
+                if tx.send(done).is_err() {
+                    return;
                 }
+            });
+        }
+        drop((job_rx, done_tx));
+        // Stages 5–7 in stream order; chunks that come back early wait.
+        let mut early: std::collections::BTreeMap<usize, Done> = Default::default();
+        let mut next = 0;
+        let mut result = Ok(());
+        'chunks: for done in &done_rx {
+            early.insert(done.index, done);
+            while let Some(d) = early.remove(&next) {
+                back.front_end_mut().queue.extend(d.fronts);
+                for plane in &d.planes {
+                    match back.push_plane(plane) {
+                        Ok(records) => records.into_iter().for_each(&mut sink),
+                        Err(e) => {
+                            result = Err(ParallelError::Pipeline(e));
+                            break 'chunks;
+                        }
+                    }
+                }
+                next += 1;
+                // The back end holds no credit: a failed send only means the
+                // reader has finished.
+                let _ = credit_tx.send(());
             }
         }
-        producer
-            .join()
-            .expect("the front-end producer panicked")
-            .map_err(ParallelError::Source)
+        // Stops the workers (their sends fail), hence the reader.
+        drop((done_rx, credit_tx));
+        let read = reader.join().expect("the plane reader panicked");
+        result?;
+        read
     })?;
     for r in back.finish() {
         sink(r);
@@ -719,57 +790,38 @@ where
     Ok(())
 }
 
-/// Stages 1–4 of every plane of `batch`, one scoped thread per chunk.
-/// `history` holds the (up to N) planes before the batch, oldest first: all N
-/// of them, or every plane since stream start (earlier planes are zero).
-fn front_ends(
+/// Stages 1–4 of every plane of a chunk. `history` holds the (up to N)
+/// planes before it, oldest first: all N of them, or every plane since
+/// stream start (earlier planes are zero).
+fn chunk_fronts(
     cfg: &PipelineConfig,
-    history: &VecDeque<BitPlane>,
-    batch: &[BitPlane],
-    chunk: usize,
+    history: &[BitPlane],
+    planes: &[BitPlane],
 ) -> Vec<PlaneFront> {
     let n = cfg.n_window as usize;
     let zero = BitPlane::zeros(cfg.width, cfg.height);
-    // Plane i of the batch has global offset h + i in `history ++ batch`.
     let h = history.len();
-    let get = |j: isize| -> &BitPlane {
-        if j < 0 {
-            &zero
-        } else if (j as usize) < h {
-            &history[j as usize]
+    // Plane i of the chunk is at h + i in `history ++ planes`.
+    let get = |j: usize| -> &BitPlane {
+        if j < h {
+            &history[j]
         } else {
-            &batch[j as usize - h]
+            &planes[j - h]
         }
     };
-    let one_chunk = |c: usize| -> Vec<PlaneFront> {
-        let start = c * chunk;
-        let end = (start + chunk).min(batch.len());
-        let g0 = (h + start) as isize;
-        // Before the stream start the planes are zero; `history` holds at most N.
-        let window = (g0 - n as isize..g0).filter(|&j| j >= 0).map(get);
-        let mut fe = FastFrontEnd::warmed_up(cfg, window);
-        (start..end)
-            .map(|i| {
-                let g = (h + i) as isize;
-                fe.push(&batch[i], get(g - n as isize));
-                PlaneFront {
-                    candidates: fe.candidates.clone(),
-                    above: fe.above.clone(),
-                }
-            })
-            .collect()
-    };
-    let chunks = batch.len().div_ceil(chunk);
-    if chunks == 1 {
-        return one_chunk(0);
-    }
-    std::thread::scope(|s| {
-        let handles: Vec<_> = (0..chunks).map(|c| s.spawn(move || one_chunk(c))).collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().expect("a front-end worker panicked"))
-            .collect()
-    })
+    let mut fe = FastFrontEnd::warmed_up(cfg, history.iter());
+    planes
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let delayed = (h + i).checked_sub(n).map_or(&zero, get);
+            fe.push(p, delayed);
+            PlaneFront {
+                candidates: fe.candidates.clone(),
+                above: fe.above.clone(),
+            }
+        })
+        .collect()
 }
 
 /// Why a parallel run stopped.

@@ -247,8 +247,10 @@ impl<F: FrontEnd> Pipeline<F> {
             Some(m) => m.apply(plane),
             None => plane.clone(),
         };
-        let delayed = self.delay.push(live.clone());
-        self.front.push(&live, &delayed);
+        // The delay line keeps `B_t`; read it back rather than copy it.
+        let delayed = self.delay.push(live);
+        let live = self.delay.newest();
+        self.front.push(live, &delayed);
 
         // Stage 5a: tracks live at the end of t−1.
         let front = &self.front;
@@ -267,7 +269,7 @@ impl<F: FrontEnd> Pipeline<F> {
         // Stage 6.
         for slot in 0..self.cfg.slots {
             if self.tracker.sums_live(slot, t) {
-                self.rois.add(slot, &live);
+                self.rois.add(slot, live);
             }
             if self.tracker.sums_preroll(slot, t) {
                 self.rois.add(slot, &delayed);

@@ -4,7 +4,7 @@ use proptest::prelude::*;
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::fast_engine::{fast_pipeline, run_parallel, FastFrontEnd, ParallelError};
 use smartagg_model::hot_pixel_mask::HotPixelMask;
-use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd};
+use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd, PipelineError};
 use smartagg_model::plane::BitPlane;
 use smartagg_model::record::Record;
 
@@ -182,6 +182,27 @@ fn source_errors_stop_the_parallel_run() {
     let mut n = 0;
     let e = run_parallel(cfg, src, 2, 4, |_| n += 1).unwrap_err();
     assert!(matches!(e, ParallelError::Source("disk on fire")));
+}
+
+#[test]
+fn a_plane_of_another_size_stops_the_parallel_run_with_its_number() {
+    let cfg = PipelineConfig::new(8, 8, 4, vec![1, 2, 1], 2, 8);
+    for (threads, chunk) in [(1, 1), (2, 4), (3, 7)] {
+        let src = (0..200).map(|t| {
+            Ok::<_, ()>(if t == 61 {
+                BitPlane::zeros(8, 9)
+            } else {
+                BitPlane::zeros(8, 8)
+            })
+        });
+        let e = run_parallel(cfg.clone(), src, threads, chunk, |_| {}).unwrap_err();
+        match e {
+            ParallelError::Pipeline(PipelineError::PlaneSize { plane, got_h, .. }) => {
+                assert_eq!((plane, got_h), (61, 9), "{threads} threads, chunk {chunk}")
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 }
 
 /// 1-D kernels of the tests: the specialised lengths 3, 5, 1 and 9 (the
