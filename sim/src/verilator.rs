@@ -585,6 +585,28 @@ fn verilator_version() -> String {
     .clone()
 }
 
+/// What driving a [`Model`] cost, counted on the Rust side.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Calls into the shim (set, get, eval, tick).
+    pub ffi_calls: u64,
+    /// `eval()`s of the Verilated model (two per clock: falling and rising edge).
+    pub evals: u64,
+    /// Of those, the ones that ran the input-combinational region because
+    /// an input had been written (see [`Build::ico_patched`]; every `eval()`
+    /// runs it when the patch is not applied).
+    pub ico_evals: u64,
+}
+
+impl Counters {
+    /// Adds another's counts.
+    pub fn add(&mut self, o: &Counters) {
+        self.ffi_calls += o.ffi_calls;
+        self.evals += o.evals;
+        self.ico_evals += o.ico_evals;
+    }
+}
+
 /// One instance of a Verilated model (its own `VerilatedContext`).
 pub struct Model {
     build: Arc<Build>,
@@ -598,6 +620,11 @@ pub struct Model {
     f_trace_close: FnPtr,
     /// Clock cycles run.
     pub cycles: u64,
+    /// What driving the model cost: calls and evaluations.
+    pub counters: Counters,
+    /// An input was written since the last evaluation (the shim's flag
+    /// that makes the next `eval()` run the input-combinational region).
+    inputs_set: bool,
     dirty: bool,
     buf: Vec<u32>,
 }
@@ -638,6 +665,8 @@ impl Model {
                 f_trace_open,
                 f_trace_close,
                 cycles: 0,
+                counters: Counters::default(),
+                inputs_set: true,
                 dirty: true,
                 buf: vec![0; 64],
             };
@@ -657,6 +686,8 @@ impl Model {
         let w = [v as u32, (v >> 32) as u32];
         // SAFETY: the shim reads at most words() ≤ 2 words for such ports.
         unsafe { (self.f_set)(self.h, i as i32, w.as_ptr()) };
+        self.counters.ffi_calls += 1;
+        self.inputs_set = true;
         self.dirty = true;
     }
 
@@ -667,6 +698,8 @@ impl Model {
         v.resize(n, 0);
         // SAFETY: the shim reads exactly `n` words.
         unsafe { (self.f_set)(self.h, i as i32, v.as_ptr()) };
+        self.counters.ffi_calls += 1;
+        self.inputs_set = true;
         self.dirty = true;
     }
 
@@ -682,6 +715,7 @@ impl Model {
             return self.get_words(i)[0] as u64;
         }
         unsafe { (self.f_get)(self.h, i as i32, w.as_mut_ptr()) };
+        self.counters.ffi_calls += 1;
         w[0] as u64 | (w[1] as u64) << 32
     }
 
@@ -694,6 +728,7 @@ impl Model {
         }
         // SAFETY: `buf` holds at least `n` words.
         unsafe { (self.f_get)(self.h, i as i32, self.buf.as_mut_ptr()) };
+        self.counters.ffi_calls += 1;
         self.buf[..n].to_vec()
     }
 
@@ -709,7 +744,23 @@ impl Model {
     pub fn eval(&mut self) {
         // SAFETY: valid handle.
         unsafe { (self.f_eval)(self.h) };
+        self.count_evals(1);
         self.dirty = false;
+    }
+
+    /// Counts `n` evaluations, the first of which runs the
+    /// input-combinational region if an input was written.
+    #[inline]
+    fn count_evals(&mut self, n: u64) {
+        let c = &mut self.counters;
+        c.ffi_calls += 1;
+        c.evals += n;
+        c.ico_evals += if self.build.ico_patched {
+            self.inputs_set as u64
+        } else {
+            n
+        };
+        self.inputs_set = false;
     }
 
     /// Runs `n` clock cycles: settles the inputs with the clock low (if not
@@ -722,6 +773,8 @@ impl Model {
         self.settle();
         // SAFETY: valid handle.
         unsafe { (self.f_tick)(self.h, n) };
+        // A rising edge, then a falling and a rising edge per further clock.
+        self.count_evals(2 * n - 1);
         self.cycles += n;
         // Outputs changed at the edge: the next read settles with the clock low.
         self.dirty = true;
