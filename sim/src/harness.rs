@@ -1272,7 +1272,7 @@ impl XemHost {
         let every = self.sensor_interval.max(1) as u64;
         let mut turn = 0u64;
         while sent < total {
-            let phase = turn % every == 0;
+            let phase = turn.is_multiple_of(every);
             turn += 1;
             let stall = case.input_stall > 0 && self.rng.gen_range(0..100) < case.input_stall;
             if phase && !stall {
@@ -1283,6 +1283,13 @@ impl XemHost {
                 let word = stream_word(&case.planes[t], p, idx) | ((idx == 0) as u64) << p;
                 self.sensor.push_back(word);
                 sent += 1;
+                // A sticky FAULT named when it rises, not at STOP.
+                if idx == 0 && self.wire_out(wire_out::STATUS) & status::FAULT != 0 {
+                    return Err(HarnessError::Gateware(format!(
+                        "{} (sensor port, bit-plane {t})",
+                        self.fault_source()
+                    )));
+                }
             }
             self.read_blocks(false);
             self.clock();
