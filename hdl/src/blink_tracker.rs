@@ -51,6 +51,9 @@
 //! takes a fresh bank from the free list. When the queue is full the record
 //! is lost and counted (`rec_lost` of the next record pushed, which becomes
 //! an Overflow record) — never silently; StreamStart and StreamEnd wait.
+//! When the queue has room but the free list shows no bank yet (the bank of
+//! the record the packetiser has just finished reaches the free list a few
+//! clocks after the queue drops that record), the slot walk waits for it.
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
