@@ -18,6 +18,10 @@
 //! * `xem150`: the whole XEM6310 top for the SPCImager at 150×, DDR2 delay
 //!   line, M = 32, 9×9 ROIs, for the LX45 (FrontPanel and MIG are black
 //!   boxes: their own cost comes on top, see the report).
+//! * `back150`, `tracker150`, `agg150`, `pkt150`: out-of-context synthesis
+//!   of the SPCImager 150× back half and of its blink tracker, ROI
+//!   aggregator and packetiser alone (ports left as ports: no constant
+//!   propagation across the boundary), to iterate on one block in minutes.
 //! * `proj150`: the projected SPCImager at 150× with its delay line of
 //!   N_max = 24 planes in block RAM (the pipeline, without the XEM6310
 //!   endpoints), for the LX150.
@@ -26,15 +30,19 @@
 //! preset's σ scaled to 2^8; `xem150` and `proj150` use
 //! [`smartagg_hdl::front_half::spcimager150_config`].
 
-use smartagg_hdl::config::GatewareConfig;
+use smartagg_hdl::blink_tracker::BlinkTracker;
+use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
+use smartagg_hdl::packetiser::Packetiser;
+use smartagg_hdl::pipeline::BackHalf;
 use smartagg_hdl::pipeline::{
     projected150_back_config, spcimager150_back_config, test_back_config, Projected150Pipeline,
     TestPipeline,
 };
+use smartagg_hdl::roi_aggregator::RoiAggregator;
 use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_hdl::xem6310::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};
@@ -66,6 +74,9 @@ fn kernel(sigma: f64, k: usize, a: u8) -> Vec<u32> {
     w
 }
 
+/// Verilog of one block of a back-half configuration.
+type BlockVerilog = fn(&BackHalfConfig) -> Result<String, GatewareError>;
+
 /// (name, LUT6, FF, RAMB16, DSP48A1) of the two devices.
 const DEVICES: [(&str, u64, u64, u64, u64); 2] = [
     ("XC6SLX45", 27_288, 54_576, 116, 58),
@@ -89,6 +100,14 @@ fn print(name: &str, r: &Resources) {
         r.multipliers,
         r.logic_depth.map_or("?".to_string(), |d| d.to_string())
     );
+    if let Some(l) = &r.lut_levels {
+        println!(
+            "{:<34} LUT levels {} (CARRY4, MUXF7/8 count 0); longest carry chain {} CARRY4",
+            "", l.levels, l.carry_chain
+        );
+        let path: Vec<String> = l.path.iter().map(|(t, n)| format!("{t} {n}")).collect();
+        println!("{:<34} worst path: {}", "", path.join(" -> "));
+    }
     for (dev, luts, ffs, brams, dsps) in DEVICES {
         println!(
             "{:<34} {dev}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",
@@ -173,6 +192,45 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let cfg = test_back_config(4, 3, 1)?;
         let r = yosys_resources(&verilog(TestPipeline::new(&cfg)?), &dir.join("pipe"))?;
         print("test pipeline (16x6, M 4, R 3)", &r);
+    }
+    if want("back150") || want("tracker150") || want("agg150") || want("pkt150") {
+        let cfg = spcimager150_back_config()?;
+        let blocks: [(&str, &str, BlockVerilog); 4] = [
+            ("back150", "SPCImager 150x back half", |c| {
+                Ok(verilog(BackHalf::<
+                    16,
+                    8,
+                    8,
+                    17,
+                    10,
+                    7,
+                    6,
+                    233,
+                    488,
+                    65,
+                    9,
+                    12,
+                >::new(c)?))
+            }),
+            ("tracker150", "SPCImager 150x blink tracker", |c| {
+                Ok(verilog(BlinkTracker::<16, 8, 7>::new(c)?))
+            }),
+            ("agg150", "SPCImager 150x ROI aggregator", |c| {
+                Ok(verilog(RoiAggregator::<16, 8, 17, 10, 7>::new(c)?))
+            }),
+            ("pkt150", "SPCImager 150x packetiser", |c| {
+                Ok(verilog(Packetiser::<17, 10, 7, 8, 488>::new(c)?))
+            }),
+        ];
+        for (key, title, gen) in blocks {
+            if args.iter().any(|a| a == key) {
+                let v = gen(&cfg)?;
+                let t0 = std::time::Instant::now();
+                let r = yosys_resources(&v, &dir.join(key))?;
+                println!("{key}: yosys {:.0} s", t0.elapsed().as_secs_f64());
+                print(title, &r);
+            }
+        }
     }
     if want("spc150") {
         let r = yosys_resources(

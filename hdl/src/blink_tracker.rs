@@ -51,6 +51,9 @@
 //! takes a fresh bank from the free list. When the queue is full the record
 //! is lost and counted (`rec_lost` of the next record pushed, which becomes
 //! an Overflow record) — never silently; StreamStart and StreamEnd wait.
+//! When the queue has room but the free list shows no bank yet (the bank of
+//! the record the packetiser has just finished reaches the free list a few
+//! clocks after the queue drops that record), the slot walk waits for it.
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
@@ -192,7 +195,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     pub bridged: Signal<Out, Bits<64>>,
     /// Segments cut at L_max.
     pub cuts: Signal<Out, Bits<64>>,
-    /// The free list was empty when a bank was needed (sticky; never expected).
+    /// A Blink waited 16 clocks for a free bank while the record queue had
+    /// room (sticky; never expected: it means a bank went missing).
     pub bank_error: Signal<Out, Bit>,
     state: DFF<TrackerState>,
     t: DFF<Bits<48>>,
@@ -209,6 +213,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     c_bridged: DFF<Bits<64>>,
     c_cuts: DFF<Bits<64>>,
     bank_err: DFF<Bit>,
+    bank_waits: DFF<Bits<4>>,
     // Per slot.
     busy: Vec<DFF<Bit>>,
     live: Vec<DFF<Bit>>,
@@ -284,6 +289,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     do_drop: Signal<Local, Bit>,
     do_fin: Signal<Local, Bit>,
     can_push: Signal<Local, Bit>,
+    need_bank: Signal<Local, Bit>,
+    bank_wait: Signal<Local, Bit>,
     near: Vec<Signal<Local, Bit>>,
     absorb: Vec<Signal<Local, Bit>>,
     freeable: Vec<Signal<Local, Bit>>,
@@ -387,6 +394,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             c_bridged: Default::default(),
             c_cuts: Default::default(),
             bank_err: Default::default(),
+            bank_waits: Default::default(),
             busy: lanes(m),
             live: lanes(m),
             dip: lanes(m),
@@ -460,6 +468,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             do_drop: Default::default(),
             do_fin: Default::default(),
             can_push: Default::default(),
+            need_bank: Default::default(),
+            bank_wait: Default::default(),
             near: lanes(m),
             absorb: lanes(m),
             freeable: lanes(m),
@@ -504,7 +514,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
     fn update(&mut self) {
         dff_setup!(
             self, clock, state, t, rows, done_mask, walk, lost, drops, drop_x, drop_y, c_blinks,
-            c_unconf, c_dropped, c_bridged, c_cuts, bank_err
+            c_unconf, c_dropped, c_bridged, c_cuts, bank_err, bank_waits
         );
         for i in 0..self._m {
             self.busy[i].clock.next = self.clock.val();
@@ -702,6 +712,23 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.l_min.val()))
                 | (self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin_p1.val()));
         }
+        // The walked slot pushes a Blink record (and takes a fresh bank).
+        self.need_bank.next = false;
+        for i in 0..self._m {
+            if self.sel[i].val()
+                & (((self.state.q.val() == TrackerState::EopB) & self.comp[i].q.val())
+                    | ((self.state.q.val() == TrackerState::Emit) & self.busy[i].q.val()))
+            {
+                self.need_bank.next = true;
+            }
+        }
+        // The queue has room but the free list shows no bank: the bank of the
+        // record the packetiser has just finished is on its way back (the
+        // queue counts that record until it is popped, the pool shows the
+        // bank a few clocks later), so the walk waits for it rather than
+        // lose the record. Room in the queue means at most Q − 1 queued
+        // Blinks, so one of the Q spare banks is free or returning.
+        self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
         for mm in self._m..(self._m + 1) {
             self.absorbed.next = self.abs_any[mm].val();
             self.any_free.next = self.ftaken[mm].val();
@@ -782,63 +809,63 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.state.d.next = TrackerState::EopB;
             }
             TrackerState::EopB => {
-                for i in 0..self._m {
-                    if self.sel[i].val() {
-                        if self.ev_bridge[i].q.val() {
-                            self.c_bridged.d.next = self.c_bridged.q.val() + 1;
-                        }
-                        if self.ev_unconf[i].q.val() {
-                            self.c_unconf.d.next = self.c_unconf.q.val() + 1;
-                        }
-                        if self.ev_cut[i].q.val() {
-                            self.c_cuts.d.next = self.c_cuts.q.val() + 1;
-                        }
-                        self.ev_bridge[i].d.next = false;
-                        self.ev_unconf[i].d.next = false;
-                        self.ev_cut[i].d.next = false;
-                        if self.comp[i].q.val() {
-                            self.comp[i].d.next = false;
-                            self.c_blinks.d.next = self.c_blinks.q.val() + 1;
-                            self.rec_kind.next = 1.into();
-                            self.rec_slot.next = self.slot_id[i].val();
-                            self.rec_flags.next =
-                                self.f_cut[i].val() | self.f_cont[i].val() | self.f_trunc[i].val();
-                            self.rec_ax.next = self.ax[i].q.val();
-                            self.rec_ay.next = self.ay[i].q.val();
-                            self.rec_t0.next = self.tc[i].q.val();
-                            self.rec_t1.next = self.td[i].q.val();
-                            self.rec_bank.next = self.bank[i].q.val();
-                            if self.can_push.val() {
-                                self.rec_push.next = true;
-                                self.lost.d.next = 0.into();
-                                self.fb_pop.next = true;
-                                self.bank[i].d.next = self.fb_bank.val();
-                            } else {
-                                self.lost.d.next = self.lost.q.val() + 1;
-                                if self.rec_room.val() {
-                                    self.bank_err.d.next = true;
-                                }
+                if !self.bank_wait.val() {
+                    for i in 0..self._m {
+                        if self.sel[i].val() {
+                            if self.ev_bridge[i].q.val() {
+                                self.c_bridged.d.next = self.c_bridged.q.val() + 1;
                             }
-                            if self.cutf[i].q.val() {
-                                // The blink goes on: a continuation segment from t + 1
-                                // (age t − t_cross = −1 now, 0 at t + 1).
-                                self.cont[i].d.next = true;
-                                self.live[i].d.next = true;
-                                self.dip[i].d.next = false;
-                                self.cutf[i].d.next = false;
-                                self.trunc[i].d.next = false;
-                                self.conf[i].d.next = true;
-                                self.tc[i].d.next = self.t_p1.val();
-                                self.age[i].d.next = 0xFFFF_FFFF_u64.into();
-                            } else {
-                                self.busy[i].d.next = false;
+                            if self.ev_unconf[i].q.val() {
+                                self.c_unconf.d.next = self.c_unconf.q.val() + 1;
+                            }
+                            if self.ev_cut[i].q.val() {
+                                self.c_cuts.d.next = self.c_cuts.q.val() + 1;
+                            }
+                            self.ev_bridge[i].d.next = false;
+                            self.ev_unconf[i].d.next = false;
+                            self.ev_cut[i].d.next = false;
+                            if self.comp[i].q.val() {
+                                self.comp[i].d.next = false;
+                                self.c_blinks.d.next = self.c_blinks.q.val() + 1;
+                                self.rec_kind.next = 1.into();
+                                self.rec_slot.next = self.slot_id[i].val();
+                                self.rec_flags.next = self.f_cut[i].val()
+                                    | self.f_cont[i].val()
+                                    | self.f_trunc[i].val();
+                                self.rec_ax.next = self.ax[i].q.val();
+                                self.rec_ay.next = self.ay[i].q.val();
+                                self.rec_t0.next = self.tc[i].q.val();
+                                self.rec_t1.next = self.td[i].q.val();
+                                self.rec_bank.next = self.bank[i].q.val();
+                                if self.can_push.val() {
+                                    self.rec_push.next = true;
+                                    self.lost.d.next = 0.into();
+                                    self.fb_pop.next = true;
+                                    self.bank[i].d.next = self.fb_bank.val();
+                                } else {
+                                    self.lost.d.next = self.lost.q.val() + 1;
+                                }
+                                if self.cutf[i].q.val() {
+                                    // The blink goes on: a continuation segment from t + 1
+                                    // (age t − t_cross = −1 now, 0 at t + 1).
+                                    self.cont[i].d.next = true;
+                                    self.live[i].d.next = true;
+                                    self.dip[i].d.next = false;
+                                    self.cutf[i].d.next = false;
+                                    self.trunc[i].d.next = false;
+                                    self.conf[i].d.next = true;
+                                    self.tc[i].d.next = self.t_p1.val();
+                                    self.age[i].d.next = 0xFFFF_FFFF_u64.into();
+                                } else {
+                                    self.busy[i].d.next = false;
+                                }
                             }
                         }
                     }
-                }
-                self.walk.d.next = self.walk.q.val() + 1;
-                if self.walk.q.val() == self.last_slot.val() {
-                    self.state.d.next = TrackerState::EopC;
+                    self.walk.d.next = self.walk.q.val() + 1;
+                    if self.walk.q.val() == self.last_slot.val() {
+                        self.state.d.next = TrackerState::EopC;
+                    }
                 }
             }
             TrackerState::EopC => {
@@ -974,46 +1001,46 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::Emit => {
-                for i in 0..self._m {
-                    if self.sel[i].val() {
-                        if self.ev_unconf[i].q.val() {
-                            self.c_unconf.d.next = self.c_unconf.q.val() + 1;
-                        }
-                        if self.ev_bridge[i].q.val() {
-                            self.c_bridged.d.next = self.c_bridged.q.val() + 1;
-                        }
-                        self.ev_unconf[i].d.next = false;
-                        self.ev_bridge[i].d.next = false;
-                        if self.busy[i].q.val() {
-                            self.busy[i].d.next = false;
-                            self.c_blinks.d.next = self.c_blinks.q.val() + 1;
-                            self.rec_kind.next = 1.into();
-                            self.rec_slot.next = self.slot_id[i].val();
-                            self.rec_flags.next =
-                                self.f_cut[i].val() | self.f_cont[i].val() | self.f_trunc[i].val();
-                            self.rec_ax.next = self.ax[i].q.val();
-                            self.rec_ay.next = self.ay[i].q.val();
-                            self.rec_t0.next = self.tc[i].q.val();
-                            self.rec_t1.next = self.td[i].q.val();
-                            self.rec_bank.next = self.bank[i].q.val();
-                            self.rec_tag.next = self.t_m1.val();
-                            if self.can_push.val() {
-                                self.rec_push.next = true;
-                                self.lost.d.next = 0.into();
-                                self.fb_pop.next = true;
-                                self.bank[i].d.next = self.fb_bank.val();
-                            } else {
-                                self.lost.d.next = self.lost.q.val() + 1;
-                                if self.rec_room.val() {
-                                    self.bank_err.d.next = true;
+                if !self.bank_wait.val() {
+                    for i in 0..self._m {
+                        if self.sel[i].val() {
+                            if self.ev_unconf[i].q.val() {
+                                self.c_unconf.d.next = self.c_unconf.q.val() + 1;
+                            }
+                            if self.ev_bridge[i].q.val() {
+                                self.c_bridged.d.next = self.c_bridged.q.val() + 1;
+                            }
+                            self.ev_unconf[i].d.next = false;
+                            self.ev_bridge[i].d.next = false;
+                            if self.busy[i].q.val() {
+                                self.busy[i].d.next = false;
+                                self.c_blinks.d.next = self.c_blinks.q.val() + 1;
+                                self.rec_kind.next = 1.into();
+                                self.rec_slot.next = self.slot_id[i].val();
+                                self.rec_flags.next = self.f_cut[i].val()
+                                    | self.f_cont[i].val()
+                                    | self.f_trunc[i].val();
+                                self.rec_ax.next = self.ax[i].q.val();
+                                self.rec_ay.next = self.ay[i].q.val();
+                                self.rec_t0.next = self.tc[i].q.val();
+                                self.rec_t1.next = self.td[i].q.val();
+                                self.rec_bank.next = self.bank[i].q.val();
+                                self.rec_tag.next = self.t_m1.val();
+                                if self.can_push.val() {
+                                    self.rec_push.next = true;
+                                    self.lost.d.next = 0.into();
+                                    self.fb_pop.next = true;
+                                    self.bank[i].d.next = self.fb_bank.val();
+                                } else {
+                                    self.lost.d.next = self.lost.q.val() + 1;
                                 }
                             }
                         }
                     }
-                }
-                self.walk.d.next = self.walk.q.val() + 1;
-                if self.walk.q.val() == self.last_slot.val() {
-                    self.state.d.next = TrackerState::End;
+                    self.walk.d.next = self.walk.q.val() + 1;
+                    if self.walk.q.val() == self.last_slot.val() {
+                        self.state.d.next = TrackerState::End;
+                    }
                 }
             }
             TrackerState::End => {
@@ -1025,6 +1052,15 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             _ => {}
+        }
+
+        // A wait longer than the pool's return latency means a bank was lost.
+        self.bank_waits.d.next = 0.into();
+        if self.bank_wait.val() {
+            self.bank_waits.d.next = self.bank_waits.q.val() + 1;
+            if self.bank_waits.q.val().all() {
+                self.bank_err.d.next = true;
+            }
         }
 
         // ---- Association: open a track or drop the candidate.

@@ -43,6 +43,7 @@ pub mod delay_line_ddr;
 pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
+pub mod lut_levels;
 pub mod packetiser;
 pub mod pipeline;
 pub mod registers;

@@ -41,6 +41,9 @@ pub enum ToolError {
     /// The yosys report had no statistics to parse.
     #[error("no cell statistics found in the yosys log")]
     NoStatistics,
+    /// The mapped netlist (`netlist.json`) could not be measured.
+    #[error("LUT levels of the mapped netlist: {0}")]
+    Levels(#[from] crate::lut_levels::LevelsError),
 }
 
 /// Verilator warnings waived for rust-hdl's generated code, each for a
@@ -155,6 +158,10 @@ pub struct Resources {
     /// inverters each count 1): yosys `ltp` once the sequential cells, block
     /// RAMs, buffers and black boxes are deleted; a proxy for timing.
     pub logic_depth: Option<u64>,
+    /// Longest register-to-register path in LUT levels (CARRY4 and MUXF7/8
+    /// count 0, LUT-RAM reads 1), the longest carry chain and the worst
+    /// path's cells: [`crate::lut_levels`] on the mapped netlist.
+    pub lut_levels: Option<crate::lut_levels::LutLevels>,
 }
 
 impl Resources {
@@ -228,11 +235,13 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
 
 /// The yosys command used for the resource figures: memory bits and
 /// multipliers of the flattened design, Spartan-6 synthesis, cell counts,
-/// then the longest path through the combinational cells of the mapped
-/// netlist (flip-flops, shift registers, block RAMs, buffers and the
-/// black boxes deleted first, so that paths start and end at them).
+/// the mapped netlist as JSON (`netlist.json`, measured in LUT levels by
+/// [`crate::lut_levels`]), then yosys' own longest path through the
+/// combinational cells, every cell counted (flip-flops, shift registers,
+/// block RAMs, buffers and the black boxes deleted first, so that paths
+/// start and end at them).
 pub const YOSYS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; stat; \
-     synth_xilinx -family xc6s -top top -flatten; stat; \
+     synth_xilinx -family xc6s -top top -flatten; stat; write_json netlist.json; \
      delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig; ltp";
 
 /// Synthesises the Verilog for the Spartan-6 with yosys in `dir` and returns
@@ -250,5 +259,14 @@ pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError
             .arg(YOSYS_SCRIPT),
     )?;
     let full = std::fs::read_to_string(dir.join("yosys.log")).unwrap_or(log);
-    parse_yosys_stat(&full)
+    let mut r = parse_yosys_stat(&full)?;
+    let netlist = dir.join("netlist.json");
+    let json = std::fs::read_to_string(&netlist).map_err(|source| ToolError::Io {
+        path: netlist.clone(),
+        source,
+    })?;
+    r.lut_levels = Some(crate::lut_levels::lut_levels(&json, "top")?);
+    // The netlist of a whole design is hundreds of MB; the figures are kept.
+    let _ = std::fs::remove_file(&netlist);
+    Ok(r)
 }

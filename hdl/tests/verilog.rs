@@ -47,6 +47,13 @@ fn yosys_maps_the_test_front_half_to_spartan6() {
     assert!(r.memory_bits >= 7 * 96, "{r:?}");
     assert_eq!(r.multipliers, 0, "{r:?}");
     assert!(r.logic_depth.is_some_and(|d| d > 2 && d < 100), "{r:?}");
+    // LUT levels never exceed the cells yosys counts on the longest path.
+    let l = r.lut_levels.as_ref().expect("LUT levels");
+    assert!(
+        l.levels >= 1 && u64::from(l.levels) <= r.logic_depth.unwrap(),
+        "{r:?}"
+    );
+    assert!(!l.path.is_empty(), "{r:?}");
     // Shift-and-add constant multipliers: no DSP slice.
     assert_eq!(r.dsp48a1, 0, "{r:?}");
     // The delay line (7 planes x 96 bits) and the counter memory are memories, not flip-flops.

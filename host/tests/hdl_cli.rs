@@ -179,6 +179,8 @@ fn resources_synthesises_the_given_file_and_reports_its_hash() {
     assert!(j["ffs"].as_u64().unwrap() >= 16, "{j}");
     let depth = j["logic_depth"].as_u64().unwrap();
     assert!((1..20).contains(&depth), "{j}");
+    let levels = j["lut_levels"].as_u64().unwrap();
+    assert!(levels >= 1 && levels <= depth, "{j}");
     let devices = j["devices"].as_array().unwrap();
     assert_eq!(devices[0]["device"], "XC6SLX45");
     assert_eq!(devices[0]["fits"], true);

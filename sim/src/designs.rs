@@ -286,6 +286,16 @@ impl DesignSpec {
         let pp = self.pipe_path();
         // Which sticky fault flag rose: always exposed (three bits, no cost).
         let mut probes = vec![("fault_back".to_string(), 1, format!("{pp}back.fault"))];
+        // The back half's five sticky sources, so that a FAULT names its buffer.
+        for (port, inst) in [
+            ("fault_tracker_fifo", "tfifo.overflow"),
+            ("fault_roi_ring", "agg.overrun"),
+            ("fault_bank", "tracker.bank_error"),
+            ("fault_record_queue", "queue.overflow"),
+            ("fault_output_fifo", "ofifo.overflow"),
+        ] {
+            probes.push((port.to_string(), 1, format!("{pp}back.{inst}")));
+        }
         if self.config.ddr() {
             probes.push(("fault_underrun".into(), 1, format!("{pp}delay.underrun")));
             probes.push(("fault_write".into(), 1, format!("{pp}delay.write_error")));

@@ -238,6 +238,9 @@ struct Report {
     ramb16_floor: u64,
     multipliers: u64,
     logic_depth: Option<u64>,
+    lut_levels: Option<u32>,
+    carry_chain: Option<u32>,
+    worst_path: Vec<String>,
     devices: Vec<DeviceUse>,
     throughput: Option<Throughput>,
 }
@@ -294,6 +297,13 @@ fn report(name: String, v: &str, r: &Resources, seconds: f64, d: Option<&Design>
         ramb16_floor: r.ramb16_floor(),
         multipliers: r.multipliers,
         logic_depth: r.logic_depth,
+        lut_levels: r.lut_levels.as_ref().map(|l| l.levels),
+        carry_chain: r.lut_levels.as_ref().map(|l| l.carry_chain),
+        worst_path: r
+            .lut_levels
+            .as_ref()
+            .map(|l| l.path.iter().map(|(t, n)| format!("{t} {n}")).collect())
+            .unwrap_or_default(),
         devices,
         throughput,
     }
@@ -359,9 +369,15 @@ fn resources(a: ResourcesArgs) -> anyhow::Result<()> {
         rep.multipliers
     );
     println!(
-        "logic depth between registers: {} cells (target <= 6 LUT levels)",
+        "logic depth between registers: {} LUT levels (target <= 6; CARRY4 and MUXF7/8 count 0), \
+         longest carry chain {} CARRY4; yosys ltp {} cells",
+        rep.lut_levels.map_or("unknown".into(), |x| x.to_string()),
+        rep.carry_chain.map_or("unknown".into(), |x| x.to_string()),
         rep.logic_depth.map_or("unknown".into(), |x| x.to_string())
     );
+    if !rep.worst_path.is_empty() {
+        println!("worst path: {}", rep.worst_path.join(" -> "));
+    }
     for u in &rep.devices {
         println!(
             "{:<10} LUT {:5.1} %  FF {:5.1} %  block RAM {:5.1} %  DSP {:5.1} %  -> {}",
