@@ -22,7 +22,7 @@
 //! that differ, and a third run writes a VCD of the clocks around it.
 
 use crate::designs::{DesignError, DesignSpec};
-use crate::verilator::{Build, Model};
+use crate::verilator::{Build, Counters, Model};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smartagg_hdl::registers::{control, status, trigger, wire_in, wire_out};
@@ -98,6 +98,8 @@ pub struct Outcome {
     pub overflowed: bool,
     /// Stage probes: the first mismatch of each stage (debug builds).
     pub stage_mismatches: Vec<StageMismatch>,
+    /// Calls into the Verilated model and its evaluations.
+    pub driver: Counters,
 }
 
 /// A pipeline stage with a probe.
@@ -207,8 +209,12 @@ pub struct Coverage {
     pub edge_rois: u64,
     /// Clock cycles simulated.
     pub cycles: u64,
+    /// Clock cycles from START to the end of the stream (of [`Coverage::cycles`]).
+    pub stream_cycles: u64,
     /// Wall time simulating, seconds.
     pub seconds: f64,
+    /// Calls into the Verilated model and its evaluations.
+    pub driver: Counters,
 }
 
 impl Coverage {
@@ -226,7 +232,22 @@ impl Coverage {
         self.refresh_collisions += o.refresh_collisions;
         self.edge_rois += o.edge_rois;
         self.cycles += o.cycles;
+        self.stream_cycles += o.stream_cycles;
         self.seconds += o.seconds;
+        self.driver.add(&o.driver);
+    }
+}
+
+impl Coverage {
+    /// Clocks per bit-plane from START to the stream's end (W·H/P when the
+    /// source and the pipeline sustain a word of P pixels every clock).
+    pub fn clocks_per_plane(&self) -> f64 {
+        self.stream_cycles as f64 / self.planes.max(1) as f64
+    }
+
+    /// Simulated clock cycles per wall-clock second, millions.
+    pub fn mcycles_per_second(&self) -> f64 {
+        self.cycles as f64 / self.seconds.max(1e-9) / 1e6
     }
 }
 
@@ -236,7 +257,7 @@ impl std::fmt::Display for Coverage {
             f,
             "cases {} planes {} packets {} | confirmed blinks {} bridged dips {} unconfirmed tracks {} \
              slot exhaustion {} output FIFO full {} (records lost {}) DDR2 refresh collisions {} edge ROIs {} \
-             | {} cycles in {:.2} s ({:.2} M cycles/s)",
+             | {} cycles in {:.2} s ({:.2} M cycles/s; per clock {:.2} shim calls, {:.2} evals, {:.2} input-combinational passes)",
             self.cases,
             self.planes,
             self.packets,
@@ -250,7 +271,10 @@ impl std::fmt::Display for Coverage {
             self.edge_rois,
             self.cycles,
             self.seconds,
-            self.cycles as f64 / self.seconds.max(1e-9) / 1e6
+            self.cycles as f64 / self.seconds.max(1e-9) / 1e6,
+            self.driver.ffi_calls as f64 / self.cycles.max(1) as f64,
+            self.driver.evals as f64 / self.cycles.max(1) as f64,
+            self.driver.ico_evals as f64 / self.cycles.max(1) as f64,
         )
     }
 }
@@ -280,6 +304,7 @@ pub struct Cosim {
     /// Directory for VCDs.
     pub vcd_dir: PathBuf,
     trace: Option<PathBuf>,
+    sensor_interval: u32,
 }
 
 /// How a run goes: which build, probes, VCD window.
@@ -307,6 +332,7 @@ impl Cosim {
             debug: None,
             vcd_dir,
             trace: None,
+            sensor_interval: 2,
         })
     }
 
@@ -324,6 +350,7 @@ impl Cosim {
             debug: Some(b),
             vcd_dir,
             trace: None,
+            sensor_interval: 2,
         })
     }
 
@@ -366,6 +393,14 @@ impl Cosim {
         cfg.validate()
             .map_err(|e| HarnessError::Model(e.to_string()))?;
         Ok(cfg)
+    }
+
+    /// Clocks between the sensor port's words ([`Source::Sensor`], DDR2
+    /// configurations): 2 by default, the sensor's duty cycle at P = 16;
+    /// 1 feeds a word every clock, the rate the pipeline must sustain for
+    /// W·H/P clocks per bit-plane. (Host stalls skip further opportunities.)
+    pub fn set_sensor_interval(&mut self, clocks: u32) {
+        self.sensor_interval = clocks.max(1);
     }
 
     /// Makes [`Cosim::check`] run the traced debug build and write a VCD
@@ -430,6 +465,8 @@ impl Cosim {
         let out = self.run(case)?;
         let mut cov = coverage_of(&records, case);
         cov.cycles = out.cycles;
+        cov.stream_cycles = out.stream_cycles;
+        cov.driver = out.driver;
         cov.seconds = out.seconds;
         cov.refresh_collisions = out.refresh_collisions;
         let verdict = if out.bytes == want {
@@ -901,6 +938,7 @@ struct XemHost {
     probes: Option<Probes>,
     vcd: Option<Vcd>,
     sensor: VecDeque<u64>,
+    sensor_interval: u32,
     read_stall: u32,
     hold_reads: bool,
     limit: u64,
@@ -985,6 +1023,7 @@ impl XemHost {
             probes,
             vcd: vcd_of(vcd),
             sensor: VecDeque::new(),
+            sensor_interval: cosim.sensor_interval,
             read_stall: case.read_stall,
             hold_reads: case.hold_reads,
             limit: 100_000 + (case.planes.len() as u64 + case.n as u64 + 4) * wpp as u64 * 12,
@@ -1191,6 +1230,7 @@ impl XemHost {
                 .as_ref()
                 .map(|p| p.mismatches())
                 .unwrap_or_default(),
+            driver: self.m.counters,
         })
     }
 
@@ -1220,17 +1260,20 @@ impl XemHost {
         ((g & 0xffff) as usize, (g >> 16) as usize)
     }
 
-    /// The sensor port: a word every other clock (the sensor's duty cycle at
-    /// P = 16), with random extra gaps, into a 32-word FIFO.
+    /// The sensor port: a word every `sensor_interval` clocks (by default
+    /// every other clock, the sensor's duty cycle at P = 16), with random
+    /// extra gaps, into a 32-word FIFO.
     fn feed_sensor(&mut self, case: &Case) -> Result<(), HarnessError> {
         let p = crate::designs::P;
         let wpp = self.geometry();
         let wpp = wpp.0 * wpp.1 / p;
         let total = case.planes.len() * wpp;
         let mut sent = 0;
-        let mut phase = false;
+        let every = self.sensor_interval.max(1) as u64;
+        let mut turn = 0u64;
         while sent < total {
-            phase = !phase;
+            let phase = turn.is_multiple_of(every);
+            turn += 1;
             let stall = case.input_stall > 0 && self.rng.gen_range(0..100) < case.input_stall;
             if phase && !stall {
                 if self.sensor.len() >= 1 << smartagg_hdl::xem6310::SENSOR_FIFO_BITS {
@@ -1240,6 +1283,13 @@ impl XemHost {
                 let word = stream_word(&case.planes[t], p, idx) | ((idx == 0) as u64) << p;
                 self.sensor.push_back(word);
                 sent += 1;
+                // A sticky FAULT named when it rises, not at STOP.
+                if idx == 0 && self.wire_out(wire_out::STATUS) & status::FAULT != 0 {
+                    return Err(HarnessError::Gateware(format!(
+                        "{} (sensor port, bit-plane {t})",
+                        self.fault_source()
+                    )));
+                }
             }
             self.read_blocks(false);
             self.clock();
@@ -1479,6 +1529,7 @@ impl BramHost {
                 .as_ref()
                 .map(|p| p.mismatches())
                 .unwrap_or_default(),
+            driver: self.m.counters,
         })
     }
 }

@@ -37,6 +37,10 @@ pub struct Args {
     /// Feed the planes through the sensor port instead of the replay pipe-in.
     #[arg(long)]
     pub sensor: bool,
+    /// Clocks between sensor-port words (with --sensor): 2 is the sensor's
+    /// duty cycle at P = 16, 1 the full rate the pipeline must sustain.
+    #[arg(long, default_value_t = 2, requires = "sensor")]
+    pub sensor_interval: u32,
     /// Write a VCD of the whole run to this file (debug build, slow).
     #[arg(long)]
     pub vcd: Option<PathBuf>,
@@ -56,6 +60,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if args.sensor && !config.ddr() {
         bail!("--sensor: {} is simulated without the XEM6310 core (block-RAM pipeline); its input is the pipeline's word port", config.name());
+    }
+    if args.sensor_interval == 0 {
+        bail!("--sensor-interval must be at least 1 clock");
     }
     let n = args.n.unwrap_or(config.n_max().min(108));
     if n == 0 || n > config.n_max() {
@@ -118,6 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
     };
     case.threshold = threshold_at_quantile(&c.model_config(&case)?, &case.planes, 0.995);
+    c.set_sensor_interval(args.sensor_interval);
     if let Some(path) = &args.vcd {
         c.trace_whole_run(path.clone());
     }
@@ -134,12 +142,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 );
             }
             println!("  {cov}");
+            let source = if args.sensor {
+                format!(
+                    "sensor port, a word every {} clock(s)",
+                    args.sensor_interval
+                )
+            } else {
+                "replay pipe-in, block-throttled".to_string()
+            };
             println!(
-                "  {:.0} clocks per bit-plane ({} words of P = {} pixels; the source runs at the sensor's duty cycle, one word every other clock); {:.3} M simulated clock cycles/s",
-                cov.cycles as f64 / cov.planes as f64,
+                "  {:.0} clocks per bit-plane from START to the stream's end ({} words of P = {} pixels; {source}); {:.3} M simulated clock cycles/s ({} clocks in {:.2} s)",
+                cov.clocks_per_plane(),
                 w * h / smartagg_sim::designs::P,
                 smartagg_sim::designs::P,
-                cov.cycles as f64 / cov.seconds.max(1e-9) / 1e6
+                cov.mcycles_per_second(),
+                cov.cycles,
+                cov.seconds
             );
             if let Some(p) = &args.vcd {
                 println!("  VCD: {}", p.display());
