@@ -262,8 +262,14 @@ fn demo_writes_every_output_and_engines_agree() {
         "4",
         "--mean-off-s",
         "0.4",
+        "--gateware-planes",
+        "1500",
         "--quiet",
     ]);
+    assert!(
+        report.contains("| gateware (Verilated XEM6310 core) vs golden model | byte-identical on the first 1500 bit-planes"),
+        "{report}"
+    );
     for f in [
         "blinks.rois",
         "localisations.csv",

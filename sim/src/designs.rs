@@ -132,12 +132,16 @@ pub struct DesignSpec {
     pub height: usize,
     /// DDR2 model timing.
     pub ddr: Ddr2Timing,
+    /// Association radius r_assoc (a generation parameter of the tracker).
+    pub r_assoc: u32,
 }
 
 /// The reduced field of every configuration.
 pub const REDUCED: (usize, usize) = (64, 32);
 /// The SPCImager's full field.
 pub const FULL: (usize, usize) = (320, 240);
+/// The field of `smartagg demo` (SPCImager 150×).
+pub const DEMO: (usize, usize) = (64, 64);
 
 /// Pixels per clock of every configuration (see `smartagg_hdl`'s crate docs).
 pub const P: usize = 16;
@@ -155,6 +159,8 @@ pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 7, 17, 9, 7, 6, 23
 /// Projected SPCImager 150× pipeline (block-RAM delay line) on 64×32.
 pub type Projected150Reduced =
     Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+/// SPCImager 150× core on the demo's 64×64 field.
+pub type Spcimager150Demo = XemCore<16, 9, 8, 8, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
 /// SPCImager 150× core on the full 320×240 field.
 pub type Spcimager150Full = XemCore<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
 
@@ -163,13 +169,14 @@ impl DesignSpec {
     /// 150×, [`FULL`]).
     pub fn new(config: Config, width: usize, height: usize) -> Result<DesignSpec, DesignError> {
         let ok = (width, height) == REDUCED
-            || ((width, height) == FULL && config == Config::Spcimager150);
+            || (((width, height) == FULL || (width, height) == DEMO)
+                && config == Config::Spcimager150);
         if !ok {
             return Err(DesignError::Unsupported {
                 what: format!("{} on {width}x{height}", config.name()),
                 why: format!(
-                    "generated fields: {}x{} for every configuration, {}x{} for spcimager/150x",
-                    REDUCED.0, REDUCED.1, FULL.0, FULL.1
+                    "generated fields: {}x{} for every configuration, {}x{} and {}x{} for spcimager/150x",
+                    REDUCED.0, REDUCED.1, FULL.0, FULL.1, DEMO.0, DEMO.1
                 ),
             });
         }
@@ -178,7 +185,20 @@ impl DesignSpec {
             width,
             height,
             ddr: Ddr2Timing::default(),
+            r_assoc: 1,
         })
+    }
+
+    /// The same configuration with association radius `r_assoc` (0..=16).
+    pub fn with_r_assoc(mut self, r_assoc: u32) -> Result<DesignSpec, DesignError> {
+        if r_assoc > 16 {
+            return Err(DesignError::Unsupported {
+                what: format!("r_assoc = {r_assoc}"),
+                why: "0..=16 pixels".into(),
+            });
+        }
+        self.r_assoc = r_assoc;
+        Ok(self)
     }
 
     /// The front half's generation parameters.
@@ -197,8 +217,8 @@ impl DesignSpec {
     }
 
     /// The back half's generation parameters, as `hdl`'s
-    /// `spcimager150_back_config` derives them: M = 32, R = k, r_assoc = 1,
-    /// L_max,max = 65,535.
+    /// `spcimager150_back_config` derives them: M = 32, R = k, r_assoc (1
+    /// unless [`DesignSpec::with_r_assoc`]), L_max,max = 65,535.
     pub fn back(&self) -> Result<BackHalfConfig, DesignError> {
         let front = self.front()?;
         let mut cfg = smartagg_model::config::PipelineConfig::new(
@@ -211,7 +231,7 @@ impl DesignSpec {
         );
         cfg.slots = 32;
         cfg.roi_size = front.kernel.len();
-        cfg.r_assoc = 1;
+        cfg.r_assoc = self.r_assoc;
         Ok(BackHalfConfig::new(&cfg, front, 65_535)?)
     }
 
@@ -226,8 +246,9 @@ impl DesignSpec {
     /// The Verilog of the generated top (module `top`), as `hdl` writes it.
     pub fn top_verilog(&self) -> Result<String, DesignError> {
         let b = self.back()?;
-        let full = (self.width, self.height) == FULL;
-        Ok(match (self.config, full) {
+        let field = (self.width, self.height);
+        Ok(match (self.config, field == FULL) {
+            (Config::Spcimager150, _) if field == DEMO => verilog(Spcimager150Demo::new(&b)?),
             (Config::Spcimager150, false) => verilog(Spcimager150Reduced::new(&b)?),
             (Config::Spcimager150, true) => verilog(Spcimager150Full::new(&b)?),
             (Config::Spcimager60, _) => verilog(Spcimager60Reduced::new(&b)?),
@@ -534,4 +555,21 @@ pub fn clock_wires(verilog: &str) -> String {
         out.push('\n');
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_demo_design_generates_with_its_association_radius() {
+        let spec = DesignSpec::new(Config::Spcimager150, DEMO.0, DEMO.1)
+            .and_then(|s| s.with_r_assoc(3))
+            .unwrap();
+        assert_eq!(spec.back().unwrap().r_assoc, 3);
+        let v = spec.top_verilog().unwrap();
+        assert!(v.contains("module top"));
+        assert!(DesignSpec::new(Config::Spcimager60, DEMO.0, DEMO.1).is_err());
+        assert!(spec.with_r_assoc(17).is_err());
+    }
 }

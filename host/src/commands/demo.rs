@@ -61,6 +61,13 @@ pub struct Args {
     /// Skip the golden model (it is the slowest stage); the fast engine alone.
     #[arg(long)]
     pub skip_golden: bool,
+    /// Bit-planes (from the first) also streamed through the gateware: the
+    /// XEM6310 core generated for this scene, verilated, through its replay
+    /// pipe-in, checked byte for byte against the golden model on the same
+    /// planes. 0 skips it. The co-simulation runs at about 10^5 clocks/s, a
+    /// few hundred bit-planes per second of this field.
+    #[arg(long, default_value_t = 20_000)]
+    pub gateware_planes: u64,
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -114,6 +121,75 @@ fn scene(preset: &Preset, field: u32, mean_off_s: f64) -> (Scene, Vec<[usize; 3]
 
 struct Timing {
     rows: Vec<(String, f64, String)>,
+}
+
+/// What the gateware leg measured.
+struct GatewareLeg {
+    /// Bit-planes co-simulated.
+    planes: usize,
+    /// Packets compared.
+    packets: u64,
+    /// Clocks from START to the stream's end, per plane.
+    clocks_per_plane: f64,
+    /// Simulated clock cycles per second, millions.
+    mcycles_per_s: f64,
+    /// Verilating and compiling (or loading the cached build), s.
+    build_s: f64,
+}
+
+/// Streams the first `--gateware-planes` planes of the recording (the same
+/// seed gives the same planes) through the gateware generated for this
+/// scene, checking every packet against the golden model on those planes.
+fn gateware_leg(
+    args: &Args,
+    cfg: &smartagg_model::config::PipelineConfig,
+    scene: &Scene,
+    cam: &smartagg_model::params::SpadCamera,
+    planes: u64,
+) -> anyhow::Result<GatewareLeg> {
+    use smartagg_sim::designs::{Config, DesignSpec};
+    use smartagg_sim::harness::{Case, Cosim, Source};
+    let t = Instant::now();
+    let spec = DesignSpec::new(Config::Spcimager150, args.field as usize, args.field as usize)
+        .and_then(|s| s.with_r_assoc(cfg.r_assoc))
+        .context("the demo's gateware")?;
+    let mut cosim = Cosim::new(spec).context("building the demo's gateware")?;
+    let build_s = t.elapsed().as_secs_f64();
+    let n = usize::try_from(args.gateware_planes.min(planes))?;
+    let mut sim = SpadSimulator::new(cam, scene, args.seed)?;
+    let case = Case {
+        n: cfg.n_window,
+        threshold: cfg.threshold_int,
+        l_min: cfg.l_min,
+        l_max: cfg.l_max,
+        planes: (0..n).map(|_| sim.next_plane()).collect(),
+        hot: Vec::new(),
+        mask_enable: false,
+        source: Source::Replay,
+        input_stall: 0,
+        read_stall: 0,
+        hold_reads: false,
+        seed: args.seed,
+    };
+    // The gateware's generation parameters must be the demo's.
+    let g = cosim.model_config(&case)?;
+    anyhow::ensure!(
+        (&g.kernel, g.kernel_shift, g.slots, g.roi_size, g.r_assoc)
+            == (&cfg.kernel, cfg.kernel_shift, cfg.slots, cfg.roi_size, cfg.r_assoc),
+        "the generated gateware (kernel {:?} >> {}, {} slots, ROI {}, r_assoc {}) is not the demo's pipeline (kernel {:?} >> {}, {} slots, ROI {}, r_assoc {})",
+        g.kernel, g.kernel_shift, g.slots, g.roi_size, g.r_assoc,
+        cfg.kernel, cfg.kernel_shift, cfg.slots, cfg.roi_size, cfg.r_assoc
+    );
+    match cosim.check(&case)? {
+        Ok(cov) => Ok(GatewareLeg {
+            planes: n,
+            packets: cov.packets,
+            clocks_per_plane: cov.clocks_per_plane(),
+            mcycles_per_s: cov.mcycles_per_second(),
+            build_s,
+        }),
+        Err(m) => anyhow::bail!("the gateware differs from the golden model: {m}"),
+    }
 }
 
 impl Timing {
@@ -227,6 +303,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if identical == Some(false) {
         anyhow::bail!("the fast engine's packets differ from the golden model's: this is a bug, please report it");
     }
+
+    // 2b. The gateware, co-simulated on the first planes of the same recording.
+    let gateware = if args.gateware_planes > 0 {
+        let t = Instant::now();
+        let leg = gateware_leg(&args, &cfg, &scene, cam, planes)?;
+        timing.add(
+            "gateware co-simulation",
+            t,
+            format!(
+                "first {} planes: byte-identical to the golden model ({} packets), {:.0} clocks per plane, {:.3} M cycles/s (build {:.1} s)",
+                leg.planes, leg.packets, leg.clocks_per_plane, leg.mcycles_per_s, leg.build_s
+            ),
+        );
+        Some(leg)
+    } else {
+        None
+    };
 
     // 3. The host side: bytes arrive in USB-sized chunks, are written to disk
     //    as they come, and are decoded incrementally.
@@ -356,6 +449,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &analysis,
         &timing,
         failed,
+        gateware.as_ref(),
     );
     let md = args.out.join("report.md");
     std::fs::write(&md, &report)?;
@@ -522,6 +616,7 @@ fn report(
     a: &Analysis,
     timing: &Timing,
     failed: usize,
+    gateware: Option<&GatewareLeg>,
 ) -> String {
     let mut s = String::new();
     let fmt_nm = |v: f64| {
@@ -586,6 +681,17 @@ fn report(
             Some(true) => "byte-identical packet streams",
             Some(false) => "DIFFER",
             None => "golden model skipped",
+        }
+    );
+    let _ = writeln!(
+        s,
+        "| gateware (Verilated XEM6310 core) vs golden model | {} |",
+        match gateware {
+            Some(g) => format!(
+                "byte-identical on the first {} bit-planes ({} packets; {:.0} clocks per plane at 16 pixels per clock)",
+                g.planes, g.packets, g.clocks_per_plane
+            ),
+            None => "not run (--gateware-planes 0)".into(),
         }
     );
     let _ = writeln!(
