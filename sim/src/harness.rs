@@ -1243,6 +1243,11 @@ impl XemHost {
                 "fault_back",
                 "a back-half buffer overflowed (input too dense for the tracker)",
             ),
+            ("fault_tracker_fifo", "the tracker's input FIFO overflowed"),
+            ("fault_roi_ring", "the ROI aggregator's row ring overran"),
+            ("fault_bank", "the tracker found no free counter bank"),
+            ("fault_record_queue", "the record queue overflowed"),
+            ("fault_output_fifo", "the output FIFO overflowed"),
             ("fault_underrun", "the DDR2 delay line underran"),
             ("fault_write", "the DDR2 write FIFO was full"),
         ] {

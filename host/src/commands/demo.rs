@@ -150,9 +150,13 @@ fn gateware_leg(
     use smartagg_sim::designs::{Config, DesignSpec};
     use smartagg_sim::harness::{Case, Cosim, Source};
     let t = Instant::now();
-    let spec = DesignSpec::new(Config::Spcimager150, args.field as usize, args.field as usize)
-        .and_then(|s| s.with_r_assoc(cfg.r_assoc))
-        .context("the demo's gateware")?;
+    let spec = DesignSpec::new(
+        Config::Spcimager150,
+        args.field as usize,
+        args.field as usize,
+    )
+    .and_then(|s| s.with_r_assoc(cfg.r_assoc))
+    .context("the demo's gateware")?;
     let mut cosim = Cosim::new(spec).context("building the demo's gateware")?;
     let build_s = t.elapsed().as_secs_f64();
     let n = usize::try_from(args.gateware_planes.min(planes))?;
