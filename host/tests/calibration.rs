@@ -49,9 +49,20 @@ fn camera() -> SpadCamera {
 /// `raw`, the same planes headerless to a second file).
 fn record(path: &Path, maps: &SpadMaps, light: f64, planes: u64, seed: u64, raw: Option<&Path>) {
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
-    let mut sim =
-        SpadSimulator::with_maps(&camera(), &empty_scene(&p, W, light), maps.clone(), seed)
-            .unwrap();
+    record_scene(path, &empty_scene(&p, W, light), maps, planes, seed, raw);
+}
+
+/// Writes `planes` simulated planes of `scene` seen through `maps` to a
+/// .spad file (and, with `raw`, headerless to a second file).
+fn record_scene(
+    path: &Path,
+    scene: &Scene,
+    maps: &SpadMaps,
+    planes: u64,
+    seed: u64,
+    raw: Option<&Path>,
+) {
+    let mut sim = SpadSimulator::with_maps(&camera(), scene, maps.clone(), seed).unwrap();
     let header = sim.recording_header(planes, BitOrder::LsbFirst);
     let f = BufWriter::new(std::fs::File::create(path).unwrap());
     let mut wr = RecordingWriter::new(f, header).unwrap();
@@ -542,16 +553,8 @@ fn the_study_simulates_a_calibrated_sensor() {
     let side = 48;
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
     let maps = SpadMaps::generate(&camera(), side, side, 5);
-    let mut sim =
-        SpadSimulator::with_maps(&camera(), &empty_scene(&p, side, 0.0), maps, 6).unwrap();
-    let planes = 4000;
     let dark = fx.path("dark48.spad");
-    let f = BufWriter::new(std::fs::File::create(&dark).unwrap());
-    let mut wr = RecordingWriter::new(f, sim.recording_header(planes, BitOrder::LsbFirst)).unwrap();
-    for _ in 0..planes {
-        wr.write_plane(&sim.next_plane()).unwrap();
-    }
-    wr.finish().unwrap();
+    record_scene(&dark, &empty_scene(&p, side, 0.0), &maps, 4000, 6, None);
     let cal = fx.path("calib48");
     ok(&smartagg(&[
         "calibrate",
@@ -634,15 +637,8 @@ fn download_loads_the_calibrated_hot_pixels_into_the_device() {
     }
     let mut scene = empty_scene(&p, w, 0.0);
     scene.height = h;
-    let mut sim = SpadSimulator::with_maps(&cam, &scene, maps, 2).unwrap();
-    let planes = 1500;
     let dark = fx.path("dark-full.spad");
-    let f = BufWriter::new(std::fs::File::create(&dark).unwrap());
-    let mut wr = RecordingWriter::new(f, sim.recording_header(planes, BitOrder::LsbFirst)).unwrap();
-    for _ in 0..planes {
-        wr.write_plane(&sim.next_plane()).unwrap();
-    }
-    wr.finish().unwrap();
+    record_scene(&dark, &scene, &maps, 1500, 2, None);
     let cal = fx.path("calib-full");
     ok(&smartagg(&[
         "calibrate",
