@@ -317,10 +317,11 @@ pub fn spcimager150_config() -> GatewareConfig {
 /// k = 9, a = 8): the delay line (128 planes, 9.8 Mbit) goes to DDR2.
 pub type Spcimager150FrontHalf = FrontHalf<16, 8, 13, 16, 24, 5>;
 
-/// Verilog of a block (top module `top`), after rust-hdl's design checks.
+/// Verilog of a block (top module `top`), after rust-hdl's design checks,
+/// with Verilator's scheduling hints ([`crate::schedule`]).
 pub fn verilog<B: Block>(mut block: B) -> String {
     block.connect_all();
-    generate_verilog(&block)
+    crate::schedule::isolate_false_loops(&generate_verilog(&block)).0
 }
 
 /// Verilog of the test configuration's whole front half.

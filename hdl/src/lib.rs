@@ -49,6 +49,7 @@ pub mod pipeline;
 pub mod registers;
 pub mod roi_aggregator;
 pub mod rolling_count;
+pub mod schedule;
 pub mod sim;
 pub mod spatial_filter;
 pub mod stream;

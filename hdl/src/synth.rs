@@ -59,11 +59,6 @@ pub enum ToolError {
 /// * `UNUSEDPARAM`: rust-hdl declares the `localparam`s of a state enum in
 ///   every module that holds a signal of that type, also where only the
 ///   register is passed on.
-/// * `UNOPTFLAT`: Verilator's scheduling note for always-blocks that read one
-///   output of a child block and drive another of its inputs (a FIFO's push
-///   and its count, a constant multiplier's operand and product); rust-hdl's
-///   `check_all` (run on every block in the tests) rules out combinational
-///   loops signal by signal.
 /// * `PINCONNECTEMPTY`: outputs of the vendor black boxes (the MIG's
 ///   `c3_clk0`/`c3_rst0` and FIFO counts, the pipes' `ep_blockstrobe`) that
 ///   the top does not use are left unconnected on purpose.
@@ -72,7 +67,6 @@ pub const VERILATOR_WAIVERS: &[&str] = &[
     "-Wno-UNUSEDSIGNAL",
     "-Wno-DECLFILENAME",
     "-Wno-UNUSEDPARAM",
-    "-Wno-UNOPTFLAT",
     "-Wno-PINCONNECTEMPTY",
 ];
 

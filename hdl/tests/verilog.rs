@@ -144,3 +144,23 @@ fn xem6310_top_verilog_passes_verilator_lint() {
     }
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// Every generated design (each preset at each objective, the files
+/// `smartagg hdl generate` writes) is lint-clean, `UNOPTFLAT` included:
+/// the scheduling hints of `smartagg_hdl::schedule` cut every false loop.
+#[test]
+fn every_generated_design_passes_verilator_lint() {
+    for design in smartagg_hdl::configs::Design::all().unwrap() {
+        let v = design.verilog().unwrap();
+        assert!(
+            v.contains(smartagg_hdl::schedule::ISOLATE),
+            "{}: no scheduling hint",
+            design.name()
+        );
+        let dir = scratch(&format!("lint-{}", design.name()));
+        if let Err(e) = verilator_lint(&v, &dir) {
+            panic!("{}: {e}", design.name());
+        }
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}

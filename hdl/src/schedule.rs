@@ -1,0 +1,196 @@
+//! Scheduling hints for Verilator on the generated Verilog.
+//!
+//! rust-hdl writes each block's logic as one `always @(*)` process.
+//! Verilator orders combinational logic process by process, so a process
+//! that reads a child's input-side signal and writes one of its
+//! register-derived outputs looks like a loop when a parent closes it:
+//! a FIFO's process reads `push`/`pop` and writes `count`, and the
+//! packetiser computes its push from that count (likewise the tracker's
+//! record push and the record queue's count, the delay line's prefetch FIFO,
+//! the mask load and `mask_loadable`, the ROI aggregator's constant
+//! multiplier). No signal depends on itself — rust-hdl's `check_all` rules
+//! that out signal by signal — but Verilator flags the processes
+//! `UNOPTFLAT` and re-runs them until they settle, among them the blink
+//! tracker's and the packetiser's, the two largest of the design: they ran
+//! up to three times a clock.
+//!
+//! [`isolate_false_loops`] marks the signals that cut those loops with
+//! Verilator's `/*verilator isolate_assignments*/`, which moves their
+//! assignments into processes of their own. It is a comment to every other
+//! tool: yosys synthesises, and `smartagg hdl generate` writes, the same
+//! logic, and the lint test runs without the `UNOPTFLAT` waiver.
+
+/// Modules (known by the port list rust-hdl writes) and, in each, the
+/// signals to isolate: outputs that are functions of the module's registers
+/// only, and the locals they are computed from.
+const MODULE_RULES: &[(&str, &[&str])] = &[
+    // crate::fifo::Fifo.
+    (
+        "(clock,restart,push,push_data,pop,out_valid,out_data,room,count,overflow);",
+        &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
+    ),
+    // rust-hdl's AsynchronousFIFO (the sensor port): a wiring-only process.
+    (
+        "(read,data_out,empty,almost_empty,underflow,read_clock,read_fill,write,data_in,full,almost_full,overflow,write_clock,write_fill);",
+        &[
+            "data_out",
+            "empty",
+            "almost_empty",
+            "underflow",
+            "read_fill",
+            "full",
+            "almost_full",
+            "overflow",
+            "write_fill",
+        ],
+    ),
+    // Its read side.
+    (
+        "(clock,read,data_out,empty,almost_empty,underflow,write_address_delayed,ram_read_address,ram_read_data,ram_read_clock,read_address_out,fill_level);",
+        &[
+            "empty",
+            "almost_empty",
+            "is_empty",
+            "is_full",
+            "fill_level",
+            "underflow",
+            "read_address_out",
+        ],
+    ),
+    // Its write side.
+    (
+        "(write,data_in,full,almost_full,overflow,clock,ram_write_address,ram_write_clock,ram_write_data,ram_write_enable,read_address,write_address_delayed,fill_level);",
+        &[
+            "full",
+            "almost_full",
+            "is_empty",
+            "is_full",
+            "fill_level",
+            "overflow",
+            "write_address_delayed",
+        ],
+    ),
+];
+
+/// In any module: the pipeline's `mask_loadable` (a function of the control
+/// state, read back by the XEM6310 core to drive `load`); the ROI
+/// aggregator's bank-base multiplier operand, the bank it is taken from and
+/// what selects that bank (the plane parity, the released-slot priority
+/// chain), all functions of registers, whose product the aggregator's
+/// process reads. A name ending in `$` stands for every element of that
+/// vector (`rsel$0`, `rsel$1`, …).
+const ANY_MODULE_SIGNALS: &[&str] = &[
+    "mask_loadable",
+    "bank_base$x",
+    "k_bank",
+    "par",
+    "rsel$",
+    "rtaken$",
+];
+
+/// The signal `name` is one of `list`'s.
+fn listed(list: &[&str], name: &str) -> bool {
+    list.iter().any(|&l| match l.strip_suffix('$') {
+        Some(vector) => name
+            .strip_prefix(vector)
+            .and_then(|rest| rest.strip_prefix('$'))
+            .is_some_and(|index| !index.is_empty() && index.bytes().all(|b| b.is_ascii_digit())),
+        None => l == name,
+    })
+}
+
+/// The metacomment.
+pub const ISOLATE: &str = "/*verilator isolate_assignments*/";
+
+/// The declared name of a `reg` declaration line (`output reg [15:0] count;`
+/// or `reg  bank_base$x;`), if the line is one.
+fn reg_name(line: &str) -> Option<&str> {
+    let t = line.trim();
+    let rest = t
+        .strip_prefix("output reg")
+        .or_else(|| t.strip_prefix("reg"))?;
+    if !rest.starts_with(char::is_whitespace) {
+        return None;
+    }
+    let decl = rest.trim().strip_suffix(';')?;
+    decl.rsplit(char::is_whitespace).next()
+}
+
+/// Marks the loop-cutting signals ([`MODULE_RULES`] in the modules of those
+/// port lists, [`ANY_MODULE_SIGNALS`] anywhere) with
+/// [`ISOLATE`]. Returns the Verilog and the number of declarations marked.
+pub fn isolate_false_loops(verilog: &str) -> (String, usize) {
+    let mut out = String::with_capacity(verilog.len() + 4096);
+    let mut rule: &[&str] = &[];
+    let mut marked = 0;
+    for line in verilog.split_inclusive('\n') {
+        let body = line.trim_end_matches(['\n', '\r']);
+        if body.starts_with("module ") {
+            rule = MODULE_RULES
+                .iter()
+                .find(|(ports, _)| body.ends_with(ports))
+                .map_or(&[], |(_, signals)| signals);
+        }
+        let mark = reg_name(body)
+            .is_some_and(|name| listed(ANY_MODULE_SIGNALS, name) || listed(rule, name));
+        if mark {
+            let semi = body.len() - 1;
+            out.push_str(&body[..semi]);
+            out.push(' ');
+            out.push_str(ISOLATE);
+            out.push_str(&line[semi..]);
+            marked += 1;
+        } else {
+            out.push_str(line);
+        }
+    }
+    (out, marked)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_vector_entry_stands_for_its_elements_only() {
+        assert!(listed(&["rsel$"], "rsel$0"));
+        assert!(listed(&["rsel$"], "rsel$31"));
+        assert!(!listed(&["rsel$"], "rsel"));
+        assert!(!listed(&["rsel$"], "rsel$x"));
+        assert!(!listed(&["rsel$"], "rsel_q$1"));
+        assert!(listed(&["par"], "par"));
+        assert!(!listed(&["par"], "par1"));
+    }
+
+    #[test]
+    fn marks_fifo_outputs_and_named_signals_only() {
+        let v = "module top$q(clock,restart,push,push_data,pop,out_valid,out_data,room,count,overflow);\n\
+                 \x20   input wire  push;\n\
+                 \x20   output reg  [15:0] count;\n\
+                 \x20   output reg  room;\n\
+                 \x20   reg  [15:0] mem_count;\n\
+                 \x20   reg  [15:0] wr$d;\n\
+                 endmodule\n\
+                 module top$p(clock,count,mask_loadable);\n\
+                 \x20   output reg  [15:0] count;\n\
+                 \x20   output reg  mask_loadable;\n\
+                 \x20   reg  [9:0] bank_base$x;\n\
+                 \x20   wire  [9:0] bank_base$y;\n\
+                 endmodule\n";
+        let (out, n) = isolate_false_loops(v);
+        assert_eq!(n, 5);
+        let lines: Vec<&str> = out.lines().collect();
+        assert!(lines[2].ends_with("count /*verilator isolate_assignments*/;"));
+        assert!(lines[3].ends_with("room /*verilator isolate_assignments*/;"));
+        assert!(lines[4].ends_with("mem_count /*verilator isolate_assignments*/;"));
+        assert!(!lines[5].contains(ISOLATE), "a FIFO register is left alone");
+        assert!(
+            !lines[8].contains(ISOLATE),
+            "count outside a FIFO is left alone"
+        );
+        assert!(lines[9].contains(ISOLATE));
+        assert!(lines[10].contains(ISOLATE));
+        assert!(!lines[11].contains(ISOLATE), "wires are not marked");
+        assert_eq!(out.replace(&format!(" {ISOLATE}"), ""), v);
+    }
+}
