@@ -32,8 +32,13 @@
 //! (32 bits): confirmation `t_drop − t_cross ≥ L_min` is `age ≥ L_min + 1`
 //! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`, the
 //! completion `t + 1 ≥ t_cross + N` is `age ≥ N − 1`, the pre-roll
-//! `t < t_cross + N` is `age < N`. `t_cross` and `t_drop` are stored (48
-//! bits) only for the record.
+//! `t < t_cross + N` is `age < N`. The record's planes are not stored
+//! either: `t_cross = t − age` (a continuation starts at `age = −1`, which
+//! is 0 by the time it can be recorded), and a second per-slot age
+//! `dage = t − t_drop` (16 bits; 0 at a cut, 1 at the drop and at the
+//! stream end, at most N + 1 when recorded) gives `t_drop`; both advance
+//! with t. One subtraction after the slot multiplexer, instead of two
+//! 48-bit registers per slot.
 //!
 //! **ROI view (shadow).** For each plane t and slot, the tracker publishes
 //! what the ROI aggregator needs — sum the live plane (the model's
@@ -238,8 +243,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     ml: Vec<DFF<Bits<P>>>,
     mh: Vec<DFF<Bits<P>>>,
     age: Vec<DFF<Bits<32>>>,
-    tc: Vec<DFF<Bits<48>>>,
-    td: Vec<DFF<Bits<48>>>,
+    dage: Vec<DFF<Bits<16>>>,
     bank: Vec<DFF<Bits<BW>>>,
     s_live: Vec<DFF<Bit>>,
     s_pre: Vec<DFF<Bit>>,
@@ -291,6 +295,10 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     can_push: Signal<Local, Bit>,
     need_bank: Signal<Local, Bit>,
     bank_wait: Signal<Local, Bit>,
+    sel_age: Signal<Local, Bits<32>>,
+    sel_dage: Signal<Local, Bits<16>>,
+    rec_tc: Signal<Local, Bits<48>>,
+    rec_td: Signal<Local, Bits<48>>,
     near: Vec<Signal<Local, Bit>>,
     absorb: Vec<Signal<Local, Bit>>,
     freeable: Vec<Signal<Local, Bit>>,
@@ -418,8 +426,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             ml: lanes(m),
             mh: lanes(m),
             age: lanes(m),
-            tc: lanes(m),
-            td: lanes(m),
+            dage: lanes(m),
             bank: lanes(m),
             s_live: lanes(2 * m),
             s_pre: lanes(2 * m),
@@ -470,6 +477,10 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             can_push: Default::default(),
             need_bank: Default::default(),
             bank_wait: Default::default(),
+            sel_age: Default::default(),
+            sel_dage: Default::default(),
+            rec_tc: Default::default(),
+            rec_td: Default::default(),
             near: lanes(m),
             absorb: lanes(m),
             freeable: lanes(m),
@@ -540,8 +551,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.ml[i].clock.next = self.clock.val();
             self.mh[i].clock.next = self.clock.val();
             self.age[i].clock.next = self.clock.val();
-            self.tc[i].clock.next = self.clock.val();
-            self.td[i].clock.next = self.clock.val();
+            self.dage[i].clock.next = self.clock.val();
             self.bank[i].clock.next = self.clock.val();
             self.busy[i].d.next = self.busy[i].q.val();
             self.live[i].d.next = self.live[i].q.val();
@@ -566,8 +576,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.ml[i].d.next = self.ml[i].q.val();
             self.mh[i].d.next = self.mh[i].q.val();
             self.age[i].d.next = self.age[i].q.val();
-            self.tc[i].d.next = self.tc[i].q.val();
-            self.td[i].d.next = self.td[i].q.val();
+            self.dage[i].d.next = self.dage[i].q.val();
             self.bank[i].d.next = self.bank[i].q.val();
         }
         for q in 0..(2 * self._m) {
@@ -712,6 +721,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.l_min.val()))
                 | (self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin_p1.val()));
         }
+        // The walked slot's t_cross and t_drop, from its ages.
+        self.sel_age.next = 0.into();
+        self.sel_dage.next = 0.into();
+        for i in 0..self._m {
+            if self.sel[i].val() {
+                self.sel_age.next = self.age[i].q.val();
+                self.sel_dage.next = self.dage[i].q.val();
+            }
+        }
+        self.rec_tc.next = self.t.q.val() - bit_cast::<48, 32>(self.sel_age.val());
+        self.rec_td.next = self.t.q.val() - bit_cast::<48, 16>(self.sel_dage.val());
         // The walked slot pushes a Blink record (and takes a fresh bank).
         self.need_bank.next = false;
         for i in 0..self._m {
@@ -791,7 +811,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         & (self.age[i].q.val() >= self.lmax_m1.val())
                     {
                         self.live[i].d.next = false;
-                        self.td[i].d.next = self.t.q.val();
+                        self.dage[i].d.next = 0.into();
                         self.cutf[i].d.next = true;
                         self.conf[i].d.next = true;
                         self.ev_cut[i].d.next = true;
@@ -834,8 +854,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                     | self.f_trunc[i].val();
                                 self.rec_ax.next = self.ax[i].q.val();
                                 self.rec_ay.next = self.ay[i].q.val();
-                                self.rec_t0.next = self.tc[i].q.val();
-                                self.rec_t1.next = self.td[i].q.val();
+                                self.rec_t0.next = self.rec_tc.val();
+                                self.rec_t1.next = self.rec_td.val();
                                 self.rec_bank.next = self.bank[i].q.val();
                                 if self.can_push.val() {
                                     self.rec_push.next = true;
@@ -854,7 +874,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                     self.cutf[i].d.next = false;
                                     self.trunc[i].d.next = false;
                                     self.conf[i].d.next = true;
-                                    self.tc[i].d.next = self.t_p1.val();
                                     self.age[i].d.next = 0xFFFF_FFFF_u64.into();
                                 } else {
                                     self.busy[i].d.next = false;
@@ -890,6 +909,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.hit[i].d.next = false;
                     if self.busy[i].q.val() {
                         self.age[i].d.next = self.agen[i].val();
+                        self.dage[i].d.next = self.dage[i].q.val() + 1;
                     }
                 }
                 for mm in self._m..(self._m + 1) {
@@ -933,7 +953,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                             if self.busy[i].q.val() & self.live[i].q.val() {
                                 self.live[i].d.next = false;
                                 self.dip[i].d.next = false;
-                                self.td[i].d.next = self.t_m1.val();
+                                self.dage[i].d.next = 1.into();
                                 self.trunc[i].d.next = true;
                                 self.conf[i].d.next = self.fconf[i].val();
                                 if !self.fconf[i].val() {
@@ -966,6 +986,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                 for i in 0..self._m {
                                     if self.busy[i].q.val() {
                                         self.age[i].d.next = self.agen[i].val();
+                                        self.dage[i].d.next = self.dage[i].q.val() + 1;
                                     }
                                     if self.par1.val() {
                                         self.s_live[i + mm].d.next = false;
@@ -1022,8 +1043,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                     | self.f_trunc[i].val();
                                 self.rec_ax.next = self.ax[i].q.val();
                                 self.rec_ay.next = self.ay[i].q.val();
-                                self.rec_t0.next = self.tc[i].q.val();
-                                self.rec_t1.next = self.td[i].q.val();
+                                self.rec_t0.next = self.rec_tc.val();
+                                self.rec_t1.next = self.rec_td.val();
                                 self.rec_bank.next = self.bank[i].q.val();
                                 self.rec_tag.next = self.t_m1.val();
                                 if self.can_push.val() {
@@ -1082,7 +1103,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.mh[i].d.next = self.o_mh.val();
                 self.frow[i].d.next = self.o_frow.val();
                 self.age[i].d.next = 0.into();
-                self.tc[i].d.next = self.t.q.val();
             }
         }
         for mm in self._m..(self._m + 1) {
@@ -1135,7 +1155,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         // Second plane below: the blink ended at t − 1.
                         self.live[i].d.next = false;
                         self.dip[i].d.next = false;
-                        self.td[i].d.next = self.t_m1.val();
+                        self.dage[i].d.next = 1.into();
                         self.conf[i].d.next =
                             self.cont[i].q.val() | (self.age[i].q.val() >= self.lmin_p1.val());
                         if self.par.val() {
