@@ -29,7 +29,8 @@
 //!   the slot states for plane t+1 (EOP C).
 //!
 //! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
-//! (32 bits): confirmation `t_drop − t_cross ≥ L_min` is `age ≥ L_min + 1`
+//! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
+//! the tracker is generated): confirmation `t_drop − t_cross ≥ L_min` is `age ≥ L_min + 1`
 //! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`, the
 //! completion `t + 1 ≥ t_cross + N` is `age ≥ N − 1`, the pre-roll
 //! `t < t_cross + N` is `age < N`. The record's planes are not stored
@@ -69,6 +70,14 @@
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
+
+/// Bits of a slot's ages (`age`, and of the L_min, L_max and N it is
+/// compared with): ages stay below L_max,max + N_max + 2 (a segment is cut
+/// at L_max, completes at most N planes after its drop, and the stream end
+/// adds N drain planes), which [`BlinkTracker::new`] checks against 2^18.
+/// (`update` writes the width as the literal 18 where rust-hdl's `hdl_gen`
+/// needs a number; the signal types make the compiler check the two agree.)
+pub const AGE_BITS: usize = 18;
 
 /// Kinds of the record descriptors the tracker pushes (see [`crate::packetiser`]).
 pub mod record_kind {
@@ -242,7 +251,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     frow: Vec<DFF<Bits<16>>>,
     ml: Vec<DFF<Bits<P>>>,
     mh: Vec<DFF<Bits<P>>>,
-    age: Vec<DFF<Bits<32>>>,
+    age: Vec<DFF<Bits<AGE_BITS>>>,
     dage: Vec<DFF<Bits<16>>>,
     bank: Vec<DFF<Bits<BW>>>,
     s_live: Vec<DFF<Bit>>,
@@ -282,10 +291,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     t_p1: Signal<Local, Bits<48>>,
     t_ge_n: Signal<Local, Bit>,
     t1_ge_n: Signal<Local, Bit>,
-    n32: Signal<Local, Bits<32>>,
-    n_m1: Signal<Local, Bits<32>>,
-    lmin_p1: Signal<Local, Bits<32>>,
-    lmax_m1: Signal<Local, Bits<32>>,
+    n32: Signal<Local, Bits<AGE_BITS>>,
+    n_m1: Signal<Local, Bits<AGE_BITS>>,
+    lmin: Signal<Local, Bits<AGE_BITS>>,
+    lmin_p1: Signal<Local, Bits<AGE_BITS>>,
+    lmax_m1: Signal<Local, Bits<AGE_BITS>>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
     go: Signal<Local, Bit>,
@@ -295,7 +305,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     can_push: Signal<Local, Bit>,
     need_bank: Signal<Local, Bit>,
     bank_wait: Signal<Local, Bit>,
-    sel_age: Signal<Local, Bits<32>>,
+    sel_age: Signal<Local, Bits<AGE_BITS>>,
     sel_dage: Signal<Local, Bits<16>>,
     rec_tc: Signal<Local, Bits<48>>,
     rec_td: Signal<Local, Bits<48>>,
@@ -310,7 +320,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     row_ok: Vec<Signal<Local, Bit>>,
     hw: Vec<Signal<Local, Bit>>,
     on: Vec<Signal<Local, Bit>>,
-    agen: Vec<Signal<Local, Bits<32>>>,
+    agen: Vec<Signal<Local, Bits<AGE_BITS>>>,
     sel: Vec<Signal<Local, Bit>>,
     fconf: Vec<Signal<Local, Bit>>,
     f_cut: Vec<Signal<Local, Bits<8>>>,
@@ -328,6 +338,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     last_row: Constant<Bits<16>>,
     last_word: Constant<Bits<16>>,
     last_slot: Constant<Bits<8>>,
+    age_minus_one: Constant<Bits<AGE_BITS>>,
     _m: usize,
 }
 
@@ -339,6 +350,15 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
         GatewareConfig::check_width("BlinkTracker", "P", P, f.pixels_per_clock)?;
         GatewareConfig::check_width("BlinkTracker", "NW", NW, f.count_bits())?;
         GatewareConfig::check_width("BlinkTracker", "BW", BW, cfg.bank_bits())?;
+        if cfg.l_max_max as u64 + f.n_max as u64 + 2 >= 1 << AGE_BITS {
+            return Err(GatewareError::Invalid {
+                field: "l_max_max",
+                value: cfg.l_max_max.to_string(),
+                why: format!(
+                    "L_max,max + N_max + 2 must stay below 2^{AGE_BITS}, the blink tracker's slot ages"
+                ),
+            });
+        }
         let m = cfg.slots;
         let c16 = |v: u64| Constant::new(v.to_bits());
         Ok(BlinkTracker {
@@ -466,6 +486,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             t1_ge_n: Default::default(),
             n32: Default::default(),
             n_m1: Default::default(),
+            lmin: Default::default(),
             lmin_p1: Default::default(),
             lmax_m1: Default::default(),
             p_plus_n: Default::default(),
@@ -513,6 +534,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             last_row: c16(f.height as u64 - 1),
             last_word: c16(f.words_per_row() as u64 - 1),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
+            age_minus_one: Constant::new(Bits::<AGE_BITS>::mask()),
             _m: m,
         })
     }
@@ -605,10 +627,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.par1.next = !self.t.q.val().get_bit(0);
         self.t_m1.next = self.t.q.val() - 1;
         self.t_p1.next = self.t.q.val() + 1;
-        self.n32.next = bit_cast::<32, NW>(self.n_window.val());
+        self.n32.next = bit_cast::<18, NW>(self.n_window.val());
         self.n_m1.next = self.n32.val() - 1;
-        self.lmin_p1.next = self.l_min.val() + 1;
-        self.lmax_m1.next = self.l_max.val() - 1;
+        self.lmin.next = bit_cast::<18, 32>(self.l_min.val());
+        self.lmin_p1.next = self.lmin.val() + 1;
+        self.lmax_m1.next = bit_cast::<18, 32>(self.l_max.val()) - 1;
         self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.t1_ge_n.next = self.t_p1.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
@@ -718,7 +741,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.f_trunc[i].next = 16.into();
             }
             self.fconf[i].next = self.cont[i].q.val()
-                | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.l_min.val()))
+                | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin.val()))
                 | (self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin_p1.val()));
         }
         // The walked slot's t_cross and t_drop, from its ages.
@@ -730,7 +753,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.sel_dage.next = self.dage[i].q.val();
             }
         }
-        self.rec_tc.next = self.t.q.val() - bit_cast::<48, 32>(self.sel_age.val());
+        self.rec_tc.next = self.t.q.val() - bit_cast::<48, 18>(self.sel_age.val());
         self.rec_td.next = self.t.q.val() - bit_cast::<48, 16>(self.sel_dage.val());
         // The walked slot pushes a Blink record (and takes a fresh bank).
         self.need_bank.next = false;
@@ -874,7 +897,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                     self.cutf[i].d.next = false;
                                     self.trunc[i].d.next = false;
                                     self.conf[i].d.next = true;
-                                    self.age[i].d.next = 0xFFFF_FFFF_u64.into();
+                                    self.age[i].d.next = self.age_minus_one.val();
                                 } else {
                                     self.busy[i].d.next = false;
                                 }

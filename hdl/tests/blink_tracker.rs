@@ -510,3 +510,27 @@ proptest! {
         run(&Params { seed, planes, molecules, slots, n, l_min, l_max, r_assoc, word_rate, room_rate: 1.0, bank_rate: 1.0 });
     }
 }
+
+/// The slot ages are `AGE_BITS` wide: a generated L_max,max whose ages
+/// would not fit is refused, naming the field; the largest that fits is
+/// accepted.
+#[test]
+fn tracker_refuses_an_l_max_max_its_ages_cannot_hold() {
+    use smartagg_hdl::blink_tracker::AGE_BITS;
+    let mut mcfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, THR);
+    mcfg.slots = 4;
+    mcfg.roi_size = 3;
+    let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
+    let fits = (1u32 << AGE_BITS) - front.n_max as u32 - 3;
+    for (l_max_max, ok) in [(fits, true), (fits + 1, false)] {
+        let mut bh = BackHalfConfig::new(&mcfg, front.clone(), l_max_max).unwrap();
+        bh.queue_log2 = 2;
+        match Dut::new(&bh) {
+            Ok(_) => assert!(ok, "L_max,max = {l_max_max} accepted"),
+            Err(e) => {
+                assert!(!ok, "L_max,max = {l_max_max} refused: {e}");
+                assert!(e.to_string().contains("l_max_max"), "{e}");
+            }
+        }
+    }
+}

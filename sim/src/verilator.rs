@@ -90,6 +90,22 @@ impl Port {
     }
 }
 
+/// `line` without its `/* … */` comments (hdl's scheduling hints follow
+/// some declarations).
+fn without_block_comments(line: &str) -> String {
+    let mut out = String::with_capacity(line.len());
+    let mut rest = line;
+    while let Some(open) = rest.find("/*") {
+        out.push_str(&rest[..open]);
+        match rest[open + 2..].find("*/") {
+            Some(close) => rest = &rest[open + 2 + close + 2..],
+            None => return out,
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
 /// The port table of module `module` in `verilog` (non-ANSI declarations,
 /// `input wire [a:0] name;` as rust-hdl writes them and as the co-simulation
 /// wrappers are written), in declaration order.
@@ -102,6 +118,7 @@ pub fn parse_ports(verilog: &str, module: &str) -> Result<Vec<Port>, VerilatorEr
     let end = body.find("endmodule").unwrap_or(body.len());
     let mut ports = Vec::new();
     for line in body[..end].lines() {
+        let line = without_block_comments(line);
         let t = line.trim();
         let (dir, rest) = if let Some(r) = t.strip_prefix("input ") {
             (Dir::In, r)
@@ -828,6 +845,15 @@ mod tests {
         assert!(parse_ports(v, "nothere").is_err());
         let bad = "module m(a$0);\n input wire a$0;\nendmodule\n";
         assert!(parse_ports(bad, "m").is_err());
+    }
+
+    #[test]
+    fn scheduling_hints_after_a_port_are_skipped() {
+        let v = "module m(a,b);\n input wire [3:0] a;\n output reg b /*verilator isolate_assignments*/;\nendmodule\n";
+        let p = parse_ports(v, "m").unwrap();
+        assert_eq!(p[1].name, "b");
+        assert_eq!(p[1].dir, Dir::Out);
+        assert_eq!(without_block_comments("x /* a */ y /* b"), "x  y ");
     }
 
     /// Generated-code shapes of Verilator 5.006: the trigger line and an
