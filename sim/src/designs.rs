@@ -361,45 +361,10 @@ const MCB: [&str; 13] = [
 
 /// The top's ports allowing rust-hdl's `$` (vector elements).
 fn top_ports(verilog: &str) -> Result<Vec<(String, Dir, usize)>, DesignError> {
-    let start = verilog
-        .find("module top(")
-        .ok_or_else(|| DesignError::Unsupported {
-            what: "Verilog".into(),
-            why: "no module `top`".into(),
-        })?;
-    let body = &verilog[start..];
-    let end = body.find("endmodule").unwrap_or(body.len());
-    let mut v = Vec::new();
-    for line in body[..end].lines() {
-        let t = line.trim();
-        let (dir, rest) = if let Some(r) = t.strip_prefix("input ") {
-            (Dir::In, r)
-        } else if let Some(r) = t.strip_prefix("output ") {
-            (Dir::Out, r)
-        } else {
-            continue;
-        };
-        let rest = rest.trim_end_matches(';').trim();
-        let rest = rest
-            .strip_prefix("wire")
-            .or_else(|| rest.strip_prefix("reg"))
-            .unwrap_or(rest)
-            .trim();
-        let (width, name) = match rest.strip_prefix('[') {
-            Some(r) => {
-                let (range, name) = r.split_once(']').unwrap_or(("0:0", r));
-                let hi: usize = range
-                    .split(':')
-                    .next()
-                    .and_then(|h| h.trim().parse().ok())
-                    .unwrap_or(0);
-                (hi + 1, name.trim())
-            }
-            None => (1, rest),
-        };
-        v.push((name.to_string(), dir, width));
-    }
-    Ok(v)
+    Ok(crate::verilator::declared_ports(verilog, "top")?
+        .into_iter()
+        .map(|p| (p.name, p.dir, p.width))
+        .collect())
 }
 
 fn decl(dir: &str, width: usize, name: &str) -> String {

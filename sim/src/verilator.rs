@@ -108,8 +108,28 @@ fn without_block_comments(line: &str) -> String {
 
 /// The port table of module `module` in `verilog` (non-ANSI declarations,
 /// `input wire [a:0] name;` as rust-hdl writes them and as the co-simulation
-/// wrappers are written), in declaration order.
+/// wrappers are written), in declaration order, for the shim: names of
+/// letters, digits and `_` only.
 pub fn parse_ports(verilog: &str, module: &str) -> Result<Vec<Port>, VerilatorError> {
+    let ports = declared_ports(verilog, module)?;
+    if let Some(p) = ports.iter().find(|p| {
+        p.name.is_empty()
+            || !p
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+    }) {
+        return Err(VerilatorError::Verilog(format!(
+            "port `{}` of `{module}`: the shim needs names of letters, digits and `_`",
+            p.name
+        )));
+    }
+    Ok(ports)
+}
+
+/// The ports of module `module` in `verilog` as declared, whatever their
+/// names (rust-hdl's vector elements are `name$i`), in declaration order.
+pub fn declared_ports(verilog: &str, module: &str) -> Result<Vec<Port>, VerilatorError> {
     let head = format!("module {module}(");
     let start = verilog
         .find(&head)
@@ -152,11 +172,6 @@ pub fn parse_ports(verilog: &str, module: &str) -> Result<Vec<Port>, VerilatorEr
         } else {
             (1, rest)
         };
-        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-            return Err(VerilatorError::Verilog(format!(
-                "port `{name}` of `{module}`: the shim needs names of letters, digits and `_`"
-            )));
-        }
         ports.push(Port {
             name: name.to_string(),
             dir,
