@@ -72,6 +72,10 @@ fn kind(ty: &str) -> Kind {
         t if t.starts_with("LUT") => Kind::Lut,
         "INV" => Kind::Lut,
         "CARRY4" => Kind::Carry,
+        // A bidirectional pad (the DDR2 data and strobes) is where paths
+        // start and end, like a port: its pad pin is both its input and its
+        // output, so walking through it would be a loop.
+        t if t.starts_with("IOBUF") => Kind::Boundary,
         "MUXF7" | "MUXF8" | "MUXF5" | "MUXF6" | "MUXCY" | "XORCY" | "BUF" => Kind::Free,
         t if t.ends_with("BUF") || t == "BUFG" || t == "IBUFG" => Kind::Free,
         t if t.starts_with("RAM32")
@@ -401,6 +405,23 @@ mod tests {
         // Cells are named by the user signal they drive where there is one.
         assert_eq!(names, ["a", "c0", "c1", "sum[0]", "g", "sum[1]"]);
         assert_eq!(r.path[4].0, "LUT1");
+    }
+
+    #[test]
+    fn a_bidirectional_pad_bounds_paths() {
+        // LUT -> IOBUF.I, pad IO (inout, the top's port), IOBUF.O -> LUT.
+        let pad = r#"{"modules": {"top": {"ports": {"dq": {"direction": "inout", "bits": [5]}},
+          "cells": {
+            "a": {"type": "LUT1", "port_directions": {"I0": "input", "O": "output"},
+                  "connections": {"I0": [2], "O": [3]}},
+            "p": {"type": "IOBUF", "port_directions": {"I": "input", "T": "input", "O": "output", "IO": "inout"},
+                  "connections": {"I": [3], "T": ["0"], "O": [4], "IO": [5]}},
+            "b": {"type": "LUT1", "port_directions": {"I0": "input", "O": "output"},
+                  "connections": {"I0": [4], "O": [2]}}}}}}"#;
+        let l = lut_levels(pad, "top").unwrap();
+        assert_eq!(l.levels, 2, "pad O -> b -> a -> pad I");
+        assert_eq!(kind("IOBUFDS"), Kind::Boundary);
+        assert_eq!(kind("OBUF"), Kind::Free);
     }
 
     #[test]
