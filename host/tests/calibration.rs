@@ -97,6 +97,19 @@ fn ok(out: &Output) -> String {
     stdout
 }
 
+/// `smartagg calibrate` of a short dark recording (`--allow-short`), which must succeed.
+fn calibrate_short(dark: &Path, out: &Path) {
+    ok(&smartagg(&[
+        "calibrate",
+        "--dark",
+        s(dark),
+        "--out",
+        s(out),
+        "--allow-short",
+        "--quiet",
+    ]));
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -556,15 +569,7 @@ fn the_study_simulates_a_calibrated_sensor() {
     let dark = fx.path("dark48.spad");
     record_scene(&dark, &empty_scene(&p, side, 0.0), &maps, 4000, 6, None);
     let cal = fx.path("calib48");
-    ok(&smartagg(&[
-        "calibrate",
-        "--dark",
-        s(&dark),
-        "--out",
-        s(&cal),
-        "--allow-short",
-        "--quiet",
-    ]));
+    calibrate_short(&dark, &cal);
     let out = fx.path("svf");
     let run = |study: &str, out: &Path, cal: &Path| {
         smartagg(&[
@@ -640,15 +645,7 @@ fn download_loads_the_calibrated_hot_pixels_into_the_device() {
     let dark = fx.path("dark-full.spad");
     record_scene(&dark, &scene, &maps, 1500, 2, None);
     let cal = fx.path("calib-full");
-    ok(&smartagg(&[
-        "calibrate",
-        "--dark",
-        s(&dark),
-        "--out",
-        s(&cal),
-        "--allow-short",
-        "--quiet",
-    ]));
+    calibrate_short(&dark, &cal);
     let out = fx.path("o.rois");
     let o = smartagg(&[
         "download",
