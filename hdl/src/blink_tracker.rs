@@ -79,6 +79,18 @@ use rust_hdl::prelude::*;
 /// needs a number; the signal types make the compiler check the two agree.)
 pub const AGE_BITS: usize = 18;
 
+/// Bits of the tracker's pixel coordinates (anchors, window columns and
+/// rows, association bounds): fields up to [`MAX_FIELD`] pixels a side with
+/// room for `x + r_assoc` (checked by [`BlinkTracker::new`]). The ports keep
+/// 16-bit coordinates; only the per-slot state is this narrow (the M slots'
+/// anchors, windows and ROI view are most of the tracker's registers).
+/// (`update` writes the width as the literal 10, like [`AGE_BITS`].)
+pub const COORD_BITS: usize = 10;
+
+/// The widest and tallest field the tracker's [`COORD_BITS`] hold, pixels
+/// (the SPCImager's is 320×240; the largest camera preset's 512×512).
+pub const MAX_FIELD: usize = 512;
+
 /// Kinds of the record descriptors the tracker pushes (see [`crate::packetiser`]).
 pub mod record_kind {
     /// StreamStart.
@@ -164,9 +176,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// ROI view: first plane of the segment (counters start at zero).
     pub sh_fresh: Vec<Signal<Out, Bit>>,
     /// ROI view: anchor column.
-    pub sh_ax: Vec<Signal<Out, Bits<16>>>,
+    pub sh_ax: Vec<Signal<Out, Bits<COORD_BITS>>>,
     /// ROI view: anchor row.
-    pub sh_ay: Vec<Signal<Out, Bits<16>>>,
+    pub sh_ay: Vec<Signal<Out, Bits<COORD_BITS>>>,
     /// ROI view: counter bank.
     pub sh_bank: Vec<Signal<Out, Bits<BW>>>,
     /// The record queue accepts a push.
@@ -219,8 +231,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     walk: DFF<Bits<8>>,
     lost: DFF<Bits<32>>,
     drops: DFF<Bits<32>>,
-    drop_x: DFF<Bits<16>>,
-    drop_y: DFF<Bits<16>>,
+    drop_x: DFF<Bits<COORD_BITS>>,
+    drop_y: DFF<Bits<COORD_BITS>>,
     c_blinks: DFF<Bits<64>>,
     c_unconf: DFF<Bits<64>>,
     c_dropped: DFF<Bits<64>>,
@@ -244,11 +256,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     ev_bridge: Vec<DFF<Bit>>,
     ev_unconf: Vec<DFF<Bit>>,
     ev_cut: Vec<DFF<Bit>>,
-    ax: Vec<DFF<Bits<16>>>,
-    ay: Vec<DFF<Bits<16>>>,
-    wl: Vec<DFF<Bits<16>>>,
-    wh: Vec<DFF<Bits<16>>>,
-    frow: Vec<DFF<Bits<16>>>,
+    ax: Vec<DFF<Bits<COORD_BITS>>>,
+    ay: Vec<DFF<Bits<COORD_BITS>>>,
+    wl: Vec<DFF<Bits<COORD_BITS>>>,
+    wh: Vec<DFF<Bits<COORD_BITS>>>,
+    frow: Vec<DFF<Bits<COORD_BITS>>>,
     ml: Vec<DFF<Bits<P>>>,
     mh: Vec<DFF<Bits<P>>>,
     age: Vec<DFF<Bits<AGE_BITS>>>,
@@ -257,33 +269,35 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     s_live: Vec<DFF<Bit>>,
     s_pre: Vec<DFF<Bit>>,
     s_fresh: Vec<DFF<Bit>>,
-    s_ax: Vec<DFF<Bits<16>>>,
-    s_ay: Vec<DFF<Bits<16>>>,
+    s_ax: Vec<DFF<Bits<COORD_BITS>>>,
+    s_ay: Vec<DFF<Bits<COORD_BITS>>>,
     s_bank: Vec<DFF<Bits<BW>>>,
     // Combinational.
     rem: Signal<Local, Bits<P>>,
     low: Signal<Local, Bits<P>>,
     has_cand: Signal<Local, Bit>,
     more: Signal<Local, Bit>,
-    lane: Signal<Local, Bits<16>>,
-    cx: Signal<Local, Bits<16>>,
-    cx_lo: Signal<Local, Bits<16>>,
-    cx_hi: Signal<Local, Bits<16>>,
-    cy_lo: Signal<Local, Bits<16>>,
-    cy_hi: Signal<Local, Bits<16>>,
-    lo_col: Signal<Local, Bits<16>>,
-    hi_col: Signal<Local, Bits<16>>,
-    o_wl: Signal<Local, Bits<16>>,
-    o_wh: Signal<Local, Bits<16>>,
-    lo_lane: Signal<Local, Bits<16>>,
-    hi_lane: Signal<Local, Bits<16>>,
+    in_xc: Signal<Local, Bits<COORD_BITS>>,
+    in_yc: Signal<Local, Bits<COORD_BITS>>,
+    lane: Signal<Local, Bits<COORD_BITS>>,
+    cx: Signal<Local, Bits<COORD_BITS>>,
+    cx_lo: Signal<Local, Bits<COORD_BITS>>,
+    cx_hi: Signal<Local, Bits<COORD_BITS>>,
+    cy_lo: Signal<Local, Bits<COORD_BITS>>,
+    cy_hi: Signal<Local, Bits<COORD_BITS>>,
+    lo_col: Signal<Local, Bits<COORD_BITS>>,
+    hi_col: Signal<Local, Bits<COORD_BITS>>,
+    o_wl: Signal<Local, Bits<COORD_BITS>>,
+    o_wh: Signal<Local, Bits<COORD_BITS>>,
+    lo_lane: Signal<Local, Bits<COORD_BITS>>,
+    hi_lane: Signal<Local, Bits<COORD_BITS>>,
     m_lo: Signal<Local, Bits<P>>,
     m_hi: Signal<Local, Bits<P>>,
     o_ml: Signal<Local, Bits<P>>,
     o_mh: Signal<Local, Bits<P>>,
-    o_frow: Signal<Local, Bits<16>>,
-    y_m1: Signal<Local, Bits<16>>,
-    y_p1: Signal<Local, Bits<16>>,
+    o_frow: Signal<Local, Bits<COORD_BITS>>,
+    y_m1: Signal<Local, Bits<COORD_BITS>>,
+    y_p1: Signal<Local, Bits<COORD_BITS>>,
     eor: Signal<Local, Bit>,
     par: Signal<Local, Bit>,
     par1: Signal<Local, Bit>,
@@ -307,6 +321,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     bank_wait: Signal<Local, Bit>,
     sel_age: Signal<Local, Bits<AGE_BITS>>,
     sel_dage: Signal<Local, Bits<16>>,
+    sel_ax: Signal<Local, Bits<COORD_BITS>>,
+    sel_ay: Signal<Local, Bits<COORD_BITS>>,
     rec_tc: Signal<Local, Bits<48>>,
     rec_td: Signal<Local, Bits<48>>,
     near: Vec<Signal<Local, Bit>>,
@@ -329,13 +345,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
     bank_init: Vec<Constant<Bits<BW>>>,
-    lane_id: Vec<Constant<Bits<16>>>,
+    lane_id: Vec<Constant<Bits<COORD_BITS>>>,
     all_lanes: Constant<Bits<P>>,
     log2p: Constant<Bits<8>>,
-    pm1: Constant<Bits<16>>,
-    r_assoc: Constant<Bits<16>>,
-    last_col: Constant<Bits<16>>,
-    last_row: Constant<Bits<16>>,
+    pm1: Constant<Bits<COORD_BITS>>,
+    r_assoc: Constant<Bits<COORD_BITS>>,
+    last_col: Constant<Bits<COORD_BITS>>,
+    last_row: Constant<Bits<COORD_BITS>>,
     last_word: Constant<Bits<16>>,
     last_slot: Constant<Bits<8>>,
     age_minus_one: Constant<Bits<AGE_BITS>>,
@@ -359,8 +375,27 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
                 ),
             });
         }
+        if f.width > MAX_FIELD || f.height > MAX_FIELD {
+            return Err(GatewareError::Invalid {
+                field: "width/height",
+                value: format!("{}x{}", f.width, f.height),
+                why: format!(
+                    "the blink tracker's {COORD_BITS}-bit coordinates hold fields up to {MAX_FIELD}x{MAX_FIELD}"
+                ),
+            });
+        }
+        if cfg.r_assoc as usize >= MAX_FIELD {
+            return Err(GatewareError::Invalid {
+                field: "r_assoc",
+                value: cfg.r_assoc.to_string(),
+                why: format!(
+                    "must be below {MAX_FIELD} (the tracker's {COORD_BITS}-bit coordinates)"
+                ),
+            });
+        }
         let m = cfg.slots;
         let c16 = |v: u64| Constant::new(v.to_bits());
+        let cc = |v: u64| Constant::new(v.to_bits());
         Ok(BlinkTracker {
             clock: Default::default(),
             restart: Default::default(),
@@ -458,6 +493,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             low: Default::default(),
             has_cand: Default::default(),
             more: Default::default(),
+            in_xc: Default::default(),
+            in_yc: Default::default(),
             lane: Default::default(),
             cx: Default::default(),
             cx_lo: Default::default(),
@@ -500,6 +537,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             bank_wait: Default::default(),
             sel_age: Default::default(),
             sel_dage: Default::default(),
+            sel_ax: Default::default(),
+            sel_ay: Default::default(),
             rec_tc: Default::default(),
             rec_td: Default::default(),
             near: lanes(m),
@@ -525,13 +564,13 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             bank_init: (0..m)
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
-            lane_id: (0..P).map(|j| c16(j as u64)).collect(),
+            lane_id: (0..P).map(|j| cc(j as u64)).collect(),
             all_lanes: Constant::new(Bits::<P>::mask()),
             log2p: Constant::new((cfg.log2_p() as u64).to_bits()),
-            pm1: c16(P as u64 - 1),
-            r_assoc: c16(cfg.r_assoc as u64),
-            last_col: c16(f.width as u64 - 1),
-            last_row: c16(f.height as u64 - 1),
+            pm1: cc(P as u64 - 1),
+            r_assoc: cc(cfg.r_assoc as u64),
+            last_col: cc(f.width as u64 - 1),
+            last_row: cc(f.height as u64 - 1),
             last_word: c16(f.words_per_row() as u64 - 1),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
             age_minus_one: Constant::new(Bits::<AGE_BITS>::mask()),
@@ -649,7 +688,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.lane.next = self.lane_id[j].val();
             }
         }
-        self.cx.next = (self.in_x.val() << self.log2p.val()) | self.lane.val();
+        self.in_xc.next = bit_cast::<10, 16>(self.in_x.val());
+        self.in_yc.next = bit_cast::<10, 16>(self.in_y.val());
+        self.cx.next = (self.in_xc.val() << self.log2p.val()) | self.lane.val();
         self.eor.next = self.in_x.val() == self.last_word.val();
         self.go.next = (self.state.q.val() == TrackerState::Run)
             & !self.fin_cond.val()
@@ -663,10 +704,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
         self.cx_hi.next = self.cx.val() + self.r_assoc.val();
         self.cy_lo.next = 0.into();
-        if self.in_y.val() >= self.r_assoc.val() {
-            self.cy_lo.next = self.in_y.val() - self.r_assoc.val();
+        if self.in_yc.val() >= self.r_assoc.val() {
+            self.cy_lo.next = self.in_yc.val() - self.r_assoc.val();
         }
-        self.cy_hi.next = self.in_y.val() + self.r_assoc.val();
+        self.cy_hi.next = self.in_yc.val() + self.r_assoc.val();
 
         // The 3x3 window of a new anchor: columns [cx − 1, cx + 1] clipped, as
         // lane masks of the (at most two) words that hold them.
@@ -690,17 +731,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.o_ml.next = self.m_lo.val() & self.m_hi.val();
             self.o_mh.next = self.m_lo.val() & self.m_hi.val();
         }
-        self.o_frow.next = self.in_y.val() + 1;
-        if self.in_y.val() == self.last_row.val() {
-            self.o_frow.next = self.in_y.val();
+        self.o_frow.next = self.in_yc.val() + 1;
+        if self.in_yc.val() == self.last_row.val() {
+            self.o_frow.next = self.in_yc.val();
         }
 
         // Rows y − 1 .. y + 1 see the word.
         self.y_m1.next = 0.into();
-        if self.in_y.val() != 0 {
-            self.y_m1.next = self.in_y.val() - 1;
+        if self.in_yc.val() != 0 {
+            self.y_m1.next = self.in_yc.val() - 1;
         }
-        self.y_p1.next = self.in_y.val() + 1;
+        self.y_p1.next = self.in_yc.val() + 1;
 
         // ---- Per slot: association, window hits, chains.
         self.abs_any[0].next = false;
@@ -720,9 +761,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.row_ok[i].next =
                 (self.ay[i].q.val() >= self.y_m1.val()) & (self.ay[i].q.val() <= self.y_p1.val());
             self.hw[i].next = self.row_ok[i].val()
-                & (((self.in_x.val() == self.wl[i].q.val())
+                & (((self.in_xc.val() == self.wl[i].q.val())
                     & (self.in_above.val() & self.ml[i].q.val()).any())
-                    | ((self.in_x.val() == self.wh[i].q.val())
+                    | ((self.in_xc.val() == self.wh[i].q.val())
                         & (self.in_above.val() & self.mh[i].q.val()).any()));
             self.on[i].next = self.hit[i].q.val() | self.hw[i].val();
             self.agen[i].next = self.age[i].q.val() + 1;
@@ -744,13 +785,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin.val()))
                 | (self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin_p1.val()));
         }
-        // The walked slot's t_cross and t_drop, from its ages.
+        // The walked slot's anchor, t_cross and t_drop (from its ages).
         self.sel_age.next = 0.into();
         self.sel_dage.next = 0.into();
+        self.sel_ax.next = 0.into();
+        self.sel_ay.next = 0.into();
         for i in 0..self._m {
             if self.sel[i].val() {
                 self.sel_age.next = self.age[i].q.val();
                 self.sel_dage.next = self.dage[i].q.val();
+                self.sel_ax.next = self.ax[i].q.val();
+                self.sel_ay.next = self.ay[i].q.val();
             }
         }
         self.rec_tc.next = self.t.q.val() - bit_cast::<48, 18>(self.sel_age.val());
@@ -819,7 +864,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.done_mask.d.next = 0.into();
                         if self.eor.val() {
                             self.rows.d.next = self.in_y.val() + 1;
-                            if self.in_y.val() == self.last_row.val() {
+                            if self.in_yc.val() == self.last_row.val() {
                                 self.state.d.next = TrackerState::EopA;
                             }
                         }
@@ -875,8 +920,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                 self.rec_flags.next = self.f_cut[i].val()
                                     | self.f_cont[i].val()
                                     | self.f_trunc[i].val();
-                                self.rec_ax.next = self.ax[i].q.val();
-                                self.rec_ay.next = self.ay[i].q.val();
+                                self.rec_ax.next = bit_cast::<16, 10>(self.sel_ax.val());
+                                self.rec_ay.next = bit_cast::<16, 10>(self.sel_ay.val());
                                 self.rec_t0.next = self.rec_tc.val();
                                 self.rec_t1.next = self.rec_td.val();
                                 self.rec_bank.next = self.bank[i].q.val();
@@ -913,8 +958,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             TrackerState::EopC => {
                 if self.drops.q.val() != 0 {
                     self.rec_kind.next = 2.into();
-                    self.rec_ax.next = self.drop_x.q.val();
-                    self.rec_ay.next = self.drop_y.q.val();
+                    self.rec_ax.next = bit_cast::<16, 10>(self.drop_x.q.val());
+                    self.rec_ay.next = bit_cast::<16, 10>(self.drop_y.q.val());
                     self.rec_t0.next = self.t.q.val();
                     self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
                     if self.rec_room.val() {
@@ -1004,7 +1049,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.in_pop.next = true;
                     if self.in_flush.val() & self.eor.val() {
                         self.rows.d.next = self.in_y.val() + 1;
-                        if self.in_y.val() == self.last_row.val() {
+                        if self.in_yc.val() == self.last_row.val() {
                             for mm in self._m..(self._m + 1) {
                                 for i in 0..self._m {
                                     if self.busy[i].q.val() {
@@ -1064,8 +1109,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                                 self.rec_flags.next = self.f_cut[i].val()
                                     | self.f_cont[i].val()
                                     | self.f_trunc[i].val();
-                                self.rec_ax.next = self.ax[i].q.val();
-                                self.rec_ay.next = self.ay[i].q.val();
+                                self.rec_ax.next = bit_cast::<16, 10>(self.sel_ax.val());
+                                self.rec_ay.next = bit_cast::<16, 10>(self.sel_ay.val());
                                 self.rec_t0.next = self.rec_tc.val();
                                 self.rec_t1.next = self.rec_td.val();
                                 self.rec_bank.next = self.bank[i].q.val();
@@ -1119,7 +1164,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.trunc[i].d.next = false;
                 self.opened[i].d.next = true;
                 self.ax[i].d.next = self.cx.val();
-                self.ay[i].d.next = self.in_y.val();
+                self.ay[i].d.next = self.in_yc.val();
                 self.wl[i].d.next = self.o_wl.val();
                 self.wh[i].d.next = self.o_wh.val();
                 self.ml[i].d.next = self.o_ml.val();
@@ -1136,14 +1181,14 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.s_pre[i + mm].d.next = self.t_ge_n.val();
                         self.s_fresh[i + mm].d.next = true;
                         self.s_ax[i + mm].d.next = self.cx.val();
-                        self.s_ay[i + mm].d.next = self.in_y.val();
+                        self.s_ay[i + mm].d.next = self.in_yc.val();
                         self.s_bank[i + mm].d.next = self.bank[i].q.val();
                     } else {
                         self.s_live[i].d.next = true;
                         self.s_pre[i].d.next = self.t_ge_n.val();
                         self.s_fresh[i].d.next = true;
                         self.s_ax[i].d.next = self.cx.val();
-                        self.s_ay[i].d.next = self.in_y.val();
+                        self.s_ay[i].d.next = self.in_yc.val();
                         self.s_bank[i].d.next = self.bank[i].q.val();
                     }
                 }
@@ -1154,7 +1199,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.drops.d.next = self.drops.q.val() + 1;
             if self.drops.q.val() == 0 {
                 self.drop_x.d.next = self.cx.val();
-                self.drop_y.d.next = self.in_y.val();
+                self.drop_y.d.next = self.in_yc.val();
             }
         }
 
@@ -1165,7 +1210,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     & self.aprev[i].q.val()
                     & self.busy[i].q.val()
                     & self.live[i].q.val()
-                    & (self.frow[i].q.val() == self.in_y.val())
+                    & (self.frow[i].q.val() == self.in_yc.val())
                 {
                     if self.on[i].val() {
                         if self.dip[i].q.val() {

@@ -44,6 +44,7 @@
 //! slack, plus the rows the tracker may fall behind at each plane's end
 //! (`M + 3` clocks): [`BackHalfConfig::default_row_slack`].
 
+use crate::blink_tracker::COORD_BITS;
 use crate::bram::{Bram, RamStyle};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
@@ -86,9 +87,9 @@ pub struct RoiAggregator<
     /// Tracker ROI view: first plane of the segment.
     pub sh_fresh: Vec<Signal<In, Bit>>,
     /// Tracker ROI view: anchor column.
-    pub sh_ax: Vec<Signal<In, Bits<16>>>,
+    pub sh_ax: Vec<Signal<In, Bits<COORD_BITS>>>,
     /// Tracker ROI view: anchor row.
-    pub sh_ay: Vec<Signal<In, Bits<16>>>,
+    pub sh_ay: Vec<Signal<In, Bits<COORD_BITS>>>,
     /// Tracker ROI view: bank.
     pub sh_bank: Vec<Signal<In, Bits<BW>>>,
     /// Planes whose every row has been swept.
@@ -142,8 +143,9 @@ pub struct RoiAggregator<
     par: Signal<Local, Bit>,
     need: Signal<Local, Bits<16>>,
     trig: Signal<Local, Bit>,
-    row_lo: Signal<Local, Bits<16>>,
-    row_hi: Signal<Local, Bits<16>>,
+    ra_c: Signal<Local, Bits<COORD_BITS>>,
+    row_lo: Signal<Local, Bits<COORD_BITS>>,
+    row_hi: Signal<Local, Bits<COORD_BITS>>,
     rtaken: Vec<Signal<Local, Bit>>,
     rsel: Vec<Signal<Local, Bit>>,
     any_rel: Signal<Local, Bit>,
@@ -157,10 +159,10 @@ pub struct RoiAggregator<
     k_live: Signal<Local, Bit>,
     k_pre: Signal<Local, Bit>,
     k_fresh: Signal<Local, Bit>,
-    k_ax: Signal<Local, Bits<16>>,
-    k_ay: Signal<Local, Bits<16>>,
+    k_ax: Signal<Local, Bits<COORD_BITS>>,
+    k_ay: Signal<Local, Bits<COORD_BITS>>,
     k_bank: Signal<Local, Bits<BW>>,
-    dy: Signal<Local, Bits<16>>,
+    dy: Signal<Local, Bits<COORD_BITS>>,
     x0p: Signal<Local, Bits<16>>,
     wq: Signal<Local, Bits<16>>,
     half_wq: Signal<Local, Bits<16>>,
@@ -181,7 +183,7 @@ pub struct RoiAggregator<
     old_m: Signal<Local, Bit>,
     any_m: Signal<Local, Bit>,
     // Constants.
-    h: Constant<Bits<16>>,
+    h_c: Constant<Bits<COORD_BITS>>,
     h2: Constant<Bits<16>>,
     p_minus_h: Constant<Bits<16>>,
     pw: Constant<Bits<16>>,
@@ -277,6 +279,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             par: Default::default(),
             need: Default::default(),
             trig: Default::default(),
+            ra_c: Default::default(),
             row_lo: Default::default(),
             row_hi: Default::default(),
             rtaken: lanes(m + 1),
@@ -315,7 +318,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             old: lanes(r),
             old_m: Default::default(),
             any_m: Default::default(),
-            h: c16(h as u64),
+            h_c: Constant::new((h as u64).to_bits()),
             h2: c16(h as u64 + 2),
             p_minus_h: c16((P - h) as u64),
             pw: c16(P as u64),
@@ -404,11 +407,12 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             & ((self.tr_plane.val() > self.ta.q.val())
                 | ((self.tr_plane.val() == self.ta.q.val())
                     & (self.tr_rows.val() >= self.need.val())));
+        self.ra_c.next = bit_cast::<10, 16>(self.ra.q.val());
         self.row_lo.next = 0.into();
-        if self.ra.q.val() >= self.h.val() {
-            self.row_lo.next = self.ra.q.val() - self.h.val();
+        if self.ra_c.val() >= self.h_c.val() {
+            self.row_lo.next = self.ra_c.val() - self.h_c.val();
         }
-        self.row_hi.next = self.ra.q.val() + self.h.val();
+        self.row_hi.next = self.ra_c.val() + self.h_c.val();
 
         // ---- Slots whose ROI covers row ra and that sum this plane.
         self.now_taken[0].next = false;
@@ -473,7 +477,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         // ---- S0: addresses of the two words and of the counter row.
         self.dy.next = self.row_hi.val() - self.k_ay.val();
         // Column ax − h, shifted by one word so that it is never negative.
-        self.x0p.next = self.k_ax.val() + self.p_minus_h.val();
+        self.x0p.next = bit_cast::<16, 10>(self.k_ax.val()) + self.p_minus_h.val();
         self.wq.next = self.x0p.val() >> self.log2p.val();
         self.half_wq.next = self.wq.val() >> 1;
         self.odd_addr.next = self.half_wq.val();
@@ -489,7 +493,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 self.rbase.q.val() + bit_cast::<RAW, 16>(self.odd_addr.val());
         }
         self.bank_base.x.next = bit_cast::<CAW, BW>(self.k_bank.val());
-        self.caddr.next = self.bank_base.y.val() + bit_cast::<CAW, 16>(self.dy.val());
+        self.caddr.next = self.bank_base.y.val() + bit_cast::<CAW, 10>(self.dy.val());
         for dx in 0..self._r {
             self.cnt[dx].read_address.next = self.rd_addr.val();
             if self.s0.val() {

@@ -534,3 +534,28 @@ fn tracker_refuses_an_l_max_max_its_ages_cannot_hold() {
         }
     }
 }
+
+#[test]
+fn tracker_refuses_a_field_its_coordinates_cannot_hold() {
+    use smartagg_hdl::blink_tracker::MAX_FIELD;
+    for (w, h, ok) in [
+        (MAX_FIELD, H, true),
+        (MAX_FIELD + P, H, false),
+        (W, MAX_FIELD, true),
+        (W, MAX_FIELD + 1, false),
+    ] {
+        let mut mcfg = PipelineConfig::new(w, h, 4, vec![1, 2, 1], 2, THR);
+        mcfg.slots = 4;
+        mcfg.roi_size = 3;
+        let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
+        let mut bh = BackHalfConfig::new(&mcfg, front, mcfg.l_max).unwrap();
+        bh.queue_log2 = 2;
+        match Dut::new(&bh) {
+            Ok(_) => assert!(ok, "{w}x{h} accepted"),
+            Err(e) => {
+                assert!(!ok, "{w}x{h} refused: {e}");
+                assert!(e.to_string().contains("width/height"), "{e}");
+            }
+        }
+    }
+}
