@@ -74,6 +74,28 @@ pub struct Case {
     pub seed: u64,
 }
 
+impl Case {
+    /// The bit-planes replayed through the pipe-in with these registers: no
+    /// hot-pixel mask, no host stalls on either side (stall seed 1). Other
+    /// cases change fields from this one (`Case { .., ..Case::replay(..) }`).
+    pub fn replay(n: u32, threshold: u32, l_min: u32, l_max: u32, planes: Vec<BitPlane>) -> Case {
+        Case {
+            n,
+            threshold,
+            l_min,
+            l_max,
+            planes,
+            hot: Vec::new(),
+            mask_enable: false,
+            source: Source::Replay,
+            input_stall: 0,
+            read_stall: 0,
+            hold_reads: false,
+            seed: 1,
+        }
+    }
+}
+
 /// Plane period written to the register (ns).
 pub const PLANE_PERIOD_NS: u32 = 100_000;
 
@@ -1592,20 +1614,7 @@ impl Device {
         }
         let cosim = Cosim::new(spec)?;
         let model = Model::new(cosim.fast.clone()).map_err(DesignError::from)?;
-        let case = Case {
-            n: 1,
-            threshold: 1,
-            l_min: 1,
-            l_max: 1,
-            planes: Vec::new(),
-            hot: Vec::new(),
-            mask_enable: false,
-            source: Source::Replay,
-            input_stall: 0,
-            read_stall: 0,
-            hold_reads: false,
-            seed: 1,
-        };
+        let case = Case::replay(1, 1, 1, 1, Vec::new());
         let mut host = XemHost::new(model, &cosim, &case, None, None)?;
         host.limit = u64::MAX;
         Ok(Device {

@@ -4,7 +4,7 @@
 //! and write a VCD around the first difference.
 
 use smartagg_sim::designs::{inject_filter_fault, Config, DesignSpec, REDUCED};
-use smartagg_sim::harness::{threshold_at_quantile, Case, Cosim, Source, Stage};
+use smartagg_sim::harness::{threshold_at_quantile, Case, Cosim, Stage};
 use smartagg_sim::scene::{generate, SceneSpec};
 
 #[test]
@@ -32,18 +32,10 @@ fn an_injected_filter_fault_is_caught_and_named() {
         5,
     );
     let mut case = Case {
-        n: 8,
-        threshold: 1,
-        l_min: 1,
-        l_max: 100,
-        planes,
-        hot: Vec::new(),
-        mask_enable: false,
-        source: Source::Replay,
         input_stall: 10,
         read_stall: 10,
-        hold_reads: false,
         seed: 9,
+        ..Case::replay(8, 1, 1, 100, planes)
     };
     case.threshold = threshold_at_quantile(&c.model_config(&case).unwrap(), &case.planes, 0.99);
     let m = c
