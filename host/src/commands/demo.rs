@@ -65,7 +65,8 @@ pub struct Args {
     /// XEM6310 core generated for this scene, verilated, through its replay
     /// pipe-in, checked byte for byte against the golden model on the same
     /// planes. 0 skips it. The co-simulation runs at about 10^5 clocks/s, a
-    /// few hundred bit-planes per second of this field.
+    /// few hundred bit-planes per second of this field, on its own thread
+    /// beside the model and the fast engine.
     #[arg(long, default_value_t = 20_000)]
     pub gateware_planes: u64,
     /// No progress bars.
