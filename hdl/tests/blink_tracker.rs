@@ -511,51 +511,44 @@ proptest! {
     }
 }
 
-/// The slot ages are `AGE_BITS` wide: a generated L_max,max whose ages
-/// would not fit is refused, naming the field; the largest that fits is
-/// accepted.
-#[test]
-fn tracker_refuses_an_l_max_max_its_ages_cannot_hold() {
-    use smartagg_hdl::blink_tracker::AGE_BITS;
-    let mut mcfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, THR);
+/// Generates the tracker of `w`×`h` with `l_max_max` and checks that it is
+/// accepted when `ok`, and otherwise refused with an error naming `field`.
+fn check_generation(w: usize, h: usize, l_max_max: Option<u32>, ok: bool, field: &str) {
+    let mut mcfg = PipelineConfig::new(w, h, 4, vec![1, 2, 1], 2, THR);
     mcfg.slots = 4;
     mcfg.roi_size = 3;
     let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
-    let fits = (1u32 << AGE_BITS) - front.n_max as u32 - 3;
-    for (l_max_max, ok) in [(fits, true), (fits + 1, false)] {
-        let mut bh = BackHalfConfig::new(&mcfg, front.clone(), l_max_max).unwrap();
-        bh.queue_log2 = 2;
-        match Dut::new(&bh) {
-            Ok(_) => assert!(ok, "L_max,max = {l_max_max} accepted"),
-            Err(e) => {
-                assert!(!ok, "L_max,max = {l_max_max} refused: {e}");
-                assert!(e.to_string().contains("l_max_max"), "{e}");
-            }
+    let mut bh = BackHalfConfig::new(&mcfg, front, l_max_max.unwrap_or(mcfg.l_max)).unwrap();
+    bh.queue_log2 = 2;
+    let what = format!("{w}x{h}, L_max,max {l_max_max:?}");
+    match Dut::new(&bh) {
+        Ok(_) => assert!(ok, "{what} accepted"),
+        Err(e) => {
+            assert!(!ok, "{what} refused: {e}");
+            assert!(e.to_string().contains(field), "{e}");
         }
     }
 }
 
+/// The slot ages are `AGE_BITS` wide: an L_max,max whose ages
+/// (L_max,max + N_max + 2) would not fit is refused, naming the field; the
+/// largest that fits is accepted.
+#[test]
+fn tracker_refuses_an_l_max_max_its_ages_cannot_hold() {
+    use smartagg_hdl::blink_tracker::AGE_BITS;
+    let mcfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, THR);
+    let n_max = GatewareConfig::new(&mcfg, P, 7).unwrap().n_max as u32;
+    let fits = (1u32 << AGE_BITS) - n_max - 3;
+    check_generation(W, H, Some(fits), true, "l_max_max");
+    check_generation(W, H, Some(fits + 1), false, "l_max_max");
+}
+
+/// A field wider or taller than the tracker's coordinates hold is refused.
 #[test]
 fn tracker_refuses_a_field_its_coordinates_cannot_hold() {
     use smartagg_hdl::blink_tracker::MAX_FIELD;
-    for (w, h, ok) in [
-        (MAX_FIELD, H, true),
-        (MAX_FIELD + P, H, false),
-        (W, MAX_FIELD, true),
-        (W, MAX_FIELD + 1, false),
-    ] {
-        let mut mcfg = PipelineConfig::new(w, h, 4, vec![1, 2, 1], 2, THR);
-        mcfg.slots = 4;
-        mcfg.roi_size = 3;
-        let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
-        let mut bh = BackHalfConfig::new(&mcfg, front, mcfg.l_max).unwrap();
-        bh.queue_log2 = 2;
-        match Dut::new(&bh) {
-            Ok(_) => assert!(ok, "{w}x{h} accepted"),
-            Err(e) => {
-                assert!(!ok, "{w}x{h} refused: {e}");
-                assert!(e.to_string().contains("width/height"), "{e}");
-            }
-        }
-    }
+    check_generation(MAX_FIELD, H, None, true, "width/height");
+    check_generation(MAX_FIELD + P, H, None, false, "width/height");
+    check_generation(W, MAX_FIELD, None, true, "width/height");
+    check_generation(W, MAX_FIELD + 1, None, false, "width/height");
 }
