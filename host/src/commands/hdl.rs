@@ -357,7 +357,7 @@ fn resources(a: ResourcesArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "yosys {:.0} s: LUT {} (+{} as distributed RAM), FF {}, RAMB16 {}, RAMB8 {}, DSP48A1 {}, CARRY4 {}",
+        "yosys {:.0} s: LUT {} (+{} as LUT RAM or shift registers), FF {}, RAMB16 {}, RAMB8 {}, DSP48A1 {}, CARRY4 {}",
         rep.yosys_seconds, rep.luts, rep.lut_ram, rep.ffs, rep.ramb16, rep.ramb8, rep.dsp48a1, rep.carry4
     );
     println!(
