@@ -203,7 +203,10 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
 
 impl Timing {
     fn add(&mut self, stage: &str, since: Instant, what: String) {
-        let s = since.elapsed().as_secs_f64();
+        self.add_seconds(stage, since.elapsed().as_secs_f64(), what);
+    }
+
+    fn add_seconds(&mut self, stage: &str, s: f64, what: String) {
         eprintln!("  {stage}: {s:.2} s — {what}");
         self.rows.push((stage.to_string(), s, what));
     }
@@ -344,10 +347,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "first {} planes: byte-identical to the golden model ({} packets), {:.0} clocks per plane, {:.3} M cycles/s (build {:.1} s); on its own thread, beside the stages above",
                 leg.planes, leg.packets, leg.clocks_per_plane, leg.mcycles_per_s, leg.build_s
             );
-            eprintln!("  gateware co-simulation: {seconds:.2} s — {what}");
-            timing
-                .rows
-                .push(("gateware co-simulation".into(), seconds, what));
+            timing.add_seconds("gateware co-simulation", seconds, what);
             Some(leg)
         }
         None => None,
