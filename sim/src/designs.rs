@@ -338,6 +338,9 @@ impl DesignSpec {
             trace: debug,
             top: "cosim".into(),
             clock: "clock".into(),
+            // The fast build is profile-guided (trained by the harness); the
+            // debug build only runs to locate a mismatch.
+            profile: !debug,
         }
     }
 }

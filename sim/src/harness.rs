@@ -96,6 +96,10 @@ impl Case {
     }
 }
 
+/// Clocks of a profile-guided build's training run (about 4 s of the
+/// instrumented model).
+pub const TRAINING_CLOCKS: usize = 400_000;
+
 /// Plane period written to the register (ns).
 pub const PLANE_PERIOD_NS: u32 = 100_000;
 
@@ -345,7 +349,32 @@ impl Cosim {
     /// As [`Cosim::new`] with the given top Verilog (e.g. with a fault injected).
     pub fn with_top(spec: DesignSpec, top: String) -> Result<Cosim, HarnessError> {
         let v = spec.cosim_verilog(&top, false)?;
-        let fast = Build::get(&v, &DesignSpec::build_options(false)).map_err(DesignError::from)?;
+        // The fast build is profile-guided: its instrumented model runs the
+        // training case once, when it is verilated (not when cached).
+        let train = |build: Arc<Build>| -> Result<(), String> {
+            let c = Cosim {
+                spec: spec.clone(),
+                top: String::new(),
+                fast: build,
+                debug: None,
+                vcd_dir: PathBuf::new(),
+                trace: None,
+                sensor_interval: 2,
+            };
+            let case = c.training_case().map_err(|e| e.to_string())?;
+            c.run_on(
+                &c.fast,
+                &case,
+                RunMode {
+                    debug: false,
+                    vcd: None,
+                },
+            )
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+        };
+        let fast = Build::get_trained(&v, &DesignSpec::build_options(false), Some(&train))
+            .map_err(DesignError::from)?;
         let vcd_dir = fast.dir.join("vcd");
         Ok(Cosim {
             spec,
@@ -374,6 +403,44 @@ impl Cosim {
             trace: None,
             sensor_interval: 2,
         })
+    }
+
+    /// The training run of the profile-guided build: what the co-simulation
+    /// runs (`smartagg cosim`'s kind of scene: sparse blinks over background,
+    /// host stalls on both pipes) for about [`TRAINING_CLOCKS`] clocks, with
+    /// N small enough that blinks complete and their packets are coded
+    /// within it. Only the gateware runs it: what it trains is which
+    /// branches of the model's code are hot.
+    fn training_case(&self) -> Result<Case, HarnessError> {
+        let (w, h) = (self.spec.width, self.spec.height);
+        // The replay pipe-in brings a word every other clock.
+        let clocks_per_plane = (2 * w * h / crate::designs::P).max(1);
+        let planes = (TRAINING_CLOCKS / clocks_per_plane).max(48);
+        let n = ((planes / 8) as u32).clamp(8, self.spec.config.n_max());
+        let planes = crate::scene::generate(
+            &crate::scene::SceneSpec {
+                width: w,
+                height: h,
+                planes,
+                background: 0.001,
+                emitters: (w * h / 150).max(4),
+                peak: 0.4,
+                mean_on: 12.0,
+                mean_off: 60.0,
+                edge_fraction: 0.2,
+                dip: 0.05,
+                hot: Vec::new(),
+                hot_rate: 0.0,
+            },
+            1,
+        );
+        let mut case = Case {
+            input_stall: 10,
+            read_stall: 20,
+            ..Case::replay(n, 1, 3, n + 100, planes)
+        };
+        case.threshold = threshold_at_quantile(&self.model_config(&case)?, &case.planes, 0.995);
+        Ok(case)
     }
 
     /// The fast build.

@@ -78,14 +78,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let t = std::time::Instant::now();
     let mut c = Cosim::new(spec).context("building the co-simulation")?;
+    let b = c.build();
     eprintln!(
-        "design ready in {:.1} s ({}, {})",
+        "design ready in {:.1} s ({}, {}, {})",
         t.elapsed().as_secs_f64(),
-        c.build().dir.display(),
-        if c.build().fresh {
+        b.dir.display(),
+        if b.fresh {
             "verilated now"
         } else {
             "from the cache"
+        },
+        match (&b.training_error, b.profiled) {
+            (Some(why), _) => format!("not profile-guided: its training run failed: {why}"),
+            (None, true) => "profile-guided".to_string(),
+            (None, false) => "not profile-guided".to_string(),
         }
     );
     let hot = vec![(w / 3, h / 2)];
