@@ -80,16 +80,6 @@ fn crc_bit_entries() -> [u32; 8] {
     t
 }
 
-/// `value` as a `Bits<N>` from little-endian bytes.
-fn bits_from_le<const N: usize>(bytes: &[u8]) -> Bits<N> {
-    bytes
-        .iter()
-        .enumerate()
-        .fold(Bits::<N>::default(), |acc, (i, &b)| {
-            acc | (bit_cast::<N, 8>((b as u64).to_bits()) << (8 * i) as u64)
-        })
-}
-
 /// The packetiser. `R` counts per ROI row come from the counter memory.
 /// `RCW`: count bits; `CAW`: counter address bits; `BW`: bank bits; `NW`:
 /// bits of N; `PW`: bits of the assembled header and fixed payload
@@ -210,9 +200,8 @@ pub struct Packetiser<
     bestk: DFF<Bits<8>>,
     scan: DFF<Bits<8>>,
     // Emission.
-    prefix: DFF<Bits<PW>>,
+    prefix: Vec<DFF<Bits<8>>>,
     prefix_len: DFF<Bits<16>>,
-    boff: DFF<Bits<16>>,
     bidx: DFF<Bits<16>>,
     crc: DFF<Bits<32>>,
     crc_i: DFF<Bits<8>>,
@@ -244,9 +233,8 @@ pub struct Packetiser<
     rec_prefix_len: Signal<Local, Bits<16>>,
     need: Signal<Local, Bits<16>>,
     type_code: Signal<Local, Bits<8>>,
-    hdr: Signal<Local, Bits<PW>>,
-    rec_prefix: Signal<Local, Bits<PW>>,
-    ovf_prefix: Signal<Local, Bits<PW>>,
+    rec_prefix: Vec<Signal<Local, Bits<8>>>,
+    ovf_prefix: Vec<Signal<Local, Bits<8>>>,
     the_byte: Signal<Local, Bits<8>>,
     pk_shift: Signal<Local, Bits<72>>,
     pad_shift: Signal<Local, Bits<72>>,
@@ -268,10 +256,9 @@ pub struct Packetiser<
     k5c: Vec<Constant<Bits<8>>>,
     kp1: Vec<Constant<Bits<32>>>,
     crc_t: Vec<Constant<Bits<32>>>,
-    start_const: Constant<Bits<PW>>,
+    start_bytes: Vec<Constant<Bits<8>>>,
     start_len: Constant<Bits<16>>,
-    off_period: Constant<Bits<16>>,
-    off_masked: Constant<Bits<16>>,
+    byte_id: Vec<Constant<Bits<16>>>,
     roi_side: Constant<Bits<8>>,
     h: Constant<Bits<16>>,
     h_plus_rows: Constant<Bits<16>>,
@@ -279,6 +266,11 @@ pub struct Packetiser<
     one64: Constant<Bits<64>>,
     all_ones: Constant<Bits<RCW>>,
     _r: usize,
+    /// Bytes of the assembled header and fixed payload (PW / 8).
+    _pb: usize,
+    /// Byte offsets in StreamStart of the plane period and masked pixels.
+    _o_period: usize,
+    _o_masked: usize,
 }
 
 impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const PW: usize>
@@ -375,9 +367,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             best: Default::default(),
             bestk: Default::default(),
             scan: Default::default(),
-            prefix: Default::default(),
+            prefix: lanes(PW / 8),
             prefix_len: Default::default(),
-            boff: Default::default(),
             bidx: Default::default(),
             crc: Default::default(),
             crc_i: Default::default(),
@@ -408,9 +399,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             rec_prefix_len: Default::default(),
             need: Default::default(),
             type_code: Default::default(),
-            hdr: Default::default(),
-            rec_prefix: Default::default(),
-            ovf_prefix: Default::default(),
+            rec_prefix: lanes(PW / 8),
+            ovf_prefix: lanes(PW / 8),
             the_byte: Default::default(),
             pk_shift: Default::default(),
             pad_shift: Default::default(),
@@ -436,10 +426,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 .iter()
                 .map(|&e| Constant::new((e as u64).to_bits()))
                 .collect(),
-            start_const: Constant::new(bits_from_le::<PW>(&sb)),
+            start_bytes: (0..PW / 8)
+                .map(|j| c8(sb.get(j).copied().unwrap_or(0) as u64))
+                .collect(),
             start_len: Constant::new(((10 + start_payload) as u64).to_bits()),
-            off_period: Constant::new((8 * (35 + 2 * k) as u64).to_bits()),
-            off_masked: Constant::new((8 * (39 + 2 * k) as u64).to_bits()),
+            byte_id: (0..PW / 8)
+                .map(|j| Constant::new((j as u64).to_bits()))
+                .collect(),
             roi_side: c8(r as u64),
             h: Constant::new((cfg.roi_half() as u64).to_bits()),
             h_plus_rows: Constant::new(((cfg.roi_half() + f.height) as u64).to_bits()),
@@ -447,6 +440,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             one64: Constant::new(1u64.to_bits()),
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,
+            _pb: PW / 8,
+            _o_period: 35 + 2 * k,
+            _o_masked: 39 + 2 * k,
         })
     }
 }
@@ -460,9 +456,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
     fn update(&mut self) {
         dff_setup!(
             self, clock, state, seq_ctr, pend_first, pend_cnt, ovf_flag, in_ovf, cs_active,
-            cs_wait, row_valid, cs_dy, cs_dx, base, masked, best, bestk, scan, prefix, prefix_len,
-            boff, bidx, crc, crc_i, nb, pk
+            cs_wait, row_valid, cs_dy, cs_dx, base, masked, best, bestk, scan, prefix_len, bidx,
+            crc, crc_i, nb, pk
         );
+        for j in 0..self._pb {
+            self.prefix[j].clock.next = self.clock.val();
+            self.prefix[j].d.next = self.prefix[j].q.val();
+        }
         for dx in 0..self._r {
             self.row[dx].clock.next = self.clock.val();
             self.row[dx].d.next = self.row[dx].q.val();
@@ -667,64 +667,111 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         if self.pend_cnt.q.val() != 0 {
             self.need.next = self.payload_len.val() + 36;
         }
-        self.hdr.next = bit_cast::<PW, 16>(0x4153.into())
-            | (bit_cast::<PW, 8>(1.into()) << 16)
-            | (bit_cast::<PW, 8>(self.type_code.val()) << 24)
-            | (bit_cast::<PW, 32>(self.seq_ctr.q.val()) << 32)
-            | (bit_cast::<PW, 16>(self.payload_len.val()) << 64);
+        // Byte by byte: a byte lane per prefix byte (the same multiplexers as
+        // one wide vector, without the wide shifts that dominated the
+        // packetiser's simulation).
+        for j in 0..self._pb {
+            self.rec_prefix[j].next = 0.into();
+            self.ovf_prefix[j].next = 0.into();
+        }
+        // Header: magic "SA", version 1, type, sequence number, length.
+        self.rec_prefix[0].next = 0x53.into();
+        self.rec_prefix[1].next = 0x41.into();
+        self.rec_prefix[2].next = 1.into();
+        self.rec_prefix[3].next = self.type_code.val();
+        for b in 0..4 {
+            self.rec_prefix[4 + b].next = self.seq_ctr.q.val().get_bits::<8>(8 * b);
+        }
+        for b in 0..2 {
+            self.rec_prefix[8 + b].next = self.payload_len.val().get_bits::<8>(8 * b);
+        }
         match self.r_kind.val().index() {
             1 => {
-                self.rec_prefix.next = self.hdr.val()
-                    | (bit_cast::<PW, 8>(self.r_slot.val()) << 80)
-                    | (bit_cast::<PW, 8>(self.r_flags.val()) << 88)
-                    | (bit_cast::<PW, 1>(self.masked.q.val().into()) << 89)
-                    | (bit_cast::<PW, 16>(self.r_ax.val()) << 96)
-                    | (bit_cast::<PW, 16>(self.r_ay.val()) << 112)
-                    | (bit_cast::<PW, 48>(self.r_t0.val()) << 128)
-                    | (bit_cast::<PW, 48>(self.r_t1.val()) << 176)
-                    | (bit_cast::<PW, 48>(self.r_ts.val()) << 224)
-                    | (bit_cast::<PW, 48>(self.r_te.val()) << 272)
-                    | (bit_cast::<PW, 32>(self.r_planes.val()) << 320)
-                    | (bit_cast::<PW, 8>(self.roi_side.val()) << 352)
-                    | (bit_cast::<PW, 8>(self.tb0.val()) << 360)
-                    | (bit_cast::<PW, 8>(self.tb1.val()) << 368)
-                    | (bit_cast::<PW, 8>(self.tb2.val()) << 376)
-                    | (bit_cast::<PW, 8>(self.tb3.val()) << 384)
-                    | (bit_cast::<PW, 8>(self.tb4.val()) << 392)
-                    | (bit_cast::<PW, 8>(self.tb5.val()) << 400);
+                self.rec_prefix[10].next = self.r_slot.val();
+                self.rec_prefix[11].next =
+                    self.r_flags.val() | (bit_cast::<8, 1>(self.masked.q.val().into()) << 1);
+                for b in 0..2 {
+                    self.rec_prefix[12 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[14 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
+                }
+                for b in 0..6 {
+                    self.rec_prefix[16 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[22 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[28 + b].next = self.r_ts.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[34 + b].next = self.r_te.val().get_bits::<8>(8 * b);
+                }
+                for b in 0..4 {
+                    self.rec_prefix[40 + b].next = self.r_planes.val().get_bits::<8>(8 * b);
+                }
+                self.rec_prefix[44].next = self.roi_side.val();
+                self.rec_prefix[45].next = self.tb0.val();
+                self.rec_prefix[46].next = self.tb1.val();
+                self.rec_prefix[47].next = self.tb2.val();
+                self.rec_prefix[48].next = self.tb3.val();
+                self.rec_prefix[49].next = self.tb4.val();
+                self.rec_prefix[50].next = self.tb5.val();
             }
             2 => {
-                self.rec_prefix.next = self.hdr.val()
-                    | (bit_cast::<PW, 48>(self.r_t0.val()) << 80)
-                    | (bit_cast::<PW, 32>(bit_cast::<32, 48>(self.r_t1.val())) << 128)
-                    | (bit_cast::<PW, 16>(self.r_ax.val()) << 160)
-                    | (bit_cast::<PW, 16>(self.r_ay.val()) << 176);
+                for b in 0..6 {
+                    self.rec_prefix[10 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
+                }
+                for b in 0..4 {
+                    self.rec_prefix[16 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
+                }
+                for b in 0..2 {
+                    self.rec_prefix[20 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[22 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
+                }
             }
             3 => {
-                self.rec_prefix.next = self.hdr.val()
-                    | (bit_cast::<PW, 64>(self.c_planes.val()) << 80)
-                    | (bit_cast::<PW, 64>(self.c_blinks.val()) << 144)
-                    | (bit_cast::<PW, 64>(self.c_unconf.val()) << 208)
-                    | (bit_cast::<PW, 64>(self.c_dropped.val()) << 272)
-                    | (bit_cast::<PW, 64>(self.c_bridged.val()) << 336)
-                    | (bit_cast::<PW, 64>(self.c_cuts.val()) << 400);
+                for b in 0..8 {
+                    self.rec_prefix[10 + b].next = self.c_planes.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[18 + b].next = self.c_blinks.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[26 + b].next = self.c_unconf.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[34 + b].next = self.c_dropped.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[42 + b].next = self.c_bridged.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[50 + b].next = self.c_cuts.val().get_bits::<8>(8 * b);
+                }
             }
             _ => {
-                self.rec_prefix.next = self.start_const.val()
-                    | (bit_cast::<PW, 32>(self.seq_ctr.q.val()) << 32)
-                    | (bit_cast::<PW, NW>(self.n_window.val()) << 112)
-                    | (bit_cast::<PW, 32>(self.threshold.val()) << 144)
-                    | (bit_cast::<PW, 32>(self.l_min.val()) << 176)
-                    | (bit_cast::<PW, 32>(self.l_max.val()) << 208)
-                    | (bit_cast::<PW, 32>(self.plane_period.val()) << self.off_period.val())
-                    | (bit_cast::<PW, 32>(self.masked_pixels.val()) << self.off_masked.val());
+                // StreamStart: the generation's constant bytes (field, kernel)
+                // with the runtime registers in their zero bytes.
+                for j in 10..self._pb {
+                    self.rec_prefix[j].next = self.start_bytes[j].val();
+                }
+                for b in 0..2 {
+                    self.rec_prefix[14 + b].next =
+                        bit_cast::<16, NW>(self.n_window.val()).get_bits::<8>(8 * b);
+                }
+                for b in 0..4 {
+                    self.rec_prefix[18 + b].next = self.threshold.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[22 + b].next = self.l_min.val().get_bits::<8>(8 * b);
+                    self.rec_prefix[26 + b].next = self.l_max.val().get_bits::<8>(8 * b);
+                }
+                for o in self._o_period..(self._o_period + 1) {
+                    for b in 0..4 {
+                        self.rec_prefix[o + b].next = self.plane_period.val().get_bits::<8>(8 * b);
+                    }
+                }
+                for o in self._o_masked..(self._o_masked + 1) {
+                    for b in 0..4 {
+                        self.rec_prefix[o + b].next = self.masked_pixels.val().get_bits::<8>(8 * b);
+                    }
+                }
             }
         }
-        self.ovf_prefix.next = bit_cast::<PW, 32>(0x7F01_4153_u64.into())
-            | (bit_cast::<PW, 32>(self.pend_first.q.val()) << 32)
-            | (bit_cast::<PW, 16>(8.into()) << 64)
-            | (bit_cast::<PW, 32>(self.pend_first.q.val()) << 80)
-            | (bit_cast::<PW, 32>(self.pend_cnt.q.val()) << 112);
+        // Overflow: header (type 0x7F, the first lost number), length 8,
+        // first lost number and count.
+        self.ovf_prefix[0].next = 0x53.into();
+        self.ovf_prefix[1].next = 0x41.into();
+        self.ovf_prefix[2].next = 1.into();
+        self.ovf_prefix[3].next = 0x7F.into();
+        self.ovf_prefix[8].next = 8.into();
+        for b in 0..4 {
+            self.ovf_prefix[4 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
+            self.ovf_prefix[10 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
+            self.ovf_prefix[14 + b].next = self.pend_cnt.q.val().get_bits::<8>(8 * b);
+        }
 
         // ---- The byte of this clock and the CRC.
         // (Verilog cannot slice an expression: shift into a signal first.)
@@ -733,7 +780,12 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.pad_shift.next = self.pk.q.val() << (8 - self.nb.q.val());
         self.pad_byte.next = self.pad_shift.val().get_bits::<8>(0);
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
-        self.the_byte.next = self.prefix.q.val().get_bits::<8>(self.boff.q.val().index());
+        self.the_byte.next = 0.into();
+        for j in 0..self._pb {
+            if self.bidx.q.val() == self.byte_id[j].val() {
+                self.the_byte.next = self.prefix[j].q.val();
+            }
+        }
         if self.state.q.val() == PacketState::Codes {
             self.the_byte.next = self.pad_byte.val();
             if self.nb.q.val() >= 8 {
@@ -833,16 +885,19 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
             PacketState::Decide => {
                 if self.fifo_free.val() >= self.need.val() {
-                    self.boff.d.next = 0.into();
                     self.bidx.d.next = 0.into();
                     self.crc.d.next = 0xFFFF_FFFF_u64.into();
                     if self.pend_cnt.q.val() != 0 {
-                        self.prefix.d.next = self.ovf_prefix.val();
+                        for j in 0..self._pb {
+                            self.prefix[j].d.next = self.ovf_prefix[j].val();
+                        }
                         self.prefix_len.d.next = 18.into();
                         self.in_ovf.d.next = true;
                         self.state.d.next = PacketState::Ovf;
                     } else {
-                        self.prefix.d.next = self.rec_prefix.val();
+                        for j in 0..self._pb {
+                            self.prefix[j].d.next = self.rec_prefix[j].val();
+                        }
                         self.prefix_len.d.next = self.rec_prefix_len.val();
                         self.in_ovf.d.next = false;
                         self.state.d.next = PacketState::Emit;
@@ -860,7 +915,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             PacketState::Ovf => {
                 self.out_valid.next = true;
                 self.crc.d.next = self.crc_next.val();
-                self.boff.d.next = self.boff.q.val() + 8;
                 self.bidx.d.next = self.bidx.q.val() + 1;
                 if self.bidx.q.val() + 1 == self.prefix_len.q.val() {
                     self.crc_i.d.next = 0.into();
@@ -870,7 +924,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             PacketState::Emit => {
                 self.out_valid.next = true;
                 self.crc.d.next = self.crc_next.val();
-                self.boff.d.next = self.boff.q.val() + 8;
                 self.bidx.d.next = self.bidx.q.val() + 1;
                 if self.bidx.q.val() + 1 == self.prefix_len.q.val() {
                     self.crc_i.d.next = 0.into();
@@ -913,9 +966,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                         // The Overflow packet is out: now the record.
                         self.pend_cnt.d.next = 0.into();
                         self.in_ovf.d.next = false;
-                        self.prefix.d.next = self.rec_prefix.val();
+                        for j in 0..self._pb {
+                            self.prefix[j].d.next = self.rec_prefix[j].val();
+                        }
                         self.prefix_len.d.next = self.rec_prefix_len.val();
-                        self.boff.d.next = 0.into();
                         self.bidx.d.next = 0.into();
                         self.crc.d.next = 0xFFFF_FFFF_u64.into();
                         self.state.d.next = PacketState::Emit;
