@@ -233,6 +233,7 @@ pub struct Packetiser<
     rec_prefix_len: Signal<Local, Bits<16>>,
     need: Signal<Local, Bits<16>>,
     type_code: Signal<Local, Bits<8>>,
+    n16: Signal<Local, Bits<16>>,
     rec_prefix: Vec<Signal<Local, Bits<8>>>,
     ovf_prefix: Vec<Signal<Local, Bits<8>>>,
     the_byte: Signal<Local, Bits<8>>,
@@ -399,6 +400,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             rec_prefix_len: Default::default(),
             need: Default::default(),
             type_code: Default::default(),
+            n16: Default::default(),
             rec_prefix: lanes(PW / 8),
             ovf_prefix: lanes(PW / 8),
             the_byte: Default::default(),
@@ -674,6 +676,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.rec_prefix[j].next = 0.into();
             self.ovf_prefix[j].next = 0.into();
         }
+        // (Verilog cannot slice an expression: N widened into a signal first.)
+        self.n16.next = bit_cast::<16, NW>(self.n_window.val());
         // Header: magic "SA", version 1, type, sequence number, length.
         self.rec_prefix[0].next = 0x53.into();
         self.rec_prefix[1].next = 0x41.into();
@@ -740,8 +744,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.rec_prefix[j].next = self.start_bytes[j].val();
                 }
                 for b in 0..2 {
-                    self.rec_prefix[14 + b].next =
-                        bit_cast::<16, NW>(self.n_window.val()).get_bits::<8>(8 * b);
+                    self.rec_prefix[14 + b].next = self.n16.val().get_bits::<8>(8 * b);
                 }
                 for b in 0..4 {
                     self.rec_prefix[18 + b].next = self.threshold.val().get_bits::<8>(8 * b);
