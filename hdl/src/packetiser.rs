@@ -234,6 +234,7 @@ pub struct Packetiser<
     need: Signal<Local, Bits<16>>,
     type_code: Signal<Local, Bits<8>>,
     n16: Signal<Local, Bits<16>>,
+    sel_tree: Vec<Signal<Local, Bits<8>>>,
     rec_prefix: Vec<Signal<Local, Bits<8>>>,
     ovf_prefix: Vec<Signal<Local, Bits<8>>>,
     the_byte: Signal<Local, Bits<8>>,
@@ -259,7 +260,7 @@ pub struct Packetiser<
     crc_t: Vec<Constant<Bits<32>>>,
     start_bytes: Vec<Constant<Bits<8>>>,
     start_len: Constant<Bits<16>>,
-    byte_id: Vec<Constant<Bits<16>>>,
+    tree_bit: Vec<Constant<Bits<8>>>,
     roi_side: Constant<Bits<8>>,
     h: Constant<Bits<16>>,
     h_plus_rows: Constant<Bits<16>>,
@@ -269,6 +270,8 @@ pub struct Packetiser<
     _r: usize,
     /// Bytes of the assembled header and fixed payload (PW / 8).
     _pb: usize,
+    /// Leaves of the byte-select tree (the power of two at or above `_pb`).
+    _leaves: usize,
     /// Byte offsets in StreamStart of the plane period and masked pixels.
     _o_period: usize,
     _o_masked: usize,
@@ -401,6 +404,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             need: Default::default(),
             type_code: Default::default(),
             n16: Default::default(),
+            sel_tree: lanes(2 * (PW / 8).next_power_of_two()),
             rec_prefix: lanes(PW / 8),
             ovf_prefix: lanes(PW / 8),
             the_byte: Default::default(),
@@ -432,8 +436,14 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 .map(|j| c8(sb.get(j).copied().unwrap_or(0) as u64))
                 .collect(),
             start_len: Constant::new(((10 + start_payload) as u64).to_bits()),
-            byte_id: (0..PW / 8)
-                .map(|j| Constant::new((j as u64).to_bits()))
+            // Node i (depth ⌊log2 i⌋ below the root) selects by bit
+            // log2(leaves) − 1 − depth of the byte index (node 0 is unused).
+            tree_bit: (0..(PW / 8).next_power_of_two())
+                .map(|i: usize| {
+                    let levels = (PW / 8).next_power_of_two().trailing_zeros();
+                    let depth = if i == 0 { 0 } else { i.ilog2() };
+                    c8(levels.saturating_sub(1 + depth) as u64)
+                })
                 .collect(),
             roi_side: c8(r as u64),
             h: Constant::new((cfg.roi_half() as u64).to_bits()),
@@ -443,6 +453,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,
             _pb: PW / 8,
+            _leaves: (PW / 8).next_power_of_two(),
             _o_period: 35 + 2 * k,
             _o_masked: 39 + 2 * k,
         })
@@ -783,12 +794,26 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.pad_shift.next = self.pk.q.val() << (8 - self.nb.q.val());
         self.pad_byte.next = self.pad_shift.val().get_bits::<8>(0);
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
-        self.the_byte.next = 0.into();
-        for j in 0..self._pb {
-            if self.bidx.q.val() == self.byte_id[j].val() {
-                self.the_byte.next = self.prefix[j].q.val();
+        // Byte `bidx` of the prefix through a binary tree of 2:1 byte
+        // multiplexers (node i of the heap layout selects between 2i and
+        // 2i + 1 by one bit of bidx; the leaves are the prefix bytes).
+        // (rust-hdl's Verilog indexes with loop variables only.)
+        self.sel_tree[0].next = 0.into();
+        for lv in self._leaves..(self._leaves + 1) {
+            for j in 0..self._leaves {
+                self.sel_tree[lv + j].next = 0.into();
+            }
+            for j in 0..self._pb {
+                self.sel_tree[lv + j].next = self.prefix[j].q.val();
             }
         }
+        for i in 1..self._leaves {
+            self.sel_tree[i].next = self.sel_tree[2 * i].val();
+            if self.bidx.q.val().get_bit(self.tree_bit[i].val().index()) {
+                self.sel_tree[i].next = self.sel_tree[2 * i + 1].val();
+            }
+        }
+        self.the_byte.next = self.sel_tree[1].val();
         if self.state.q.val() == PacketState::Codes {
             self.the_byte.next = self.pad_byte.val();
             if self.nb.q.val() >= 8 {
