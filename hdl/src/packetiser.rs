@@ -807,10 +807,19 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.sel_tree[lv + j].next = self.prefix[j].q.val();
             }
         }
-        for i in 1..self._leaves {
-            self.sel_tree[i].next = self.sel_tree[2 * i].val();
-            if self.bidx.q.val().get_bit(self.tree_bit[i].val().index()) {
-                self.sel_tree[i].next = self.sel_tree[2 * i + 1].val();
+        // Deepest nodes first (i = leaves − k), so that the process assigns
+        // every node before it reads it.
+        for lv in self._leaves..(self._leaves + 1) {
+            for k in 1..self._leaves {
+                self.sel_tree[lv - k].next = self.sel_tree[2 * (lv - k)].val();
+                if self
+                    .bidx
+                    .q
+                    .val()
+                    .get_bit(self.tree_bit[lv - k].val().index())
+                {
+                    self.sel_tree[lv - k].next = self.sel_tree[2 * (lv - k) + 1].val();
+                }
             }
         }
         self.the_byte.next = self.sel_tree[1].val();

@@ -34,8 +34,11 @@
 //!   aggregator, candidate windows, packetiser); the packetiser's
 //!   combinational process (≈ 29 %: 41 variable shifts of a wide vector,
 //!   `VL_SHIFTL_WWI`, each a call of `_vl_insert_WW`, 13 % of the time on
-//!   its own); the blink tracker's combinational process (≈ 23 %: 17,000
-//!   lines of C++, the M = 32 slots unrolled). While the host streams,
+//!   its own; since 2026-11-23 the packetiser assembles its header byte by
+//!   byte and selects the byte of a clock through a tree of byte
+//!   multiplexers, so those wide shifts are gone); the blink tracker's
+//!   combinational process (≈ 23 %: 17,000 lines of C++, the M = 32 slots
+//!   unrolled). While the host streams,
 //!   inputs change on most clocks, so the last two run twice a clock (the
 //!   input-combinational passes per clock that the coverage line prints).
 //! * **Circular logic** is gone: Verilator had flagged (`UNOPTFLAT`) the
@@ -53,11 +56,11 @@
 //!   `eval()`; the evaluations are already the minimum of the two-edge
 //!   scheme (a falling edge that settles the inputs written, a rising edge).
 //!
-//! What remains between ≈ 0.1–0.2 M and the 1 M cycles/s target is the
+//! What remains between ≈ 0.16–0.29 M and the 1 M cycles/s target is the
 //! size of the logic evaluated every clock: the M = 32 slots of the blink
-//! tracker unrolled (the same logic that keeps the design off the LX45),
-//! the packetiser's record assembly by variable shifts of a wide vector,
-//! and the true input paths (a trigger reaches every block's restart in
+//! tracker unrolled (the same logic that keeps the design off the LX45;
+//! ≈ 45 % of the model's time on the demo's design, by `perf`), the
+//! spatial filter's P = 16 lanes (≈ 15 %), and the true input paths (a trigger reaches every block's restart in
 //! the same clock) that keep them in the input-combinational region.
 //!
 //! **Profile-guided builds** (2026-11-23). The fast build of every design
