@@ -417,23 +417,7 @@ impl Cosim {
         let clocks_per_plane = (2 * w * h / crate::designs::P).max(1);
         let planes = (TRAINING_CLOCKS / clocks_per_plane).max(48);
         let n = ((planes / 8) as u32).clamp(8, self.spec.config.n_max());
-        let planes = crate::scene::generate(
-            &crate::scene::SceneSpec {
-                width: w,
-                height: h,
-                planes,
-                background: 0.001,
-                emitters: (w * h / 150).max(4),
-                peak: 0.4,
-                mean_on: 12.0,
-                mean_off: 60.0,
-                edge_fraction: 0.2,
-                dip: 0.05,
-                hot: Vec::new(),
-                hot_rate: 0.0,
-            },
-            1,
-        );
+        let planes = crate::scene::generate(&crate::scene::SceneSpec::sparse(w, h, planes), 1);
         let mut case = Case {
             input_stall: 10,
             read_stall: 20,

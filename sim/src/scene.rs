@@ -37,6 +37,29 @@ pub struct SceneSpec {
     pub hot_rate: f64,
 }
 
+impl SceneSpec {
+    /// `smartagg cosim`'s scene (and the profile-guided builds' training):
+    /// sparse blinks over a faint background on a `width`×`height` field,
+    /// one emitter per 150 pixels, a fifth of them on the edges, one-plane
+    /// dips; no hot pixels.
+    pub fn sparse(width: usize, height: usize, planes: usize) -> SceneSpec {
+        SceneSpec {
+            width,
+            height,
+            planes,
+            background: 0.001,
+            emitters: (width * height / 150).max(4),
+            peak: 0.4,
+            mean_on: 12.0,
+            mean_off: 60.0,
+            edge_fraction: 0.2,
+            dip: 0.05,
+            hot: Vec::new(),
+            hot_rate: 0.0,
+        }
+    }
+}
+
 /// The bit-planes of a scene.
 pub fn generate(spec: &SceneSpec, seed: u64) -> Vec<BitPlane> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -524,14 +524,7 @@ impl Build {
                 Err(e) => return Err(io(&dir)(e)),
             }
         }
-        // SAFETY: the library is the one just built from our shim; loading
-        // runs only Verilator's static initialisers.
-        let lib = unsafe { libloading::Library::new(&lib_path) }.map_err(|source| {
-            VerilatorError::Load {
-                path: lib_path.clone(),
-                source,
-            }
-        })?;
+        let lib = load_library(&lib_path)?;
         Ok(Build {
             lib,
             ports,
@@ -566,13 +559,7 @@ impl Build {
             Some("-fprofile-generate -Wl,-u,__gcov_dump"),
         )?;
         let lib_path = tmp.join("libcosim.so");
-        // SAFETY: the library just built from our shim.
-        let lib = unsafe { libloading::Library::new(&lib_path) }.map_err(|source| {
-            VerilatorError::Load {
-                path: lib_path.clone(),
-                source,
-            }
-        })?;
+        let lib = load_library(&lib_path)?;
         // SAFETY: a function of our shim without arguments.
         let dump: FnVoid = *unsafe { lib.get::<FnVoid>(b"sa_profile_dump") }.map_err(|source| {
             VerilatorError::Load {
@@ -625,6 +612,16 @@ impl Build {
             .position(|p| p.name == name)
             .ok_or_else(|| VerilatorError::NoPort(name.into()))
     }
+}
+
+/// Loads a library built from our shim.
+fn load_library(path: &Path) -> Result<libloading::Library, VerilatorError> {
+    // SAFETY: the library is one just built from our shim (or its cached
+    // copy); loading runs only Verilator's static initialisers.
+    unsafe { libloading::Library::new(path) }.map_err(|source| VerilatorError::Load {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// g++ options of the model's fast-path code. -O1: half the compile time

@@ -97,18 +97,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let hot = vec![(w / 3, h / 2)];
     let planes = generate(
         &SceneSpec {
-            width: w,
-            height: h,
-            planes: args.planes,
-            background: 0.001,
-            emitters: (w * h / 150).max(4),
-            peak: 0.4,
-            mean_on: 12.0,
-            mean_off: 60.0,
-            edge_fraction: 0.2,
-            dip: 0.05,
             hot: hot.clone(),
             hot_rate: 0.3,
+            ..SceneSpec::sparse(w, h, args.planes)
         },
         args.seed,
     );
