@@ -163,6 +163,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     pub in_flush: Signal<In, Bit>,
     /// Pop the head word.
     pub in_pop: Signal<Out, Bit>,
+    /// Planes the ROI aggregator has swept completely (its `planes_done`).
+    /// The end of plane t writes the ROI view of plane t + 1 over that of
+    /// plane t − 1, so it waits until this reaches t: however far the
+    /// sweep falls behind, it never reads a view that is not its plane's
+    /// (the tracker's input FIFO then fills, and a source that can wait
+    /// holds back; one that cannot overflows it, which is a FAULT).
+    pub swept: Signal<In, Bits<48>>,
     /// Plane t being tracked.
     pub plane: Signal<Out, Bits<48>>,
     /// Rows of plane t fully processed (H once the plane's rows are done).
@@ -312,6 +319,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     lmax_m1: Signal<Local, Bits<AGE_BITS>>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
+    view_free: Signal<Local, Bit>,
+    last_drain_word: Signal<Local, Bit>,
     go: Signal<Local, Bit>,
     do_open: Signal<Local, Bit>,
     do_drop: Signal<Local, Bit>,
@@ -412,6 +421,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             in_y: Default::default(),
             in_flush: Default::default(),
             in_pop: Default::default(),
+            swept: Default::default(),
             plane: Default::default(),
             rows_done: Default::default(),
             done: Default::default(),
@@ -528,6 +538,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             lmax_m1: Default::default(),
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
+            view_free: Default::default(),
+            last_drain_word: Default::default(),
             go: Default::default(),
             do_open: Default::default(),
             do_drop: Default::default(),
@@ -692,6 +704,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.in_yc.next = bit_cast::<10, 16>(self.in_y.val());
         self.cx.next = (self.in_xc.val() << self.log2p.val()) | self.lane.val();
         self.eor.next = self.in_x.val() == self.last_word.val();
+        // The ROI view of plane t − 1 may be overwritten (see `swept`).
+        self.view_free.next = self.swept.val() >= self.t.q.val();
+        self.last_drain_word.next = self.in_flush.val()
+            & (self.in_x.val() == self.last_word.val())
+            & (bit_cast::<10, 16>(self.in_y.val()) == self.last_row.val());
         self.go.next = (self.state.q.val() == TrackerState::Run)
             & !self.fin_cond.val()
             & self.in_valid.val()
@@ -956,61 +973,65 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::EopC => {
-                if self.drops.q.val() != 0 {
-                    self.rec_kind.next = 2.into();
-                    self.rec_ax.next = bit_cast::<16, 10>(self.drop_x.q.val());
-                    self.rec_ay.next = bit_cast::<16, 10>(self.drop_y.q.val());
-                    self.rec_t0.next = self.t.q.val();
-                    self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
-                    if self.rec_room.val() {
-                        self.rec_push.next = true;
-                        self.lost.d.next = 0.into();
-                    } else {
-                        self.lost.d.next = self.lost.q.val() + 1;
-                    }
-                }
-                self.drops.d.next = 0.into();
-                for i in 0..self._m {
-                    self.aprev[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
-                    self.fprev[i].d.next = !self.busy[i].q.val();
-                    self.opened[i].d.next = false;
-                    self.hit[i].d.next = false;
-                    if self.busy[i].q.val() {
-                        self.age[i].d.next = self.agen[i].val();
-                        self.dage[i].d.next = self.dage[i].q.val() + 1;
-                    }
-                }
-                for mm in self._m..(self._m + 1) {
-                    for i in 0..self._m {
-                        if self.par1.val() {
-                            self.s_live[i + mm].d.next =
-                                self.busy[i].q.val() & self.live[i].q.val();
-                            self.s_pre[i + mm].d.next = self.busy[i].q.val()
-                                & !self.cont[i].q.val()
-                                & self.t1_ge_n.val()
-                                & (self.agen[i].val() < self.n32.val());
-                            self.s_fresh[i + mm].d.next =
-                                self.busy[i].q.val() & (self.agen[i].val() == 0);
-                            self.s_ax[i + mm].d.next = self.ax[i].q.val();
-                            self.s_ay[i + mm].d.next = self.ay[i].q.val();
-                            self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                // Waits until the sweep has finished plane t − 1, whose
+                // ROI view the snapshot for t + 1 overwrites.
+                if self.view_free.val() {
+                    if self.drops.q.val() != 0 {
+                        self.rec_kind.next = 2.into();
+                        self.rec_ax.next = bit_cast::<16, 10>(self.drop_x.q.val());
+                        self.rec_ay.next = bit_cast::<16, 10>(self.drop_y.q.val());
+                        self.rec_t0.next = self.t.q.val();
+                        self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
+                        if self.rec_room.val() {
+                            self.rec_push.next = true;
+                            self.lost.d.next = 0.into();
                         } else {
-                            self.s_live[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
-                            self.s_pre[i].d.next = self.busy[i].q.val()
-                                & !self.cont[i].q.val()
-                                & self.t1_ge_n.val()
-                                & (self.agen[i].val() < self.n32.val());
-                            self.s_fresh[i].d.next =
-                                self.busy[i].q.val() & (self.agen[i].val() == 0);
-                            self.s_ax[i].d.next = self.ax[i].q.val();
-                            self.s_ay[i].d.next = self.ay[i].q.val();
-                            self.s_bank[i].d.next = self.bank[i].q.val();
+                            self.lost.d.next = self.lost.q.val() + 1;
                         }
                     }
+                    self.drops.d.next = 0.into();
+                    for i in 0..self._m {
+                        self.aprev[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
+                        self.fprev[i].d.next = !self.busy[i].q.val();
+                        self.opened[i].d.next = false;
+                        self.hit[i].d.next = false;
+                        if self.busy[i].q.val() {
+                            self.age[i].d.next = self.agen[i].val();
+                            self.dage[i].d.next = self.dage[i].q.val() + 1;
+                        }
+                    }
+                    for mm in self._m..(self._m + 1) {
+                        for i in 0..self._m {
+                            if self.par1.val() {
+                                self.s_live[i + mm].d.next =
+                                    self.busy[i].q.val() & self.live[i].q.val();
+                                self.s_pre[i + mm].d.next = self.busy[i].q.val()
+                                    & !self.cont[i].q.val()
+                                    & self.t1_ge_n.val()
+                                    & (self.agen[i].val() < self.n32.val());
+                                self.s_fresh[i + mm].d.next =
+                                    self.busy[i].q.val() & (self.agen[i].val() == 0);
+                                self.s_ax[i + mm].d.next = self.ax[i].q.val();
+                                self.s_ay[i + mm].d.next = self.ay[i].q.val();
+                                self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                            } else {
+                                self.s_live[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
+                                self.s_pre[i].d.next = self.busy[i].q.val()
+                                    & !self.cont[i].q.val()
+                                    & self.t1_ge_n.val()
+                                    & (self.agen[i].val() < self.n32.val());
+                                self.s_fresh[i].d.next =
+                                    self.busy[i].q.val() & (self.agen[i].val() == 0);
+                                self.s_ax[i].d.next = self.ax[i].q.val();
+                                self.s_ay[i].d.next = self.ay[i].q.val();
+                                self.s_bank[i].d.next = self.bank[i].q.val();
+                            }
+                        }
+                    }
+                    self.t.d.next = self.t_p1.val();
+                    self.rows.d.next = 0.into();
+                    self.state.d.next = TrackerState::Run;
                 }
-                self.t.d.next = self.t_p1.val();
-                self.rows.d.next = 0.into();
-                self.state.d.next = TrackerState::Run;
             }
             TrackerState::Finish => {
                 if self.t.q.val() == 0 {
@@ -1045,7 +1066,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::Drain => {
-                if self.in_valid.val() {
+                // A drain plane's last word, too, waits for the sweep (its
+                // end writes the next plane's ROI view).
+                if self.in_valid.val() & (self.view_free.val() | !self.last_drain_word.val()) {
                     self.in_pop.next = true;
                     if self.in_flush.val() & self.eor.val() {
                         self.rows.d.next = self.in_y.val() + 1;

@@ -27,6 +27,10 @@
 //! one clock per word with an above-threshold pixel, one per extra candidate
 //! in a word, M + 3 per plane and one per ROI row per slot; the sensor's
 //! 47.6 % duty cycle at P = 16 (see the crate docs) leaves that headroom.
+//! A source that can wait (the replay) is paced by `ready` instead: the
+//! stream accepts words and the back half has room (the tracker's FIFO and
+//! the ROI ring each keep a margin for the words already on their way), so
+//! it may send a word on every clock and a dense scene only slows it down.
 //! Every place where a burst could exceed a buffer has a sticky flag
 //! (`fault`): never a silent loss.
 
@@ -158,6 +162,12 @@ pub struct BackHalf<
     pub overflowed: Signal<Out, Bit>,
     /// An internal buffer overflowed (sticky; the stream is then not exact).
     pub fault: Signal<Out, Bit>,
+    /// The tracker's input FIFO and the ROI ring have room for the words
+    /// already on their way ([`ROOM_MARGIN_WORDS`]): a source that can wait
+    /// (the replay) sends only while this is high and then never overflows
+    /// them, whatever the scene's density; the sensor cannot wait and relies
+    /// on its duty cycle instead.
+    pub room: Signal<Out, Bit>,
     pack_above: PackLanes<P>,
     pack_cand: PackLanes<P>,
     tfifo: Fifo<TW, TAW>,
@@ -176,8 +186,26 @@ pub struct BackHalf<
     off_y: Constant<Bits<16>>,
     off_f: Constant<Bits<16>>,
     odepth: Constant<Bits<16>>,
+    tfifo_room: Constant<Bits<16>>,
+    ring_room: Constant<Bits<16>>,
     _m: usize,
     _r: usize,
+}
+
+/// Words a source may still send after `room` falls (the stages between
+/// the source and the tracker's FIFO or the ROI ring hold fewer), so that
+/// `room` keeps that margin.
+pub const ROOM_MARGIN_WORDS: usize = 32;
+
+/// Rows of the ROI ring that `room` allows to fill: all but the margin
+/// that [`ROOM_MARGIN_WORDS`] can bring, and never fewer than the fixed
+/// lag (c + h + 5 rows), which the sweep waits out while the source holds
+/// its words (fewer would stop the stream for good).
+pub fn ring_room_rows(cfg: &BackHalfConfig) -> usize {
+    let margin = ROOM_MARGIN_WORDS.div_ceil(cfg.front.words_per_row()) + 1;
+    cfg.row_buffer_rows()
+        .saturating_sub(margin)
+        .max(cfg.row_lag())
 }
 
 impl<
@@ -231,6 +259,7 @@ impl<
             done: Default::default(),
             overflowed: Default::default(),
             fault: Default::default(),
+            room: Default::default(),
             pack_above: Default::default(),
             pack_cand: Default::default(),
             tfifo: Fifo::new(RamStyle::Block),
@@ -249,6 +278,9 @@ impl<
             off_y: c16(2 * P as u64 + 16),
             off_f: c16(2 * P as u64 + 32),
             odepth: c16(1u64 << OAW),
+            // A FIFO of fewer than 64 words keeps half of it as the margin.
+            tfifo_room: c16(((1usize << TAW) - ROOM_MARGIN_WORDS.min((1usize << TAW) / 2)) as u64),
+            ring_room: c16(ring_room_rows(cfg) as u64),
             _m: cfg.slots,
             _r: cfg.roi_size,
         })
@@ -297,6 +329,8 @@ impl<
             | (bit_cast::<TW, 16>(self.fh_y.val()) << self.off_y.val())
             | (bit_cast::<TW, 1>(self.fh_flush.val().into()) << self.off_f.val());
         self.tfifo.pop.next = self.tracker.in_pop.val();
+        self.room.next = (self.tfifo.count.val() < self.tfifo_room.val())
+            & (self.agg.backlog.val() < self.ring_room.val());
 
         // Tracker.
         self.tracker.n_window.next = self.n_window.val();
@@ -328,6 +362,7 @@ impl<
             .get_bits::<1>(self.off_f.val().index())
             .any();
         self.tracker.rec_room.next = self.queue.room.val();
+        self.tracker.swept.next = self.agg.planes_done.val();
         self.tracker.fb_valid.next = self.pool.valid.val();
         self.tracker.fb_bank.next = self.pool.bank.val();
         self.pool.pop.next = self.tracker.fb_pop.val();
@@ -862,6 +897,10 @@ pub struct Pipeline<
     pub running: Signal<Out, Bit>,
     /// Source words are taken now.
     pub accepting: Signal<Out, Bit>,
+    /// Source words are taken now and the back half has room for them
+    /// ([`BackHalf`]'s `room`): a source that can wait, such as the replay,
+    /// sends only while this is high and may then send a word every clock.
+    pub ready: Signal<Out, Bit>,
     /// The stream has ended.
     pub ended: Signal<Out, Bit>,
     /// START refused: register out of range.
@@ -930,6 +969,7 @@ impl<
             out_count: Default::default(),
             running: Default::default(),
             accepting: Default::default(),
+            ready: Default::default(),
             ended: Default::default(),
             config_error: Default::default(),
             framing_error: Default::default(),
@@ -1046,6 +1086,7 @@ impl<
         self.out_count.next = self.back.out_count.val();
         self.running.next = self.control.running.val();
         self.accepting.next = self.control.accepting.val();
+        self.ready.next = self.control.accepting.val() & self.back.room.val();
         self.ended.next = self.control.ended.val();
         self.config_error.next = self.control.config_error.val();
         self.framing_error.next = self.control.framing_error.val();
@@ -1124,6 +1165,10 @@ pub struct PipelineDdr<
     pub running: Signal<Out, Bit>,
     /// Source words are taken now.
     pub accepting: Signal<Out, Bit>,
+    /// Source words are taken now and the back half has room for them
+    /// ([`BackHalf`]'s `room`): a source that can wait, such as the replay,
+    /// sends only while this is high and may then send a word every clock.
+    pub ready: Signal<Out, Bit>,
     /// The stream has ended.
     pub ended: Signal<Out, Bit>,
     /// START refused: register out of range.
@@ -1220,6 +1265,7 @@ impl<
             out_count: Default::default(),
             running: Default::default(),
             accepting: Default::default(),
+            ready: Default::default(),
             ended: Default::default(),
             config_error: Default::default(),
             framing_error: Default::default(),
@@ -1364,6 +1410,7 @@ impl<
         self.out_count.next = self.back.out_count.val();
         self.running.next = self.control.running.val();
         self.accepting.next = self.control.accepting.val();
+        self.ready.next = self.control.accepting.val() & self.back.room.val();
         self.ended.next = self.control.ended.val();
         self.config_error.next = self.control.config_error.val();
         self.framing_error.next = self.control.framing_error.val();

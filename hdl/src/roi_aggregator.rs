@@ -96,6 +96,10 @@ pub struct RoiAggregator<
     pub planes_done: Signal<Out, Bits<48>>,
     /// The ring was overrun (sticky; sums are then wrong).
     pub overrun: Signal<Out, Bit>,
+    /// Raw rows written and not yet swept: how far the ring is filled. A
+    /// source that can wait (the replay) holds its words while this is near
+    /// [`BackHalfConfig::row_buffer_rows`] ([`crate::pipeline::BackHalf`]'s `room`).
+    pub backlog: Signal<Out, Bits<16>>,
     /// Counter read request (packetiser).
     pub rd_req: Signal<In, Bit>,
     /// Counter row address: bank·R + ROI row.
@@ -240,6 +244,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             sh_bank: lanes(2 * m),
             planes_done: Default::default(),
             overrun: Default::default(),
+            backlog: Default::default(),
             rd_req: Default::default(),
             rd_addr: Default::default(),
             rd_grant: Default::default(),
@@ -656,6 +661,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         }
         self.planes_done.next = self.ta.q.val();
         self.overrun.next = self.ovf.q.val();
+        self.backlog.next = self.pending.val();
     }
 }
 

@@ -28,7 +28,9 @@
 //! **Replay** (`SOURCE_REPLAY`): the host sends whole planes in whole
 //! blocks (a 320×240 plane is 600 blocks of 16 bytes); they go in at one
 //! word every other clock, the sensor's duty cycle at P = 16 (a 320×240
-//! plane in 96 µs: faster than real time); STOP takes effect
+//! plane in 96 µs: faster than real time), and wait while the back half
+//! has no room (the pipeline's `ready`), so that no replayed scene, however
+//! dense, overflows it; STOP takes effect
 //! once every replayed word has gone in and the plane in progress is
 //! complete.
 //!
@@ -717,9 +719,11 @@ impl<
         self.pipe.in_live.next = 0.into();
         if self.src_replay.q.val() {
             // One word every other clock: the duty cycle the sensor has at
-            // P = 16 (47.6 %), for which the back half is sized.
+            // P = 16 (47.6 %), for which the back half and the DDR2 port are
+            // sized; and only while the back half has room, so that a dense
+            // replayed scene waits instead of overflowing it.
             self.rphase.d.next = !self.rphase.q.val();
-            if self.replay.out_valid.val() & self.pipe.accepting.val() & self.rphase.q.val() {
+            if self.replay.out_valid.val() & self.pipe.ready.val() & self.rphase.q.val() {
                 self.pipe.in_valid.next = true;
                 self.pipe.in_sop.next = self.rwidx.q.val() == 0;
                 self.pipe.in_live.next = self.rshift.val().get_bits::<P>(0);

@@ -248,7 +248,9 @@ struct Params {
     bank_rate: f64,
 }
 
-fn run(pr: &Params) -> (usize, usize) {
+/// Runs a stream; returns the ROI views checked, the model's records and
+/// the clocks the tracker waited for the sweep.
+fn run(pr: &Params) -> (usize, usize, usize) {
     let mut rng = common::rng(pr.seed);
     let hs = scene(&mut rng, pr.planes, pr.molecules, 0.3);
     let exp = model(&hs, pr.slots, pr.n, pr.l_min, pr.l_max, pr.r_assoc);
@@ -284,6 +286,10 @@ fn run(pr: &Params) -> (usize, usize) {
     let mut got: Vec<(Rec, u32, u64)> = Vec::new();
     let mut views_checked = 0usize;
     let mut cycles = 0usize;
+    // Planes the aggregator has swept: it finishes a plane some random
+    // clocks after the tracker has left it, so the tracker must often wait.
+    let mut sweep = 0usize;
+    let mut waited = 0usize;
     loop {
         cycles += 1;
         assert!(cycles < 200_000, "tracker did not finish");
@@ -328,11 +334,21 @@ fn run(pr: &Params) -> (usize, usize) {
         u.rec_room.next = rng.gen_bool(pr.room_rate);
         u.fb_valid.next = rng.gen_bool(pr.bank_rate);
         u.fb_bank.next = (next_bank % 8).to_bits();
+        u.swept.next = (sweep as u64).to_bits();
         settle(u);
 
         // The ROI view, where the aggregator may read it.
         let plane = u.plane.val().to_u64() as usize;
         let rows = u.rows_done.val().to_u64() as usize;
+        // The sweep reads the view of its plane: the tracker is never more
+        // than one plane ahead of it.
+        assert!(
+            plane <= sweep + 1,
+            "the tracker is at plane {plane} while the sweep is on plane {sweep}, whose ROI view it has overwritten"
+        );
+        if plane == sweep + 1 && rows == H {
+            waited += 1;
+        }
         let view = |u: &Dut, par: usize, i: usize| View {
             live: u.sh_live[par * m + i].val(),
             pre: u.sh_pre[par * m + i].val(),
@@ -395,6 +411,9 @@ fn run(pr: &Params) -> (usize, usize) {
         if u.fb_pop.val() {
             next_bank += 1;
         }
+        if sweep < plane && rng.gen_bool(0.05) {
+            sweep += 1;
+        }
         if u.in_pop.val() {
             assert!(!fifo.is_empty());
             fifo.pop_front();
@@ -433,12 +452,12 @@ fn run(pr: &Params) -> (usize, usize) {
     if pr.room_rate >= 1.0 {
         assert_eq!(lost_total, 0);
     }
-    (views_checked, exp.records.len())
+    (views_checked, exp.records.len(), waited)
 }
 
 #[test]
 fn tracker_equals_model_with_cuts_dips_and_exhaustion() {
-    let (views, recs) = run(&Params {
+    let (views, recs, waited) = run(&Params {
         seed: 11,
         planes: 40,
         molecules: 6,
@@ -452,6 +471,8 @@ fn tracker_equals_model_with_cuts_dips_and_exhaustion() {
         bank_rate: 1.0,
     });
     assert!(views > 100 && recs > 10, "views {views}, records {recs}");
+    // The sweep fell behind, and the end of a plane waited for it.
+    assert!(waited > 0, "the tracker never had to wait for the sweep");
 }
 
 #[test]
@@ -475,7 +496,7 @@ fn tracker_counts_records_lost_when_the_queue_is_full() {
 /// waits for the returning bank: nothing is lost, no bank FAULT.
 #[test]
 fn tracker_waits_for_a_returning_bank() {
-    let (_, recs) = run(&Params {
+    let (_, recs, _) = run(&Params {
         seed: 13,
         planes: 40,
         molecules: 6,

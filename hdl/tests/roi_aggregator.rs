@@ -242,6 +242,7 @@ fn run_stream(
         t.rec_room.next = queue.len() < 4;
         t.fb_valid.next = pool.uut.valid.val();
         t.fb_bank.next = pool.uut.bank.val();
+        t.swept.next = ag.uut.planes_done.val();
         settle(t);
         // Wire the tracker to the aggregator and the pool.
         let a = &mut ag.uut;

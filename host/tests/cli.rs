@@ -251,6 +251,17 @@ fn calibration_masks_hot_pixels_in_aggregate() {
 }
 
 #[test]
+fn demo_on_a_field_without_gateware_says_how_to_run_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = p(dir.path(), "demo");
+    let e = err(&["demo", "--out", &out, "--field", "64", "--quiet"]);
+    assert!(
+        e.contains("48x48") && e.contains("--gateware-planes 0"),
+        "{e}"
+    );
+}
+
+#[test]
 fn demo_writes_every_output_and_engines_agree() {
     let dir = tempfile::tempdir().unwrap();
     let out = p(dir.path(), "demo");
@@ -262,12 +273,11 @@ fn demo_writes_every_output_and_engines_agree() {
         "4",
         "--mean-off-s",
         "0.4",
-        "--gateware-planes",
-        "1500",
         "--quiet",
     ]);
+    // By default the whole recording goes through the gateware.
     assert!(
-        report.contains("| gateware (Verilated XEM6310 core) vs golden model | byte-identical on the first 1500 bit-planes"),
+        report.contains("| gateware (Verilated pipeline core) vs golden model | byte-identical on all 40000 bit-planes"),
         "{report}"
     );
     for f in [

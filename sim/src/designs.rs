@@ -140,8 +140,26 @@ pub struct DesignSpec {
 pub const REDUCED: (usize, usize) = (64, 32);
 /// The SPCImager's full field.
 pub const FULL: (usize, usize) = (320, 240);
-/// The field of `smartagg demo` (SPCImager 150×).
-pub const DEMO: (usize, usize) = (64, 64);
+/// The field of `smartagg demo` (SPCImager 150×, 2.6 µm square). Its
+/// design is sized for it (DESIGN.md §7): 112 planes of 48×48 bits fit
+/// block RAM, so the delay line is on chip ([`DEMO_N_MAX`]) and the
+/// pipeline core is simulated, paced by its `ready` (a word every clock
+/// while the back half has room); and the field's blinks need
+/// [`DEMO_SLOTS`] slots.
+pub const DEMO: (usize, usize) = (48, 48);
+
+/// N_max of the demo's design: the SPCImager 150× window (108 planes)
+/// rounded up to a multiple of 8, as `smartagg_hdl::configs` sizes a
+/// block-RAM delay line (0.26 Mbit: an eighth of the XC6SLX45's block RAM).
+pub const DEMO_N_MAX: u32 = 112;
+
+/// Tracking slots M of the demo's design. The demo's 400,000 planes never
+/// need more than 15 at once (measured on its scene at 64×64, 1.8 times
+/// the area: 2 candidates dropped with 12 slots, none with 16, and the
+/// same localisations as with the 32 of the full-field design); half the
+/// slots halve the tracker, the largest part of the simulation's time per
+/// clock.
+pub const DEMO_SLOTS: usize = 16;
 
 /// Pixels per clock of every configuration (see `smartagg_hdl`'s crate docs).
 pub const P: usize = 16;
@@ -159,8 +177,8 @@ pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 7, 17, 9, 7, 6, 23
 /// Projected SPCImager 150× pipeline (block-RAM delay line) on 64×32.
 pub type Projected150Reduced =
     Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
-/// SPCImager 150× core on the demo's 64×64 field.
-pub type Spcimager150Demo = XemCore<16, 9, 8, 8, 16, 24, 2, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+/// SPCImager 150× pipeline (block-RAM delay line, M = 16) on the demo's 48×48 field.
+pub type Spcimager150Demo = Pipeline<16, 14, 7, 8, 15, 23, 2, 7, 17, 9, 6, 5, 232, 488, 65, 9, 12>;
 /// SPCImager 150× core on the full 320×240 field.
 pub type Spcimager150Full = XemCore<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
 
@@ -208,7 +226,7 @@ impl DesignSpec {
             width: self.width,
             height: self.height,
             pixels_per_clock: P,
-            n_max: self.config.n_max(),
+            n_max: self.n_max(),
             kernel,
             kernel_shift,
         };
@@ -229,7 +247,7 @@ impl DesignSpec {
             front.kernel_shift,
             1,
         );
-        cfg.slots = 32;
+        cfg.slots = self.slots();
         cfg.roi_size = front.kernel.len();
         cfg.r_assoc = self.r_assoc;
         Ok(BackHalfConfig::new(&cfg, front, 65_535)?)
@@ -240,7 +258,36 @@ impl DesignSpec {
     pub fn ddr_address_bits(&self) -> usize {
         let plane_words = (self.width * self.height / 32) as u64;
         let slot_bits = smartagg_hdl::config::bits_for(plane_words * 4 - 1);
-        slot_bits - 2 + smartagg_hdl::config::bits_for(self.config.n_max() as u64 - 1)
+        slot_bits - 2 + smartagg_hdl::config::bits_for(self.n_max() as u64 - 1)
+    }
+
+    /// Whether the delay line is in DDR2 and the XEM6310 core is simulated
+    /// (the configuration's, except on the [`DEMO`] field, whose design keeps
+    /// it in block RAM).
+    pub fn ddr(&self) -> bool {
+        self.config.ddr() && !self.is_demo()
+    }
+
+    /// Largest N the design supports.
+    pub fn n_max(&self) -> u32 {
+        if self.is_demo() {
+            DEMO_N_MAX
+        } else {
+            self.config.n_max()
+        }
+    }
+
+    /// Tracking slots M: 32, the model's default; [`DEMO_SLOTS`] on the demo's field.
+    pub fn slots(&self) -> usize {
+        if self.is_demo() {
+            DEMO_SLOTS
+        } else {
+            32
+        }
+    }
+
+    fn is_demo(&self) -> bool {
+        (self.width, self.height) == DEMO && self.config == Config::Spcimager150
     }
 
     /// The Verilog of the generated top (module `top`), as `hdl` writes it.
@@ -258,7 +305,7 @@ impl DesignSpec {
 
     /// Prefix of the pipeline's instance path inside the wrapper.
     fn pipe_path(&self) -> &'static str {
-        if self.config.ddr() {
+        if self.ddr() {
             "core.pipe."
         } else {
             "core."
@@ -317,7 +364,7 @@ impl DesignSpec {
         ] {
             probes.push((port.to_string(), 1, format!("{pp}back.{inst}")));
         }
-        if self.config.ddr() {
+        if self.ddr() {
             probes.push(("fault_underrun".into(), 1, format!("{pp}delay.underrun")));
             probes.push(("fault_write".into(), 1, format!("{pp}delay.write_error")));
         }
@@ -326,7 +373,7 @@ impl DesignSpec {
         }
         wrapper(
             top,
-            self.config.ddr().then(|| self.ddr_address_bits()),
+            self.ddr().then(|| self.ddr_address_bits()),
             &self.ddr,
             probes,
         )
@@ -534,7 +581,15 @@ mod tests {
         let spec = DesignSpec::new(Config::Spcimager150, DEMO.0, DEMO.1)
             .and_then(|s| s.with_r_assoc(3))
             .unwrap();
-        assert_eq!(spec.back().unwrap().r_assoc, 3);
+        let b = spec.back().unwrap();
+        assert_eq!(b.r_assoc, 3);
+        assert_eq!(b.slots, DEMO_SLOTS);
+        assert_eq!(b.front.n_max, DEMO_N_MAX);
+        assert!(!spec.ddr(), "the demo's delay line is in block RAM");
+        // It fits block RAM as smartagg_hdl::configs sizes it: at most half
+        // of the XC6SLX45's.
+        let bits = (DEMO.0 * DEMO.1) as u64 * DEMO_N_MAX as u64;
+        assert!(2 * bits <= smartagg_hdl::configs::XC6SLX45.block_ram_bits());
         let v = spec.top_verilog().unwrap();
         assert!(v.contains("module top"));
         assert!(DesignSpec::new(Config::Spcimager60, DEMO.0, DEMO.1).is_err());

@@ -413,10 +413,12 @@ impl Cosim {
     /// branches of the model's code are hot.
     fn training_case(&self) -> Result<Case, HarnessError> {
         let (w, h) = (self.spec.width, self.spec.height);
-        // The replay pipe-in brings a word every other clock.
-        let clocks_per_plane = (2 * w * h / crate::designs::P).max(1);
+        // The replay pipe-in brings a word every other clock; the pipeline
+        // core takes one a clock while it is ready.
+        let clocks_per_word = if self.spec.ddr() { 2 } else { 1 };
+        let clocks_per_plane = (clocks_per_word * w * h / crate::designs::P).max(1);
         let planes = (TRAINING_CLOCKS / clocks_per_plane).max(48);
-        let n = ((planes / 8) as u32).clamp(8, self.spec.config.n_max());
+        let n = ((planes / 8) as u32).clamp(8, self.spec.n_max());
         let planes = crate::scene::generate(&crate::scene::SceneSpec::sparse(w, h, planes), 1);
         let mut case = Case {
             input_stall: 10,
@@ -518,7 +520,7 @@ impl Cosim {
             None
         };
         let started = std::time::Instant::now();
-        let mut out = if self.spec.config.ddr() {
+        let mut out = if self.spec.ddr() {
             XemHost::new(model, self, case, probes, mode.vcd)?.run(case)?
         } else {
             BramHost::new(model, self, case, probes, mode.vcd)?.run(case)?
@@ -1489,10 +1491,10 @@ impl BramHost {
         self.sh.set(&mut self.m, start, 1);
         self.clock();
         self.sh.set(&mut self.m, start, 0);
-        let [running, accepting, config_error, in_valid, in_sop, in_live, stop, out_pop, out_valid, out_data, ended, fault, framing, overflowed] =
+        let [running, ready, config_error, in_valid, in_sop, in_live, stop, out_pop, out_valid, out_data, ended, fault, framing, overflowed] =
             [
                 "running",
-                "accepting",
+                "ready",
                 "config_error",
                 "in_valid",
                 "in_sop",
@@ -1507,9 +1509,9 @@ impl BramHost {
                 "overflowed",
             ]
             .map(|n| self.port(n));
-        let (running, accepting, config_error, in_valid, in_sop, in_live) = (
+        let (running, ready, config_error, in_valid, in_sop, in_live) = (
             running?,
-            accepting?,
+            ready?,
             config_error?,
             in_valid?,
             in_sop?,
@@ -1540,15 +1542,14 @@ impl BramHost {
         let total = case.planes.len() * self.wpp;
         let mut sent = 0;
         let mut bytes = Vec::new();
-        let mut phase = false;
         loop {
-            // A word every other clock (the sensor's duty cycle) with stalls.
-            phase = !phase;
+            // A word on every clock on which the pipeline is ready (the
+            // replay's pacing: the back half's room holds it back), with
+            // random stalls.
             let offer = sent < total
-                && phase
                 && !(case.input_stall > 0 && self.rng.gen_range(0..100) < case.input_stall);
             let mut took = false;
-            if offer && self.m.get(accepting) != 0 {
+            if offer && self.m.get(ready) != 0 {
                 let (t, idx) = (sent / self.wpp, sent % self.wpp);
                 self.sh.set(&mut self.m, in_valid, 1);
                 self.sh.set(&mut self.m, in_sop, (idx == 0) as u64);
@@ -1657,7 +1658,7 @@ pub struct Device {
 impl Device {
     /// Verilates (or loads) a DDR2 configuration and powers it up.
     pub fn open(spec: DesignSpec) -> Result<Device, HarnessError> {
-        if !spec.config.ddr() {
+        if !spec.ddr() {
             return Err(HarnessError::Design(DesignError::Unsupported {
                 what: format!("{} as a device", spec.config.name()),
                 why: "only the DDR2 configurations are generated with the XEM6310 core".into(),

@@ -4,7 +4,9 @@
 //! synthesises) is verilated ([`verilator`]), driven from Rust through the
 //! XEM6310 core's FrontPanel endpoint ports (replay pipe-in, mask pipe-in,
 //! packet pipe-out with host stalls, wire-ins, triggers) or its sensor port,
-//! with a behavioural DDR2 controller ([`ddr2`]) verilated beside it, and its
+//! with a behavioural DDR2 controller ([`ddr2`]) verilated beside it (or,
+//! for a design whose delay line is in block RAM, through the pipeline
+//! core's word port, paced by its `ready`), and its
 //! packet bytes compared with the golden model's ([`harness`]). On a
 //! mismatch a debug build with probes on every stage names the first stage
 //! and bit-plane that differ and writes a VCD around it.
@@ -79,6 +81,21 @@
 //! per Verilog: the cache keeps the result. `-Wl,-Bsymbolic` with
 //! `-fno-semantic-interposition` (direct calls into Verilator's runtime)
 //! was measured no faster.
+//!
+//! **Fewer clocks per plane** (2026-11-23). The sensor brings a word every
+//! other clock at P = 16, and the replay pipe-in of the XEM6310 core keeps
+//! that duty cycle (the DDR2 port is sized for it). A pipeline core with
+//! its delay line in block RAM has no such limit: the harness sends it a
+//! word on every clock on which its `ready` is high (the stream accepts
+//! words and the back half has room for them — `smartagg_hdl::pipeline`),
+//! so a sparse scene goes in at one word a clock and a dense one waits
+//! instead of overflowing. The demo's design is such a core, sized for its
+//! 48×48 field ([`designs::DEMO`]: N_max = 112 planes in block RAM, M = 16
+//! slots): 144 clocks per plane at 0.27–0.30 M cycles/s, against 512 clocks
+//! per plane at 0.16 M for the 64×64 XEM6310 core it replaces (the figures
+//! above that name a 64×64 design were measured on that core). The demo's
+//! whole 400,000-plane recording now takes ≈ 3.8 min through the gateware
+//! instead of ≈ 22 min.
 //!
 //! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
 //! --planes 500` on 64×32, and the demo's 64×64 design, same machine):

@@ -58,17 +58,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.planes == 0 {
         bail!("--planes must be at least 1");
     }
-    if args.sensor && !config.ddr() {
-        bail!("--sensor: {} is simulated without the XEM6310 core (block-RAM pipeline); its input is the pipeline's word port", config.name());
+    if args.sensor && !spec.ddr() {
+        bail!("--sensor: {} on {w}x{h} is simulated without the XEM6310 core (block-RAM pipeline); its input is the pipeline's word port", config.name());
     }
     if args.sensor_interval == 0 {
         bail!("--sensor-interval must be at least 1 clock");
     }
-    let n = args.n.unwrap_or(config.n_max().min(108));
-    if n == 0 || n > config.n_max() {
+    let n = args.n.unwrap_or(spec.n_max().min(108));
+    if n == 0 || n > spec.n_max() {
         bail!(
-            "--n {n}: must be 1..={} for {}",
-            config.n_max(),
+            "--n {n}: must be 1..={} for {} on {w}x{h}",
+            spec.n_max(),
             config.name()
         );
     }
@@ -77,7 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         config.name()
     );
     let t = std::time::Instant::now();
-    let mut c = Cosim::new(spec).context("building the co-simulation")?;
+    let mut c = Cosim::new(spec.clone()).context("building the co-simulation")?;
     let b = c.build();
     eprintln!(
         "design ready in {:.1} s ({}, {}, {})",
@@ -144,8 +144,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "sensor port, a word every {} clock(s)",
                     args.sensor_interval
                 )
+            } else if spec.ddr() {
+                "replay pipe-in, block-throttled, a word every other clock at most".to_string()
             } else {
-                "replay pipe-in, block-throttled".to_string()
+                "the pipeline core's word port, a word on every clock it is ready".to_string()
             };
             println!(
                 "  {:.0} clocks per bit-plane from START to the stream's end ({} words of P = {} pixels; {source}); {:.3} M simulated clock cycles/s ({} clocks in {:.2} s)",

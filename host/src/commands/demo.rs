@@ -1,8 +1,9 @@
 //! `smartagg demo`: the whole chain on an embedded default scene.
 //!
 //! GATTA-PAINT 80G nanorulers (three markers 80 nm apart) seen by the
-//! SPCImager at 150× on a 64×64-pixel field: simulate the bit-planes, run them
-//! through the golden model and the fast engine (they must give the same
+//! SPCImager at 150× on a 48×48-pixel field: simulate the bit-planes, run them
+//! through the gateware (the pipeline generated for this field, verilated),
+//! the golden model and the fast engine (all three must give the same
 //! bytes), stream the packets through the host decoder in USB-sized chunks as
 //! they would arrive from the board, localise every blink, and write the
 //! packet stream, a ThunderSTORM CSV, a rendered super-resolution image and a
@@ -37,8 +38,9 @@ pub struct Args {
     /// Simulated acquisition, seconds of bit-planes (10,000 planes per second).
     #[arg(long, default_value_t = 40.0)]
     pub seconds: f64,
-    /// Field side, pixels (53.3 nm each at 150x).
-    #[arg(long, default_value_t = 64)]
+    /// Field side, pixels (53.3 nm each at 150x). The gateware is generated
+    /// for the default, 48; other fields need `--gateware-planes 0`.
+    #[arg(long, default_value_t = smartagg_sim::designs::DEMO.0 as u32)]
     pub field: u32,
     /// Random seed of the scene and the photons.
     #[arg(long, default_value_t = 1)]
@@ -61,14 +63,15 @@ pub struct Args {
     /// Skip the golden model (it is the slowest stage); the fast engine alone.
     #[arg(long)]
     pub skip_golden: bool,
-    /// Bit-planes (from the first) also streamed through the gateware: the
-    /// XEM6310 core generated for this scene, verilated, through its replay
-    /// pipe-in, checked byte for byte against the golden model on the same
-    /// planes. 0 skips it. The co-simulation runs at about 10^5 clocks/s, a
-    /// few hundred bit-planes per second of this field, on its own thread
-    /// beside the model and the fast engine.
-    #[arg(long, default_value_t = 20_000)]
-    pub gateware_planes: u64,
+    /// Bit-planes (from the first) streamed through the gateware: the
+    /// pipeline generated for this field (block-RAM delay line, M = 16),
+    /// verilated, a word on every clock it is ready, checked byte for byte
+    /// against the golden model on the same planes. Default: the whole
+    /// recording; 0 skips it. It runs at about 3·10^5 clocks/s, 2,000
+    /// bit-planes per second of this field, on its own thread beside the
+    /// model and the fast engine.
+    #[arg(long)]
+    pub gateware_planes: Option<u64>,
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -128,6 +131,8 @@ struct Timing {
 struct GatewareLeg {
     /// Bit-planes co-simulated.
     planes: usize,
+    /// Bit-planes of the recording.
+    of: u64,
     /// Packets compared.
     packets: u64,
     /// Clocks from START to the stream's end, per plane.
@@ -192,12 +197,24 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
     match cosim.check(&case)? {
         Ok(cov) => Ok(GatewareLeg {
             planes: n,
+            of: 0,
             packets: cov.packets,
             clocks_per_plane: cov.clocks_per_plane(),
             mcycles_per_s: cov.mcycles_per_second(),
             build_s,
         }),
         Err(m) => anyhow::bail!("the gateware differs from the golden model: {m}"),
+    }
+}
+
+impl GatewareLeg {
+    /// "all 400000 bit-planes" or "the first 1500 of 400000 bit-planes".
+    fn which_planes(&self) -> String {
+        if self.planes as u64 == self.of {
+            format!("all {} bit-planes", self.planes)
+        } else {
+            format!("the first {} of {} bit-planes", self.planes, self.of)
+        }
     }
 }
 
@@ -222,10 +239,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let planes = (args.seconds / cam.plane_period_s).round() as u64;
     anyhow::ensure!(planes >= 1, "--seconds must cover at least one bit-plane");
+    let gateware_planes = args.gateware_planes.unwrap_or(planes).min(planes);
+    let demo_field = smartagg_sim::designs::DEMO;
+    anyhow::ensure!(
+        gateware_planes == 0 || (args.field as usize, args.field as usize) == demo_field,
+        "--field {}: the demo's gateware is generated for {}x{} pixels; add --gateware-planes 0 to run the model alone on another field",
+        args.field,
+        demo_field.0,
+        demo_field.1
+    );
     let (scene, rulers) = scene(&preset, args.field, args.mean_off_s);
     let pipeline_args = PipelineArgs {
         l_min: args.l_min,
         r_assoc: args.r_assoc,
+        // The slots of the demo's gateware, which the model must share.
+        slots: smartagg_sim::designs::DEMO_SLOTS,
         ..PipelineArgs::default()
     };
     let cfg = setup::pipeline_config(&pipeline_args, args.field, args.field, 100_000)?;
@@ -242,11 +270,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     // The gateware leg, the slowest stage, runs on its own thread beside the
     // model and the fast engine (two cores): it shares only the seed.
-    let gateware_job = (args.gateware_planes > 0).then(|| {
+    let gateware_job = (gateware_planes > 0).then(|| {
         let job = GatewareJob {
             field: args.field as usize,
             seed: args.seed,
-            planes: args.gateware_planes.min(planes),
+            planes: gateware_planes,
             cfg: cfg.clone(),
             scene: scene.clone(),
             cam: cam.clone(),
@@ -331,7 +359,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("the fast engine's packets differ from the golden model's: this is a bug, please report it");
     }
 
-    // 2b. The gateware, co-simulated on the first planes of the same recording.
+    // 2b. The gateware, co-simulated on the same recording (the first
+    //     --gateware-planes of it).
     let gateware = match gateware_job {
         Some(job) => {
             if !args.quiet {
@@ -342,10 +371,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let (leg, seconds) = job
                 .join()
                 .map_err(|_| anyhow::anyhow!("the gateware co-simulation thread panicked"))?;
-            let leg = leg?;
+            let leg = GatewareLeg { of: planes, ..leg? };
             let what = format!(
-                "first {} planes: byte-identical to the golden model ({} packets), {:.0} clocks per plane, {:.3} M cycles/s (build {:.1} s); on its own thread, beside the stages above",
-                leg.planes, leg.packets, leg.clocks_per_plane, leg.mcycles_per_s, leg.build_s
+                "{}: byte-identical to the golden model ({} packets), {:.0} clocks per plane, {:.3} M cycles/s (build {:.1} s); on its own thread, beside the stages above",
+                leg.which_planes(),
+                leg.packets,
+                leg.clocks_per_plane,
+                leg.mcycles_per_s,
+                leg.build_s
             );
             timing.add_seconds("gateware co-simulation", seconds, what);
             Some(leg)
@@ -717,11 +750,13 @@ fn report(
     );
     let _ = writeln!(
         s,
-        "| gateware (Verilated XEM6310 core) vs golden model | {} |",
+        "| gateware (Verilated pipeline core) vs golden model | {} |",
         match gateware {
             Some(g) => format!(
-                "byte-identical on the first {} bit-planes ({} packets; {:.0} clocks per plane at 16 pixels per clock)",
-                g.planes, g.packets, g.clocks_per_plane
+                "byte-identical on {} ({} packets; {:.0} clocks per plane at 16 pixels per clock)",
+                g.which_planes(),
+                g.packets,
+                g.clocks_per_plane
             ),
             None => "not run (--gateware-planes 0)".into(),
         }
