@@ -303,6 +303,13 @@ fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable:
     s
 }
 
+/// The stream with new random planes (as many) of pixel density `density`.
+fn restream(mut s: Stream, seed: u64, density: f64) -> Stream {
+    let mut rng = common::rng(seed);
+    s.planes = common::random_planes(&mut rng, W, H, s.planes.len(), density);
+    s
+}
+
 /// The `pct`th percentile of the filtered values H of a stream (at least 1).
 fn percentile_threshold(s: &Stream, pct: usize) -> u32 {
     let mut p = smartagg_model::pipeline::Pipeline::new(model_config(s)).unwrap();
@@ -482,9 +489,7 @@ proptest! {
 fn full_record_queue_loses_records_without_fault() {
     let mut losses = 0;
     for seed in 0..4u64 {
-        let mut s = stream(seed, 60, 1, 1, 0, false);
-        let mut rng = common::rng(seed ^ 99);
-        s.planes = common::random_planes(&mut rng, W, H, 60, 0.08);
+        let mut s = restream(stream(seed, 60, 1, 1, 0, false), seed ^ 99, 0.08);
         s.threshold = percentile_threshold(&s, 90);
         let records = model_run(model_config(&s), s.planes.clone()).unwrap();
         let want = encode_stream(&records).unwrap();
@@ -507,9 +512,7 @@ fn full_record_queue_loses_records_without_fault() {
 fn a_source_paced_by_ready_sends_every_clock_without_fault() {
     let mut blind_faults = 0;
     for seed in 0..3u64 {
-        let mut s = stream(seed, 30, 3, 1, 2, false);
-        let mut rng = common::rng(seed ^ 7);
-        s.planes = common::random_planes(&mut rng, W, H, 30, 0.3);
+        let mut s = restream(stream(seed, 30, 3, 1, 2, false), seed ^ 7, 0.3);
         s.threshold = 1;
         let records = model_run(model_config(&s), s.planes.clone()).unwrap();
         let want = encode_stream(&records).unwrap();
