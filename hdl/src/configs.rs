@@ -136,6 +136,12 @@ pub const DDR2_N_MAX: u32 = 128;
 /// Tracking slots M of every design (the model's default).
 pub const SLOTS: usize = 32;
 
+/// N_max of a block-RAM delay line for a window of `n_window` planes: N
+/// rounded up to a multiple of 8 (a whole byte of planes per pixel address).
+pub fn block_ram_n_max(n_window: u32) -> u32 {
+    n_window.div_ceil(8) * 8
+}
+
 /// Largest L_max register value (6.5 s of planes).
 pub const L_MAX_MAX: u32 = 65_535;
 
@@ -164,7 +170,7 @@ impl Design {
             _ => XC6SLX150,
         };
         let plane_bits = width as u64 * height as u64;
-        let n_bram = det.n_window.div_ceil(8) * 8;
+        let n_bram = block_ram_n_max(det.n_window);
         let (delay_line, n_max, top) = if 2 * n_bram as u64 * plane_bits <= device.block_ram_bits()
         {
             (DelayLineKind::BlockRam, n_bram, TopKind::PipelineCore)

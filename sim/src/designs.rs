@@ -89,8 +89,9 @@ impl Config {
         Preset::new(n, o).map_err(|e| DesignError::Model(e.to_string()))
     }
 
-    /// Largest N the design supports.
-    pub fn n_max(self) -> u32 {
+    /// Largest N of the configuration's design on its full field
+    /// ([`DesignSpec::n_max`] is the generated design's).
+    fn n_max(self) -> u32 {
         match self {
             Config::Spcimager150 | Config::Spcimager60 => 128,
             Config::Projected150 => 24,
@@ -114,9 +115,9 @@ impl Config {
         }
     }
 
-    /// Whether the delay line is in DDR2 (the XEM6310 core is simulated) or
-    /// in block RAM (the pipeline itself is simulated).
-    pub fn ddr(self) -> bool {
+    /// Whether the configuration's delay line is in DDR2 on its full field
+    /// ([`DesignSpec::ddr`] is the generated design's).
+    fn ddr(self) -> bool {
         !matches!(self, Config::Projected150)
     }
 }
@@ -148,9 +149,11 @@ pub const FULL: (usize, usize) = (320, 240);
 /// [`DEMO_SLOTS`] slots.
 pub const DEMO: (usize, usize) = (48, 48);
 
-/// N_max of the demo's design: the SPCImager 150× window (108 planes)
-/// rounded up to a multiple of 8, as `smartagg_hdl::configs` sizes a
-/// block-RAM delay line (0.26 Mbit: an eighth of the XC6SLX45's block RAM).
+/// N_max of the demo's design: the SPCImager 150× window rounded up to a
+/// multiple of 8 (`smartagg_hdl::configs::block_ram_n_max`, checked by a
+/// test), as `smartagg_hdl::configs` sizes a block-RAM delay line
+/// (0.26 Mbit: an eighth of the XC6SLX45's block RAM). A constant because
+/// the design's types are generated from it.
 pub const DEMO_N_MAX: u32 = 112;
 
 /// Tracking slots M of the demo's design. The demo's 400,000 planes never
@@ -586,8 +589,16 @@ mod tests {
         assert_eq!(b.slots, DEMO_SLOTS);
         assert_eq!(b.front.n_max, DEMO_N_MAX);
         assert!(!spec.ddr(), "the demo's delay line is in block RAM");
-        // It fits block RAM as smartagg_hdl::configs sizes it: at most half
-        // of the XC6SLX45's.
+        // N_max follows smartagg_hdl::configs's rule for the SPCImager 150×
+        // window, and fits block RAM as that rule sizes it: at most half of
+        // the XC6SLX45's.
+        let full = smartagg_hdl::configs::Design::new(PresetName::Spcimager, 150).unwrap();
+        assert_eq!(
+            DEMO_N_MAX,
+            smartagg_hdl::configs::block_ram_n_max(full.n_window),
+            "N = {}",
+            full.n_window
+        );
         let bits = (DEMO.0 * DEMO.1) as u64 * DEMO_N_MAX as u64;
         assert!(2 * bits <= smartagg_hdl::configs::XC6SLX45.block_ram_bits());
         let v = spec.top_verilog().unwrap();

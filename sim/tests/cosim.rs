@@ -227,6 +227,7 @@ fn burst(c: &mut Cosim, seed: u64) -> Coverage {
 
 fn run_configuration(config: Config, seed: u64) -> Coverage {
     let spec = DesignSpec::new(config, REDUCED.0, REDUCED.1).unwrap();
+    let (ddr, n_max) = (spec.ddr(), spec.n_max());
     let mut c = Cosim::new(spec).unwrap();
     let mut total = Coverage::default();
     let mut runner = TestRunner::new_with_rng(
@@ -244,7 +245,7 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     let cov = std::cell::RefCell::new(Coverage::default());
     let cell = std::cell::RefCell::new(&mut c);
     runner
-        .run(&params(config.n_max()), |p| {
+        .run(&params(n_max), |p| {
             let mut c = cell.borrow_mut();
             let (planes, hot) = scene(REDUCED.0, REDUCED.1, PLANES, &p);
             let case = case_of(&c, planes, hot, &p, Source::Replay);
@@ -267,7 +268,7 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     assert!(total.slot_exhaustion > 0, "slot exhaustion: {total}");
     assert!(total.output_fifo_full > 0, "output FIFO full: {total}");
     assert!(total.edge_rois > 0, "edge ROIs: {total}");
-    if config.ddr() {
+    if ddr {
         assert!(
             total.refresh_collisions > 0,
             "DDR2 refresh collisions: {total}"

@@ -147,7 +147,10 @@ struct GatewareLeg {
 struct GatewareJob {
     field: usize,
     seed: u64,
+    /// Bit-planes to co-simulate (the first of the recording).
     planes: u64,
+    /// Bit-planes of the recording.
+    recording_planes: u64,
     cfg: smartagg_model::config::PipelineConfig,
     scene: Scene,
     cam: smartagg_model::params::SpadCamera,
@@ -161,6 +164,7 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
         field,
         seed,
         planes,
+        recording_planes,
         cfg,
         scene,
         cam,
@@ -197,7 +201,7 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
     match cosim.check(&case)? {
         Ok(cov) => Ok(GatewareLeg {
             planes: n,
-            of: 0,
+            of: recording_planes,
             packets: cov.packets,
             clocks_per_plane: cov.clocks_per_plane(),
             mcycles_per_s: cov.mcycles_per_second(),
@@ -275,6 +279,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             field: args.field as usize,
             seed: args.seed,
             planes: gateware_planes,
+            recording_planes: planes,
             cfg: cfg.clone(),
             scene: scene.clone(),
             cam: cam.clone(),
@@ -371,7 +376,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let (leg, seconds) = job
                 .join()
                 .map_err(|_| anyhow::anyhow!("the gateware co-simulation thread panicked"))?;
-            let leg = GatewareLeg { of: planes, ..leg? };
+            let leg = leg?;
             let what = format!(
                 "{}: byte-identical to the golden model ({} packets), {:.0} clocks per plane, {:.3} M cycles/s (build {:.1} s); on its own thread, beside the stages above",
                 leg.which_planes(),
