@@ -21,12 +21,19 @@
 //!   at the end of t−1 and not yet taken, or the candidate is dropped;
 //! * at the end of row `min(ay + 1, H − 1)` the slot's 3×3 window has
 //!   streamed and its on/off step is applied (bridge, dip, or end of the
-//!   blink at `t_drop = t − 1`) — in the model this happens first, but no
-//!   association reads what it changes;
-//! * after the last row: cuts, unconfirmed frees and completions (EOP A),
-//!   then one clock per slot in slot order (EOP B: counters, Blink records,
-//!   continuation segments), then the Dropped record and the snapshot of
-//!   the slot states for plane t+1 (EOP C).
+//!   blink at `t_drop = t − 1`, which only marks the slot `pend`) — in the
+//!   model this happens first, but no association reads what it changes;
+//! * after the last row, the *walk*: one clock per slot in slot order,
+//!   once the sweep has finished plane t − 1 (see `swept`). The walked
+//!   slot's state comes through one multiplexer, and one comparator of
+//!   each kind serves every slot: a `pend` drop's t_drop and confirmation,
+//!   the cut at L_max, the unconfirmed free or the completion, the Blink
+//!   record and its continuation, the counters, and the slot's state and
+//!   ROI view for plane t + 1. Then the Dropped record and plane t + 1.
+//!   The model decides all slots first and then emits in slot order; each
+//!   slot's decision reads only that slot, so one slot at a time gives the
+//!   same records. The stream end's `finish` and the drain planes' ends
+//!   are walks too.
 //!
 //! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
 //! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
@@ -48,7 +55,9 @@
 //! bank — in a table indexed by the parity of t. A slot's entry for plane t
 //! is final once row `min(ay + 1, H − 1)` is done (or when it opens), before
 //! the aggregator (which follows `plane`/`rows_done`) reads any ROI row of
-//! it; entries of plane t stay untouched while the tracker works on t+1.
+//! it; entries of plane t stay untouched while the tracker works on t+1,
+//! until the sweep has finished plane t (the walk at the end of t + 1
+//! writes the entries of t + 2 over them).
 //!
 //! **Records** go to the record queue in the model's order, numbered later
 //! by the packetiser: StreamStart, then per plane the completed segments in
@@ -112,16 +121,18 @@ pub enum TrackerState {
     Start,
     /// Process the words of a plane.
     Run,
-    /// End of plane: cuts, unconfirmed frees, completions decided.
-    EopA,
-    /// End of plane: one slot per clock (records, counters, continuations).
-    EopB,
-    /// End of plane: Dropped record, snapshot for the next plane.
-    EopC,
-    /// Stream end: the model's `finish`.
+    /// End of plane, one slot per clock in slot order: deferred drop,
+    /// cut, unconfirmed free or completion, the Blink record and its
+    /// continuation, and the slot's state and ROI view for the next plane.
+    Walk,
+    /// End of plane: the Dropped record, then the next plane.
+    WalkEnd,
+    /// Stream end, one slot per clock: the model's `finish`.
     Finish,
     /// Follow the N drain planes.
     Drain,
+    /// End of a drain plane, one slot per clock: ages and ROI view.
+    DrainWalk,
     /// Emit the finished segments, slot order.
     Emit,
     /// Push StreamEnd.
@@ -253,16 +264,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     dip: Vec<DFF<Bit>>,
     conf: Vec<DFF<Bit>>,
     cont: Vec<DFF<Bit>>,
-    cutf: Vec<DFF<Bit>>,
     trunc: Vec<DFF<Bit>>,
+    pend: Vec<DFF<Bit>>,
     aprev: Vec<DFF<Bit>>,
     fprev: Vec<DFF<Bit>>,
     opened: Vec<DFF<Bit>>,
     hit: Vec<DFF<Bit>>,
-    comp: Vec<DFF<Bit>>,
     ev_bridge: Vec<DFF<Bit>>,
-    ev_unconf: Vec<DFF<Bit>>,
-    ev_cut: Vec<DFF<Bit>>,
     ax: Vec<DFF<Bits<COORD_BITS>>>,
     ay: Vec<DFF<Bits<COORD_BITS>>>,
     wl: Vec<DFF<Bits<COORD_BITS>>>,
@@ -320,7 +328,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
     view_free: Signal<Local, Bit>,
-    last_drain_word: Signal<Local, Bit>,
     go: Signal<Local, Bit>,
     do_open: Signal<Local, Bit>,
     do_drop: Signal<Local, Bit>,
@@ -328,10 +335,39 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     can_push: Signal<Local, Bit>,
     need_bank: Signal<Local, Bit>,
     bank_wait: Signal<Local, Bit>,
-    sel_age: Signal<Local, Bits<AGE_BITS>>,
-    sel_dage: Signal<Local, Bits<16>>,
-    sel_ax: Signal<Local, Bits<COORD_BITS>>,
-    sel_ay: Signal<Local, Bits<COORD_BITS>>,
+    // The walked slot (`w_`: its state; then what the walk makes of it).
+    w_busy: Signal<Local, Bit>,
+    w_live: Signal<Local, Bit>,
+    w_dip: Signal<Local, Bit>,
+    w_conf: Signal<Local, Bit>,
+    w_cont: Signal<Local, Bit>,
+    w_trunc: Signal<Local, Bit>,
+    w_pend: Signal<Local, Bit>,
+    w_bridge: Signal<Local, Bit>,
+    w_age: Signal<Local, Bits<AGE_BITS>>,
+    w_dage: Signal<Local, Bits<16>>,
+    w_ax: Signal<Local, Bits<COORD_BITS>>,
+    w_ay: Signal<Local, Bits<COORD_BITS>>,
+    w_bank: Signal<Local, Bits<BW>>,
+    w_conf1: Signal<Local, Bit>,
+    w_dage1: Signal<Local, Bits<16>>,
+    w_cut: Signal<Local, Bit>,
+    w_unconf: Signal<Local, Bit>,
+    w_comp: Signal<Local, Bit>,
+    w_fconf: Signal<Local, Bit>,
+    w_flags: Signal<Local, Bits<8>>,
+    n_busy: Signal<Local, Bit>,
+    n_live: Signal<Local, Bit>,
+    n_cont: Signal<Local, Bit>,
+    n_age: Signal<Local, Bits<AGE_BITS>>,
+    n_dage: Signal<Local, Bits<16>>,
+    n_bank: Signal<Local, Bits<BW>>,
+    n_pre: Signal<Local, Bit>,
+    n_fresh: Signal<Local, Bit>,
+    we_walk: Signal<Local, Bit>,
+    we_fin: Signal<Local, Bit>,
+    we_drain: Signal<Local, Bit>,
+    we_emit: Signal<Local, Bit>,
     rec_tc: Signal<Local, Bits<48>>,
     rec_td: Signal<Local, Bits<48>>,
     near: Vec<Signal<Local, Bit>>,
@@ -345,12 +381,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     row_ok: Vec<Signal<Local, Bit>>,
     hw: Vec<Signal<Local, Bit>>,
     on: Vec<Signal<Local, Bit>>,
-    agen: Vec<Signal<Local, Bits<AGE_BITS>>>,
     sel: Vec<Signal<Local, Bit>>,
-    fconf: Vec<Signal<Local, Bit>>,
-    f_cut: Vec<Signal<Local, Bits<8>>>,
-    f_cont: Vec<Signal<Local, Bits<8>>>,
-    f_trunc: Vec<Signal<Local, Bits<8>>>,
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
     bank_init: Vec<Constant<Bits<BW>>>,
@@ -473,16 +504,13 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             dip: lanes(m),
             conf: lanes(m),
             cont: lanes(m),
-            cutf: lanes(m),
             trunc: lanes(m),
+            pend: lanes(m),
             aprev: lanes(m),
             fprev: lanes(m),
             opened: lanes(m),
             hit: lanes(m),
-            comp: lanes(m),
             ev_bridge: lanes(m),
-            ev_unconf: lanes(m),
-            ev_cut: lanes(m),
             ax: lanes(m),
             ay: lanes(m),
             wl: lanes(m),
@@ -539,7 +567,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
             view_free: Default::default(),
-            last_drain_word: Default::default(),
             go: Default::default(),
             do_open: Default::default(),
             do_drop: Default::default(),
@@ -547,10 +574,38 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             can_push: Default::default(),
             need_bank: Default::default(),
             bank_wait: Default::default(),
-            sel_age: Default::default(),
-            sel_dage: Default::default(),
-            sel_ax: Default::default(),
-            sel_ay: Default::default(),
+            w_busy: Default::default(),
+            w_live: Default::default(),
+            w_dip: Default::default(),
+            w_conf: Default::default(),
+            w_cont: Default::default(),
+            w_trunc: Default::default(),
+            w_pend: Default::default(),
+            w_bridge: Default::default(),
+            w_age: Default::default(),
+            w_dage: Default::default(),
+            w_ax: Default::default(),
+            w_ay: Default::default(),
+            w_bank: Default::default(),
+            w_conf1: Default::default(),
+            w_dage1: Default::default(),
+            w_cut: Default::default(),
+            w_unconf: Default::default(),
+            w_comp: Default::default(),
+            w_fconf: Default::default(),
+            w_flags: Default::default(),
+            n_busy: Default::default(),
+            n_live: Default::default(),
+            n_cont: Default::default(),
+            n_age: Default::default(),
+            n_dage: Default::default(),
+            n_bank: Default::default(),
+            n_pre: Default::default(),
+            n_fresh: Default::default(),
+            we_walk: Default::default(),
+            we_fin: Default::default(),
+            we_drain: Default::default(),
+            we_emit: Default::default(),
             rec_tc: Default::default(),
             rec_td: Default::default(),
             near: lanes(m),
@@ -564,12 +619,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             row_ok: lanes(m),
             hw: lanes(m),
             on: lanes(m),
-            agen: lanes(m),
             sel: lanes(m),
-            fconf: lanes(m),
-            f_cut: lanes(m),
-            f_cont: lanes(m),
-            f_trunc: lanes(m),
             slot_id: (0..m)
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
@@ -606,16 +656,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.dip[i].clock.next = self.clock.val();
             self.conf[i].clock.next = self.clock.val();
             self.cont[i].clock.next = self.clock.val();
-            self.cutf[i].clock.next = self.clock.val();
             self.trunc[i].clock.next = self.clock.val();
+            self.pend[i].clock.next = self.clock.val();
             self.aprev[i].clock.next = self.clock.val();
             self.fprev[i].clock.next = self.clock.val();
             self.opened[i].clock.next = self.clock.val();
             self.hit[i].clock.next = self.clock.val();
-            self.comp[i].clock.next = self.clock.val();
             self.ev_bridge[i].clock.next = self.clock.val();
-            self.ev_unconf[i].clock.next = self.clock.val();
-            self.ev_cut[i].clock.next = self.clock.val();
             self.ax[i].clock.next = self.clock.val();
             self.ay[i].clock.next = self.clock.val();
             self.wl[i].clock.next = self.clock.val();
@@ -631,16 +678,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.dip[i].d.next = self.dip[i].q.val();
             self.conf[i].d.next = self.conf[i].q.val();
             self.cont[i].d.next = self.cont[i].q.val();
-            self.cutf[i].d.next = self.cutf[i].q.val();
             self.trunc[i].d.next = self.trunc[i].q.val();
+            self.pend[i].d.next = self.pend[i].q.val();
             self.aprev[i].d.next = self.aprev[i].q.val();
             self.fprev[i].d.next = self.fprev[i].q.val();
             self.opened[i].d.next = self.opened[i].q.val();
             self.hit[i].d.next = self.hit[i].q.val();
-            self.comp[i].d.next = self.comp[i].q.val();
             self.ev_bridge[i].d.next = self.ev_bridge[i].q.val();
-            self.ev_unconf[i].d.next = self.ev_unconf[i].q.val();
-            self.ev_cut[i].d.next = self.ev_cut[i].q.val();
             self.ax[i].d.next = self.ax[i].q.val();
             self.ay[i].d.next = self.ay[i].q.val();
             self.wl[i].d.next = self.wl[i].q.val();
@@ -706,9 +750,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.eor.next = self.in_x.val() == self.last_word.val();
         // The ROI view of plane t − 1 may be overwritten (see `swept`).
         self.view_free.next = self.swept.val() >= self.t.q.val();
-        self.last_drain_word.next = self.in_flush.val()
-            & (self.in_x.val() == self.last_word.val())
-            & (bit_cast::<10, 16>(self.in_y.val()) == self.last_row.val());
         self.go.next = (self.state.q.val() == TrackerState::Run)
             & !self.fin_cond.val()
             & self.in_valid.val()
@@ -783,57 +824,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     | ((self.in_xc.val() == self.wh[i].q.val())
                         & (self.in_above.val() & self.mh[i].q.val()).any()));
             self.on[i].next = self.hit[i].q.val() | self.hw[i].val();
-            self.agen[i].next = self.age[i].q.val() + 1;
             self.sel[i].next = self.walk.q.val() == self.slot_id[i].val();
-            // Record flag bits (model `flags`): CUT 0x04, CONTINUATION 0x08, TRUNCATED 0x10.
-            self.f_cut[i].next = 0.into();
-            if self.cutf[i].q.val() {
-                self.f_cut[i].next = 4.into();
-            }
-            self.f_cont[i].next = 0.into();
-            if self.cont[i].q.val() {
-                self.f_cont[i].next = 8.into();
-            }
-            self.f_trunc[i].next = 0.into();
-            if self.trunc[i].q.val() {
-                self.f_trunc[i].next = 16.into();
-            }
-            self.fconf[i].next = self.cont[i].q.val()
-                | (!self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin.val()))
-                | (self.dip[i].q.val() & (self.age[i].q.val() >= self.lmin_p1.val()));
         }
-        // The walked slot's anchor, t_cross and t_drop (from its ages).
-        self.sel_age.next = 0.into();
-        self.sel_dage.next = 0.into();
-        self.sel_ax.next = 0.into();
-        self.sel_ay.next = 0.into();
-        for i in 0..self._m {
-            if self.sel[i].val() {
-                self.sel_age.next = self.age[i].q.val();
-                self.sel_dage.next = self.dage[i].q.val();
-                self.sel_ax.next = self.ax[i].q.val();
-                self.sel_ay.next = self.ay[i].q.val();
-            }
-        }
-        self.rec_tc.next = self.t.q.val() - bit_cast::<48, 18>(self.sel_age.val());
-        self.rec_td.next = self.t.q.val() - bit_cast::<48, 16>(self.sel_dage.val());
-        // The walked slot pushes a Blink record (and takes a fresh bank).
-        self.need_bank.next = false;
-        for i in 0..self._m {
-            if self.sel[i].val()
-                & (((self.state.q.val() == TrackerState::EopB) & self.comp[i].q.val())
-                    | ((self.state.q.val() == TrackerState::Emit) & self.busy[i].q.val()))
-            {
-                self.need_bank.next = true;
-            }
-        }
-        // The queue has room but the free list shows no bank: the bank of the
-        // record the packetiser has just finished is on its way back (the
-        // queue counts that record until it is popped, the pool shows the
-        // bank a few clocks later), so the walk waits for it rather than
-        // lose the record. Room in the queue means at most Q − 1 queued
-        // Blinks, so one of the Q spare banks is free or returning.
-        self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
         for mm in self._m..(self._m + 1) {
             self.absorbed.next = self.abs_any[mm].val();
             self.any_free.next = self.ftaken[mm].val();
@@ -843,6 +835,132 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.do_drop.next =
             self.go.val() & self.has_cand.val() & !self.absorbed.val() & !self.any_free.val();
         self.do_fin.next = self.go.val() & !self.more.val() & self.eor.val();
+
+        // ---- The walked slot: its state through one multiplexer, and what
+        // the walk makes of it, with one comparator of each kind for all
+        // slots (the walks visit one slot per clock).
+        self.w_busy.next = false;
+        self.w_live.next = false;
+        self.w_dip.next = false;
+        self.w_conf.next = false;
+        self.w_cont.next = false;
+        self.w_trunc.next = false;
+        self.w_pend.next = false;
+        self.w_bridge.next = false;
+        self.w_age.next = 0.into();
+        self.w_dage.next = 0.into();
+        self.w_ax.next = 0.into();
+        self.w_ay.next = 0.into();
+        self.w_bank.next = 0.into();
+        for i in 0..self._m {
+            if self.sel[i].val() {
+                self.w_busy.next = self.busy[i].q.val();
+                self.w_live.next = self.live[i].q.val();
+                self.w_dip.next = self.dip[i].q.val();
+                self.w_conf.next = self.conf[i].q.val();
+                self.w_cont.next = self.cont[i].q.val();
+                self.w_trunc.next = self.trunc[i].q.val();
+                self.w_pend.next = self.pend[i].q.val();
+                self.w_bridge.next = self.ev_bridge[i].q.val();
+                self.w_age.next = self.age[i].q.val();
+                self.w_dage.next = self.dage[i].q.val();
+                self.w_ax.next = self.ax[i].q.val();
+                self.w_ay.next = self.ay[i].q.val();
+                self.w_bank.next = self.bank[i].q.val();
+            }
+        }
+        // A blink that ended in this plane (its on/off step found the second
+        // plane below: `pend`) ended at t_drop = t − 1, confirmed if it lasted
+        // L_min planes.
+        self.w_conf1.next = self.w_conf.val();
+        self.w_dage1.next = self.w_dage.val();
+        if self.w_pend.val() {
+            self.w_conf1.next = self.w_cont.val() | (self.w_age.val() >= self.lmin_p1.val());
+            self.w_dage1.next = 1.into();
+        }
+        // Cut at L_max; an ended track unconfirmed is freed, a confirmed one
+        // completes once its last plane is out of the window.
+        self.w_cut.next = self.w_busy.val()
+            & self.w_live.val()
+            & !self.w_dip.val()
+            & (self.w_age.val() >= self.lmax_m1.val());
+        self.w_unconf.next = self.w_busy.val() & !self.w_live.val() & !self.w_conf1.val();
+        self.w_comp.next = self.w_cut.val()
+            | (self.w_busy.val()
+                & !self.w_live.val()
+                & self.w_conf1.val()
+                & (self.w_cont.val() | (self.w_age.val() >= self.n_m1.val())));
+        // The model's `finish`: a live track is confirmed if it lasted L_min planes.
+        self.w_fconf.next = self.w_cont.val()
+            | (!self.w_dip.val() & (self.w_age.val() >= self.lmin.val()))
+            | (self.w_dip.val() & (self.w_age.val() >= self.lmin_p1.val()));
+        // Record flag bits (model `flags`): CUT 0x04, CONTINUATION 0x08, TRUNCATED 0x10.
+        self.w_flags.next = 0.into();
+        if self.w_cut.val() {
+            self.w_flags.next = self.w_flags.val() | 4;
+        }
+        if self.w_cont.val() {
+            self.w_flags.next = self.w_flags.val() | 8;
+        }
+        if self.w_trunc.val() {
+            self.w_flags.next = self.w_flags.val() | 16;
+        }
+        self.rec_tc.next = self.t.q.val() - bit_cast::<48, 18>(self.w_age.val());
+        self.rec_td.next = self.t.q.val() - bit_cast::<48, 16>(self.w_dage1.val());
+        if self.w_cut.val() {
+            self.rec_td.next = self.t.q.val();
+        }
+        // The slot after the walk, ages advanced to plane t + 1: a cut blink
+        // goes on as a continuation from t + 1 (age −1 now, 0 at t + 1); a
+        // completed or unconfirmed one frees the slot.
+        self.n_busy.next = self.w_busy.val() & !self.w_unconf.val();
+        if self.w_comp.val() & !self.w_cut.val() {
+            self.n_busy.next = false;
+        }
+        self.n_live.next = self.w_live.val() | self.w_cut.val();
+        self.n_cont.next = self.w_cont.val() | self.w_cut.val();
+        self.n_age.next = self.w_age.val() + 1;
+        self.n_dage.next = self.w_dage1.val() + 1;
+        if self.w_cut.val() {
+            self.n_age.next = self.age_minus_one.val() + 1;
+            self.n_dage.next = 1.into();
+        }
+        // A drain plane ends no track: the slot only ages.
+        if self.state.q.val() == TrackerState::DrainWalk {
+            self.n_busy.next = self.w_busy.val();
+        }
+        // Its ROI view for plane t + 1.
+        self.n_pre.next = self.n_busy.val()
+            & !self.n_cont.val()
+            & self.t1_ge_n.val()
+            & (self.n_age.val() < self.n32.val());
+        self.n_fresh.next = self.n_busy.val() & (self.n_age.val() == 0);
+
+        // The walk's steps: the end of a plane waits until the sweep has
+        // finished plane t − 1, whose ROI view it overwrites; a Blink waits
+        // for its fresh bank.
+        self.need_bank.next =
+            ((self.state.q.val() == TrackerState::Walk) & self.view_free.val() & self.w_comp.val())
+                | ((self.state.q.val() == TrackerState::Emit) & self.w_busy.val());
+        // The queue has room but the free list shows no bank: the bank of the
+        // record the packetiser has just finished is on its way back (the
+        // queue counts that record until it is popped, the pool shows the
+        // bank a few clocks later), so the walk waits for it rather than
+        // lose the record. Room in the queue means at most Q − 1 queued
+        // Blinks, so one of the Q spare banks is free or returning.
+        self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
+        self.we_walk.next = (self.state.q.val() == TrackerState::Walk)
+            & self.view_free.val()
+            & !self.bank_wait.val();
+        self.we_fin.next = (self.state.q.val() == TrackerState::Finish) & (self.t.q.val() != 0);
+        self.we_drain.next = (self.state.q.val() == TrackerState::DrainWalk) & self.view_free.val();
+        self.we_emit.next = (self.state.q.val() == TrackerState::Emit) & !self.bank_wait.val();
+        // The bank of its ROI view for plane t + 1: a fresh one if it has just
+        // handed its bank to a Blink record.
+        self.n_bank.next = self.w_bank.val();
+        if self.we_walk.val() & self.w_comp.val() & self.can_push.val() {
+            self.n_bank.next = self.fb_bank.val();
+        }
 
         // ---- Record port defaults.
         self.in_pop.next = false;
@@ -858,6 +976,28 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.rec_bank.next = 0.into();
         self.rec_tag.next = self.t.q.val();
         self.fb_pop.next = false;
+        // A walked slot's Blink record.
+        if (self.we_walk.val() & self.w_comp.val()) | (self.we_emit.val() & self.w_busy.val()) {
+            self.c_blinks.d.next = self.c_blinks.q.val() + 1;
+            self.rec_kind.next = 1.into();
+            self.rec_slot.next = self.walk.q.val();
+            self.rec_flags.next = self.w_flags.val();
+            self.rec_ax.next = bit_cast::<16, 10>(self.w_ax.val());
+            self.rec_ay.next = bit_cast::<16, 10>(self.w_ay.val());
+            self.rec_t0.next = self.rec_tc.val();
+            self.rec_t1.next = self.rec_td.val();
+            self.rec_bank.next = self.w_bank.val();
+            if self.state.q.val() == TrackerState::Emit {
+                self.rec_tag.next = self.t_m1.val();
+            }
+            if self.can_push.val() {
+                self.rec_push.next = true;
+                self.lost.d.next = 0.into();
+                self.fb_pop.next = true;
+            } else {
+                self.lost.d.next = self.lost.q.val() + 1;
+            }
+        }
 
         match self.state.q.val() {
             TrackerState::Start => {
@@ -869,6 +1009,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             TrackerState::Run => {
                 if self.fin_cond.val() {
+                    self.walk.d.next = 0.into();
                     self.state.d.next = TrackerState::Finish;
                 } else if self.go.val() {
                     for i in 0..self._m {
@@ -882,273 +1023,90 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         if self.eor.val() {
                             self.rows.d.next = self.in_y.val() + 1;
                             if self.in_yc.val() == self.last_row.val() {
-                                self.state.d.next = TrackerState::EopA;
+                                self.walk.d.next = 0.into();
+                                self.state.d.next = TrackerState::Walk;
                             }
                         }
                     }
                 }
             }
-            TrackerState::EopA => {
-                for i in 0..self._m {
-                    if self.busy[i].q.val()
-                        & self.live[i].q.val()
-                        & !self.dip[i].q.val()
-                        & (self.age[i].q.val() >= self.lmax_m1.val())
-                    {
-                        self.live[i].d.next = false;
-                        self.dage[i].d.next = 0.into();
-                        self.cutf[i].d.next = true;
-                        self.conf[i].d.next = true;
-                        self.ev_cut[i].d.next = true;
-                        self.comp[i].d.next = true;
-                    } else if self.busy[i].q.val() & !self.live[i].q.val() {
-                        if !self.conf[i].q.val() {
-                            self.busy[i].d.next = false;
-                            self.ev_unconf[i].d.next = true;
-                        } else if self.cont[i].q.val() | (self.age[i].q.val() >= self.n_m1.val()) {
-                            self.comp[i].d.next = true;
-                        }
+            TrackerState::Walk => {
+                if self.we_walk.val() {
+                    if self.w_bridge.val() {
+                        self.c_bridged.d.next = self.c_bridged.q.val() + 1;
                     }
-                }
-                self.walk.d.next = 0.into();
-                self.state.d.next = TrackerState::EopB;
-            }
-            TrackerState::EopB => {
-                if !self.bank_wait.val() {
-                    for i in 0..self._m {
-                        if self.sel[i].val() {
-                            if self.ev_bridge[i].q.val() {
-                                self.c_bridged.d.next = self.c_bridged.q.val() + 1;
-                            }
-                            if self.ev_unconf[i].q.val() {
-                                self.c_unconf.d.next = self.c_unconf.q.val() + 1;
-                            }
-                            if self.ev_cut[i].q.val() {
-                                self.c_cuts.d.next = self.c_cuts.q.val() + 1;
-                            }
-                            self.ev_bridge[i].d.next = false;
-                            self.ev_unconf[i].d.next = false;
-                            self.ev_cut[i].d.next = false;
-                            if self.comp[i].q.val() {
-                                self.comp[i].d.next = false;
-                                self.c_blinks.d.next = self.c_blinks.q.val() + 1;
-                                self.rec_kind.next = 1.into();
-                                self.rec_slot.next = self.slot_id[i].val();
-                                self.rec_flags.next = self.f_cut[i].val()
-                                    | self.f_cont[i].val()
-                                    | self.f_trunc[i].val();
-                                self.rec_ax.next = bit_cast::<16, 10>(self.sel_ax.val());
-                                self.rec_ay.next = bit_cast::<16, 10>(self.sel_ay.val());
-                                self.rec_t0.next = self.rec_tc.val();
-                                self.rec_t1.next = self.rec_td.val();
-                                self.rec_bank.next = self.bank[i].q.val();
-                                if self.can_push.val() {
-                                    self.rec_push.next = true;
-                                    self.lost.d.next = 0.into();
-                                    self.fb_pop.next = true;
-                                    self.bank[i].d.next = self.fb_bank.val();
-                                } else {
-                                    self.lost.d.next = self.lost.q.val() + 1;
-                                }
-                                if self.cutf[i].q.val() {
-                                    // The blink goes on: a continuation segment from t + 1
-                                    // (age t − t_cross = −1 now, 0 at t + 1).
-                                    self.cont[i].d.next = true;
-                                    self.live[i].d.next = true;
-                                    self.dip[i].d.next = false;
-                                    self.cutf[i].d.next = false;
-                                    self.trunc[i].d.next = false;
-                                    self.conf[i].d.next = true;
-                                    self.age[i].d.next = self.age_minus_one.val();
-                                } else {
-                                    self.busy[i].d.next = false;
-                                }
-                            }
-                        }
+                    if self.w_unconf.val() {
+                        self.c_unconf.d.next = self.c_unconf.q.val() + 1;
+                    }
+                    if self.w_cut.val() {
+                        self.c_cuts.d.next = self.c_cuts.q.val() + 1;
                     }
                     self.walk.d.next = self.walk.q.val() + 1;
                     if self.walk.q.val() == self.last_slot.val() {
-                        self.state.d.next = TrackerState::EopC;
+                        self.state.d.next = TrackerState::WalkEnd;
                     }
                 }
             }
-            TrackerState::EopC => {
-                // Waits until the sweep has finished plane t − 1, whose
-                // ROI view the snapshot for t + 1 overwrites.
-                if self.view_free.val() {
-                    if self.drops.q.val() != 0 {
-                        self.rec_kind.next = 2.into();
-                        self.rec_ax.next = bit_cast::<16, 10>(self.drop_x.q.val());
-                        self.rec_ay.next = bit_cast::<16, 10>(self.drop_y.q.val());
-                        self.rec_t0.next = self.t.q.val();
-                        self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
-                        if self.rec_room.val() {
-                            self.rec_push.next = true;
-                            self.lost.d.next = 0.into();
-                        } else {
-                            self.lost.d.next = self.lost.q.val() + 1;
-                        }
+            TrackerState::WalkEnd => {
+                if self.drops.q.val() != 0 {
+                    self.rec_kind.next = 2.into();
+                    self.rec_ax.next = bit_cast::<16, 10>(self.drop_x.q.val());
+                    self.rec_ay.next = bit_cast::<16, 10>(self.drop_y.q.val());
+                    self.rec_t0.next = self.t.q.val();
+                    self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
+                    if self.rec_room.val() {
+                        self.rec_push.next = true;
+                        self.lost.d.next = 0.into();
+                    } else {
+                        self.lost.d.next = self.lost.q.val() + 1;
                     }
-                    self.drops.d.next = 0.into();
-                    for i in 0..self._m {
-                        self.aprev[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
-                        self.fprev[i].d.next = !self.busy[i].q.val();
-                        self.opened[i].d.next = false;
-                        self.hit[i].d.next = false;
-                        if self.busy[i].q.val() {
-                            self.age[i].d.next = self.agen[i].val();
-                            self.dage[i].d.next = self.dage[i].q.val() + 1;
-                        }
-                    }
-                    for mm in self._m..(self._m + 1) {
-                        for i in 0..self._m {
-                            if self.par1.val() {
-                                self.s_live[i + mm].d.next =
-                                    self.busy[i].q.val() & self.live[i].q.val();
-                                self.s_pre[i + mm].d.next = self.busy[i].q.val()
-                                    & !self.cont[i].q.val()
-                                    & self.t1_ge_n.val()
-                                    & (self.agen[i].val() < self.n32.val());
-                                self.s_fresh[i + mm].d.next =
-                                    self.busy[i].q.val() & (self.agen[i].val() == 0);
-                                self.s_ax[i + mm].d.next = self.ax[i].q.val();
-                                self.s_ay[i + mm].d.next = self.ay[i].q.val();
-                                self.s_bank[i + mm].d.next = self.bank[i].q.val();
-                            } else {
-                                self.s_live[i].d.next = self.busy[i].q.val() & self.live[i].q.val();
-                                self.s_pre[i].d.next = self.busy[i].q.val()
-                                    & !self.cont[i].q.val()
-                                    & self.t1_ge_n.val()
-                                    & (self.agen[i].val() < self.n32.val());
-                                self.s_fresh[i].d.next =
-                                    self.busy[i].q.val() & (self.agen[i].val() == 0);
-                                self.s_ax[i].d.next = self.ax[i].q.val();
-                                self.s_ay[i].d.next = self.ay[i].q.val();
-                                self.s_bank[i].d.next = self.bank[i].q.val();
-                            }
-                        }
-                    }
-                    self.t.d.next = self.t_p1.val();
-                    self.rows.d.next = 0.into();
-                    self.state.d.next = TrackerState::Run;
                 }
+                self.drops.d.next = 0.into();
+                self.t.d.next = self.t_p1.val();
+                self.rows.d.next = 0.into();
+                self.state.d.next = TrackerState::Run;
             }
             TrackerState::Finish => {
                 if self.t.q.val() == 0 {
                     self.state.d.next = TrackerState::End;
                 } else {
-                    for mm in self._m..(self._m + 1) {
-                        for i in 0..self._m {
-                            if self.busy[i].q.val() & self.live[i].q.val() {
-                                self.live[i].d.next = false;
-                                self.dip[i].d.next = false;
-                                self.dage[i].d.next = 1.into();
-                                self.trunc[i].d.next = true;
-                                self.conf[i].d.next = self.fconf[i].val();
-                                if !self.fconf[i].val() {
-                                    self.busy[i].d.next = false;
-                                    self.ev_unconf[i].d.next = true;
-                                    if self.par.val() {
-                                        self.s_pre[i + mm].d.next = false;
-                                    } else {
-                                        self.s_pre[i].d.next = false;
-                                    }
-                                }
-                            }
-                            if self.par.val() {
-                                self.s_live[i + mm].d.next = false;
-                            } else {
-                                self.s_live[i].d.next = false;
-                            }
-                        }
+                    if self.w_busy.val() & self.w_live.val() & !self.w_fconf.val() {
+                        self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
-                    self.state.d.next = TrackerState::Drain;
+                    self.walk.d.next = self.walk.q.val() + 1;
+                    if self.walk.q.val() == self.last_slot.val() {
+                        self.state.d.next = TrackerState::Drain;
+                    }
                 }
             }
             TrackerState::Drain => {
-                // A drain plane's last word, too, waits for the sweep (its
-                // end writes the next plane's ROI view).
-                if self.in_valid.val() & (self.view_free.val() | !self.last_drain_word.val()) {
+                if self.in_valid.val() {
                     self.in_pop.next = true;
                     if self.in_flush.val() & self.eor.val() {
                         self.rows.d.next = self.in_y.val() + 1;
                         if self.in_yc.val() == self.last_row.val() {
-                            for mm in self._m..(self._m + 1) {
-                                for i in 0..self._m {
-                                    if self.busy[i].q.val() {
-                                        self.age[i].d.next = self.agen[i].val();
-                                        self.dage[i].d.next = self.dage[i].q.val() + 1;
-                                    }
-                                    if self.par1.val() {
-                                        self.s_live[i + mm].d.next = false;
-                                        self.s_pre[i + mm].d.next = self.busy[i].q.val()
-                                            & !self.cont[i].q.val()
-                                            & self.t1_ge_n.val()
-                                            & (self.agen[i].val() < self.n32.val());
-                                        self.s_fresh[i + mm].d.next = false;
-                                        self.s_ax[i + mm].d.next = self.ax[i].q.val();
-                                        self.s_ay[i + mm].d.next = self.ay[i].q.val();
-                                        self.s_bank[i + mm].d.next = self.bank[i].q.val();
-                                    } else {
-                                        self.s_live[i].d.next = false;
-                                        self.s_pre[i].d.next = self.busy[i].q.val()
-                                            & !self.cont[i].q.val()
-                                            & self.t1_ge_n.val()
-                                            & (self.agen[i].val() < self.n32.val());
-                                        self.s_fresh[i].d.next = false;
-                                        self.s_ax[i].d.next = self.ax[i].q.val();
-                                        self.s_ay[i].d.next = self.ay[i].q.val();
-                                        self.s_bank[i].d.next = self.bank[i].q.val();
-                                    }
-                                }
-                            }
-                            self.t.d.next = self.t_p1.val();
-                            self.rows.d.next = 0.into();
-                            if self.t_p1.val() == self.p_plus_n.val() {
-                                self.walk.d.next = 0.into();
-                                self.state.d.next = TrackerState::Emit;
-                            }
+                            self.walk.d.next = 0.into();
+                            self.state.d.next = TrackerState::DrainWalk;
+                        }
+                    }
+                }
+            }
+            TrackerState::DrainWalk => {
+                if self.we_drain.val() {
+                    self.walk.d.next = self.walk.q.val() + 1;
+                    if self.walk.q.val() == self.last_slot.val() {
+                        self.t.d.next = self.t_p1.val();
+                        self.rows.d.next = 0.into();
+                        self.state.d.next = TrackerState::Drain;
+                        if self.t_p1.val() == self.p_plus_n.val() {
+                            self.walk.d.next = 0.into();
+                            self.state.d.next = TrackerState::Emit;
                         }
                     }
                 }
             }
             TrackerState::Emit => {
-                if !self.bank_wait.val() {
-                    for i in 0..self._m {
-                        if self.sel[i].val() {
-                            if self.ev_unconf[i].q.val() {
-                                self.c_unconf.d.next = self.c_unconf.q.val() + 1;
-                            }
-                            if self.ev_bridge[i].q.val() {
-                                self.c_bridged.d.next = self.c_bridged.q.val() + 1;
-                            }
-                            self.ev_unconf[i].d.next = false;
-                            self.ev_bridge[i].d.next = false;
-                            if self.busy[i].q.val() {
-                                self.busy[i].d.next = false;
-                                self.c_blinks.d.next = self.c_blinks.q.val() + 1;
-                                self.rec_kind.next = 1.into();
-                                self.rec_slot.next = self.slot_id[i].val();
-                                self.rec_flags.next = self.f_cut[i].val()
-                                    | self.f_cont[i].val()
-                                    | self.f_trunc[i].val();
-                                self.rec_ax.next = bit_cast::<16, 10>(self.sel_ax.val());
-                                self.rec_ay.next = bit_cast::<16, 10>(self.sel_ay.val());
-                                self.rec_t0.next = self.rec_tc.val();
-                                self.rec_t1.next = self.rec_td.val();
-                                self.rec_bank.next = self.bank[i].q.val();
-                                self.rec_tag.next = self.t_m1.val();
-                                if self.can_push.val() {
-                                    self.rec_push.next = true;
-                                    self.lost.d.next = 0.into();
-                                    self.fb_pop.next = true;
-                                    self.bank[i].d.next = self.fb_bank.val();
-                                } else {
-                                    self.lost.d.next = self.lost.q.val() + 1;
-                                }
-                            }
-                        }
-                    }
+                if self.we_emit.val() {
                     self.walk.d.next = self.walk.q.val() + 1;
                     if self.walk.q.val() == self.last_slot.val() {
                         self.state.d.next = TrackerState::End;
@@ -1175,6 +1133,84 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
+        // ---- The walks write the walked slot.
+        for mm in self._m..(self._m + 1) {
+            for i in 0..self._m {
+                if self.sel[i].val() & self.we_walk.val() {
+                    self.busy[i].d.next = self.n_busy.val();
+                    self.live[i].d.next = self.n_live.val();
+                    self.cont[i].d.next = self.n_cont.val();
+                    self.conf[i].d.next = self.w_conf1.val() | self.w_cut.val();
+                    self.pend[i].d.next = false;
+                    self.ev_bridge[i].d.next = false;
+                    if self.w_cut.val() {
+                        self.dip[i].d.next = false;
+                        self.trunc[i].d.next = false;
+                    }
+                    self.age[i].d.next = self.n_age.val();
+                    self.dage[i].d.next = self.n_dage.val();
+                    self.bank[i].d.next = self.n_bank.val();
+                    // Association state at the end of plane t.
+                    self.aprev[i].d.next = self.n_busy.val() & self.n_live.val();
+                    self.fprev[i].d.next = !self.n_busy.val();
+                    self.opened[i].d.next = false;
+                    self.hit[i].d.next = false;
+                }
+                if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val() {
+                    self.live[i].d.next = false;
+                    self.dip[i].d.next = false;
+                    self.dage[i].d.next = 1.into();
+                    self.trunc[i].d.next = true;
+                    self.conf[i].d.next = self.w_fconf.val();
+                    if !self.w_fconf.val() {
+                        self.busy[i].d.next = false;
+                        if self.par.val() {
+                            self.s_pre[i + mm].d.next = false;
+                        } else {
+                            self.s_pre[i].d.next = false;
+                        }
+                    }
+                }
+                if self.sel[i].val() & self.we_fin.val() {
+                    if self.par.val() {
+                        self.s_live[i + mm].d.next = false;
+                    } else {
+                        self.s_live[i].d.next = false;
+                    }
+                }
+                if self.sel[i].val() & self.we_drain.val() {
+                    self.age[i].d.next = self.n_age.val();
+                    self.dage[i].d.next = self.n_dage.val();
+                }
+                if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
+                    self.busy[i].d.next = false;
+                    if self.can_push.val() {
+                        self.bank[i].d.next = self.fb_bank.val();
+                    }
+                }
+                // The slot's ROI view for plane t + 1.
+                if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
+                    if self.par1.val() {
+                        self.s_live[i + mm].d.next =
+                            self.n_busy.val() & self.n_live.val() & self.we_walk.val();
+                        self.s_pre[i + mm].d.next = self.n_pre.val();
+                        self.s_fresh[i + mm].d.next = self.n_fresh.val() & self.we_walk.val();
+                        self.s_ax[i + mm].d.next = self.w_ax.val();
+                        self.s_ay[i + mm].d.next = self.w_ay.val();
+                        self.s_bank[i + mm].d.next = self.n_bank.val();
+                    } else {
+                        self.s_live[i].d.next =
+                            self.n_busy.val() & self.n_live.val() & self.we_walk.val();
+                        self.s_pre[i].d.next = self.n_pre.val();
+                        self.s_fresh[i].d.next = self.n_fresh.val() & self.we_walk.val();
+                        self.s_ax[i].d.next = self.w_ax.val();
+                        self.s_ay[i].d.next = self.w_ay.val();
+                        self.s_bank[i].d.next = self.n_bank.val();
+                    }
+                }
+            }
+        }
+
         // ---- Association: open a track or drop the candidate.
         for i in 0..self._m {
             if self.do_open.val() & self.fsel[i].val() {
@@ -1183,7 +1219,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.dip[i].d.next = false;
                 self.conf[i].d.next = false;
                 self.cont[i].d.next = false;
-                self.cutf[i].d.next = false;
                 self.trunc[i].d.next = false;
                 self.opened[i].d.next = true;
                 self.ax[i].d.next = self.cx.val();
@@ -1243,12 +1278,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     } else if !self.dip[i].q.val() {
                         self.dip[i].d.next = true;
                     } else {
-                        // Second plane below: the blink ended at t − 1.
+                        // Second plane below: the blink ended at t − 1 (its
+                        // t_drop and confirmation are settled by the walk).
                         self.live[i].d.next = false;
                         self.dip[i].d.next = false;
-                        self.dage[i].d.next = 1.into();
-                        self.conf[i].d.next =
-                            self.cont[i].q.val() | (self.age[i].q.val() >= self.lmin_p1.val());
+                        self.pend[i].d.next = true;
                         if self.par.val() {
                             self.s_live[i + mm].d.next = false;
                         } else {
@@ -1282,10 +1316,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.fprev[i].d.next = true;
                 self.opened[i].d.next = false;
                 self.hit[i].d.next = false;
-                self.comp[i].d.next = false;
+                self.pend[i].d.next = false;
                 self.ev_bridge[i].d.next = false;
-                self.ev_unconf[i].d.next = false;
-                self.ev_cut[i].d.next = false;
                 self.bank[i].d.next = self.bank_init[i].val();
             }
             for q in 0..(2 * self._m) {

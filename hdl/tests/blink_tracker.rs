@@ -357,7 +357,9 @@ fn run(pr: &Params) -> (usize, usize, usize) {
             ay: u.sh_ay[par * m + i].val().to_u64() as u16,
         };
         for (tt, all_rows) in [(plane as i64 - 1, true), (plane as i64, false)] {
-            if tt < 0 || tt as usize >= exp.views.len() {
+            // Plane t − 1's view is needed until the sweep has finished it;
+            // then the end of plane t writes the view of t + 1 over it.
+            if tt < 0 || tt as usize >= exp.views.len() || (all_rows && sweep >= plane) {
                 continue;
             }
             let tt = tt as usize;
