@@ -368,6 +368,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
+    walk_last: Signal<Local, Bit>,
     rec_tc: Signal<Local, Bits<48>>,
     rec_td: Signal<Local, Bits<48>>,
     near: Vec<Signal<Local, Bit>>,
@@ -606,6 +607,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             we_fin: Default::default(),
             we_drain: Default::default(),
             we_emit: Default::default(),
+            walk_last: Default::default(),
             rec_tc: Default::default(),
             rec_td: Default::default(),
             near: lanes(m),
@@ -999,6 +1001,12 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
+        // Every walk takes one slot per step; the states say where the last goes.
+        self.walk_last.next = self.walk.q.val() == self.last_slot.val();
+        if self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val() {
+            self.walk.d.next = self.walk.q.val() + 1;
+        }
+
         match self.state.q.val() {
             TrackerState::Start => {
                 if self.rec_room.val() {
@@ -1041,8 +1049,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.w_cut.val() {
                         self.c_cuts.d.next = self.c_cuts.q.val() + 1;
                     }
-                    self.walk.d.next = self.walk.q.val() + 1;
-                    if self.walk.q.val() == self.last_slot.val() {
+                    if self.walk_last.val() {
                         self.state.d.next = TrackerState::WalkEnd;
                     }
                 }
@@ -1073,8 +1080,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.w_busy.val() & self.w_live.val() & !self.w_fconf.val() {
                         self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
-                    self.walk.d.next = self.walk.q.val() + 1;
-                    if self.walk.q.val() == self.last_slot.val() {
+                    if self.walk_last.val() {
                         self.state.d.next = TrackerState::Drain;
                     }
                 }
@@ -1092,25 +1098,19 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::DrainWalk => {
-                if self.we_drain.val() {
-                    self.walk.d.next = self.walk.q.val() + 1;
-                    if self.walk.q.val() == self.last_slot.val() {
-                        self.t.d.next = self.t_p1.val();
-                        self.rows.d.next = 0.into();
-                        self.state.d.next = TrackerState::Drain;
-                        if self.t_p1.val() == self.p_plus_n.val() {
-                            self.walk.d.next = 0.into();
-                            self.state.d.next = TrackerState::Emit;
-                        }
+                if self.we_drain.val() & self.walk_last.val() {
+                    self.t.d.next = self.t_p1.val();
+                    self.rows.d.next = 0.into();
+                    self.state.d.next = TrackerState::Drain;
+                    if self.t_p1.val() == self.p_plus_n.val() {
+                        self.walk.d.next = 0.into();
+                        self.state.d.next = TrackerState::Emit;
                     }
                 }
             }
             TrackerState::Emit => {
-                if self.we_emit.val() {
-                    self.walk.d.next = self.walk.q.val() + 1;
-                    if self.walk.q.val() == self.last_slot.val() {
-                        self.state.d.next = TrackerState::End;
-                    }
+                if self.we_emit.val() & self.walk_last.val() {
+                    self.state.d.next = TrackerState::End;
                 }
             }
             TrackerState::End => {

