@@ -395,7 +395,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     last_row: Constant<Bits<COORD_BITS>>,
     last_word: Constant<Bits<16>>,
     last_slot: Constant<Bits<8>>,
-    age_minus_one: Constant<Bits<AGE_BITS>>,
     _m: usize,
 }
 
@@ -637,7 +636,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             last_row: cc(f.height as u64 - 1),
             last_word: c16(f.words_per_row() as u64 - 1),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
-            age_minus_one: Constant::new(Bits::<AGE_BITS>::mask()),
             _m: m,
         })
     }
@@ -913,7 +911,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.rec_td.next = self.t.q.val();
         }
         // The slot after the walk, ages advanced to plane t + 1: a cut blink
-        // goes on as a continuation from t + 1 (age −1 now, 0 at t + 1); a
+        // goes on as a continuation from t + 1 (age 0 at t + 1); a
         // completed or unconfirmed one frees the slot.
         self.n_busy.next = self.w_busy.val() & !self.w_unconf.val();
         if self.w_comp.val() & !self.w_cut.val() {
@@ -924,7 +922,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.n_age.next = self.w_age.val() + 1;
         self.n_dage.next = self.w_dage1.val() + 1;
         if self.w_cut.val() {
-            self.n_age.next = self.age_minus_one.val() + 1;
+            self.n_age.next = 0.into();
             self.n_dage.next = 1.into();
         }
         // A drain plane ends no track: the slot only ages.
@@ -957,12 +955,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.we_fin.next = (self.state.q.val() == TrackerState::Finish) & (self.t.q.val() != 0);
         self.we_drain.next = (self.state.q.val() == TrackerState::DrainWalk) & self.view_free.val();
         self.we_emit.next = (self.state.q.val() == TrackerState::Emit) & !self.bank_wait.val();
-        // The bank of its ROI view for plane t + 1: a fresh one if it has just
-        // handed its bank to a Blink record.
-        self.n_bank.next = self.w_bank.val();
-        if self.we_walk.val() & self.w_comp.val() & self.can_push.val() {
-            self.n_bank.next = self.fb_bank.val();
-        }
 
         // ---- Record port defaults.
         self.in_pop.next = false;
@@ -999,6 +991,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             } else {
                 self.lost.d.next = self.lost.q.val() + 1;
             }
+        }
+
+        // The walked slot's bank from now on (and in its ROI view for plane
+        // t + 1): a fresh one if it has just handed its bank to a Blink record.
+        self.n_bank.next = self.w_bank.val();
+        if self.fb_pop.val() {
+            self.n_bank.next = self.fb_bank.val();
         }
 
         // Every walk takes one slot per step; the states say where the last goes.
@@ -1184,9 +1183,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
                 if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
                     self.busy[i].d.next = false;
-                    if self.can_push.val() {
-                        self.bank[i].d.next = self.fb_bank.val();
-                    }
+                    self.bank[i].d.next = self.n_bank.val();
                 }
                 // The slot's ROI view for plane t + 1.
                 if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
