@@ -76,6 +76,7 @@
 //! aggregator completes the pre-rolls from the delay line, emits the
 //! finished segments in slot order and then StreamEnd.
 
+use crate::bram::{Bram, RamStyle};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
@@ -262,9 +263,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     busy: Vec<DFF<Bit>>,
     live: Vec<DFF<Bit>>,
     dip: Vec<DFF<Bit>>,
-    conf: Vec<DFF<Bit>>,
-    cont: Vec<DFF<Bit>>,
-    trunc: Vec<DFF<Bit>>,
     pend: Vec<DFF<Bit>>,
     aprev: Vec<DFF<Bit>>,
     fprev: Vec<DFF<Bit>>,
@@ -278,9 +276,16 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     frow: Vec<DFF<Bits<COORD_BITS>>>,
     ml: Vec<DFF<Bits<P>>>,
     mh: Vec<DFF<Bits<P>>>,
-    age: Vec<DFF<Bits<AGE_BITS>>>,
-    dage: Vec<DFF<Bits<16>>>,
     bank: Vec<DFF<Bits<BW>>>,
+    /// The fields that only the walks read, one 37-bit word per slot in LUT
+    /// RAM (bits 0–17 age, 18–33 dage, 34 conf, 35 cont, 36 trunc), read at
+    /// the walk's next slot so that the word is there when the walk is.
+    walk_mem: Bram<37, 8>,
+    /// The word written on the previous clock, for a read of the slot just
+    /// written (only with M = 1: the last walk step leads into the next
+    /// walk at slot 0 in the same clock).
+    wm_fwd: DFF<Bit>,
+    wm_last: DFF<Bits<37>>,
     s_live: Vec<DFF<Bit>>,
     s_pre: Vec<DFF<Bit>>,
     s_fresh: Vec<DFF<Bit>>,
@@ -343,6 +348,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w_cont: Signal<Local, Bit>,
     w_trunc: Signal<Local, Bit>,
     w_pend: Signal<Local, Bit>,
+    w_opened: Signal<Local, Bit>,
     w_bridge: Signal<Local, Bit>,
     w_age: Signal<Local, Bits<AGE_BITS>>,
     w_dage: Signal<Local, Bits<16>>,
@@ -356,6 +362,12 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w_comp: Signal<Local, Bit>,
     w_fconf: Signal<Local, Bit>,
     w_flags: Signal<Local, Bits<8>>,
+    w_word: Signal<Local, Bits<37>>,
+    m_age: Signal<Local, Bits<AGE_BITS>>,
+    m_dage: Signal<Local, Bits<16>>,
+    m_conf: Signal<Local, Bit>,
+    m_cont: Signal<Local, Bit>,
+    m_trunc: Signal<Local, Bit>,
     n_busy: Signal<Local, Bit>,
     n_live: Signal<Local, Bit>,
     n_cont: Signal<Local, Bit>,
@@ -502,9 +514,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             busy: lanes(m),
             live: lanes(m),
             dip: lanes(m),
-            conf: lanes(m),
-            cont: lanes(m),
-            trunc: lanes(m),
             pend: lanes(m),
             aprev: lanes(m),
             fprev: lanes(m),
@@ -518,9 +527,10 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             frow: lanes(m),
             ml: lanes(m),
             mh: lanes(m),
-            age: lanes(m),
-            dage: lanes(m),
             bank: lanes(m),
+            walk_mem: Bram::new(m, RamStyle::Distributed),
+            wm_fwd: Default::default(),
+            wm_last: Default::default(),
             s_live: lanes(2 * m),
             s_pre: lanes(2 * m),
             s_fresh: lanes(2 * m),
@@ -581,6 +591,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w_cont: Default::default(),
             w_trunc: Default::default(),
             w_pend: Default::default(),
+            w_opened: Default::default(),
             w_bridge: Default::default(),
             w_age: Default::default(),
             w_dage: Default::default(),
@@ -594,6 +605,12 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w_comp: Default::default(),
             w_fconf: Default::default(),
             w_flags: Default::default(),
+            w_word: Default::default(),
+            m_age: Default::default(),
+            m_dage: Default::default(),
+            m_conf: Default::default(),
+            m_cont: Default::default(),
+            m_trunc: Default::default(),
             n_busy: Default::default(),
             n_live: Default::default(),
             n_cont: Default::default(),
@@ -648,15 +665,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
     fn update(&mut self) {
         dff_setup!(
             self, clock, state, t, rows, done_mask, walk, lost, drops, drop_x, drop_y, c_blinks,
-            c_unconf, c_dropped, c_bridged, c_cuts, bank_err, bank_waits
+            c_unconf, c_dropped, c_bridged, c_cuts, bank_err, bank_waits, wm_fwd, wm_last
         );
+        self.walk_mem.clock.next = self.clock.val();
         for i in 0..self._m {
             self.busy[i].clock.next = self.clock.val();
             self.live[i].clock.next = self.clock.val();
             self.dip[i].clock.next = self.clock.val();
-            self.conf[i].clock.next = self.clock.val();
-            self.cont[i].clock.next = self.clock.val();
-            self.trunc[i].clock.next = self.clock.val();
             self.pend[i].clock.next = self.clock.val();
             self.aprev[i].clock.next = self.clock.val();
             self.fprev[i].clock.next = self.clock.val();
@@ -670,15 +685,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.frow[i].clock.next = self.clock.val();
             self.ml[i].clock.next = self.clock.val();
             self.mh[i].clock.next = self.clock.val();
-            self.age[i].clock.next = self.clock.val();
-            self.dage[i].clock.next = self.clock.val();
             self.bank[i].clock.next = self.clock.val();
             self.busy[i].d.next = self.busy[i].q.val();
             self.live[i].d.next = self.live[i].q.val();
             self.dip[i].d.next = self.dip[i].q.val();
-            self.conf[i].d.next = self.conf[i].q.val();
-            self.cont[i].d.next = self.cont[i].q.val();
-            self.trunc[i].d.next = self.trunc[i].q.val();
             self.pend[i].d.next = self.pend[i].q.val();
             self.aprev[i].d.next = self.aprev[i].q.val();
             self.fprev[i].d.next = self.fprev[i].q.val();
@@ -692,8 +702,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.frow[i].d.next = self.frow[i].q.val();
             self.ml[i].d.next = self.ml[i].q.val();
             self.mh[i].d.next = self.mh[i].q.val();
-            self.age[i].d.next = self.age[i].q.val();
-            self.dage[i].d.next = self.dage[i].q.val();
             self.bank[i].d.next = self.bank[i].q.val();
         }
         for q in 0..(2 * self._m) {
@@ -842,13 +850,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.w_busy.next = false;
         self.w_live.next = false;
         self.w_dip.next = false;
-        self.w_conf.next = false;
-        self.w_cont.next = false;
-        self.w_trunc.next = false;
         self.w_pend.next = false;
+        self.w_opened.next = false;
         self.w_bridge.next = false;
-        self.w_age.next = 0.into();
-        self.w_dage.next = 0.into();
         self.w_ax.next = 0.into();
         self.w_ay.next = 0.into();
         self.w_bank.next = 0.into();
@@ -857,17 +861,33 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.w_busy.next = self.busy[i].q.val();
                 self.w_live.next = self.live[i].q.val();
                 self.w_dip.next = self.dip[i].q.val();
-                self.w_conf.next = self.conf[i].q.val();
-                self.w_cont.next = self.cont[i].q.val();
-                self.w_trunc.next = self.trunc[i].q.val();
                 self.w_pend.next = self.pend[i].q.val();
+                self.w_opened.next = self.opened[i].q.val();
                 self.w_bridge.next = self.ev_bridge[i].q.val();
-                self.w_age.next = self.age[i].q.val();
-                self.w_dage.next = self.dage[i].q.val();
                 self.w_ax.next = self.ax[i].q.val();
                 self.w_ay.next = self.ay[i].q.val();
                 self.w_bank.next = self.bank[i].q.val();
             }
+        }
+        // The walk-only fields come from the slot's word in `walk_mem`. A slot
+        // opened in this plane has not been walked since: its word is a
+        // previous track's, and the opening's values (age 0, unconfirmed, no
+        // continuation, not truncated) stand in for it (so that the opening
+        // needs no second write port; `dage` means nothing until the drop).
+        self.w_word.next = self.walk_mem.read_data.val();
+        if self.wm_fwd.q.val() {
+            self.w_word.next = self.wm_last.q.val();
+        }
+        self.w_age.next = self.w_word.val().get_bits::<18>(0);
+        self.w_dage.next = self.w_word.val().get_bits::<16>(18);
+        self.w_conf.next = self.w_word.val().get_bit(34);
+        self.w_cont.next = self.w_word.val().get_bit(35);
+        self.w_trunc.next = self.w_word.val().get_bit(36);
+        if self.w_opened.val() {
+            self.w_age.next = 0.into();
+            self.w_conf.next = false;
+            self.w_cont.next = false;
+            self.w_trunc.next = false;
         }
         // A blink that ended in this plane (its on/off step found the second
         // plane below: `pend`) ended at t_drop = t − 1, confirmed if it lasted
@@ -935,6 +955,30 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             & self.t1_ge_n.val()
             & (self.n_age.val() < self.n32.val());
         self.n_fresh.next = self.n_busy.val() & (self.n_age.val() == 0);
+        // What the walk writes back to the slot's word: the end of a plane
+        // its next state, the stream end's `finish` the end of a live track
+        // (at t − 1 = p − 1, truncated), a drain plane's end the ages.
+        self.m_age.next = self.n_age.val();
+        self.m_dage.next = self.n_dage.val();
+        self.m_conf.next = self.w_conf.val();
+        self.m_cont.next = self.w_cont.val();
+        self.m_trunc.next = self.w_trunc.val();
+        if self.state.q.val() == TrackerState::Walk {
+            self.m_conf.next = self.w_conf1.val() | self.w_cut.val();
+            self.m_cont.next = self.n_cont.val();
+            if self.w_cut.val() {
+                self.m_trunc.next = false;
+            }
+        }
+        if self.state.q.val() == TrackerState::Finish {
+            self.m_age.next = self.w_age.val();
+            self.m_dage.next = self.w_dage.val();
+            if self.w_busy.val() & self.w_live.val() {
+                self.m_dage.next = 1.into();
+                self.m_trunc.next = true;
+                self.m_conf.next = self.w_fconf.val();
+            }
+        }
 
         // The walk's steps: the end of a plane waits until the sweep has
         // finished plane t − 1, whose ROI view it overwrites; a Blink waits
@@ -1002,6 +1046,14 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // Every walk takes one slot per step; the states say where the last goes.
         self.walk_last.next = self.walk.q.val() == self.last_slot.val();
+        self.walk_mem.write_address.next = self.walk.q.val();
+        self.walk_mem.write_enable.next =
+            self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
+        self.walk_mem.write_data.next = bit_cast::<37, 18>(self.m_age.val())
+            | (bit_cast::<37, 16>(self.m_dage.val()) << 18)
+            | (bit_cast::<37, 1>(self.m_conf.val().into()) << 34)
+            | (bit_cast::<37, 1>(self.m_cont.val().into()) << 35)
+            | (bit_cast::<37, 1>(self.m_trunc.val().into()) << 36);
         if self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val() {
             self.walk.d.next = self.walk.q.val() + 1;
         }
@@ -1138,16 +1190,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 if self.sel[i].val() & self.we_walk.val() {
                     self.busy[i].d.next = self.n_busy.val();
                     self.live[i].d.next = self.n_live.val();
-                    self.cont[i].d.next = self.n_cont.val();
-                    self.conf[i].d.next = self.w_conf1.val() | self.w_cut.val();
                     self.pend[i].d.next = false;
                     self.ev_bridge[i].d.next = false;
                     if self.w_cut.val() {
                         self.dip[i].d.next = false;
-                        self.trunc[i].d.next = false;
                     }
-                    self.age[i].d.next = self.n_age.val();
-                    self.dage[i].d.next = self.n_dage.val();
                     self.bank[i].d.next = self.n_bank.val();
                     // Association state at the end of plane t.
                     self.aprev[i].d.next = self.n_busy.val() & self.n_live.val();
@@ -1158,9 +1205,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val() {
                     self.live[i].d.next = false;
                     self.dip[i].d.next = false;
-                    self.dage[i].d.next = 1.into();
-                    self.trunc[i].d.next = true;
-                    self.conf[i].d.next = self.w_fconf.val();
                     if !self.w_fconf.val() {
                         self.busy[i].d.next = false;
                         if self.par.val() {
@@ -1176,10 +1220,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     } else {
                         self.s_live[i].d.next = false;
                     }
-                }
-                if self.sel[i].val() & self.we_drain.val() {
-                    self.age[i].d.next = self.n_age.val();
-                    self.dage[i].d.next = self.n_dage.val();
                 }
                 if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
                     self.busy[i].d.next = false;
@@ -1214,9 +1254,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.busy[i].d.next = true;
                 self.live[i].d.next = true;
                 self.dip[i].d.next = false;
-                self.conf[i].d.next = false;
-                self.cont[i].d.next = false;
-                self.trunc[i].d.next = false;
                 self.opened[i].d.next = true;
                 self.ax[i].d.next = self.cx.val();
                 self.ay[i].d.next = self.in_yc.val();
@@ -1225,7 +1262,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.ml[i].d.next = self.o_ml.val();
                 self.mh[i].d.next = self.o_mh.val();
                 self.frow[i].d.next = self.o_frow.val();
-                self.age[i].d.next = 0.into();
             }
         }
         for mm in self._m..(self._m + 1) {
@@ -1323,6 +1359,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.s_fresh[q].d.next = false;
             }
         }
+
+        // Read the word of the slot the walk is at on the next clock (after
+        // every assignment of `walk.d`, restart's included).
+        self.walk_mem.read_address.next = self.walk.d.val();
+        self.wm_fwd.d.next =
+            self.walk_mem.write_enable.val() & (self.walk.d.val() == self.walk.q.val());
+        self.wm_last.d.next = self.walk_mem.write_data.val();
 
         self.plane.next = self.t.q.val();
         self.rows_done.next = self.rows.q.val();
