@@ -14,7 +14,8 @@
 //! * `pipe`: the small test pipeline (16×6, M = 4, 3×3 ROIs).
 //! * `spc150`: the SPCImager 150× front half (320×240, P = 16, N_max = 128,
 //!   k = 9, a = 8) without its delay line (9.8 Mbit: DDR2).
-//! * `mask150`: its hot-pixel mask; `dl24`: a 24-plane block-RAM delay line.
+//! * `filter150`: its spatial filter alone; `mask150`: its hot-pixel mask;
+//!   `dl24`: a 24-plane block-RAM delay line.
 //! * `xem150`: the whole XEM6310 top for the SPCImager at 150×, DDR2 delay
 //!   line, M = 32, 9×9 ROIs, for the LX45 (FrontPanel and MIG are black
 //!   boxes: their own cost comes on top, see the report).
@@ -43,6 +44,7 @@ use smartagg_hdl::pipeline::{
     TestPipeline,
 };
 use smartagg_hdl::roi_aggregator::RoiAggregator;
+use smartagg_hdl::spatial_filter::SpatialFilter;
 use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_hdl::xem6310::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};
@@ -132,6 +134,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         n_max: 128,
         kernel: k1.clone(),
         kernel_shift: 8,
+        dsp_multipliers: smartagg_hdl::configs::XC6SLX45.dsp48a1 as usize,
     };
     big.validate()?;
     println!("SPCImager 150x: sigma = {sigma:.3} px, k = {k}, k1 = {k1:?} (sum 256)");
@@ -238,6 +241,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &dir.join("spc150"),
         )?;
         print("SPCImager 150x front half (no DL)", &r);
+    }
+    if want("filter150") {
+        let r = yosys_resources(
+            &verilog(SpatialFilter::<8, 16, 24, 5>::new(&big)?),
+            &dir.join("filter150"),
+        )?;
+        print("SPCImager 150x spatial filter", &r);
     }
     if want("mask150") {
         let r = yosys_resources(

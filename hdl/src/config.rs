@@ -78,6 +78,11 @@ pub struct GatewareConfig {
     pub kernel: Vec<u32>,
     /// a: k1 sums to 2^a.
     pub kernel_shift: u8,
+    /// How many of the spatial filter's constant multiplies go to DSP48A1
+    /// slices (the costliest in LUTs first, see
+    /// [`crate::spatial_filter::SpatialFilter`]); the rest are shift-and-add
+    /// in LUTs. At most the device's slices; 0 for none.
+    pub dsp_multipliers: usize,
 }
 
 impl GatewareConfig {
@@ -95,6 +100,7 @@ impl GatewareConfig {
             n_max,
             kernel: cfg.kernel.clone(),
             kernel_shift: cfg.kernel_shift,
+            dsp_multipliers: 0,
         };
         g.validate()?;
         if cfg.n_window > n_max {

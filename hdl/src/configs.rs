@@ -188,6 +188,9 @@ impl Design {
             n_max,
             kernel: det.kernel_weights.clone(),
             kernel_shift: det.kernel_shift,
+            // Every DSP slice of the device is the filter's: nothing else
+            // multiplies.
+            dsp_multipliers: device.dsp48a1 as usize,
         };
         let mut cfg = smartagg_model::config::PipelineConfig::new(
             front.width,

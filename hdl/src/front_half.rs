@@ -292,6 +292,7 @@ pub fn test_config() -> GatewareConfig {
         n_max: 7,
         kernel: vec![1, 4, 6, 4, 1],
         kernel_shift: 4,
+        dsp_multipliers: 0,
     }
 }
 
@@ -310,6 +311,7 @@ pub fn spcimager150_config() -> GatewareConfig {
         n_max: 128,
         kernel: vec![2, 10, 29, 54, 66, 54, 29, 10, 2],
         kernel_shift: 8,
+        dsp_multipliers: crate::configs::XC6SLX45.dsp48a1 as usize,
     }
 }
 

@@ -16,9 +16,16 @@
 //! plane). **Horizontal pass.** A [`WordWindow`] adds c lanes of context on
 //! each side (zero beyond the row ends). **Arithmetic.** Both passes use the
 //! symmetry `k1[j] = k1[k−1−j]`: pre-add the two taps, then multiply by the
-//! constant weight with shift-and-add ([`ConstMul`]: one adder per set bit, no
-//! DSP), then sum the c + 1 products. All sums stay below N_max·2^a (resp.
-//! N_max·2^(2a)), so VW = CW + a and HW = CW + 2a bits never wrap.
+//! constant weight, then sum the c + 1 products. All sums stay below
+//! N_max·2^a (resp. N_max·2^(2a)), so VW = CW + a and HW = CW + 2a bits
+//! never wrap. A multiply ([`ConstMul`]) is shift-and-add in LUTs, one
+//! adder or subtractor per non-zero canonical signed digit after the first
+//! (29 = 32 − 4 + 1), or a DSP48A1 slice: the configuration gives the
+//! device's slices (`dsp_multipliers`), and they take the multiplies that
+//! would cost the most LUTs (adders × width; an operand of at most 17
+//! bits). For the SPCImager at 150× (k1 = 2 10 29 54 66) the LX45's 58
+//! slices take the 32 horizontal multiplies by 29 and 54 and 26 vertical
+//! ones; the other 102 stay in LUTs.
 //!
 //! Latency: 4 clocks of vertical pipeline, then one word (the window waits
 //! for the next word) and 4 clocks of horizontal pipeline.
@@ -28,46 +35,120 @@ use crate::config::{GatewareConfig, GatewareError};
 use crate::stream::{lanes, RowSkew, TagReg, Widen, WordWindow};
 use rust_hdl::prelude::*;
 
-/// `y = w · x` for a constant weight w, as a chain of shifted adds.
+/// The signed binary digits of `weight` with no two adjacent non-zero
+/// (canonical signed digit form), as `(shift, negative)`, most significant
+/// first: the fewest shifted adds and subtracts that make `weight · x`
+/// (29 = 32 − 4 + 1: three terms where its binary form has four).
+pub fn csd_digits(weight: u32) -> Vec<(u32, bool)> {
+    let mut digits = Vec::new();
+    let mut w = weight as i64;
+    let mut shift = 0;
+    while w != 0 {
+        if w & 1 == 1 {
+            // w ≡ 1 (mod 4): +1, w ≡ 3 (mod 4): −1, so that w − d ≡ 0 (mod 4).
+            let d = 2 - (w & 3);
+            digits.push((shift, d < 0));
+            w -= d;
+        }
+        w >>= 1;
+        shift += 1;
+    }
+    digits.reverse();
+    digits
+}
+
+/// `y = w · x mod 2^W` for a constant weight w: in LUTs, a chain of
+/// shifted adds and subtracts ([`csd_digits`], the leading digit positive;
+/// a partial sum may wrap, the product, which the caller guarantees to fit
+/// W bits, does not); or, [`ConstMul::dsp`], a multiply that synthesis puts
+/// in a DSP48A1 slice (its operand narrowed to the bits the caller says it
+/// holds, at most 17: one slice's unsigned operand).
 #[derive(LogicBlock)]
 pub struct ConstMul<const W: usize> {
     /// Operand.
     pub x: Signal<In, Bits<W>>,
     /// Product (the caller guarantees it fits W bits).
     pub y: Signal<Out, Bits<W>>,
-    shifts: Vec<Constant<Bits<8>>>,
-    part: Vec<Signal<Local, Bits<W>>>,
-    _n: usize,
+    _weight: u32,
+    _dsp_operand_bits: Option<usize>,
 }
 
+/// The widest unsigned operand of one DSP48A1 multiplier (18-bit signed).
+pub const DSP_OPERAND_BITS: usize = 17;
+
 impl<const W: usize> ConstMul<W> {
-    /// Multiplier by `weight`.
+    /// Multiplier by `weight`, shift-and-add.
     pub fn new(weight: u32) -> Self {
-        let shifts: Vec<Constant<Bits<8>>> = (0..32)
-            .filter(|b| weight >> b & 1 == 1)
-            .map(|b| Constant::new((b as u64).to_bits()))
-            .collect();
-        let n = shifts.len();
         ConstMul {
             x: Default::default(),
             y: Default::default(),
-            shifts,
-            part: lanes(n + 1),
-            _n: n,
+            _weight: weight,
+            _dsp_operand_bits: None,
         }
+    }
+
+    /// Multiplier by `weight` in a DSP slice, for operands below
+    /// `2^operand_bits` (`operand_bits ≤` [`DSP_OPERAND_BITS`]).
+    pub fn dsp(weight: u32, operand_bits: usize) -> Self {
+        assert!(
+            (1..=DSP_OPERAND_BITS.min(W)).contains(&operand_bits),
+            "a DSP48A1 operand of {operand_bits} bits"
+        );
+        ConstMul {
+            _dsp_operand_bits: Some(operand_bits),
+            ..ConstMul::new(weight)
+        }
+    }
+
+    /// [`ConstMul::dsp`] with the operand bits given, else [`ConstMul::new`].
+    pub fn of((weight, dsp_operand_bits): (u32, Option<usize>)) -> Self {
+        match dsp_operand_bits {
+            Some(bits) => ConstMul::dsp(weight, bits),
+            None => ConstMul::new(weight),
+        }
+    }
+
+    /// Adders or subtractors the shift-and-add form takes (what a DSP
+    /// slice saves): one fewer than the signed digits of the weight.
+    pub fn adders(weight: u32) -> usize {
+        csd_digits(weight).len().saturating_sub(1)
     }
 }
 
 impl<const W: usize> Logic for ConstMul<W> {
-    #[hdl_gen]
     fn update(&mut self) {
-        self.part[0].next = 0.into();
-        for b in 0..self._n {
-            self.part[b + 1].next = self.part[b].val() + (self.x.val() << self.shifts[b].val());
+        let mut x = self.x.val().index() as u128;
+        if let Some(b) = self._dsp_operand_bits {
+            x &= (1u128 << b) - 1;
         }
-        for nn in self._n..(self._n + 1) {
-            self.y.next = self.part[nn].val();
-        }
+        let y = x.wrapping_mul(self._weight as u128) & ((1u128 << W) - 1);
+        self.y.next = (y as u64).to_bits();
+    }
+
+    fn connect(&mut self) {
+        self.y.connect();
+    }
+
+    fn hdl(&self) -> Verilog {
+        let w = self._weight;
+        let expr = match self._dsp_operand_bits {
+            Some(b) => format!("x[{}:0] * {W}'d{w}", b - 1),
+            None if w == 0 => format!("{W}'d0"),
+            None => {
+                let mut e = String::new();
+                for (i, &(shift, negative)) in csd_digits(w).iter().enumerate() {
+                    let op = match (i, negative) {
+                        (0, _) => "",
+                        (_, true) => " - ",
+                        (_, false) => " + ",
+                    };
+                    e.push_str(&format!("{op}(x << {shift})"));
+                }
+                e
+            }
+        };
+        // rust-hdl declares the output a reg.
+        Verilog::Custom(format!("always @(*) y = {expr};"))
     }
 }
 
@@ -157,7 +238,32 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
         // inside the plane iff m ≤ yo + c < H + m.
         let tap_lo = (1..k).map(c16).collect();
         let tap_hi = (0..k).map(|m| c16(cfg.height + m)).collect();
-        let muls = |n: usize| -> Vec<u32> { (0..n).map(|q| cfg.kernel[q % (c + 1)]).collect() };
+        // The multiplies (q = lane·(c + 1) + j, weight k1[j]; the operand is a
+        // pre-added pair but for the centre tap j = c), and which of them go
+        // to DSP slices: those that save the most LUTs (adders × width),
+        // the horizontal pass first on a tie, then in order.
+        let n_mul = p * (c + 1);
+        let operand_bits = |j: usize, w: usize| if j < c { w + 1 } else { w };
+        let mut saving: Vec<(usize, usize, usize)> = (0..2 * n_mul)
+            .filter_map(|m| {
+                let (horizontal, q) = (m < n_mul, m % n_mul);
+                let j = q % (c + 1);
+                let (bits, width) = if horizontal {
+                    (operand_bits(j, VW), HW)
+                } else {
+                    (operand_bits(j, CW), VW)
+                };
+                let adders = ConstMul::<1>::adders(cfg.kernel[j]);
+                (adders > 0 && bits <= DSP_OPERAND_BITS).then_some((adders * width, m, bits))
+            })
+            .collect();
+        saving.sort_by_key(|&(saved, m, _)| (std::cmp::Reverse(saved), m));
+        let mut dsp_bits = vec![None; 2 * n_mul];
+        for &(_, m, bits) in saving.iter().take(cfg.dsp_multipliers) {
+            dsp_bits[m] = Some(bits);
+        }
+        let mul =
+            |m: usize| -> (u32, Option<usize>) { (cfg.kernel[(m % n_mul) % (c + 1)], dsp_bits[m]) };
         Ok(SpatialFilter {
             clock: Default::default(),
             restart: Default::default(),
@@ -184,7 +290,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             tap: lanes(p * k),
             t2: Default::default(),
             vpair: lanes(p * (c + 1)),
-            vmul: muls(p * (c + 1)).into_iter().map(ConstMul::new).collect(),
+            vmul: (n_mul..2 * n_mul).map(|m| ConstMul::of(mul(m))).collect(),
             t3: Default::default(),
             vprod: lanes(p * (c + 1)),
             vsum: lanes(p * (c + 2)),
@@ -194,7 +300,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             hwid: lanes(p + 2 * c),
             t5: Default::default(),
             hpair: lanes(p * (c + 1)),
-            hmul: muls(p * (c + 1)).into_iter().map(ConstMul::new).collect(),
+            hmul: (0..n_mul).map(|m| ConstMul::of(mul(m))).collect(),
             t6: Default::default(),
             hprod: lanes(p * (c + 1)),
             hsum: lanes(p * (c + 2)),

@@ -36,9 +36,13 @@ fn run<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>(
     shift: u8,
     n_max: u32,
     seed: u64,
+    dsp_multipliers: usize,
 ) {
     let cfg = PipelineConfig::new(w, h, n_max, kernel.clone(), shift, 1);
-    let g = GatewareConfig::new(&cfg, P, n_max).unwrap();
+    let g = GatewareConfig {
+        dsp_multipliers,
+        ..GatewareConfig::new(&cfg, P, n_max).unwrap()
+    };
     let mut bench = Bench::new(SpatialFilter::<CW, VW, HW, LAW>::new(&g).unwrap(), |u| {
         &mut u.clock
     });
@@ -110,11 +114,81 @@ fn run<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>(
 #[test]
 fn spatial_filter_k5_equals_model() {
     // N_max 7: CW 3, a = 4: VW 7, HW 11; 4 words per row: LAW 2.
-    run::<3, 7, 11, 2>(16, 6, vec![1, 4, 6, 4, 1], 4, 7, 31);
+    run::<3, 7, 11, 2>(16, 6, vec![1, 4, 6, 4, 1], 4, 7, 31, 0);
 }
 
 #[test]
 fn spatial_filter_k9_context_of_a_whole_word_equals_model() {
     // c = 4 = P; N_max 5: CW 3, a = 5: VW 8, HW 13; 3 words per row: LAW 2.
-    run::<3, 8, 13, 2>(12, 7, vec![1, 2, 3, 4, 12, 4, 3, 2, 1], 5, 5, 32);
+    run::<3, 8, 13, 2>(12, 7, vec![1, 2, 3, 4, 12, 4, 3, 2, 1], 5, 5, 32, 0);
+}
+
+#[test]
+fn spatial_filter_with_some_multiplies_in_dsp_slices_equals_model() {
+    // As above, with 13 of the 40 multiplies in DSP slices: some lanes of
+    // a pass multiply in LUTs, the others in DSPs.
+    run::<3, 8, 13, 2>(12, 7, vec![1, 2, 3, 4, 12, 4, 3, 2, 1], 5, 5, 33, 13);
+    // Every multiply that saves an adder (the weights 3 and 12) in a DSP.
+    run::<3, 7, 11, 2>(16, 6, vec![1, 4, 6, 4, 1], 4, 7, 34, 1000);
+}
+
+#[test]
+fn the_filter_puts_its_costliest_multiplies_in_dsp_slices() {
+    // SPCImager 150x: k1 = 2 10 29 54 66; 29 and 54 take two adders, 10 and
+    // 66 one, 2 none. The XC6SLX45's 58 slices take the 32 horizontal
+    // multiplies by 29 and 54 (two 24-bit adders each), then 26 of the
+    // vertical ones (two 16-bit adders) before any single-adder weight.
+    let v = smartagg_hdl::front_half::verilog(
+        SpatialFilter::<8, 16, 24, 5>::new(&smartagg_hdl::front_half::spcimager150_config())
+            .unwrap(),
+    );
+    // Operands: horizontal pairs 17 bits (two 16-bit vertical sums),
+    // vertical pairs 9 bits (two 8-bit counts).
+    let h = |w: u32| v.matches(&format!("y = x[16:0] * 24'd{w};")).count();
+    let vert = |w: u32| v.matches(&format!("y = x[8:0] * 16'd{w};")).count();
+    assert_eq!((h(29), h(54)), (16, 16));
+    assert_eq!(vert(29) + vert(54), 26);
+    assert_eq!(v.matches(" * ").count(), 58, "DSP multiplies");
+    assert_eq!(v.matches("'d10;").count() + v.matches("'d66;").count(), 0);
+}
+
+#[test]
+fn csd_digits_make_the_weight_with_the_fewest_terms() {
+    use smartagg_hdl::spatial_filter::csd_digits;
+    for w in 0u32..=70_000 {
+        let d = csd_digits(w);
+        let value: i64 = d
+            .iter()
+            .map(|&(s, neg)| if neg { -(1i64 << s) } else { 1i64 << s })
+            .sum();
+        assert_eq!(value, w as i64, "weight {w}: digits {d:?}");
+        // Most significant first, strictly descending, never two adjacent.
+        assert!(
+            d.windows(2).all(|p| p[0].0 >= p[1].0 + 2),
+            "weight {w}: {d:?}"
+        );
+        assert!(d.first().is_none_or(|&(_, neg)| !neg), "weight {w}: {d:?}");
+        assert!(d.len() as u32 <= w.count_ones(), "weight {w}: {d:?}");
+    }
+    assert_eq!(csd_digits(29), vec![(5, false), (2, true), (0, false)]);
+}
+
+#[test]
+fn const_mul_equals_the_product_modulo_its_width() {
+    use smartagg_hdl::spatial_filter::ConstMul;
+    let mut rng = common::rng(7);
+    for (w, dsp) in [0u32, 1, 2, 3, 7, 10, 29, 54, 66, 255, 1023, 0xAAAA]
+        .into_iter()
+        .flat_map(|w| [(w, None), (w, Some(12))])
+    {
+        let mut m = ConstMul::<16>::of((w, dsp));
+        m.connect_all();
+        for _ in 0..50 {
+            let x: u64 = rng.gen_range(0..1 << dsp.unwrap_or(16));
+            m.x.next = x.to_bits();
+            settle(&mut m);
+            let want = (x * w as u64) & 0xFFFF;
+            assert_eq!(m.y.val().index() as u64, want, "{w} * {x} (DSP {dsp:?})");
+        }
+    }
 }

@@ -54,7 +54,8 @@ fn yosys_maps_the_test_front_half_to_spartan6() {
         "{r:?}"
     );
     assert!(!l.path.is_empty(), "{r:?}");
-    // Shift-and-add constant multipliers: no DSP slice.
+    // The test configuration gives the filter no DSP slice: every multiply
+    // is shift-and-add.
     assert_eq!(r.dsp48a1, 0, "{r:?}");
     // The delay line (7 planes x 96 bits) and the counter memory are memories, not flip-flops.
     assert!(r.ramb8 + r.ramb16 + r.lutram > 0, "{r:?}");

@@ -120,6 +120,16 @@ impl Config {
     fn ddr(self) -> bool {
         !matches!(self, Config::Projected150)
     }
+
+    /// The filter's DSP multiplies: every DSP slice of the device the
+    /// configuration is generated for (`smartagg_hdl::configs::Design`).
+    fn dsp_multipliers(self) -> usize {
+        let device = match self {
+            Config::Spcimager150 | Config::Spcimager60 => smartagg_hdl::configs::XC6SLX45,
+            Config::Projected150 => smartagg_hdl::configs::XC6SLX150,
+        };
+        device.dsp48a1 as usize
+    }
 }
 
 /// A configuration on a field of view.
@@ -232,6 +242,7 @@ impl DesignSpec {
             n_max: self.n_max(),
             kernel,
             kernel_shift,
+            dsp_multipliers: self.config.dsp_multipliers(),
         };
         g.validate()?;
         Ok(g)
