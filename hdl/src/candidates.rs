@@ -63,6 +63,11 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     thr: Threshold<HW>,
     t3: TagReg,
     above_q: Vec<DFF<Bit>>,
+    /// Middle row, `win[n + 1] > win[n]`: each horizontal neighbour pair is
+    /// compared once, for the pixel on its right (strictly greater than
+    /// the earlier one) and, negated, for the pixel on its left (greater
+    /// than or equal to the later one).
+    mid_gt: Vec<Signal<Local, Bit>>,
     cand_q: Vec<DFF<Bit>>,
     _p: usize,
 }
@@ -108,6 +113,7 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
             thr: Threshold::new(p),
             t3: Default::default(),
             above_q: lanes(p),
+            mid_gt: lanes(p + 1),
             cand_q: lanes(p),
             _p: p,
         })
@@ -178,6 +184,9 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
         self.t3.x.next = self.wmid.out_x.val();
         self.t3.y.next = self.wmid.out_y.val();
         self.thr.threshold.next = self.threshold.val();
+        for n in 0..(self._p + 1) {
+            self.mid_gt[n].next = self.wmid.win[n + 1].val() > self.wmid.win[n].val();
+        }
         for i in 0..self._p {
             self.thr.filtered[i].next = self.wmid.win[i + 1].val();
             self.above_q[i].clock.next = self.clock.val();
@@ -187,8 +196,8 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
                 & (self.wmid.win[i + 1].val() > self.wtop.win[i].val())
                 & (self.wmid.win[i + 1].val() > self.wtop.win[i + 1].val())
                 & (self.wmid.win[i + 1].val() > self.wtop.win[i + 2].val())
-                & (self.wmid.win[i + 1].val() > self.wmid.win[i].val())
-                & (self.wmid.win[i + 1].val() >= self.wmid.win[i + 2].val())
+                & self.mid_gt[i].val()
+                & !self.mid_gt[i + 1].val()
                 & (self.wmid.win[i + 1].val() >= self.wbot.win[i].val())
                 & (self.wmid.win[i + 1].val() >= self.wbot.win[i + 1].val())
                 & (self.wmid.win[i + 1].val() >= self.wbot.win[i + 2].val());
