@@ -25,7 +25,9 @@
 //!   model this happens first, but no association reads what it changes;
 //! * after the last row, the *walk*: one clock per slot in slot order,
 //!   once the sweep has finished plane t − 1 (see `swept`). The walked
-//!   slot's state comes through one multiplexer, and one comparator of
+//!   slot's state comes through one multiplexer (the fields only the walks
+//!   read — ages, confirmation, continuation, truncation — from a LUT RAM
+//!   read one clock ahead), and one comparator of
 //!   each kind serves every slot: a `pend` drop's t_drop and confirmation,
 //!   the cut at L_max, the unconfirmed free or the completion, the Blink
 //!   record and its continuation, the counters, and the slot's state and

