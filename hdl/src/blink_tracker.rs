@@ -284,8 +284,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// the walk's next slot so that the word is there when the walk is.
     walk_mem: Bram<37, 8>,
     /// The word written on the previous clock, for a read of the slot just
-    /// written (only with M = 1: the last walk step leads into the next
-    /// walk at slot 0 in the same clock).
+    /// written: only with M = 1, where the last drain walk's step writes
+    /// slot 0 and Emit starts at slot 0 in the same clock (`one_slot`: for
+    /// M > 1 synthesis removes the bypass).
     wm_fwd: DFF<Bit>,
     wm_last: DFF<Bits<37>>,
     s_live: Vec<DFF<Bit>>,
@@ -365,11 +366,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w_fconf: Signal<Local, Bit>,
     w_flags: Signal<Local, Bits<8>>,
     w_word: Signal<Local, Bits<37>>,
-    m_age: Signal<Local, Bits<AGE_BITS>>,
-    m_dage: Signal<Local, Bits<16>>,
-    m_conf: Signal<Local, Bit>,
-    m_cont: Signal<Local, Bit>,
-    m_trunc: Signal<Local, Bit>,
+    wr_age: Signal<Local, Bits<AGE_BITS>>,
+    wr_dage: Signal<Local, Bits<16>>,
+    wr_conf: Signal<Local, Bit>,
+    wr_cont: Signal<Local, Bit>,
+    wr_trunc: Signal<Local, Bit>,
     n_busy: Signal<Local, Bit>,
     n_live: Signal<Local, Bit>,
     n_cont: Signal<Local, Bit>,
@@ -409,6 +410,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     last_row: Constant<Bits<COORD_BITS>>,
     last_word: Constant<Bits<16>>,
     last_slot: Constant<Bits<8>>,
+    one_slot: Constant<Bit>,
     _m: usize,
 }
 
@@ -608,11 +610,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w_fconf: Default::default(),
             w_flags: Default::default(),
             w_word: Default::default(),
-            m_age: Default::default(),
-            m_dage: Default::default(),
-            m_conf: Default::default(),
-            m_cont: Default::default(),
-            m_trunc: Default::default(),
+            wr_age: Default::default(),
+            wr_dage: Default::default(),
+            wr_conf: Default::default(),
+            wr_cont: Default::default(),
+            wr_trunc: Default::default(),
             n_busy: Default::default(),
             n_live: Default::default(),
             n_cont: Default::default(),
@@ -655,6 +657,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             last_row: cc(f.height as u64 - 1),
             last_word: c16(f.words_per_row() as u64 - 1),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
+            one_slot: Constant::new(m == 1),
             _m: m,
         })
     }
@@ -960,25 +963,25 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // What the walk writes back to the slot's word: the end of a plane
         // its next state, the stream end's `finish` the end of a live track
         // (at t − 1 = p − 1, truncated), a drain plane's end the ages.
-        self.m_age.next = self.n_age.val();
-        self.m_dage.next = self.n_dage.val();
-        self.m_conf.next = self.w_conf.val();
-        self.m_cont.next = self.w_cont.val();
-        self.m_trunc.next = self.w_trunc.val();
+        self.wr_age.next = self.n_age.val();
+        self.wr_dage.next = self.n_dage.val();
+        self.wr_conf.next = self.w_conf.val();
+        self.wr_cont.next = self.w_cont.val();
+        self.wr_trunc.next = self.w_trunc.val();
         if self.state.q.val() == TrackerState::Walk {
-            self.m_conf.next = self.w_conf1.val() | self.w_cut.val();
-            self.m_cont.next = self.n_cont.val();
+            self.wr_conf.next = self.w_conf1.val() | self.w_cut.val();
+            self.wr_cont.next = self.n_cont.val();
             if self.w_cut.val() {
-                self.m_trunc.next = false;
+                self.wr_trunc.next = false;
             }
         }
         if self.state.q.val() == TrackerState::Finish {
-            self.m_age.next = self.w_age.val();
-            self.m_dage.next = self.w_dage.val();
+            self.wr_age.next = self.w_age.val();
+            self.wr_dage.next = self.w_dage.val();
             if self.w_busy.val() & self.w_live.val() {
-                self.m_dage.next = 1.into();
-                self.m_trunc.next = true;
-                self.m_conf.next = self.w_fconf.val();
+                self.wr_dage.next = 1.into();
+                self.wr_trunc.next = true;
+                self.wr_conf.next = self.w_fconf.val();
             }
         }
 
@@ -1051,11 +1054,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.walk_mem.write_address.next = self.walk.q.val();
         self.walk_mem.write_enable.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
-        self.walk_mem.write_data.next = bit_cast::<37, 18>(self.m_age.val())
-            | (bit_cast::<37, 16>(self.m_dage.val()) << 18)
-            | (bit_cast::<37, 1>(self.m_conf.val().into()) << 34)
-            | (bit_cast::<37, 1>(self.m_cont.val().into()) << 35)
-            | (bit_cast::<37, 1>(self.m_trunc.val().into()) << 36);
+        self.walk_mem.write_data.next = bit_cast::<37, 18>(self.wr_age.val())
+            | (bit_cast::<37, 16>(self.wr_dage.val()) << 18)
+            | (bit_cast::<37, 1>(self.wr_conf.val().into()) << 34)
+            | (bit_cast::<37, 1>(self.wr_cont.val().into()) << 35)
+            | (bit_cast::<37, 1>(self.wr_trunc.val().into()) << 36);
         if self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val() {
             self.walk.d.next = self.walk.q.val() + 1;
         }
@@ -1203,6 +1206,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.fprev[i].d.next = !self.n_busy.val();
                     self.opened[i].d.next = false;
                     self.hit[i].d.next = false;
+                }
+                // (`opened` too, so that the drain walks and Emit read the
+                // word `finish` writes.)
+                if self.sel[i].val() & self.we_fin.val() {
+                    self.opened[i].d.next = false;
                 }
                 if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val() {
                     self.live[i].d.next = false;
@@ -1363,10 +1371,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
 
         // Read the word of the slot the walk is at on the next clock (after
-        // every assignment of `walk.d`, restart's included).
+        // every assignment of `walk.d`).
         self.walk_mem.read_address.next = self.walk.d.val();
-        self.wm_fwd.d.next =
-            self.walk_mem.write_enable.val() & (self.walk.d.val() == self.walk.q.val());
+        self.wm_fwd.d.next = self.one_slot.val()
+            & self.walk_mem.write_enable.val()
+            & (self.walk.d.val() == self.walk.q.val());
         self.wm_last.d.next = self.walk_mem.write_data.val();
 
         self.plane.next = self.t.q.val();

@@ -1,5 +1,6 @@
 //! A simple dual-port memory of exact depth (one clock, read-first), the
-//! storage of the delay line, the counter memory and the line buffers.
+//! storage of the delay line, the counter memory, the line buffers and the
+//! blink tracker's walk-only slot fields.
 //!
 //! rust-hdl's own `RAM` always declares `2^AW` words; with plane sizes that
 //! are not powers of two that wastes block RAM, so this block declares

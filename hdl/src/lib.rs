@@ -26,7 +26,8 @@
 //!   per lane, read-modify-write `S += b_new − b_old`;
 //! * [`spatial_filter::SpatialFilter`]: vertical pass first (k − 1 line
 //!   buffers of counts), then horizontal; pre-added symmetric taps and
-//!   shift-and-add constant multipliers; zero padding on all four edges;
+//!   constant multipliers, shift-and-add over signed digits or, for the
+//!   costliest, the device's DSP48A1 slices; zero padding on all four edges;
 //! * [`threshold::Threshold`] and [`candidates::Candidates`]: `H ≥ T_int` and
 //!   the 3×3 maximum with the model's raster tie rule, two line buffers of H;
 //! * [`front_half`]: the chain, its configurations and its Verilog.

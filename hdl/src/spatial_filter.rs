@@ -117,11 +117,13 @@ impl<const W: usize> ConstMul<W> {
 
 impl<const W: usize> Logic for ConstMul<W> {
     fn update(&mut self) {
-        let mut x = self.x.val().index() as u128;
+        // (`to_u64`: `index` refuses vectors wider than 32 bits.)
+        let mut x = self.x.val().to_u64() as u128;
         if let Some(b) = self._dsp_operand_bits {
             x &= (1u128 << b) - 1;
         }
-        let y = x.wrapping_mul(self._weight as u128) & ((1u128 << W) - 1);
+        // x < 2^64 and w < 2^32: the product fits 128 bits.
+        let y = (x * self._weight as u128) & ((1u128 << W) - 1);
         self.y.next = (y as u64).to_bits();
     }
 

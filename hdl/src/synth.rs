@@ -147,7 +147,8 @@ pub struct Resources {
     /// `proc; flatten`): with [`Resources::ramb16_floor`], the analytic floor.
     pub memory_bits: u64,
     /// Multipliers (`$mul` cells) before mapping: the floor of DSP slices
-    /// (constant multipliers are written as shifts and adds, so 0).
+    /// (the spatial filter's multiplies that its configuration gives DSP
+    /// slices; the others are shifts and adds).
     pub multipliers: u64,
     /// Longest path between registers, memories, black boxes and ports in
     /// cells of the mapped netlist (LUTs, MUXF7/8, CARRY4, LUT-RAM reads and

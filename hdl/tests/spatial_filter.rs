@@ -173,22 +173,50 @@ fn csd_digits_make_the_weight_with_the_fewest_terms() {
     assert_eq!(csd_digits(29), vec![(5, false), (2, true), (0, false)]);
 }
 
-#[test]
-fn const_mul_equals_the_product_modulo_its_width() {
+/// `ConstMul<W>` against `w · x mod 2^W` (the DSP form: with x narrowed to
+/// its operand bits), x over the whole W bits.
+fn const_mul_case<const W: usize>(seed: u64) {
     use smartagg_hdl::spatial_filter::ConstMul;
-    let mut rng = common::rng(7);
-    for (w, dsp) in [0u32, 1, 2, 3, 7, 10, 29, 54, 66, 255, 1023, 0xAAAA]
-        .into_iter()
-        .flat_map(|w| [(w, None), (w, Some(12))])
+    let mut rng = common::rng(seed);
+    for (w, dsp) in [
+        0u32,
+        1,
+        2,
+        3,
+        7,
+        10,
+        29,
+        54,
+        66,
+        255,
+        1023,
+        0xAAAA,
+        u32::MAX,
+    ]
+    .into_iter()
+    .flat_map(|w| [(w, None), (w, Some(12))])
     {
-        let mut m = ConstMul::<16>::of((w, dsp));
+        let mut m = ConstMul::<W>::of((w, dsp));
         m.connect_all();
         for _ in 0..50 {
-            let x: u64 = rng.gen_range(0..1 << dsp.unwrap_or(16));
+            let x: u64 = rng.gen::<u64>() >> (64 - W);
             m.x.next = x.to_bits();
             settle(&mut m);
-            let want = (x * w as u64) & 0xFFFF;
-            assert_eq!(m.y.val().index() as u64, want, "{w} * {x} (DSP {dsp:?})");
+            let operand = dsp.map_or(x as u128, |b| x as u128 & ((1 << b) - 1));
+            let want = (operand * w as u128) & ((1u128 << W) - 1);
+            assert_eq!(
+                m.y.val().to_u64() as u128,
+                want,
+                "{w} * {x} in {W} bits (DSP {dsp:?})"
+            );
         }
     }
+}
+
+#[test]
+fn const_mul_equals_the_product_modulo_its_width() {
+    const_mul_case::<16>(7);
+    const_mul_case::<24>(8);
+    const_mul_case::<40>(9);
+    const_mul_case::<64>(10);
 }
