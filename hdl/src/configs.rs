@@ -66,6 +66,15 @@ pub const XC6SLX150: Device = Device {
 /// Both devices, in report order.
 pub const DEVICES: [Device; 2] = [XC6SLX45, XC6SLX150];
 
+/// The device a preset's design is generated for: the SPCImager's on the
+/// XEM6310-LX45, the larger sensors' on the LX150.
+pub fn device_for(preset: PresetName) -> Device {
+    match preset {
+        PresetName::Spcimager => XC6SLX45,
+        _ => XC6SLX150,
+    }
+}
+
 impl Device {
     /// Bits of block RAM.
     pub fn block_ram_bits(&self) -> u64 {
@@ -165,10 +174,7 @@ impl Design {
             DetectionInputs::from_preset(&p, None).map_err(|e| unsupported(e.to_string()))?;
         let det = stats::derive(&inputs).map_err(|e| unsupported(e.to_string()))?;
         let (width, height) = p.camera.size();
-        let device = match preset {
-            PresetName::Spcimager => XC6SLX45,
-            _ => XC6SLX150,
-        };
+        let device = device_for(preset);
         let plane_bits = width as u64 * height as u64;
         let n_bram = block_ram_n_max(det.n_window);
         let (delay_line, n_max, top) = if 2 * n_bram as u64 * plane_bits <= device.block_ram_bits()

@@ -1472,7 +1472,10 @@ pub fn spcimager150_back_config() -> Result<BackHalfConfig, GatewareError> {
 pub fn projected150_back_config() -> Result<BackHalfConfig, GatewareError> {
     let front = GatewareConfig {
         n_max: 24,
-        dsp_multipliers: crate::configs::XC6SLX150.dsp48a1 as usize,
+        dsp_multipliers: crate::configs::device_for(
+            smartagg_model::params::PresetName::SpcimagerProjected,
+        )
+        .dsp48a1 as usize,
         ..crate::front_half::spcimager150_config()
     };
     back_config_for(front, 18)

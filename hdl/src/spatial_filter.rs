@@ -57,6 +57,12 @@ pub fn csd_digits(weight: u32) -> Vec<(u32, bool)> {
     digits
 }
 
+/// Adders or subtractors the shift-and-add form of a multiply by `weight`
+/// takes (what a DSP slice saves): one fewer than its signed digits.
+pub fn csd_adders(weight: u32) -> usize {
+    csd_digits(weight).len().saturating_sub(1)
+}
+
 /// `y = w · x mod 2^W` for a constant weight w: in LUTs, a chain of
 /// shifted adds and subtracts ([`csd_digits`], the leading digit positive;
 /// a partial sum may wrap, the product, which the caller guarantees to fit
@@ -106,12 +112,6 @@ impl<const W: usize> ConstMul<W> {
             Some(bits) => ConstMul::dsp(weight, bits),
             None => ConstMul::new(weight),
         }
-    }
-
-    /// Adders or subtractors the shift-and-add form takes (what a DSP
-    /// slice saves): one fewer than the signed digits of the weight.
-    pub fn adders(weight: u32) -> usize {
-        csd_digits(weight).len().saturating_sub(1)
     }
 }
 
@@ -255,7 +255,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
                 } else {
                     (operand_bits(j, CW), VW)
                 };
-                let adders = ConstMul::<1>::adders(cfg.kernel[j]);
+                let adders = csd_adders(cfg.kernel[j]);
                 (adders > 0 && bits <= DSP_OPERAND_BITS).then_some((adders * width, m, bits))
             })
             .collect();

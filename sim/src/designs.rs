@@ -80,12 +80,17 @@ impl Config {
         }
     }
 
-    fn preset(self) -> Result<Preset, DesignError> {
-        let (n, o) = match self {
+    /// The preset and objective (the inverse of [`Config::for_preset`]).
+    fn preset_name(self) -> (PresetName, u32) {
+        match self {
             Config::Spcimager150 => (PresetName::Spcimager, 150),
             Config::Spcimager60 => (PresetName::Spcimager, 60),
             Config::Projected150 => (PresetName::SpcimagerProjected, 150),
-        };
+        }
+    }
+
+    fn preset(self) -> Result<Preset, DesignError> {
+        let (n, o) = self.preset_name();
         Preset::new(n, o).map_err(|e| DesignError::Model(e.to_string()))
     }
 
@@ -122,13 +127,9 @@ impl Config {
     }
 
     /// The filter's DSP multiplies: every DSP slice of the device the
-    /// configuration is generated for (`smartagg_hdl::configs::Design`).
+    /// configuration is generated for (as `smartagg_hdl::configs::Design`).
     fn dsp_multipliers(self) -> usize {
-        let device = match self {
-            Config::Spcimager150 | Config::Spcimager60 => smartagg_hdl::configs::XC6SLX45,
-            Config::Projected150 => smartagg_hdl::configs::XC6SLX150,
-        };
-        device.dsp48a1 as usize
+        smartagg_hdl::configs::device_for(self.preset_name().0).dsp48a1 as usize
     }
 }
 
