@@ -7,9 +7,10 @@
 //! **Blink count block.** The counts are read from the record's counter bank
 //! ([`crate::roi_aggregator`]) three times, one count per clock: pass 1 finds
 //! the minimum `base` (and ORs the rows' mask flags into MASKED), pass 2 feeds
-//! 32 length accumulators, one per Rice parameter k (each code is
+//! RCW + 1 length accumulators, one per Rice parameter k ≤ RCW (each code is
 //! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`; 16 bits suffice for
-//! R ≤ 31), a 32-clock scan takes the smallest total (ties: smallest k), and
+//! R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
+//! scan takes the smallest total (ties: smallest k), and
 //! pass 3 emits the codes MSB first through a bit packer. ROI rows outside
 //! the sensor read as 0. The header's length is known after pass 2.
 //!
@@ -61,6 +62,16 @@ pub enum PacketState {
     Crc,
     /// Return the bank, next sequence number.
     Finish,
+}
+
+/// Rice parameters worth a length accumulator for counts of `rcw` bits:
+/// 0 ..= `rcw` (at most the model's 0 ..= 31). An offset from the base is
+/// below 2^rcw, so for every k ≥ rcw each code is 1 + k bits and the total
+/// grows with k: k = rcw beats every larger k, and the model's choice
+/// ([`smartagg_model::rice::choose`], smallest k on ties) is always in
+/// 0 ..= rcw.
+pub fn rice_candidates(rcw: usize) -> usize {
+    (rcw + 1).min(smartagg_model::rice::MAX_K as usize + 1)
 }
 
 /// CRC-32C table entries of the single-bit bytes 2⁰ … 2⁷.
@@ -239,6 +250,7 @@ pub struct Packetiser<
     ovf_prefix: Vec<Signal<Local, Bits<8>>>,
     the_byte: Signal<Local, Bits<8>>,
     pk_shift: Signal<Local, Bits<72>>,
+    pk_low: Signal<Local, Bits<72>>,
     pad_shift: Signal<Local, Bits<72>>,
     crc_shift: Signal<Local, Bits<32>>,
     pk_byte: Signal<Local, Bits<8>>,
@@ -246,6 +258,7 @@ pub struct Packetiser<
     crc_v: Signal<Local, Bits<8>>,
     ct: Vec<Signal<Local, Bits<32>>>,
     crc_next: Signal<Local, Bits<32>>,
+    bk: Signal<Local, Bits<8>>,
     cq: Signal<Local, Bits<32>>,
     cesc: Signal<Local, Bit>,
     clen: Signal<Local, Bits<8>>,
@@ -265,9 +278,17 @@ pub struct Packetiser<
     h: Constant<Bits<16>>,
     h_plus_rows: Constant<Bits<16>>,
     last_idx: Constant<Bits<8>>,
+    /// The largest Rice parameter scanned (`_kn − 1`).
+    k_last: Constant<Bits<8>>,
+    /// Covers every k below `_kn` (a power of two minus one).
+    k_mask: Constant<Bits<8>>,
+    low_byte: Constant<Bits<72>>,
     one64: Constant<Bits<64>>,
     all_ones: Constant<Bits<RCW>>,
     _r: usize,
+    /// Rice parameters with a length accumulator: 0 ..= RCW (see
+    /// [`rice_candidates`]).
+    _kn: usize,
     /// Bytes of the assembled header and fixed payload (PW / 8).
     _pb: usize,
     /// Leaves of the byte-select tree (the power of two at or above `_pb`).
@@ -291,6 +312,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         GatewareConfig::check_width("Packetiser", "PW", PW, 8 * cfg.prefix_bytes())?;
         let r = cfg.roi_size;
         let k = f.kernel.len();
+        let kn = rice_candidates(RCW);
         // The constant bytes of StreamStart: header (seq and the registers
         // are added at run time) and the generation parameters.
         let start_payload = 33 + 2 * k;
@@ -367,7 +389,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             row: lanes(r),
             base: Default::default(),
             masked: Default::default(),
-            acc: lanes(32),
+            acc: lanes(kn),
             best: Default::default(),
             bestk: Default::default(),
             scan: Default::default(),
@@ -388,8 +410,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             dd: Default::default(),
             d32: Default::default(),
             d64: Default::default(),
-            q: lanes(32),
-            len: lanes(32),
+            q: lanes(kn),
+            len: lanes(kn),
             acc_j: Default::default(),
             vlen: Default::default(),
             tb0: Default::default(),
@@ -409,6 +431,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             ovf_prefix: lanes(PW / 8),
             the_byte: Default::default(),
             pk_shift: Default::default(),
+            pk_low: Default::default(),
             pad_shift: Default::default(),
             crc_shift: Default::default(),
             pk_byte: Default::default(),
@@ -416,6 +439,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             crc_v: Default::default(),
             ct: lanes(8),
             crc_next: Default::default(),
+            bk: Default::default(),
             cq: Default::default(),
             cesc: Default::default(),
             clen: Default::default(),
@@ -423,9 +447,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             low_k: Default::default(),
             code: Default::default(),
             ids: (0..r).map(|i| c8(i as u64)).collect(),
-            kc: (0..32).map(|k| c8(k as u64)).collect(),
-            k5c: (0..32).map(|k| c8(k as u64 + 5)).collect(),
-            kp1: (0..32)
+            kc: (0..kn).map(|k| c8(k as u64)).collect(),
+            k5c: (0..kn).map(|k| c8(k as u64 + 5)).collect(),
+            kp1: (0..kn)
                 .map(|k| Constant::new((k as u64 + 1).to_bits()))
                 .collect(),
             crc_t: crc_bit_entries()
@@ -449,9 +473,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             h: Constant::new((cfg.roi_half() as u64).to_bits()),
             h_plus_rows: Constant::new(((cfg.roi_half() + f.height) as u64).to_bits()),
             last_idx: c8(r as u64 - 1),
+            k_last: c8(kn as u64 - 1),
+            k_mask: c8(kn.next_power_of_two() as u64 - 1),
+            low_byte: Constant::new(0xFFu64.to_bits()),
             one64: Constant::new(1u64.to_bits()),
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,
+            _kn: kn,
             _pb: PW / 8,
             _leaves: (PW / 8).next_power_of_two(),
             _o_period: 35 + 2 * k,
@@ -480,7 +508,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.row[dx].clock.next = self.clock.val();
             self.row[dx].d.next = self.row[dx].q.val();
         }
-        for k in 0..32 {
+        for k in 0..self._kn {
             self.acc[k].clock.next = self.clock.val();
             self.acc[k].d.next = self.acc[k].q.val();
         }
@@ -561,7 +589,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.dd.next = self.c_val.val() - self.base.q.val();
         self.d32.next = bit_cast::<32, RCW>(self.dd.val());
         self.d64.next = bit_cast::<64, RCW>(self.dd.val());
-        for k in 0..32 {
+        for k in 0..self._kn {
             self.q[k].next = self.d32.val() >> self.kc[k].val();
             self.len[k].next = self.q[k].val() + self.kp1[k].val();
             if (self.d32.val() >> self.k5c[k].val()).any() {
@@ -569,19 +597,23 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
         }
         self.acc_j.next = 0.into();
-        for k in 0..32 {
+        for k in 0..self._kn {
             if self.scan.q.val() == self.kc[k].val() {
                 self.acc_j.next = self.acc[k].q.val();
             }
         }
 
         // ---- The code of the current count with the chosen k.
-        self.cq.next = self.d32.val() >> self.bestk.q.val();
+        // The masks change no value (bestk < _kn; cq < 32 unless escaped,
+        // when the code is replaced) but tell synthesis how few shift
+        // stages the barrel shifters need.
+        self.bk.next = self.bestk.q.val() & self.k_mask.val();
+        self.cq.next = self.d32.val() >> self.bk.val();
         self.cesc.next = (self.cq.val() >> 5).any();
-        self.ones_q.next = ((self.one64.val() << self.cq.val()) - 1) << (self.bestk.q.val() + 1);
-        self.low_k.next = (self.one64.val() << self.bestk.q.val()) - 1;
+        self.ones_q.next = ((self.one64.val() << (self.cq.val() & 31)) - 1) << (self.bk.val() + 1);
+        self.low_k.next = (self.one64.val() << self.bk.val()) - 1;
         self.code.next = self.ones_q.val() | (self.d64.val() & self.low_k.val());
-        self.clen.next = bit_cast::<8, 32>(self.cq.val()) + self.bestk.q.val() + 1;
+        self.clen.next = bit_cast::<8, 32>(self.cq.val()) + self.bk.val() + 1;
         if self.cesc.val() {
             self.code.next = (bit_cast::<64, 32>(0xFFFF_FFFF_u64.into()) << 32) | self.d64.val();
             self.clen.next = 64.into();
@@ -791,7 +823,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // (Verilog cannot slice an expression: shift into a signal first.)
         self.pk_shift.next = self.pk.q.val() >> (self.nb.q.val() - 8);
         self.pk_byte.next = self.pk_shift.val().get_bits::<8>(0);
-        self.pad_shift.next = self.pk.q.val() << (8 - self.nb.q.val());
+        // Only the low nb < 8 bits of pk are still to be sent when it is
+        // padded or a code is appended (older bits have left as bytes).
+        self.pk_low.next = self.pk.q.val() & self.low_byte.val();
+        self.pad_shift.next = self.pk_low.val() << ((8 - self.nb.q.val()) & 7);
         self.pad_byte.next = self.pad_shift.val().get_bits::<8>(0);
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
         // Byte `bidx` of the prefix through a binary tree of 2:1 byte
@@ -887,7 +922,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.base.d.next = self.c_val.val();
                 }
                 if !self.cs_active.q.val() {
-                    for k in 0..32 {
+                    for k in 0..self._kn {
                         self.acc[k].d.next = 0.into();
                     }
                     self.cs_active.d.next = true;
@@ -898,7 +933,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
             PacketState::Pass2 => {
                 if self.c_valid.val() {
-                    for k in 0..32 {
+                    for k in 0..self._kn {
                         self.acc[k].d.next =
                             self.acc[k].q.val() + self.len[k].val().get_bits::<16>(0);
                     }
@@ -916,7 +951,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.bestk.d.next = self.scan.q.val();
                 }
                 self.scan.d.next = self.scan.q.val() + 1;
-                if self.scan.q.val() == 31 {
+                if self.scan.q.val() == self.k_last.val() {
                     self.state.d.next = PacketState::Decide;
                 }
             }
@@ -981,8 +1016,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.crc.d.next = self.crc_next.val();
                     self.nb.d.next = self.nb.q.val() - 8;
                 } else if self.c_valid.val() {
-                    self.pk.d.next =
-                        (self.pk.q.val() << self.clen.val()) | bit_cast::<72, 64>(self.code.val());
+                    self.pk.d.next = (self.pk_low.val() << self.clen.val())
+                        | bit_cast::<72, 64>(self.code.val());
                     self.nb.d.next = self.nb.q.val() + self.clen.val();
                 } else if !self.cs_active.q.val() {
                     if self.nb.q.val() != 0 {

@@ -166,7 +166,8 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
                         let y = bl.anchor_y as i64 - h + dy as i64;
                         if !(0..height).contains(&y) {
                             for c in &mut counts[dy * r..(dy + 1) * r] {
-                                *c = 0xDEAD_0000 | dy as u32;
+                                // Garbage the counters can hold (it must read 0).
+                                *c = ((0xDEAD_BEEF_u64 ^ dy as u64) & ((1 << RCW) - 1)) as u32;
                             }
                             masked[dy] = true;
                         }
@@ -519,6 +520,76 @@ fn three_by_three_rois_too() {
     }
     assert_eq!(
         run::<32, 9, 7, 8, 464>(&bh, 1, &inputs(recs), 0.9, 77),
+        want
+    );
+}
+
+/// [`config`] with the ROI counters of a real design: L_max ≤ 255 and
+/// N_max = 128 make them 9 bits wide, so the packetiser keeps length
+/// accumulators for k = 0 ..= 9 only.
+fn config_narrow(r: usize) -> (PipelineConfig, BackHalfConfig) {
+    let mut cfg = PipelineConfig::new(320, 240, 108, KERNEL.to_vec(), 8, 1_234_567);
+    cfg.slots = 32;
+    cfg.roi_size = r;
+    cfg.r_assoc = 1;
+    cfg.l_min = 3;
+    cfg.l_max = 200;
+    let front = GatewareConfig::new(&cfg, 16, 128).unwrap();
+    let bh = BackHalfConfig::new(&cfg, front, 255).unwrap();
+    assert_eq!(bh.roi_count_bits(), 9);
+    (cfg, bh)
+}
+
+#[test]
+fn narrow_counters_keep_accumulators_up_to_their_width_only() {
+    use smartagg_hdl::packetiser::rice_candidates;
+    use smartagg_model::rice;
+    assert_eq!(rice_candidates(9), 10);
+    assert_eq!(rice_candidates(32), 32);
+    let (_, bh) = config_narrow(9);
+    let mut rng = common::rng(91);
+    let top = (1u32 << bh.roi_count_bits()) - 1;
+    let mut ks = std::collections::BTreeSet::new();
+    let recs: Vec<Record> = (0..24)
+        .map(|i| {
+            let mut b = random_blink(&mut rng, 9);
+            for (j, c) in b.counts.iter_mut().enumerate() {
+                let (x, y) = (
+                    b.anchor_x as i64 - 4 + (j % 9) as i64,
+                    b.anchor_y as i64 - 4 + (j / 9) as i64,
+                );
+                // Every count a 9-bit counter can hold, the extremes included:
+                // all at the top, half at the top and half at 0, uniform;
+                // pixels outside the sensor stay 0.
+                if (0..320).contains(&x) && (0..240).contains(&y) {
+                    *c = match i % 4 {
+                        0 => top,
+                        1 => {
+                            if rng.gen_bool(0.5) {
+                                top
+                            } else {
+                                0
+                            }
+                        }
+                        _ => *c % (top + 1),
+                    };
+                }
+            }
+            ks.insert(rice::choose(&b.counts).1);
+            Record::Blink(b)
+        })
+        .collect();
+    // The model's choices span small and large k (the largest possible is
+    // below the counter width: the base makes one offset 0).
+    assert!(ks.contains(&0) && ks.iter().any(|&k| k >= 7), "{ks:?}");
+    assert!(ks.iter().all(|&k| (k as usize) < rice_candidates(9)));
+    let mut want = Vec::new();
+    let mut enc = Encoder::starting_at(1);
+    for r in &recs {
+        enc.push(r, &mut want).unwrap();
+    }
+    assert_eq!(
+        run::<9, 10, 7, 8, 464>(&bh, 1, &inputs(recs), 0.8, 91),
         want
     );
 }
