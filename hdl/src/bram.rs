@@ -126,3 +126,120 @@ end
         }]
     }
 }
+
+/// `depth` words of `DW` bits in LUT RAM with an *asynchronous* read: the
+/// word at `read_address` now, the write taking effect at the clock edge
+/// (so a read of the word being written in the same clock sees the old
+/// word). For shallow per-row state that is written and read by the same
+/// pipeline stage one row apart, which a registered read could not reach
+/// in time on rows of one or two words.
+#[derive(LogicBlock)]
+pub struct LutRam<const DW: usize, const AW: usize> {
+    /// The one clock.
+    pub clock: Signal<In, Clock>,
+    /// Read address.
+    pub read_address: Signal<In, Bits<AW>>,
+    /// The word at `read_address` (combinational).
+    pub read_data: Signal<Out, Bits<DW>>,
+    /// Write address.
+    pub write_address: Signal<In, Bits<AW>>,
+    /// Word to write.
+    pub write_data: Signal<In, Bits<DW>>,
+    /// Write strobe.
+    pub write_enable: Signal<In, Bit>,
+    _depth: usize,
+    _sim: BTreeMap<u64, Bits<DW>>,
+}
+
+impl<const DW: usize, const AW: usize> LutRam<DW, AW> {
+    /// A memory of `depth ≤ 2^AW` words, initially zero in simulation (the
+    /// design never relies on the initial contents).
+    pub fn new(depth: usize) -> Self {
+        assert!(
+            depth >= 1 && depth as u128 <= 1u128 << AW,
+            "depth {depth} does not fit {AW} address bits"
+        );
+        LutRam {
+            clock: Default::default(),
+            read_address: Default::default(),
+            read_data: Default::default(),
+            write_address: Default::default(),
+            write_data: Default::default(),
+            write_enable: Default::default(),
+            _depth: depth,
+            _sim: BTreeMap::new(),
+        }
+    }
+}
+
+impl<const DW: usize, const AW: usize> Logic for LutRam<DW, AW> {
+    fn update(&mut self) {
+        if self.clock.pos_edge() && self.write_enable.val() {
+            let wa = self.write_address.val().to_u64();
+            if (wa as usize) < self._depth {
+                self._sim.insert(wa, self.write_data.val());
+            }
+        }
+        let ra = self.read_address.val().to_u64();
+        // The design never reads past the depth (the Verilog's words there
+        // are never written); read zero.
+        self.read_data.next = if (ra as usize) < self._depth {
+            self._sim.get(&ra).copied().unwrap_or_default()
+        } else {
+            Bits::default()
+        };
+    }
+
+    fn connect(&mut self) {
+        self.read_data.connect();
+    }
+
+    fn hdl(&self) -> Verilog {
+        // 2^AW words, so that no read address is out of range (the design
+        // reads only the first `depth`).
+        Verilog::Custom(format!(
+            "\
+(* ram_style = \"distributed\" *)
+reg [{msb}:0] words [0:{last}];
+
+always @(posedge clock) begin
+   if (write_enable) begin
+      words[write_address] <= write_data;
+   end
+end
+
+always @(*) read_data = words[read_address];
+",
+            msb = DW - 1,
+            last = (1usize << AW) - 1,
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::Bench;
+
+    #[test]
+    fn lut_ram_reads_now_and_writes_at_the_edge() {
+        let mut b = Bench::new(LutRam::<4, 2>::new(3), |u| &mut u.clock);
+        for (a, v) in [(0u64, 5u64), (1, 9), (2, 12)] {
+            b.uut.write_address.next = a.to_bits();
+            b.uut.write_data.next = v.to_bits();
+            b.uut.write_enable.next = true;
+            b.uut.read_address.next = a.to_bits();
+            crate::sim::settle(&mut b.uut);
+            // Before the edge: the old word (zero).
+            assert_eq!(b.uut.read_data.val().to_u64(), 0);
+            b.tick();
+            assert_eq!(b.uut.read_data.val().to_u64(), v);
+        }
+        b.uut.write_enable.next = false;
+        for (a, v) in [(2u64, 12u64), (0, 5), (1, 9), (3, 0)] {
+            b.uut.read_address.next = a.to_bits();
+            crate::sim::settle(&mut b.uut);
+            assert_eq!(b.uut.read_data.val().to_u64(), v, "word {a}");
+        }
+    }
+}

@@ -5,14 +5,24 @@
 //! Neighbours outside the sensor are zero, which an above-threshold pixel
 //! (H ≥ T_int ≥ 1) always beats — the model's "ignored".
 //!
-//! Two line buffers of H (rows y−1, y−2) give the 3-row column of each word
-//! when row y arrives (output row y − 1, [`RowSkew`]); three [`WordWindow`]s
-//! add one pixel of context each side. Output per word: the above-threshold
+//! A line buffer of H (row y − 1) gives the middle and bottom rows of each
+//! word when row y arrives (output row y − 1, [`RowSkew`]); two
+//! [`WordWindow`]s add one pixel of context each side.
+//!
+//! **Each neighbour pair compared once.** A pixel and a later neighbour
+//! need `a ≥ b` and `b > a = ¬(a ≥ b)`: one comparator serves both. In the
+//! middle row, each horizontal pair; between the middle and the bottom
+//! row, the three pairs of each bottom pixel (3P + 2 comparators a word):
+//! the middle pixels take their bottom tests now, and the bottom pixels'
+//! top tests (negated) wait one row in a LUT RAM of 3 bits per pixel
+//! ([`LutRam`], read and written by this stage one row apart), instead of
+//! a second line buffer of H, a third window and 3P more comparators.
+//! Output per word: the above-threshold
 //! bits and the candidate bits of its P pixels with the word's column and
 //! row, in raster order — a candidate's position is `(x·P + lane, y)`.
 //! Latency: 2 clocks, one word (window), 1 clock.
 
-use crate::bram::{Bram, RamStyle};
+use crate::bram::{Bram, LutRam, RamStyle};
 use crate::config::{GatewareConfig, GatewareError};
 use crate::stream::{lanes, RowSkew, TagReg, WordWindow};
 use crate::threshold::Threshold;
@@ -55,9 +65,7 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     h1: Vec<DFF<Bits<HW>>>,
     skew: RowSkew,
     last_y: Constant<Bits<16>>,
-    top_ok: Signal<Local, Bit>,
     bot_ok: Signal<Local, Bit>,
-    wtop: WordWindow<HW>,
     wmid: WordWindow<HW>,
     wbot: WordWindow<HW>,
     thr: Threshold<HW>,
@@ -68,6 +76,18 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     /// the earlier one) and, negated, for the pixel on its left (greater
     /// than or equal to the later one).
     mid_gt: Vec<Signal<Local, Bit>>,
+    /// `mid.win[n] ≥ bot.win[n + 1]` (n ≤ P): the bottom pixel's left neighbour above.
+    ge_l: Vec<Signal<Local, Bit>>,
+    /// `mid.win[i + 1] ≥ bot.win[i + 1]`: the pixel above.
+    ge_c: Vec<Signal<Local, Bit>>,
+    /// `mid.win[n + 1] ≥ bot.win[n]` (n ≤ P): the bottom pixel's right neighbour above.
+    ge_r: Vec<Signal<Local, Bit>>,
+    /// Per lane, the bottom pixel's strict tests against its three upper
+    /// neighbours (bits 0, 1, 2: left, above, right), for the next row.
+    top_wr: Vec<Signal<Local, Bits<3>>>,
+    /// Per lane, the same bits of the middle row, written one row ago.
+    top_mem: Vec<LutRam<3, LAW>>,
+    top_ok2: Signal<Local, Bit>,
     cand_q: Vec<DFF<Bit>>,
     _p: usize,
 }
@@ -100,20 +120,24 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
             out_y: Default::default(),
             above: lanes(p),
             candidate: lanes(p),
-            line: (0..2 * p).map(|_| Bram::new(wpr, style)).collect(),
+            line: (0..p).map(|_| Bram::new(wpr, style)).collect(),
             t1: Default::default(),
             h1: lanes(p),
             skew: RowSkew::new(1, cfg.height),
             last_y: Constant::new((cfg.height as u64 - 1).to_bits()),
-            top_ok: Default::default(),
             bot_ok: Default::default(),
-            wtop: WordWindow::new(p, 1, wpr),
             wmid: WordWindow::new(p, 1, wpr),
             wbot: WordWindow::new(p, 1, wpr),
             thr: Threshold::new(p),
             t3: Default::default(),
             above_q: lanes(p),
             mid_gt: lanes(p + 1),
+            ge_l: lanes(p + 1),
+            ge_c: lanes(p),
+            ge_r: lanes(p + 1),
+            top_wr: lanes(p),
+            top_mem: (0..p).map(|_| LutRam::new(wpr)).collect(),
+            top_ok2: Default::default(),
             cand_q: lanes(p),
             _p: p,
         })
@@ -123,37 +147,32 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
 impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
     #[hdl_gen]
     fn update(&mut self) {
-        clock!(self, clock, t1, skew, wtop, wmid, wbot, t3);
+        clock!(self, clock, t1, skew, wmid, wbot, t3);
         self.t1.restart.next = self.restart.val();
         self.skew.restart.next = self.restart.val();
-        self.wtop.restart.next = self.restart.val();
         self.wmid.restart.next = self.restart.val();
         self.wbot.restart.next = self.restart.val();
         self.t3.restart.next = self.restart.val();
 
-        // C0: read rows y−1 and y−2 of this column word.
+        // C0: read row y − 1 of this column word.
         self.t1.valid.next = self.valid.val();
         self.t1.flush.next = self.flush.val();
         self.t1.x.next = self.x.val();
         self.t1.y.next = self.y.val();
-        for q in 0..(2 * self._p) {
+        for q in 0..self._p {
             self.line[q].clock.next = self.clock.val();
             self.line[q].read_address.next = bit_cast::<LAW, 16>(self.x.val());
             self.line[q].write_address.next = bit_cast::<LAW, 16>(self.t1.out_x.val());
             self.line[q].write_enable.next = self.t1.out_valid.val();
         }
 
-        // C1: the column (top, mid, bottom) of output row y − 1, zero outside the plane.
+        // C1: the column (mid, bottom) of output row y − 1, the bottom zero
+        // outside the plane.
         self.skew.valid.next = self.t1.out_valid.val();
         self.skew.flush.next = self.t1.out_flush.val();
         self.skew.x.next = self.t1.out_x.val();
         self.skew.y.next = self.t1.out_y.val();
-        self.top_ok.next = self.skew.out_y.val() != 0;
         self.bot_ok.next = self.skew.out_y.val() != self.last_y.val();
-        self.wtop.valid.next = self.skew.out_valid.val();
-        self.wtop.flush.next = self.skew.out_flush.val();
-        self.wtop.x.next = self.t1.out_x.val();
-        self.wtop.y.next = self.skew.out_y.val();
         self.wmid.valid.next = self.skew.out_valid.val();
         self.wmid.flush.next = self.skew.out_flush.val();
         self.wmid.x.next = self.t1.out_x.val();
@@ -165,13 +184,8 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
         for i in 0..self._p {
             self.h1[i].clock.next = self.clock.val();
             self.h1[i].d.next = self.filtered[i].val();
-            self.line[2 * i].write_data.next = self.h1[i].q.val();
-            self.line[2 * i + 1].write_data.next = self.line[2 * i].read_data.val();
-            self.wmid.lanes[i].next = self.line[2 * i].read_data.val();
-            self.wtop.lanes[i].next = 0.into();
-            if self.top_ok.val() {
-                self.wtop.lanes[i].next = self.line[2 * i + 1].read_data.val();
-            }
+            self.line[i].write_data.next = self.h1[i].q.val();
+            self.wmid.lanes[i].next = self.line[i].read_data.val();
             self.wbot.lanes[i].next = 0.into();
             if self.bot_ok.val() {
                 self.wbot.lanes[i].next = self.h1[i].q.val();
@@ -186,6 +200,30 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
         self.thr.threshold.next = self.threshold.val();
         for n in 0..(self._p + 1) {
             self.mid_gt[n].next = self.wmid.win[n + 1].val() > self.wmid.win[n].val();
+            self.ge_l[n].next = self.wmid.win[n].val() >= self.wbot.win[n + 1].val();
+            self.ge_r[n].next = self.wmid.win[n + 1].val() >= self.wbot.win[n].val();
+        }
+        // Row 0 has no row above (the LUT RAM holds the previous plane's
+        // last row, or nothing): its top tests pass, as against the model's
+        // ignored neighbours.
+        self.top_ok2.next = self.wmid.out_y.val() != 0;
+        for i in 0..self._p {
+            self.ge_c[i].next = self.wmid.win[i + 1].val() >= self.wbot.win[i + 1].val();
+            self.top_mem[i].clock.next = self.clock.val();
+            self.top_mem[i].read_address.next = bit_cast::<LAW, 16>(self.wmid.out_x.val());
+            self.top_mem[i].write_address.next = bit_cast::<LAW, 16>(self.wmid.out_x.val());
+            self.top_mem[i].write_enable.next = self.wmid.out_valid.val();
+            self.top_wr[i].next = 0.into();
+            if !self.ge_l[i].val() {
+                self.top_wr[i].next = self.top_wr[i].val() | 1;
+            }
+            if !self.ge_c[i].val() {
+                self.top_wr[i].next = self.top_wr[i].val() | 2;
+            }
+            if !self.ge_r[i + 1].val() {
+                self.top_wr[i].next = self.top_wr[i].val() | 4;
+            }
+            self.top_mem[i].write_data.next = self.top_wr[i].val();
         }
         for i in 0..self._p {
             self.thr.filtered[i].next = self.wmid.win[i + 1].val();
@@ -193,14 +231,12 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
             self.cand_q[i].clock.next = self.clock.val();
             self.above_q[i].d.next = self.thr.above[i].val();
             self.cand_q[i].d.next = self.thr.above[i].val()
-                & (self.wmid.win[i + 1].val() > self.wtop.win[i].val())
-                & (self.wmid.win[i + 1].val() > self.wtop.win[i + 1].val())
-                & (self.wmid.win[i + 1].val() > self.wtop.win[i + 2].val())
+                & (!self.top_ok2.val() | (self.top_mem[i].read_data.val() == 7))
                 & self.mid_gt[i].val()
                 & !self.mid_gt[i + 1].val()
-                & (self.wmid.win[i + 1].val() >= self.wbot.win[i].val())
-                & (self.wmid.win[i + 1].val() >= self.wbot.win[i + 1].val())
-                & (self.wmid.win[i + 1].val() >= self.wbot.win[i + 2].val());
+                & self.ge_r[i].val()
+                & self.ge_c[i].val()
+                & self.ge_l[i + 1].val();
             self.above[i].next = self.above_q[i].q.val();
             self.candidate[i].next = self.cand_q[i].q.val();
         }
