@@ -61,6 +61,10 @@ pub struct RollingCount<const P: usize, const CW: usize, const AW: usize> {
     first1: DFF<Bit>,
     old: Vec<Signal<Local, Bits<CW>>>,
     new: Vec<Signal<Local, Bits<CW>>>,
+    /// +1, 0 or −1 (all ones): one adder per lane instead of an
+    /// incrementer, a decrementer and their multiplexer.
+    step: Vec<Signal<Local, Bits<CW>>>,
+    minus_one: Constant<Bits<CW>>,
     v2: DFF<Bit>,
     f2: DFF<Bit>,
     x2: DFF<Bits<16>>,
@@ -105,6 +109,8 @@ impl<const P: usize, const CW: usize, const AW: usize> RollingCount<P, CW, AW> {
             first1: Default::default(),
             old: lanes(P),
             new: lanes(P),
+            step: lanes(P),
+            minus_one: Constant::new(Bits::<CW>::mask()),
             v2: Default::default(),
             f2: Default::default(),
             x2: Default::default(),
@@ -150,13 +156,14 @@ impl<const P: usize, const CW: usize, const AW: usize> Logic for RollingCount<P,
             if self.first1.q.val() {
                 self.old[i].next = 0.into();
             }
-            self.new[i].next = self.old[i].val();
+            self.step[i].next = 0.into();
             if self.live1.q.val().get_bit(i) & !self.del1.q.val().get_bit(i) {
-                self.new[i].next = self.old[i].val() + 1;
+                self.step[i].next = 1.into();
             }
             if !self.live1.q.val().get_bit(i) & self.del1.q.val().get_bit(i) {
-                self.new[i].next = self.old[i].val() - 1;
+                self.step[i].next = self.minus_one.val();
             }
+            self.new[i].next = self.old[i].val() + self.step[i].val();
             self.mem[i].write_address.next = self.a1.q.val();
             self.mem[i].write_data.next = self.new[i].val();
             self.mem[i].write_enable.next = self.v1.q.val() & !self.f1.q.val();
