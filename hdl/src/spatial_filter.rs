@@ -63,6 +63,11 @@ pub fn csd_adders(weight: u32) -> usize {
     csd_digits(weight).len().saturating_sub(1)
 }
 
+/// Bits of a lane's column word in the vertical pass's line buffer: the
+/// k − 1 rows of CW bits must fit ((k − 1)·CW ≤ 72: two RAMB8s at 36 bits;
+/// the SPCImager's 150× kernel needs 8 × 8 = 64).
+pub const LINE_BITS: usize = 72;
+
 /// `y = w · x mod 2^W` for a constant weight w: in LUTs, a chain of
 /// shifted adds and subtracts ([`csd_digits`], the leading digit positive;
 /// a partial sum may wrap, the product, which the caller guarantees to fit
@@ -183,7 +188,20 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     /// H of the output word's P pixels.
     pub filtered: Vec<Signal<Out, Bits<HW>>>,
     // Vertical pass.
-    line: Vec<Bram<CW, LAW>>,
+    /// Per lane, the column of rows y−1 … y−(k−1) in one word (row y − 1 −
+    /// m at bits m·CW): one memory per lane, so that block RAM holds the
+    /// k − 1 rows in a few RAMB8s instead of k − 1 narrow memories each.
+    line: Vec<Bram<LINE_BITS, LAW>>,
+    /// The column word shifted down by m·CW bits, cut to tap m + 1.
+    lrow: Vec<Widen<LINE_BITS, CW>>,
+    /// The new row, widened to a column word.
+    lwid: Vec<Widen<CW, LINE_BITS>>,
+    lup: Vec<Signal<Local, Bits<LINE_BITS>>>,
+    lnew: Vec<Signal<Local, Bits<LINE_BITS>>>,
+    /// m·CW for m = 0 … k − 1.
+    row_shift: Vec<Constant<Bits<8>>>,
+    /// The (k − 1)·CW bits of a column word.
+    line_mask: Constant<Bits<LINE_BITS>>,
     t1: TagReg,
     s1: Vec<DFF<Bits<CW>>>,
     skew: RowSkew,
@@ -230,11 +248,16 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
         GatewareConfig::check_width("SpatialFilter", "LAW", LAW, cfg.line_addr_bits())?;
         let (p, k, c) = (cfg.pixels_per_clock, cfg.kernel.len(), cfg.half());
         let wpr = cfg.words_per_row();
-        let style = if wpr <= 64 {
-            RamStyle::Distributed
-        } else {
-            RamStyle::Block
-        };
+        if (k - 1) * CW > LINE_BITS {
+            return Err(GatewareError::Invalid {
+                field: "kernel",
+                value: format!("{k} taps of {CW}-bit counts"),
+                why: format!("the line buffer's column word holds (k − 1)·CW ≤ {LINE_BITS} bits"),
+            });
+        }
+        // Block RAM even for short rows: a lane's column word is two RAMB8s,
+        // where LUT RAM would take 16 RAM32M (64 LUTs) for the SPCImager.
+        let style = RamStyle::Block;
         let c16 = |v: usize| Constant::new((v as u64).to_bits());
         // Tap m (0 = newest row) of output row yo reads source row yo + c − m,
         // inside the plane iff m ≤ yo + c < H + m.
@@ -279,7 +302,17 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             out_x: Default::default(),
             out_y: Default::default(),
             filtered: lanes(p),
-            line: (0..p * (k - 1)).map(|_| Bram::new(wpr, style)).collect(),
+            line: (0..p).map(|_| Bram::new(wpr, style)).collect(),
+            lrow: (0..p * (k - 1)).map(|_| Widen::default()).collect(),
+            lwid: (0..p).map(|_| Widen::default()).collect(),
+            lup: lanes(p),
+            lnew: lanes(p),
+            row_shift: (0..k)
+                .map(|m| Constant::new(((m * CW) as u64).to_bits()))
+                .collect(),
+            line_mask: Constant::new(
+                (0..(k - 1) * CW).fold(Bits::<LINE_BITS>::default(), |b, i| b.replace_bit(i, true)),
+            ),
             t1: Default::default(),
             s1: lanes(p),
             skew: RowSkew::new(c, cfg.height),
@@ -341,11 +374,11 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             self.s1[i].clock.next = self.clock.val();
             self.s1[i].d.next = self.counts[i].val();
         }
-        for q in 0..(self._p * (self._k - 1)) {
-            self.line[q].clock.next = self.clock.val();
-            self.line[q].read_address.next = bit_cast::<LAW, 16>(self.x.val());
-            self.line[q].write_address.next = bit_cast::<LAW, 16>(self.t1.out_x.val());
-            self.line[q].write_enable.next = self.t1.out_valid.val();
+        for i in 0..self._p {
+            self.line[i].clock.next = self.clock.val();
+            self.line[i].read_address.next = bit_cast::<LAW, 16>(self.x.val());
+            self.line[i].write_address.next = bit_cast::<LAW, 16>(self.t1.out_x.val());
+            self.line[i].write_enable.next = self.t1.out_valid.val();
         }
 
         // V1: output row, tap masks, shift the column down, pre-add pairs.
@@ -363,20 +396,23 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         for kk in self._k..(self._k + 1) {
             for km in (self._k - 1)..self._k {
                 for i in 0..self._p {
-                    self.line[i * km].write_data.next = self.s1[i].q.val();
+                    // The column moves down a row: the new row at the bottom
+                    // bits, the oldest row shifted out (and masked off).
+                    self.lup[i].next = self.line[i].read_data.val() << self.row_shift[1].val();
+                    self.lwid[i].x.next = self.s1[i].q.val();
+                    self.lnew[i].next = self.lup[i].val() | self.lwid[i].y.val();
+                    self.line[i].write_data.next = self.lnew[i].val() & self.line_mask.val();
                     self.vwid[i * kk].x.next = self.s1[i].q.val();
                     for m in 1..self._k {
-                        self.vwid[i * kk + m].x.next = self.line[i * km + m - 1].read_data.val();
+                        self.lrow[i * km + m - 1].x.next =
+                            self.line[i].read_data.val() >> self.row_shift[m - 1].val();
+                        self.vwid[i * kk + m].x.next = self.lrow[i * km + m - 1].y.val();
                     }
                     for m in 0..self._k {
                         self.tap[i * kk + m].next = 0.into();
                         if self.mask[m].val() {
                             self.tap[i * kk + m].next = self.vwid[i * kk + m].y.val();
                         }
-                    }
-                    for m in 1..(self._k - 1) {
-                        self.line[i * km + m].write_data.next =
-                            self.line[i * km + m - 1].read_data.val();
                     }
                 }
             }
