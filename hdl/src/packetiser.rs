@@ -1174,7 +1174,9 @@ impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW
             h_bank: Default::default(),
             overflow: Default::default(),
             empty: Default::default(),
-            fifo: Fifo::new(RamStyle::Distributed),
+            // Block RAM: a record is ~230 bits wide, 78 RAM64M (312 LUTs) of
+            // LUT RAM for the SPCImager's 32 records, or four RAMB8s.
+            fifo: Fifo::new(RamStyle::Block),
             depth: Constant::new((cfg.queue_depth() as u64).to_bits()),
         })
     }

@@ -255,7 +255,9 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             cnt: (0..r)
                 .map(|_| Bram::new(counter_rows, RamStyle::Block))
                 .collect(),
-            msk: Bram::new(counter_rows, RamStyle::Distributed),
+            // Block RAM: 1 × (M + Q)·R bits is one RAMB8, 14 RAM64M of LUT RAM
+            // for the SPCImager.
+            msk: Bram::new(counter_rows, RamStyle::Block),
             bank_base: ConstMul::new(r as u32),
             wbase: Default::default(),
             wslot: Default::default(),
