@@ -266,6 +266,7 @@ pub struct Packetiser<
     low_k: Signal<Local, Bits<64>>,
     code: Signal<Local, Bits<64>>,
     // Constants.
+    ids: Vec<Constant<Bits<8>>>,
     kc: Vec<Constant<Bits<8>>>,
     k5c: Vec<Constant<Bits<8>>>,
     kp1: Vec<Constant<Bits<32>>>,
@@ -445,6 +446,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             ones_q: Default::default(),
             low_k: Default::default(),
             code: Default::default(),
+            ids: (0..r).map(|i| c8(i as u64)).collect(),
             kc: (0..kn).map(|k| c8(k as u64)).collect(),
             k5c: (0..kn).map(|k| c8(k as u64 + 5)).collect(),
             kp1: (0..kn)
@@ -520,9 +522,12 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.in_sensor.next =
             (self.row_y.val() >= self.h.val()) & (self.row_y.val() < self.h_plus_rows.val());
         self.c_valid.next = self.row_valid.q.val();
-        // The row shifts down a count at each take: the current count is
-        // always row[0] (no R-way multiplexer on the count block's path).
-        self.c_val.next = self.row[0].q.val();
+        self.c_val.next = 0.into();
+        for dx in 0..self._r {
+            if self.cs_dx.q.val() == self.ids[dx].val() {
+                self.c_val.next = self.row[dx].q.val();
+            }
+        }
         // `take` (set below by the pass that consumes) advances the streamer.
         self.take.next = false;
         match self.state.q.val() {
@@ -568,9 +573,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.cs_wait.d.next = false;
             }
             if self.row_valid.q.val() & self.take.val() {
-                for dx in 0..(self._r - 1) {
-                    self.row[dx].d.next = self.row[dx + 1].q.val();
-                }
                 self.cs_dx.d.next = self.cs_dx.q.val() + 1;
                 if self.cs_dx.q.val() == self.last_idx.val() {
                     self.cs_dx.d.next = 0.into();

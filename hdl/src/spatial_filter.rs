@@ -8,9 +8,8 @@
 //! not change a single bit of H, but the k − 1 line buffers then hold CW-bit
 //! counts instead of (CW + a)-bit horizontal sums: about half the memory.
 //!
-//! **Vertical pass.** Per lane, one block-RAM line buffer of W/P column
-//! words holds rows y−1 … y−(k−1) ([`LINE_BITS`]: row y − 1 − m at bits
-//! m·CW; each write shifts the column down a row); when row y arrives the
+//! **Vertical pass.** Per lane, k − 1 one-row delays (memories of W/P words,
+//! LUT RAM for short rows) hold rows y−1 … y−(k−1); when row y arrives the
 //! column of k values gives output row `y − c` (rows `y < c` finish the
 //! previous plane, see [`RowSkew`]). Taps whose source row lies outside the
 //! plane are zeroed (the edge padding, and the rows of the neighbouring
