@@ -11,6 +11,29 @@
 use rust_hdl::prelude::*;
 use std::collections::BTreeMap;
 
+/// Panics unless `depth` words need no more than `aw` address bits.
+fn check_depth(depth: usize, aw: usize) {
+    assert!(
+        depth >= 1 && depth as u128 <= 1u128 << aw,
+        "depth {depth} does not fit {aw} address bits"
+    );
+}
+
+/// The simulated word at `address`: zero if never written, and past the
+/// depth (no such word in [`Bram`]; never written in [`LutRam`]).
+fn sim_read<const DW: usize, const AW: usize>(
+    sim: &BTreeMap<u64, Bits<DW>>,
+    depth: usize,
+    address: Bits<AW>,
+) -> Bits<DW> {
+    let a = address.to_u64();
+    if (a as usize) < depth {
+        sim.get(&a).copied().unwrap_or_default()
+    } else {
+        Bits::default()
+    }
+}
+
 /// Where yosys should put the memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RamStyle {
@@ -44,10 +67,7 @@ impl<const DW: usize, const AW: usize> Bram<DW, AW> {
     /// A memory of `depth ≤ 2^AW` words, initially zero in simulation (the
     /// design never relies on the initial contents).
     pub fn new(depth: usize, style: RamStyle) -> Self {
-        assert!(
-            depth >= 1 && depth as u128 <= 1u128 << AW,
-            "depth {depth} does not fit {AW} address bits"
-        );
+        check_depth(depth, AW);
         Bram {
             clock: Default::default(),
             read_address: Default::default(),
@@ -70,13 +90,7 @@ impl<const DW: usize, const AW: usize> Bram<DW, AW> {
 impl<const DW: usize, const AW: usize> Logic for Bram<DW, AW> {
     fn update(&mut self) {
         if self.clock.pos_edge() {
-            let ra = self.read_address.val().to_u64();
-            // Addresses past the depth do not exist in hardware; read zero.
-            self.read_data.next = if (ra as usize) < self._depth {
-                self._sim.get(&ra).copied().unwrap_or_default()
-            } else {
-                Bits::default()
-            };
+            self.read_data.next = sim_read(&self._sim, self._depth, self.read_address.val());
             if self.write_enable.val() {
                 let wa = self.write_address.val().to_u64();
                 if (wa as usize) < self._depth {
@@ -155,10 +169,7 @@ impl<const DW: usize, const AW: usize> LutRam<DW, AW> {
     /// A memory of `depth ≤ 2^AW` words, initially zero in simulation (the
     /// design never relies on the initial contents).
     pub fn new(depth: usize) -> Self {
-        assert!(
-            depth >= 1 && depth as u128 <= 1u128 << AW,
-            "depth {depth} does not fit {AW} address bits"
-        );
+        check_depth(depth, AW);
         LutRam {
             clock: Default::default(),
             read_address: Default::default(),
@@ -180,14 +191,7 @@ impl<const DW: usize, const AW: usize> Logic for LutRam<DW, AW> {
                 self._sim.insert(wa, self.write_data.val());
             }
         }
-        let ra = self.read_address.val().to_u64();
-        // The design never reads past the depth (the Verilog's words there
-        // are never written); read zero.
-        self.read_data.next = if (ra as usize) < self._depth {
-            self._sim.get(&ra).copied().unwrap_or_default()
-        } else {
-            Bits::default()
-        };
+        self.read_data.next = sim_read(&self._sim, self._depth, self.read_address.val());
     }
 
     fn connect(&mut self) {

@@ -100,11 +100,6 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
         GatewareConfig::check_width("Candidates", "LAW", LAW, cfg.line_addr_bits())?;
         let p = cfg.pixels_per_clock;
         let wpr = cfg.words_per_row();
-        // Block RAM even for short rows: a lane's row of H (HW ≤ 36 bits)
-        // is one RAMB8, where LUT RAM would take ⌈HW/6⌉ RAM32M (16 LUTs
-        // for the SPCImager's 24 bits) — LUTs are what the LX45 runs out
-        // of, block RAM is half free.
-        let style = RamStyle::Block;
         Ok(Candidates {
             clock: Default::default(),
             restart: Default::default(),
@@ -120,7 +115,11 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
             out_y: Default::default(),
             above: lanes(p),
             candidate: lanes(p),
-            line: (0..p).map(|_| Bram::new(wpr, style)).collect(),
+            // Block RAM even for short rows: a lane's row of H (HW ≤ 36
+            // bits) is one RAMB8, where LUT RAM would take ⌈HW/6⌉ RAM32M (16
+            // LUTs for the SPCImager's 24 bits) — LUTs are what the LX45
+            // runs out of, block RAM is half free.
+            line: (0..p).map(|_| Bram::new(wpr, RamStyle::Block)).collect(),
             t1: Default::default(),
             h1: lanes(p),
             skew: RowSkew::new(1, cfg.height),

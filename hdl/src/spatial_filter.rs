@@ -198,7 +198,9 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     lwid: Vec<Widen<CW, LINE_BITS>>,
     lup: Vec<Signal<Local, Bits<LINE_BITS>>>,
     lnew: Vec<Signal<Local, Bits<LINE_BITS>>>,
-    /// m·CW for m = 0 … k − 1.
+    /// CW: one row down the column word.
+    row_step: Constant<Bits<8>>,
+    /// m·CW for m = 0 … k − 2: row y − 1 − m.
     row_shift: Vec<Constant<Bits<8>>>,
     /// The (k − 1)·CW bits of a column word.
     line_mask: Constant<Bits<LINE_BITS>>,
@@ -255,9 +257,6 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
                 why: format!("the line buffer's column word holds (k − 1)·CW ≤ {LINE_BITS} bits"),
             });
         }
-        // Block RAM even for short rows: a lane's column word is two RAMB8s,
-        // where LUT RAM would take 16 RAM32M (64 LUTs) for the SPCImager.
-        let style = RamStyle::Block;
         let c16 = |v: usize| Constant::new((v as u64).to_bits());
         // Tap m (0 = newest row) of output row yo reads source row yo + c − m,
         // inside the plane iff m ≤ yo + c < H + m.
@@ -302,12 +301,16 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             out_x: Default::default(),
             out_y: Default::default(),
             filtered: lanes(p),
-            line: (0..p).map(|_| Bram::new(wpr, style)).collect(),
+            // Block RAM even for short rows: a lane's column word is two
+            // RAMB8s, where LUT RAM would take 16 RAM32M (64 LUTs) for the
+            // SPCImager.
+            line: (0..p).map(|_| Bram::new(wpr, RamStyle::Block)).collect(),
             lrow: (0..p * (k - 1)).map(|_| Widen::default()).collect(),
             lwid: (0..p).map(|_| Widen::default()).collect(),
             lup: lanes(p),
             lnew: lanes(p),
-            row_shift: (0..k)
+            row_step: Constant::new((CW as u64).to_bits()),
+            row_shift: (0..k - 1)
                 .map(|m| Constant::new(((m * CW) as u64).to_bits()))
                 .collect(),
             line_mask: Constant::new(
@@ -398,7 +401,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
                 for i in 0..self._p {
                     // The column moves down a row: the new row at the bottom
                     // bits, the oldest row shifted out (and masked off).
-                    self.lup[i].next = self.line[i].read_data.val() << self.row_shift[1].val();
+                    self.lup[i].next = self.line[i].read_data.val() << self.row_step.val();
                     self.lwid[i].x.next = self.s1[i].q.val();
                     self.lnew[i].next = self.lup[i].val() | self.lwid[i].y.val();
                     self.line[i].write_data.next = self.lnew[i].val() & self.line_mask.val();

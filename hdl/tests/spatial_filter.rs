@@ -118,6 +118,13 @@ fn spatial_filter_k5_equals_model() {
 }
 
 #[test]
+fn spatial_filter_k1_without_line_buffer_rows_equals_model() {
+    // One tap: no row above to buffer (the column word holds nothing).
+    // N_max 7: CW 3, a = 1: VW 4, HW 5; 4 words per row: LAW 2.
+    run::<3, 4, 5, 2>(16, 6, vec![2], 1, 7, 34, 0);
+}
+
+#[test]
 fn spatial_filter_k9_context_of_a_whole_word_equals_model() {
     // c = 4 = P; N_max 5: CW 3, a = 5: VW 8, HW 13; 3 words per row: LAW 2.
     run::<3, 8, 13, 2>(12, 7, vec![1, 2, 3, 4, 12, 4, 3, 2, 1], 5, 5, 32, 0);
