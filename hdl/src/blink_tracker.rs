@@ -398,6 +398,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     hw: Vec<Signal<Local, Bit>>,
     on: Vec<Signal<Local, Bit>>,
     sel: Vec<Signal<Local, Bit>>,
+    /// A walk state (one slot per clock).
+    walking: Signal<Local, Bit>,
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
     bank_init: Vec<Constant<Bits<BW>>>,
@@ -642,6 +644,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             hw: lanes(m),
             on: lanes(m),
             sel: lanes(m),
+            walking: Default::default(),
             slot_id: (0..m)
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
@@ -814,30 +817,58 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
         self.y_p1.next = self.in_yc.val() + 1;
 
-        // ---- Per slot: association, window hits, chains.
+        // ---- Per slot: association, window hits, chains. Read only when a
+        // word is taken (`go`), and computed only then: in a simulator the
+        // 32 slots' comparators cost most of the tracker's time, and most
+        // clocks bring no word (in hardware the gating is free: every
+        // reader is gated by `go` already).
         self.abs_any[0].next = false;
         self.ftaken[0].next = false;
         for i in 0..self._m {
-            self.near[i].next = (self.ax[i].q.val() >= self.cx_lo.val())
-                & (self.ax[i].q.val() <= self.cx_hi.val())
-                & (self.ay[i].q.val() >= self.cy_lo.val())
-                & (self.ay[i].q.val() <= self.cy_hi.val());
-            self.absorb[i].next = self.busy[i].q.val()
-                & (self.aprev[i].q.val() | self.opened[i].q.val())
-                & self.near[i].val();
-            self.freeable[i].next = self.fprev[i].q.val() & !self.opened[i].q.val();
-            self.abs_any[i + 1].next = self.abs_any[i].val() | self.absorb[i].val();
-            self.fsel[i].next = self.freeable[i].val() & !self.ftaken[i].val();
-            self.ftaken[i + 1].next = self.ftaken[i].val() | self.freeable[i].val();
-            self.row_ok[i].next =
-                (self.ay[i].q.val() >= self.y_m1.val()) & (self.ay[i].q.val() <= self.y_p1.val());
-            self.hw[i].next = self.row_ok[i].val()
-                & (((self.in_xc.val() == self.wl[i].q.val())
-                    & (self.in_above.val() & self.ml[i].q.val()).any())
-                    | ((self.in_xc.val() == self.wh[i].q.val())
-                        & (self.in_above.val() & self.mh[i].q.val()).any()));
-            self.on[i].next = self.hit[i].q.val() | self.hw[i].val();
-            self.sel[i].next = self.walk.q.val() == self.slot_id[i].val();
+            self.near[i].next = false;
+            self.absorb[i].next = false;
+            self.freeable[i].next = false;
+            self.abs_any[i + 1].next = false;
+            self.fsel[i].next = false;
+            self.ftaken[i + 1].next = false;
+            self.row_ok[i].next = false;
+            self.hw[i].next = false;
+            self.on[i].next = false;
+        }
+        if self.go.val() {
+            for i in 0..self._m {
+                self.near[i].next = (self.ax[i].q.val() >= self.cx_lo.val())
+                    & (self.ax[i].q.val() <= self.cx_hi.val())
+                    & (self.ay[i].q.val() >= self.cy_lo.val())
+                    & (self.ay[i].q.val() <= self.cy_hi.val());
+                self.absorb[i].next = self.busy[i].q.val()
+                    & (self.aprev[i].q.val() | self.opened[i].q.val())
+                    & self.near[i].val();
+                self.freeable[i].next = self.fprev[i].q.val() & !self.opened[i].q.val();
+                self.abs_any[i + 1].next = self.abs_any[i].val() | self.absorb[i].val();
+                self.fsel[i].next = self.freeable[i].val() & !self.ftaken[i].val();
+                self.ftaken[i + 1].next = self.ftaken[i].val() | self.freeable[i].val();
+                self.row_ok[i].next = (self.ay[i].q.val() >= self.y_m1.val())
+                    & (self.ay[i].q.val() <= self.y_p1.val());
+                self.hw[i].next = self.row_ok[i].val()
+                    & (((self.in_xc.val() == self.wl[i].q.val())
+                        & (self.in_above.val() & self.ml[i].q.val()).any())
+                        | ((self.in_xc.val() == self.wh[i].q.val())
+                            & (self.in_above.val() & self.mh[i].q.val()).any()));
+                self.on[i].next = self.hit[i].q.val() | self.hw[i].val();
+            }
+        }
+        self.walking.next = (self.state.q.val() == TrackerState::Walk)
+            | (self.state.q.val() == TrackerState::Finish)
+            | (self.state.q.val() == TrackerState::DrainWalk)
+            | (self.state.q.val() == TrackerState::Emit);
+        for i in 0..self._m {
+            self.sel[i].next = false;
+        }
+        if self.walking.val() {
+            for i in 0..self._m {
+                self.sel[i].next = self.walk.q.val() == self.slot_id[i].val();
+            }
         }
         for mm in self._m..(self._m + 1) {
             self.absorbed.next = self.abs_any[mm].val();
@@ -861,17 +892,19 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.w_ax.next = 0.into();
         self.w_ay.next = 0.into();
         self.w_bank.next = 0.into();
-        for i in 0..self._m {
-            if self.sel[i].val() {
-                self.w_busy.next = self.busy[i].q.val();
-                self.w_live.next = self.live[i].q.val();
-                self.w_dip.next = self.dip[i].q.val();
-                self.w_pend.next = self.pend[i].q.val();
-                self.w_opened.next = self.opened[i].q.val();
-                self.w_bridge.next = self.ev_bridge[i].q.val();
-                self.w_ax.next = self.ax[i].q.val();
-                self.w_ay.next = self.ay[i].q.val();
-                self.w_bank.next = self.bank[i].q.val();
+        if self.walking.val() {
+            for i in 0..self._m {
+                if self.sel[i].val() {
+                    self.w_busy.next = self.busy[i].q.val();
+                    self.w_live.next = self.live[i].q.val();
+                    self.w_dip.next = self.dip[i].q.val();
+                    self.w_pend.next = self.pend[i].q.val();
+                    self.w_opened.next = self.opened[i].q.val();
+                    self.w_bridge.next = self.ev_bridge[i].q.val();
+                    self.w_ax.next = self.ax[i].q.val();
+                    self.w_ay.next = self.ay[i].q.val();
+                    self.w_bank.next = self.bank[i].q.val();
+                }
             }
         }
         // The walk-only fields come from the slot's word in `walk_mem`. A slot
@@ -1190,107 +1223,112 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
 
         // ---- The walks write the walked slot.
-        for mm in self._m..(self._m + 1) {
-            for i in 0..self._m {
-                if self.sel[i].val() & self.we_walk.val() {
-                    self.busy[i].d.next = self.n_busy.val();
-                    self.live[i].d.next = self.n_live.val();
-                    self.pend[i].d.next = false;
-                    self.ev_bridge[i].d.next = false;
-                    if self.w_cut.val() {
-                        self.dip[i].d.next = false;
+        if self.walking.val() {
+            for mm in self._m..(self._m + 1) {
+                for i in 0..self._m {
+                    if self.sel[i].val() & self.we_walk.val() {
+                        self.busy[i].d.next = self.n_busy.val();
+                        self.live[i].d.next = self.n_live.val();
+                        self.pend[i].d.next = false;
+                        self.ev_bridge[i].d.next = false;
+                        if self.w_cut.val() {
+                            self.dip[i].d.next = false;
+                        }
+                        self.bank[i].d.next = self.n_bank.val();
+                        // Association state at the end of plane t.
+                        self.aprev[i].d.next = self.n_busy.val() & self.n_live.val();
+                        self.fprev[i].d.next = !self.n_busy.val();
+                        self.opened[i].d.next = false;
+                        self.hit[i].d.next = false;
                     }
-                    self.bank[i].d.next = self.n_bank.val();
-                    // Association state at the end of plane t.
-                    self.aprev[i].d.next = self.n_busy.val() & self.n_live.val();
-                    self.fprev[i].d.next = !self.n_busy.val();
-                    self.opened[i].d.next = false;
-                    self.hit[i].d.next = false;
-                }
-                // (`opened` too, so that the drain walks and Emit read the
-                // word `finish` writes.)
-                if self.sel[i].val() & self.we_fin.val() {
-                    self.opened[i].d.next = false;
-                }
-                if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val() {
-                    self.live[i].d.next = false;
-                    self.dip[i].d.next = false;
-                    if !self.w_fconf.val() {
-                        self.busy[i].d.next = false;
-                        if self.par.val() {
-                            self.s_pre[i + mm].d.next = false;
-                        } else {
-                            self.s_pre[i].d.next = false;
+                    // (`opened` too, so that the drain walks and Emit read the
+                    // word `finish` writes.)
+                    if self.sel[i].val() & self.we_fin.val() {
+                        self.opened[i].d.next = false;
+                    }
+                    if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val()
+                    {
+                        self.live[i].d.next = false;
+                        self.dip[i].d.next = false;
+                        if !self.w_fconf.val() {
+                            self.busy[i].d.next = false;
+                            if self.par.val() {
+                                self.s_pre[i + mm].d.next = false;
+                            } else {
+                                self.s_pre[i].d.next = false;
+                            }
                         }
                     }
-                }
-                if self.sel[i].val() & self.we_fin.val() {
-                    if self.par.val() {
-                        self.s_live[i + mm].d.next = false;
-                    } else {
-                        self.s_live[i].d.next = false;
+                    if self.sel[i].val() & self.we_fin.val() {
+                        if self.par.val() {
+                            self.s_live[i + mm].d.next = false;
+                        } else {
+                            self.s_live[i].d.next = false;
+                        }
                     }
-                }
-                if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
-                    self.busy[i].d.next = false;
-                    self.bank[i].d.next = self.n_bank.val();
-                }
-                // The slot's ROI view for plane t + 1.
-                if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
-                    if self.par1.val() {
-                        self.s_live[i + mm].d.next =
-                            self.n_busy.val() & self.n_live.val() & self.we_walk.val();
-                        self.s_pre[i + mm].d.next = self.n_pre.val();
-                        self.s_fresh[i + mm].d.next = self.n_fresh.val() & self.we_walk.val();
-                        self.s_ax[i + mm].d.next = self.w_ax.val();
-                        self.s_ay[i + mm].d.next = self.w_ay.val();
-                        self.s_bank[i + mm].d.next = self.n_bank.val();
-                    } else {
-                        self.s_live[i].d.next =
-                            self.n_busy.val() & self.n_live.val() & self.we_walk.val();
-                        self.s_pre[i].d.next = self.n_pre.val();
-                        self.s_fresh[i].d.next = self.n_fresh.val() & self.we_walk.val();
-                        self.s_ax[i].d.next = self.w_ax.val();
-                        self.s_ay[i].d.next = self.w_ay.val();
-                        self.s_bank[i].d.next = self.n_bank.val();
+                    if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
+                        self.busy[i].d.next = false;
+                        self.bank[i].d.next = self.n_bank.val();
+                    }
+                    // The slot's ROI view for plane t + 1.
+                    if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
+                        if self.par1.val() {
+                            self.s_live[i + mm].d.next =
+                                self.n_busy.val() & self.n_live.val() & self.we_walk.val();
+                            self.s_pre[i + mm].d.next = self.n_pre.val();
+                            self.s_fresh[i + mm].d.next = self.n_fresh.val() & self.we_walk.val();
+                            self.s_ax[i + mm].d.next = self.w_ax.val();
+                            self.s_ay[i + mm].d.next = self.w_ay.val();
+                            self.s_bank[i + mm].d.next = self.n_bank.val();
+                        } else {
+                            self.s_live[i].d.next =
+                                self.n_busy.val() & self.n_live.val() & self.we_walk.val();
+                            self.s_pre[i].d.next = self.n_pre.val();
+                            self.s_fresh[i].d.next = self.n_fresh.val() & self.we_walk.val();
+                            self.s_ax[i].d.next = self.w_ax.val();
+                            self.s_ay[i].d.next = self.w_ay.val();
+                            self.s_bank[i].d.next = self.n_bank.val();
+                        }
                     }
                 }
             }
         }
 
         // ---- Association: open a track or drop the candidate.
-        for i in 0..self._m {
-            if self.do_open.val() & self.fsel[i].val() {
-                self.busy[i].d.next = true;
-                self.live[i].d.next = true;
-                self.dip[i].d.next = false;
-                self.opened[i].d.next = true;
-                self.ax[i].d.next = self.cx.val();
-                self.ay[i].d.next = self.in_yc.val();
-                self.wl[i].d.next = self.o_wl.val();
-                self.wh[i].d.next = self.o_wh.val();
-                self.ml[i].d.next = self.o_ml.val();
-                self.mh[i].d.next = self.o_mh.val();
-                self.frow[i].d.next = self.o_frow.val();
-            }
-        }
-        for mm in self._m..(self._m + 1) {
+        if self.do_open.val() {
             for i in 0..self._m {
                 if self.do_open.val() & self.fsel[i].val() {
-                    if self.par.val() {
-                        self.s_live[i + mm].d.next = true;
-                        self.s_pre[i + mm].d.next = self.t_ge_n.val();
-                        self.s_fresh[i + mm].d.next = true;
-                        self.s_ax[i + mm].d.next = self.cx.val();
-                        self.s_ay[i + mm].d.next = self.in_yc.val();
-                        self.s_bank[i + mm].d.next = self.bank[i].q.val();
-                    } else {
-                        self.s_live[i].d.next = true;
-                        self.s_pre[i].d.next = self.t_ge_n.val();
-                        self.s_fresh[i].d.next = true;
-                        self.s_ax[i].d.next = self.cx.val();
-                        self.s_ay[i].d.next = self.in_yc.val();
-                        self.s_bank[i].d.next = self.bank[i].q.val();
+                    self.busy[i].d.next = true;
+                    self.live[i].d.next = true;
+                    self.dip[i].d.next = false;
+                    self.opened[i].d.next = true;
+                    self.ax[i].d.next = self.cx.val();
+                    self.ay[i].d.next = self.in_yc.val();
+                    self.wl[i].d.next = self.o_wl.val();
+                    self.wh[i].d.next = self.o_wh.val();
+                    self.ml[i].d.next = self.o_ml.val();
+                    self.mh[i].d.next = self.o_mh.val();
+                    self.frow[i].d.next = self.o_frow.val();
+                }
+            }
+            for mm in self._m..(self._m + 1) {
+                for i in 0..self._m {
+                    if self.do_open.val() & self.fsel[i].val() {
+                        if self.par.val() {
+                            self.s_live[i + mm].d.next = true;
+                            self.s_pre[i + mm].d.next = self.t_ge_n.val();
+                            self.s_fresh[i + mm].d.next = true;
+                            self.s_ax[i + mm].d.next = self.cx.val();
+                            self.s_ay[i + mm].d.next = self.in_yc.val();
+                            self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                        } else {
+                            self.s_live[i].d.next = true;
+                            self.s_pre[i].d.next = self.t_ge_n.val();
+                            self.s_fresh[i].d.next = true;
+                            self.s_ax[i].d.next = self.cx.val();
+                            self.s_ay[i].d.next = self.in_yc.val();
+                            self.s_bank[i].d.next = self.bank[i].q.val();
+                        }
                     }
                 }
             }
@@ -1305,31 +1343,33 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
 
         // ---- End of a row: the on/off step of slots whose 3x3 window has streamed.
-        for mm in self._m..(self._m + 1) {
-            for i in 0..self._m {
-                if self.do_fin.val()
-                    & self.aprev[i].q.val()
-                    & self.busy[i].q.val()
-                    & self.live[i].q.val()
-                    & (self.frow[i].q.val() == self.in_yc.val())
-                {
-                    if self.on[i].val() {
-                        if self.dip[i].q.val() {
-                            self.dip[i].d.next = false;
-                            self.ev_bridge[i].d.next = true;
-                        }
-                    } else if !self.dip[i].q.val() {
-                        self.dip[i].d.next = true;
-                    } else {
-                        // Second plane below: the blink ended at t − 1 (its
-                        // t_drop and confirmation are settled by the walk).
-                        self.live[i].d.next = false;
-                        self.dip[i].d.next = false;
-                        self.pend[i].d.next = true;
-                        if self.par.val() {
-                            self.s_live[i + mm].d.next = false;
+        if self.do_fin.val() {
+            for mm in self._m..(self._m + 1) {
+                for i in 0..self._m {
+                    if self.do_fin.val()
+                        & self.aprev[i].q.val()
+                        & self.busy[i].q.val()
+                        & self.live[i].q.val()
+                        & (self.frow[i].q.val() == self.in_yc.val())
+                    {
+                        if self.on[i].val() {
+                            if self.dip[i].q.val() {
+                                self.dip[i].d.next = false;
+                                self.ev_bridge[i].d.next = true;
+                            }
+                        } else if !self.dip[i].q.val() {
+                            self.dip[i].d.next = true;
                         } else {
-                            self.s_live[i].d.next = false;
+                            // Second plane below: the blink ended at t − 1 (its
+                            // t_drop and confirmation are settled by the walk).
+                            self.live[i].d.next = false;
+                            self.dip[i].d.next = false;
+                            self.pend[i].d.next = true;
+                            if self.par.val() {
+                                self.s_live[i + mm].d.next = false;
+                            } else {
+                                self.s_live[i].d.next = false;
+                            }
                         }
                     }
                 }
