@@ -64,9 +64,12 @@ pub fn csd_adders(weight: u32) -> usize {
 }
 
 /// Bits of a lane's column word in the vertical pass's line buffer: the
-/// k − 1 rows of CW bits must fit ((k − 1)·CW ≤ 72: two RAMB8s at 36 bits;
-/// the SPCImager's 150× kernel needs 8 × 8 = 64).
-pub const LINE_BITS: usize = 72;
+/// k − 1 rows of CW bits must fit ((k − 1)·CW ≤ 64; the SPCImager's 150×
+/// kernel needs 8 × 8 = 64). Two RAMB8s at 32 bits hold it, as they would
+/// 72; 64 rather than the RAMB8s' 72 because it is a simulator's widest
+/// native word: at 72 bits Verilator shifts and copies the 16 lanes' words
+/// as arrays, 7 % of the full-field co-simulation's time.
+pub const LINE_BITS: usize = 64;
 
 /// `y = w · x mod 2^W` for a constant weight w: in LUTs, a chain of
 /// shifted adds and subtracts ([`csd_digits`], the leading digit positive;
