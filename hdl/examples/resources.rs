@@ -210,7 +210,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     6,
                     233,
                     488,
-                    65,
+                    53,
                     9,
                     12,
                 >::new(c)?))

@@ -294,7 +294,7 @@ impl Design {
 pub type Spcimager150Xem = crate::xem6310::Spcimager150Xem;
 
 /// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
-pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 464, 65, 9, 12>;
+pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
 
 /// The pipeline core of the projected SPCImager at 150× (k = 9, N_max = 24,
 /// block RAM).
@@ -302,7 +302,7 @@ pub type Projected150Core = crate::pipeline::Projected150Pipeline;
 
 /// The pipeline core of the projected SPCImager at 60× (k = 5, N_max = 24,
 /// block RAM).
-pub type Projected60Core = Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 464, 65, 9, 12>;
+pub type Projected60Core = Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
 
 /// The core clock: FrontPanel's host-interface clock `okClk`, Hz.
 pub const CLOCK_HZ: f64 = 100.8e6;

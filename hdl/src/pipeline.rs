@@ -34,7 +34,7 @@
 //! Every place where a burst could exceed a buffer has a sticky flag
 //! (`fault`): never a silent loss.
 
-use crate::blink_tracker::BlinkTracker;
+use crate::blink_tracker::{BlinkTracker, COORD_BITS};
 use crate::bram::RamStyle;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
@@ -225,7 +225,10 @@ impl<
 {
     /// The back half of a configuration; errors if the type's widths differ.
     pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
-        GatewareConfig::check_width("BackHalf", "TW", TW, 2 * P + 33)?;
+        // The tracker FIFO's word: above and candidate lanes, the tracker's
+        // COORD_BITS-bit column and row, flush (2P + 21 bits: 53 for P = 16,
+        // a simulator's native 64-bit word rather than an array).
+        GatewareConfig::check_width("BackHalf", "TW", TW, 2 * P + 2 * COORD_BITS + 1)?;
         GatewareConfig::check_width("BackHalf", "TAW", TAW, cfg.tracker_fifo_log2)?;
         GatewareConfig::check_width("BackHalf", "OAW", OAW, cfg.output_fifo_log2)?;
         let c16 = |v: u64| Constant::new(v.to_bits());
@@ -275,8 +278,8 @@ impl<
             last_word: c16(cfg.front.words_per_row() as u64 - 1),
             off_p: c16(P as u64),
             off_2p: c16(2 * P as u64),
-            off_y: c16(2 * P as u64 + 16),
-            off_f: c16(2 * P as u64 + 32),
+            off_y: c16((2 * P + COORD_BITS) as u64),
+            off_f: c16((2 * P + 2 * COORD_BITS) as u64),
             odepth: c16(1u64 << OAW),
             // A FIFO of fewer than 64 words keeps half of it as the margin.
             tfifo_room: c16(((1usize << TAW) - ROOM_MARGIN_WORDS.min((1usize << TAW) / 2)) as u64),
@@ -325,8 +328,10 @@ impl<
             & (self.pack_above.word.val().any() | (self.fh_x.val() == self.last_word.val()));
         self.tfifo.push_data.next = bit_cast::<TW, P>(self.pack_above.word.val())
             | (bit_cast::<TW, P>(self.pack_cand.word.val()) << self.off_p.val())
-            | (bit_cast::<TW, 16>(self.fh_x.val()) << self.off_2p.val())
-            | (bit_cast::<TW, 16>(self.fh_y.val()) << self.off_y.val())
+            | (bit_cast::<TW, COORD_BITS>(bit_cast::<COORD_BITS, 16>(self.fh_x.val()))
+                << self.off_2p.val())
+            | (bit_cast::<TW, COORD_BITS>(bit_cast::<COORD_BITS, 16>(self.fh_y.val()))
+                << self.off_y.val())
             | (bit_cast::<TW, 1>(self.fh_flush.val().into()) << self.off_f.val());
         self.tfifo.pop.next = self.tracker.in_pop.val();
         self.room.next = (self.tfifo.count.val() < self.tfifo_room.val())
@@ -345,16 +350,18 @@ impl<
             .out_data
             .val()
             .get_bits::<P>(self.off_p.val().index());
-        self.tracker.in_x.next = self
-            .tfifo
-            .out_data
-            .val()
-            .get_bits::<16>(self.off_2p.val().index());
-        self.tracker.in_y.next = self
-            .tfifo
-            .out_data
-            .val()
-            .get_bits::<16>(self.off_y.val().index());
+        self.tracker.in_x.next = bit_cast::<16, COORD_BITS>(
+            self.tfifo
+                .out_data
+                .val()
+                .get_bits::<COORD_BITS>(self.off_2p.val().index()),
+        );
+        self.tracker.in_y.next = bit_cast::<16, COORD_BITS>(
+            self.tfifo
+                .out_data
+                .val()
+                .get_bits::<COORD_BITS>(self.off_y.val().index()),
+        );
         self.tracker.in_flush.next = self
             .tfifo
             .out_data
@@ -1453,10 +1460,10 @@ pub fn test_back_config(
 }
 
 /// [`Pipeline`] of [`test_back_config`]`(4, 3, 1)`.
-pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 41, 5, 11>;
+pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
 
 /// [`PipelineDdr`] of [`test_back_config`]`(4, 3, 1)`, prefetch of 64 words.
-pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 41, 5, 11>;
+pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
 
 /// The SPCImager at 150× (320×240, P = 16, N_max = 128, the model's kernel
 /// for σ = 1.51 px) with the model's defaults M = 32, 9×9 ROIs (R = k),
@@ -1498,8 +1505,8 @@ fn back_config_for(front: GatewareConfig, n: u32) -> Result<BackHalfConfig, Gate
 
 /// [`Pipeline`] of [`projected150_back_config`] (block-RAM delay line).
 pub type Projected150Pipeline =
-    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
 
 /// [`PipelineDdr`] of [`spcimager150_back_config`].
 pub type Spcimager150PipelineDdr =
-    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 65, 9, 12>;
+    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
