@@ -245,13 +245,9 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
 /// start and end at them).
 ///
 /// LUT mapping by `abc9` (yosys' delay-driven flow) rather than the
-/// classic `abc`: on the whole SPCImager 150× top (2026-11-23, same
-/// Verilog, yosys 0.23) 20,218 LUTs against 21,479, and far steadier under
-/// small changes. With `abc` a change to the spatial filter alone (its line
-/// word 72 → 64 bits) moved the blink tracker's byte-identical logic from
-/// 5,911 to 6,683 LUTs and the total by +647; three such changes, each
-/// neutral or smaller out of context, moved it by +1,450 (+6.7 %), while
-/// `abc9` put the same three at +195.
+/// classic `abc`: fewer LUTs and levels on the same Verilog. Neither maps
+/// the one flat netlist of a whole top steadily: a rewrite that changes no
+/// logic can move the count by ±7 % (figures in `hdl/RESOURCES.md`).
 pub const YOSYS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; stat; \
      synth_xilinx -family xc6s -top top -flatten -abc9; stat; write_json netlist.json; \
      delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig; ltp";
