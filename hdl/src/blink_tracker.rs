@@ -72,6 +72,16 @@
 //! the record the packetiser has just finished reaches the free list a few
 //! clocks after the queue drops that record), the slot walk waits for it.
 //!
+//! **Registers.** The slots' state is most of the tracker's flip-flops, and
+//! a simulator such as Verilator copies every register on every clock
+//! (those copies were 29 % of the full-field co-simulation's time with one
+//! register per slot and field), so it is packed: one [`MAX_SLOTS`]-bit
+//! register per flag (bit i: slot i), one 64-bit word per slot for the
+//! anchor, window rows and bank ([`slot_word`]), one for the window's two
+//! lane masks, and one per ROI view entry ([`shadow`]). Synthesis maps the
+//! same flip-flops either way. A write replaces its bits of the register's
+//! `d` as assigned so far, so that writes to different slots compose.
+//!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
 //! follows the N drain planes (their ends are flush rows) so that the
@@ -98,6 +108,50 @@ pub const AGE_BITS: usize = 18;
 /// anchors, windows and ROI view are most of the tracker's registers).
 /// (`update` writes the width as the literal 10, like [`AGE_BITS`].)
 pub const COORD_BITS: usize = 10;
+
+/// The most tracking slots M the tracker holds: each per-slot flag is one
+/// register of `MAX_SLOTS` bits (see "Registers" in the module doc).
+pub const MAX_SLOTS: usize = 32;
+
+/// Offsets of the fields of a slot's `geo` word (one 64-bit register per
+/// slot): the anchor, the window's two word columns and its last row, and
+/// the counter bank (at most 14 bits). `update` writes them as literals
+/// where rust-hdl's `hdl_gen` needs a number.
+pub mod slot_word {
+    /// Anchor column (`COORD_BITS`).
+    pub const AX: usize = 0;
+    /// Anchor row.
+    pub const AY: usize = 10;
+    /// Counter bank (`BW` bits, at most [`BANK_BITS_MAX`]).
+    pub const BANK: usize = 20;
+    /// Bits the bank may take in the word.
+    pub const BANK_BITS_MAX: usize = 14;
+    /// Word column of the window's low word.
+    pub const WL: usize = 34;
+    /// Word column of the window's high word.
+    pub const WH: usize = 44;
+    /// Row at whose end the window has streamed.
+    pub const FROW: usize = 54;
+}
+
+/// Offsets of the fields of a ROI view entry, the words
+/// [`BlinkTracker::sh`] publishes and the ROI aggregator reads. The anchor
+/// and the bank sit where they sit in a slot's `geo` word, so that an
+/// opening copies the bank without a shift.
+pub mod shadow {
+    /// Anchor column (`COORD_BITS`).
+    pub const AX: usize = 0;
+    /// Anchor row.
+    pub const AY: usize = 10;
+    /// Counter bank (`BW` bits).
+    pub const BANK: usize = 20;
+    /// Sum the live plane.
+    pub const LIVE: usize = 61;
+    /// Sum the delayed plane (pre-roll).
+    pub const PRE: usize = 62;
+    /// First plane of the segment: the counters start from zero.
+    pub const FRESH: usize = 63;
+}
 
 /// The widest and tallest field the tracker's [`COORD_BITS`] hold, pixels
 /// (the SPCImager's is 320×240; the largest camera preset's 512×512).
@@ -190,18 +244,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     pub rows_done: Signal<Out, Bits<16>>,
     /// StreamEnd has been pushed.
     pub done: Signal<Out, Bit>,
-    /// ROI view, index `parity·M + slot`: sum the live plane.
-    pub sh_live: Vec<Signal<Out, Bit>>,
-    /// ROI view: sum the delayed plane (pre-roll).
-    pub sh_pre: Vec<Signal<Out, Bit>>,
-    /// ROI view: first plane of the segment (counters start at zero).
-    pub sh_fresh: Vec<Signal<Out, Bit>>,
-    /// ROI view: anchor column.
-    pub sh_ax: Vec<Signal<Out, Bits<COORD_BITS>>>,
-    /// ROI view: anchor row.
-    pub sh_ay: Vec<Signal<Out, Bits<COORD_BITS>>>,
-    /// ROI view: counter bank.
-    pub sh_bank: Vec<Signal<Out, Bits<BW>>>,
+    /// ROI view, index `parity·M + slot`: one word per entry, fields at
+    /// [`shadow`]'s offsets (live, pre-roll, fresh, anchor, counter bank).
+    pub sh: Vec<Signal<Out, Bits<64>>>,
     /// The record queue accepts a push.
     pub rec_room: Signal<In, Bit>,
     /// Push a record descriptor.
@@ -261,24 +306,31 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     c_cuts: DFF<Bits<64>>,
     bank_err: DFF<Bit>,
     bank_waits: DFF<Bits<4>>,
-    // Per slot.
-    busy: Vec<DFF<Bit>>,
-    live: Vec<DFF<Bit>>,
-    dip: Vec<DFF<Bit>>,
-    pend: Vec<DFF<Bit>>,
-    aprev: Vec<DFF<Bit>>,
-    fprev: Vec<DFF<Bit>>,
-    opened: Vec<DFF<Bit>>,
-    hit: Vec<DFF<Bit>>,
-    ev_bridge: Vec<DFF<Bit>>,
-    ax: Vec<DFF<Bits<COORD_BITS>>>,
-    ay: Vec<DFF<Bits<COORD_BITS>>>,
-    wl: Vec<DFF<Bits<COORD_BITS>>>,
-    wh: Vec<DFF<Bits<COORD_BITS>>>,
-    frow: Vec<DFF<Bits<COORD_BITS>>>,
-    ml: Vec<DFF<Bits<P>>>,
-    mh: Vec<DFF<Bits<P>>>,
-    bank: Vec<DFF<Bits<BW>>>,
+    // Per slot, packed (see "Registers" in the module doc): one bit per
+    // slot of each flag, one word per slot of the anchor, window rows and
+    // bank (`geo`, offsets in [`slot_word`]) and of the window's two lane
+    // masks (`win`: low word's at bit 0, high word's at bit 32).
+    busy: DFF<Bits<MAX_SLOTS>>,
+    live: DFF<Bits<MAX_SLOTS>>,
+    dip: DFF<Bits<MAX_SLOTS>>,
+    pend: DFF<Bits<MAX_SLOTS>>,
+    aprev: DFF<Bits<MAX_SLOTS>>,
+    fprev: DFF<Bits<MAX_SLOTS>>,
+    opened: DFF<Bits<MAX_SLOTS>>,
+    hit: DFF<Bits<MAX_SLOTS>>,
+    ev_bridge: DFF<Bits<MAX_SLOTS>>,
+    geo: Vec<DFF<Bits<64>>>,
+    win: Vec<DFF<Bits<64>>>,
+    // What the clock's writes make of them so far (`d` once all are done).
+    busy_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    live_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    dip_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    pend_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    aprev_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    fprev_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    opened_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    hit_nx: Signal<Local, Bits<MAX_SLOTS>>,
+    ev_bridge_nx: Signal<Local, Bits<MAX_SLOTS>>,
     /// The fields that only the walks read, one 37-bit word per slot in LUT
     /// RAM (bits 0–17 age, 18–33 dage, 34 conf, 35 cont, 36 trunc), read at
     /// the walk's next slot so that the word is there when the walk is.
@@ -289,12 +341,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// M > 1 synthesis removes the bypass).
     wm_fwd: DFF<Bit>,
     wm_last: DFF<Bits<37>>,
-    s_live: Vec<DFF<Bit>>,
-    s_pre: Vec<DFF<Bit>>,
-    s_fresh: Vec<DFF<Bit>>,
-    s_ax: Vec<DFF<Bits<COORD_BITS>>>,
-    s_ay: Vec<DFF<Bits<COORD_BITS>>>,
-    s_bank: Vec<DFF<Bits<BW>>>,
+    /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
+    sv: Vec<DFF<Bits<64>>>,
     // Combinational.
     rem: Signal<Local, Bits<P>>,
     low: Signal<Local, Bits<P>>,
@@ -319,6 +367,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     o_ml: Signal<Local, Bits<P>>,
     o_mh: Signal<Local, Bits<P>>,
     o_frow: Signal<Local, Bits<COORD_BITS>>,
+    /// An opened slot's `geo` word without its bank, its `win` word and its
+    /// ROI view entry without its bank.
+    o_geo: Signal<Local, Bits<64>>,
+    o_win: Signal<Local, Bits<64>>,
+    o_sh: Signal<Local, Bits<64>>,
     y_m1: Signal<Local, Bits<COORD_BITS>>,
     y_p1: Signal<Local, Bits<COORD_BITS>>,
     eor: Signal<Local, Bit>,
@@ -379,6 +432,16 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     n_bank: Signal<Local, Bits<BW>>,
     n_pre: Signal<Local, Bit>,
     n_fresh: Signal<Local, Bit>,
+    /// `n_bank` at the bank's offset of `geo` and of the ROI view entry.
+    n_bank_w: Signal<Local, Bits<64>>,
+    /// The walked slot's ROI view entry for plane t + 1.
+    n_sh: Signal<Local, Bits<64>>,
+    /// The flags the stream end's `finish` clears in the walked slot's
+    /// ROI view entry: live, and pre-roll if the track ends unconfirmed.
+    fin_clear: Signal<Local, Bits<64>>,
+    fin_drop: Signal<Local, Bit>,
+    /// The walked slot is free for plane t + 1.
+    n_free: Signal<Local, Bit>,
     we_walk: Signal<Local, Bit>,
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
@@ -402,7 +465,14 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     walking: Signal<Local, Bit>,
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
-    bank_init: Vec<Constant<Bits<BW>>>,
+    /// Slot i's first bank, i, at the bank's offset of `geo`.
+    bank_init: Vec<Constant<Bits<64>>>,
+    /// The bank's bits of `geo` and of a ROI view entry.
+    bank_mask: Constant<Bits<64>>,
+    /// An opened slot's ROI view flags: live and fresh.
+    sh_open: Constant<Bits<64>>,
+    /// One bit per slot.
+    slot_bits: Constant<Bits<MAX_SLOTS>>,
     lane_id: Vec<Constant<Bits<COORD_BITS>>>,
     all_lanes: Constant<Bits<P>>,
     log2p: Constant<Bits<8>>,
@@ -430,6 +500,25 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
                 value: cfg.l_max_max.to_string(),
                 why: format!(
                     "L_max,max + N_max + 2 must stay below 2^{AGE_BITS}, the blink tracker's slot ages"
+                ),
+            });
+        }
+        if cfg.slots > MAX_SLOTS {
+            return Err(GatewareError::Invalid {
+                field: "slots",
+                value: cfg.slots.to_string(),
+                why: format!(
+                    "the blink tracker holds at most {MAX_SLOTS} slots (one bit of a register per slot and flag)"
+                ),
+            });
+        }
+        if BW > slot_word::BANK_BITS_MAX || P > 32 {
+            return Err(GatewareError::Invalid {
+                field: "slots/pixels_per_clock",
+                value: format!("{BW}-bit banks, P = {P}"),
+                why: format!(
+                    "a slot's word holds banks of at most {} bits and a lane mask of at most 32",
+                    slot_word::BANK_BITS_MAX
                 ),
             });
         }
@@ -474,12 +563,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             plane: Default::default(),
             rows_done: Default::default(),
             done: Default::default(),
-            sh_live: lanes(2 * m),
-            sh_pre: lanes(2 * m),
-            sh_fresh: lanes(2 * m),
-            sh_ax: lanes(2 * m),
-            sh_ay: lanes(2 * m),
-            sh_bank: lanes(2 * m),
+            sh: lanes(2 * m),
             rec_room: Default::default(),
             rec_push: Default::default(),
             rec_kind: Default::default(),
@@ -517,32 +601,30 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             c_cuts: Default::default(),
             bank_err: Default::default(),
             bank_waits: Default::default(),
-            busy: lanes(m),
-            live: lanes(m),
-            dip: lanes(m),
-            pend: lanes(m),
-            aprev: lanes(m),
-            fprev: lanes(m),
-            opened: lanes(m),
-            hit: lanes(m),
-            ev_bridge: lanes(m),
-            ax: lanes(m),
-            ay: lanes(m),
-            wl: lanes(m),
-            wh: lanes(m),
-            frow: lanes(m),
-            ml: lanes(m),
-            mh: lanes(m),
-            bank: lanes(m),
+            busy: Default::default(),
+            live: Default::default(),
+            dip: Default::default(),
+            pend: Default::default(),
+            aprev: Default::default(),
+            fprev: Default::default(),
+            opened: Default::default(),
+            hit: Default::default(),
+            ev_bridge: Default::default(),
+            geo: lanes(m),
+            win: lanes(m),
+            busy_nx: Default::default(),
+            live_nx: Default::default(),
+            dip_nx: Default::default(),
+            pend_nx: Default::default(),
+            aprev_nx: Default::default(),
+            fprev_nx: Default::default(),
+            opened_nx: Default::default(),
+            hit_nx: Default::default(),
+            ev_bridge_nx: Default::default(),
             walk_mem: Bram::new(m, RamStyle::Distributed),
             wm_fwd: Default::default(),
             wm_last: Default::default(),
-            s_live: lanes(2 * m),
-            s_pre: lanes(2 * m),
-            s_fresh: lanes(2 * m),
-            s_ax: lanes(2 * m),
-            s_ay: lanes(2 * m),
-            s_bank: lanes(2 * m),
+            sv: lanes(2 * m),
             rem: Default::default(),
             low: Default::default(),
             has_cand: Default::default(),
@@ -566,6 +648,9 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             o_ml: Default::default(),
             o_mh: Default::default(),
             o_frow: Default::default(),
+            o_geo: Default::default(),
+            o_win: Default::default(),
+            o_sh: Default::default(),
             y_m1: Default::default(),
             y_p1: Default::default(),
             eor: Default::default(),
@@ -625,6 +710,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             n_bank: Default::default(),
             n_pre: Default::default(),
             n_fresh: Default::default(),
+            n_bank_w: Default::default(),
+            n_sh: Default::default(),
+            fin_clear: Default::default(),
+            fin_drop: Default::default(),
+            n_free: Default::default(),
             we_walk: Default::default(),
             we_fin: Default::default(),
             we_drain: Default::default(),
@@ -649,8 +739,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
             bank_init: (0..m)
-                .map(|i| Constant::new((i as u64).to_bits()))
+                .map(|i| Constant::new(((i as u64) << slot_word::BANK).to_bits()))
                 .collect(),
+            bank_mask: Constant::new((((1u64 << BW) - 1) << slot_word::BANK).to_bits()),
+            sh_open: Constant::new(((1u64 << shadow::LIVE) | (1u64 << shadow::FRESH)).to_bits()),
+            slot_bits: Constant::new(((1u64 << m) - 1).to_bits()),
             lane_id: (0..P).map(|j| cc(j as u64)).collect(),
             all_lanes: Constant::new(Bits::<P>::mask()),
             log2p: Constant::new((cfg.log2_p() as u64).to_bits()),
@@ -676,61 +769,34 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             c_unconf, c_dropped, c_bridged, c_cuts, bank_err, bank_waits, wm_fwd, wm_last
         );
         self.walk_mem.clock.next = self.clock.val();
+        self.busy.clock.next = self.clock.val();
+        self.live.clock.next = self.clock.val();
+        self.dip.clock.next = self.clock.val();
+        self.pend.clock.next = self.clock.val();
+        self.aprev.clock.next = self.clock.val();
+        self.fprev.clock.next = self.clock.val();
+        self.opened.clock.next = self.clock.val();
+        self.hit.clock.next = self.clock.val();
+        self.ev_bridge.clock.next = self.clock.val();
+        self.busy_nx.next = self.busy.q.val();
+        self.live_nx.next = self.live.q.val();
+        self.dip_nx.next = self.dip.q.val();
+        self.pend_nx.next = self.pend.q.val();
+        self.aprev_nx.next = self.aprev.q.val();
+        self.fprev_nx.next = self.fprev.q.val();
+        self.opened_nx.next = self.opened.q.val();
+        self.hit_nx.next = self.hit.q.val();
+        self.ev_bridge_nx.next = self.ev_bridge.q.val();
         for i in 0..self._m {
-            self.busy[i].clock.next = self.clock.val();
-            self.live[i].clock.next = self.clock.val();
-            self.dip[i].clock.next = self.clock.val();
-            self.pend[i].clock.next = self.clock.val();
-            self.aprev[i].clock.next = self.clock.val();
-            self.fprev[i].clock.next = self.clock.val();
-            self.opened[i].clock.next = self.clock.val();
-            self.hit[i].clock.next = self.clock.val();
-            self.ev_bridge[i].clock.next = self.clock.val();
-            self.ax[i].clock.next = self.clock.val();
-            self.ay[i].clock.next = self.clock.val();
-            self.wl[i].clock.next = self.clock.val();
-            self.wh[i].clock.next = self.clock.val();
-            self.frow[i].clock.next = self.clock.val();
-            self.ml[i].clock.next = self.clock.val();
-            self.mh[i].clock.next = self.clock.val();
-            self.bank[i].clock.next = self.clock.val();
-            self.busy[i].d.next = self.busy[i].q.val();
-            self.live[i].d.next = self.live[i].q.val();
-            self.dip[i].d.next = self.dip[i].q.val();
-            self.pend[i].d.next = self.pend[i].q.val();
-            self.aprev[i].d.next = self.aprev[i].q.val();
-            self.fprev[i].d.next = self.fprev[i].q.val();
-            self.opened[i].d.next = self.opened[i].q.val();
-            self.hit[i].d.next = self.hit[i].q.val();
-            self.ev_bridge[i].d.next = self.ev_bridge[i].q.val();
-            self.ax[i].d.next = self.ax[i].q.val();
-            self.ay[i].d.next = self.ay[i].q.val();
-            self.wl[i].d.next = self.wl[i].q.val();
-            self.wh[i].d.next = self.wh[i].q.val();
-            self.frow[i].d.next = self.frow[i].q.val();
-            self.ml[i].d.next = self.ml[i].q.val();
-            self.mh[i].d.next = self.mh[i].q.val();
-            self.bank[i].d.next = self.bank[i].q.val();
+            self.geo[i].clock.next = self.clock.val();
+            self.win[i].clock.next = self.clock.val();
+            self.geo[i].d.next = self.geo[i].q.val();
+            self.win[i].d.next = self.win[i].q.val();
         }
         for q in 0..(2 * self._m) {
-            self.s_live[q].clock.next = self.clock.val();
-            self.s_pre[q].clock.next = self.clock.val();
-            self.s_fresh[q].clock.next = self.clock.val();
-            self.s_ax[q].clock.next = self.clock.val();
-            self.s_ay[q].clock.next = self.clock.val();
-            self.s_bank[q].clock.next = self.clock.val();
-            self.s_live[q].d.next = self.s_live[q].q.val();
-            self.s_pre[q].d.next = self.s_pre[q].q.val();
-            self.s_fresh[q].d.next = self.s_fresh[q].q.val();
-            self.s_ax[q].d.next = self.s_ax[q].q.val();
-            self.s_ay[q].d.next = self.s_ay[q].q.val();
-            self.s_bank[q].d.next = self.s_bank[q].q.val();
-            self.sh_live[q].next = self.s_live[q].q.val();
-            self.sh_pre[q].next = self.s_pre[q].q.val();
-            self.sh_fresh[q].next = self.s_fresh[q].q.val();
-            self.sh_ax[q].next = self.s_ax[q].q.val();
-            self.sh_ay[q].next = self.s_ay[q].q.val();
-            self.sh_bank[q].next = self.s_bank[q].q.val();
+            self.sv[q].clock.next = self.clock.val();
+            self.sv[q].d.next = self.sv[q].q.val();
+            self.sh[q].next = self.sv[q].q.val();
         }
 
         // ---- Shared values.
@@ -809,6 +875,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.in_yc.val() == self.last_row.val() {
             self.o_frow.next = self.in_yc.val();
         }
+        // (Offsets: `slot_word` and `shadow`; literals for hdl_gen.)
+        self.o_geo.next = bit_cast::<64, 10>(self.cx.val())
+            | (bit_cast::<64, 10>(self.in_yc.val()) << 10)
+            | (bit_cast::<64, 10>(self.o_wl.val()) << 34)
+            | (bit_cast::<64, 10>(self.o_wh.val()) << 44)
+            | (bit_cast::<64, 10>(self.o_frow.val()) << 54);
+        self.o_win.next =
+            bit_cast::<64, P>(self.o_ml.val()) | (bit_cast::<64, P>(self.o_mh.val()) << 32);
+        self.o_sh.next = bit_cast::<64, 10>(self.cx.val())
+            | (bit_cast::<64, 10>(self.in_yc.val()) << 10)
+            | self.sh_open.val()
+            | (bit_cast::<64, 1>(self.t_ge_n.val().into()) << 62);
 
         // Rows y − 1 .. y + 1 see the word.
         self.y_m1.next = 0.into();
@@ -837,25 +915,26 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
         if self.go.val() {
             for i in 0..self._m {
-                self.near[i].next = (self.ax[i].q.val() >= self.cx_lo.val())
-                    & (self.ax[i].q.val() <= self.cx_hi.val())
-                    & (self.ay[i].q.val() >= self.cy_lo.val())
-                    & (self.ay[i].q.val() <= self.cy_hi.val());
-                self.absorb[i].next = self.busy[i].q.val()
-                    & (self.aprev[i].q.val() | self.opened[i].q.val())
+                self.near[i].next = (self.geo[i].q.val().get_bits::<10>(0) >= self.cx_lo.val())
+                    & (self.geo[i].q.val().get_bits::<10>(0) <= self.cx_hi.val())
+                    & (self.geo[i].q.val().get_bits::<10>(10) >= self.cy_lo.val())
+                    & (self.geo[i].q.val().get_bits::<10>(10) <= self.cy_hi.val());
+                self.absorb[i].next = self.busy.q.val().get_bit(i)
+                    & (self.aprev.q.val().get_bit(i) | self.opened.q.val().get_bit(i))
                     & self.near[i].val();
-                self.freeable[i].next = self.fprev[i].q.val() & !self.opened[i].q.val();
+                self.freeable[i].next =
+                    self.fprev.q.val().get_bit(i) & !self.opened.q.val().get_bit(i);
                 self.abs_any[i + 1].next = self.abs_any[i].val() | self.absorb[i].val();
                 self.fsel[i].next = self.freeable[i].val() & !self.ftaken[i].val();
                 self.ftaken[i + 1].next = self.ftaken[i].val() | self.freeable[i].val();
-                self.row_ok[i].next = (self.ay[i].q.val() >= self.y_m1.val())
-                    & (self.ay[i].q.val() <= self.y_p1.val());
+                self.row_ok[i].next = (self.geo[i].q.val().get_bits::<10>(10) >= self.y_m1.val())
+                    & (self.geo[i].q.val().get_bits::<10>(10) <= self.y_p1.val());
                 self.hw[i].next = self.row_ok[i].val()
-                    & (((self.in_xc.val() == self.wl[i].q.val())
-                        & (self.in_above.val() & self.ml[i].q.val()).any())
-                        | ((self.in_xc.val() == self.wh[i].q.val())
-                            & (self.in_above.val() & self.mh[i].q.val()).any()));
-                self.on[i].next = self.hit[i].q.val() | self.hw[i].val();
+                    & (((self.in_xc.val() == self.geo[i].q.val().get_bits::<10>(34))
+                        & (self.in_above.val() & self.win[i].q.val().get_bits::<P>(0)).any())
+                        | ((self.in_xc.val() == self.geo[i].q.val().get_bits::<10>(44))
+                            & (self.in_above.val() & self.win[i].q.val().get_bits::<P>(32)).any()));
+                self.on[i].next = self.hit.q.val().get_bit(i) | self.hw[i].val();
             }
         }
         self.walking.next = (self.state.q.val() == TrackerState::Walk)
@@ -895,15 +974,15 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.walking.val() {
             for i in 0..self._m {
                 if self.sel[i].val() {
-                    self.w_busy.next = self.busy[i].q.val();
-                    self.w_live.next = self.live[i].q.val();
-                    self.w_dip.next = self.dip[i].q.val();
-                    self.w_pend.next = self.pend[i].q.val();
-                    self.w_opened.next = self.opened[i].q.val();
-                    self.w_bridge.next = self.ev_bridge[i].q.val();
-                    self.w_ax.next = self.ax[i].q.val();
-                    self.w_ay.next = self.ay[i].q.val();
-                    self.w_bank.next = self.bank[i].q.val();
+                    self.w_busy.next = self.busy.q.val().get_bit(i);
+                    self.w_live.next = self.live.q.val().get_bit(i);
+                    self.w_dip.next = self.dip.q.val().get_bit(i);
+                    self.w_pend.next = self.pend.q.val().get_bit(i);
+                    self.w_opened.next = self.opened.q.val().get_bit(i);
+                    self.w_bridge.next = self.ev_bridge.q.val().get_bit(i);
+                    self.w_ax.next = self.geo[i].q.val().get_bits::<10>(0);
+                    self.w_ay.next = self.geo[i].q.val().get_bits::<10>(10);
+                    self.w_bank.next = self.geo[i].q.val().get_bits::<BW>(20);
                 }
             }
         }
@@ -1081,6 +1160,21 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.fb_pop.val() {
             self.n_bank.next = self.fb_bank.val();
         }
+        self.n_bank_w.next = bit_cast::<64, BW>(self.n_bank.val()) << 20;
+        self.n_sh.next = bit_cast::<64, 10>(self.w_ax.val())
+            | (bit_cast::<64, 10>(self.w_ay.val()) << 10)
+            | self.n_bank_w.val()
+            | (bit_cast::<64, 1>(
+                (self.n_busy.val() & self.n_live.val() & self.we_walk.val()).into(),
+            ) << 61)
+            | (bit_cast::<64, 1>(self.n_pre.val().into()) << 62)
+            | (bit_cast::<64, 1>((self.n_fresh.val() & self.we_walk.val()).into()) << 63);
+        // (A value shifted into a wider word is a signal of its own: Verilog
+        // widens the operands of `~` before inverting them.)
+        self.n_free.next = !self.n_busy.val();
+        self.fin_drop.next = self.w_busy.val() & self.w_live.val() & !self.w_fconf.val();
+        self.fin_clear.next = (bit_cast::<64, 1>(true.into()) << 61)
+            | (bit_cast::<64, 1>(self.fin_drop.val().into()) << 62);
 
         // Every walk takes one slot per step; the states say where the last goes.
         self.walk_last.next = self.walk.q.val() == self.last_slot.val();
@@ -1110,7 +1204,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.state.d.next = TrackerState::Finish;
                 } else if self.go.val() {
                     for i in 0..self._m {
-                        self.hit[i].d.next = self.on[i].val();
+                        self.hit_nx.next = self.hit_nx.val().replace_bit(i, self.on[i].val());
                     }
                     if self.more.val() {
                         self.done_mask.d.next = self.done_mask.q.val() | self.low.val();
@@ -1222,72 +1316,62 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // ---- The walks write the walked slot.
+        // ---- The walks write the walked slot. (Packed registers: each
+        // write replaces its bits of `d` as assigned so far.)
         if self.walking.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
                     if self.sel[i].val() & self.we_walk.val() {
-                        self.busy[i].d.next = self.n_busy.val();
-                        self.live[i].d.next = self.n_live.val();
-                        self.pend[i].d.next = false;
-                        self.ev_bridge[i].d.next = false;
+                        self.busy_nx.next = self.busy_nx.val().replace_bit(i, self.n_busy.val());
+                        self.live_nx.next = self.live_nx.val().replace_bit(i, self.n_live.val());
+                        self.pend_nx.next = self.pend_nx.val().replace_bit(i, false);
+                        self.ev_bridge_nx.next = self.ev_bridge_nx.val().replace_bit(i, false);
                         if self.w_cut.val() {
-                            self.dip[i].d.next = false;
+                            self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         }
-                        self.bank[i].d.next = self.n_bank.val();
+                        self.geo[i].d.next =
+                            (self.geo[i].q.val() & !self.bank_mask.val()) | self.n_bank_w.val();
                         // Association state at the end of plane t.
-                        self.aprev[i].d.next = self.n_busy.val() & self.n_live.val();
-                        self.fprev[i].d.next = !self.n_busy.val();
-                        self.opened[i].d.next = false;
-                        self.hit[i].d.next = false;
+                        self.aprev_nx.next = self
+                            .aprev_nx
+                            .val()
+                            .replace_bit(i, self.n_busy.val() & self.n_live.val());
+                        self.fprev_nx.next = self.fprev_nx.val().replace_bit(i, self.n_free.val());
+                        self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
+                        self.hit_nx.next = self.hit_nx.val().replace_bit(i, false);
                     }
                     // (`opened` too, so that the drain walks and Emit read the
                     // word `finish` writes.)
                     if self.sel[i].val() & self.we_fin.val() {
-                        self.opened[i].d.next = false;
+                        self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
                     }
                     if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val()
                     {
-                        self.live[i].d.next = false;
-                        self.dip[i].d.next = false;
+                        self.live_nx.next = self.live_nx.val().replace_bit(i, false);
+                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         if !self.w_fconf.val() {
-                            self.busy[i].d.next = false;
-                            if self.par.val() {
-                                self.s_pre[i + mm].d.next = false;
-                            } else {
-                                self.s_pre[i].d.next = false;
-                            }
+                            self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
                         }
                     }
                     if self.sel[i].val() & self.we_fin.val() {
                         if self.par.val() {
-                            self.s_live[i + mm].d.next = false;
+                            self.sv[i + mm].d.next =
+                                self.sv[i + mm].q.val() & !self.fin_clear.val();
                         } else {
-                            self.s_live[i].d.next = false;
+                            self.sv[i].d.next = self.sv[i].q.val() & !self.fin_clear.val();
                         }
                     }
                     if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
-                        self.busy[i].d.next = false;
-                        self.bank[i].d.next = self.n_bank.val();
+                        self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
+                        self.geo[i].d.next =
+                            (self.geo[i].q.val() & !self.bank_mask.val()) | self.n_bank_w.val();
                     }
                     // The slot's ROI view for plane t + 1.
                     if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
                         if self.par1.val() {
-                            self.s_live[i + mm].d.next =
-                                self.n_busy.val() & self.n_live.val() & self.we_walk.val();
-                            self.s_pre[i + mm].d.next = self.n_pre.val();
-                            self.s_fresh[i + mm].d.next = self.n_fresh.val() & self.we_walk.val();
-                            self.s_ax[i + mm].d.next = self.w_ax.val();
-                            self.s_ay[i + mm].d.next = self.w_ay.val();
-                            self.s_bank[i + mm].d.next = self.n_bank.val();
+                            self.sv[i + mm].d.next = self.n_sh.val();
                         } else {
-                            self.s_live[i].d.next =
-                                self.n_busy.val() & self.n_live.val() & self.we_walk.val();
-                            self.s_pre[i].d.next = self.n_pre.val();
-                            self.s_fresh[i].d.next = self.n_fresh.val() & self.we_walk.val();
-                            self.s_ax[i].d.next = self.w_ax.val();
-                            self.s_ay[i].d.next = self.w_ay.val();
-                            self.s_bank[i].d.next = self.n_bank.val();
+                            self.sv[i].d.next = self.n_sh.val();
                         }
                     }
                 }
@@ -1296,38 +1380,22 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // ---- Association: open a track or drop the candidate.
         if self.do_open.val() {
-            for i in 0..self._m {
-                if self.do_open.val() & self.fsel[i].val() {
-                    self.busy[i].d.next = true;
-                    self.live[i].d.next = true;
-                    self.dip[i].d.next = false;
-                    self.opened[i].d.next = true;
-                    self.ax[i].d.next = self.cx.val();
-                    self.ay[i].d.next = self.in_yc.val();
-                    self.wl[i].d.next = self.o_wl.val();
-                    self.wh[i].d.next = self.o_wh.val();
-                    self.ml[i].d.next = self.o_ml.val();
-                    self.mh[i].d.next = self.o_mh.val();
-                    self.frow[i].d.next = self.o_frow.val();
-                }
-            }
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
                     if self.do_open.val() & self.fsel[i].val() {
+                        self.busy_nx.next = self.busy_nx.val().replace_bit(i, true);
+                        self.live_nx.next = self.live_nx.val().replace_bit(i, true);
+                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
+                        self.opened_nx.next = self.opened_nx.val().replace_bit(i, true);
+                        self.geo[i].d.next =
+                            (self.geo[i].q.val() & self.bank_mask.val()) | self.o_geo.val();
+                        self.win[i].d.next = self.o_win.val();
                         if self.par.val() {
-                            self.s_live[i + mm].d.next = true;
-                            self.s_pre[i + mm].d.next = self.t_ge_n.val();
-                            self.s_fresh[i + mm].d.next = true;
-                            self.s_ax[i + mm].d.next = self.cx.val();
-                            self.s_ay[i + mm].d.next = self.in_yc.val();
-                            self.s_bank[i + mm].d.next = self.bank[i].q.val();
+                            self.sv[i + mm].d.next =
+                                (self.geo[i].q.val() & self.bank_mask.val()) | self.o_sh.val();
                         } else {
-                            self.s_live[i].d.next = true;
-                            self.s_pre[i].d.next = self.t_ge_n.val();
-                            self.s_fresh[i].d.next = true;
-                            self.s_ax[i].d.next = self.cx.val();
-                            self.s_ay[i].d.next = self.in_yc.val();
-                            self.s_bank[i].d.next = self.bank[i].q.val();
+                            self.sv[i].d.next =
+                                (self.geo[i].q.val() & self.bank_mask.val()) | self.o_sh.val();
                         }
                     }
                 }
@@ -1347,28 +1415,30 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
                     if self.do_fin.val()
-                        & self.aprev[i].q.val()
-                        & self.busy[i].q.val()
-                        & self.live[i].q.val()
-                        & (self.frow[i].q.val() == self.in_yc.val())
+                        & self.aprev.q.val().get_bit(i)
+                        & self.busy.q.val().get_bit(i)
+                        & self.live.q.val().get_bit(i)
+                        & (self.geo[i].q.val().get_bits::<10>(54) == self.in_yc.val())
                     {
                         if self.on[i].val() {
-                            if self.dip[i].q.val() {
-                                self.dip[i].d.next = false;
-                                self.ev_bridge[i].d.next = true;
+                            if self.dip.q.val().get_bit(i) {
+                                self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
+                                self.ev_bridge_nx.next =
+                                    self.ev_bridge_nx.val().replace_bit(i, true);
                             }
-                        } else if !self.dip[i].q.val() {
-                            self.dip[i].d.next = true;
+                        } else if !self.dip.q.val().get_bit(i) {
+                            self.dip_nx.next = self.dip_nx.val().replace_bit(i, true);
                         } else {
                             // Second plane below: the blink ended at t − 1 (its
                             // t_drop and confirmation are settled by the walk).
-                            self.live[i].d.next = false;
-                            self.dip[i].d.next = false;
-                            self.pend[i].d.next = true;
+                            self.live_nx.next = self.live_nx.val().replace_bit(i, false);
+                            self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
+                            self.pend_nx.next = self.pend_nx.val().replace_bit(i, true);
                             if self.par.val() {
-                                self.s_live[i + mm].d.next = false;
+                                self.sv[i + mm].d.next =
+                                    self.sv[i + mm].q.val().replace_bit(61, false);
                             } else {
-                                self.s_live[i].d.next = false;
+                                self.sv[i].d.next = self.sv[i].q.val().replace_bit(61, false);
                             }
                         }
                     }
@@ -1392,23 +1462,35 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.c_bridged.d.next = 0.into();
             self.c_cuts.d.next = 0.into();
             self.bank_err.d.next = false;
+            self.busy_nx.next = 0.into();
+            self.live_nx.next = 0.into();
+            self.aprev_nx.next = 0.into();
+            self.fprev_nx.next = self.slot_bits.val();
+            self.opened_nx.next = 0.into();
+            self.hit_nx.next = 0.into();
+            self.pend_nx.next = 0.into();
+            self.ev_bridge_nx.next = 0.into();
+            // Every slot free with its first bank, every ROI view entry
+            // without flags: the other fields are read only after an
+            // opening or a walk has written them.
             for i in 0..self._m {
-                self.busy[i].d.next = false;
-                self.live[i].d.next = false;
-                self.aprev[i].d.next = false;
-                self.fprev[i].d.next = true;
-                self.opened[i].d.next = false;
-                self.hit[i].d.next = false;
-                self.pend[i].d.next = false;
-                self.ev_bridge[i].d.next = false;
-                self.bank[i].d.next = self.bank_init[i].val();
+                self.geo[i].d.next = self.bank_init[i].val();
             }
             for q in 0..(2 * self._m) {
-                self.s_live[q].d.next = false;
-                self.s_pre[q].d.next = false;
-                self.s_fresh[q].d.next = false;
+                self.sv[q].d.next = 0.into();
             }
         }
+
+        // The packed registers take what the writes above made of them.
+        self.busy.d.next = self.busy_nx.val();
+        self.live.d.next = self.live_nx.val();
+        self.dip.d.next = self.dip_nx.val();
+        self.pend.d.next = self.pend_nx.val();
+        self.aprev.d.next = self.aprev_nx.val();
+        self.fprev.d.next = self.fprev_nx.val();
+        self.opened.d.next = self.opened_nx.val();
+        self.hit.d.next = self.hit_nx.val();
+        self.ev_bridge.d.next = self.ev_bridge_nx.val();
 
         // Read the word of the slot the walk is at on the next clock (after
         // every assignment of `walk.d`).

@@ -30,6 +30,7 @@
 //! `crc' = (crc >> 8) ^ ⊕ᵢ vᵢ·T(2ⁱ)`, `v = (crc ^ byte) & 0xFF`, where T is
 //! the reflected byte table of polynomial 0x82F63B78 (linear in v).
 
+use crate::blink_tracker::MAX_SLOTS;
 use crate::bram::RamStyle;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
@@ -1230,8 +1231,8 @@ pub struct RecordFinisher<const NW: usize> {
     pub n_window: Signal<In, Bits<NW>>,
     /// Planes the aggregator has swept.
     pub planes_done: Signal<In, Bits<48>>,
-    /// MASKED per slot (aggregator).
-    pub slot_masked: Vec<Signal<In, Bit>>,
+    /// MASKED per slot (aggregator; bit i: slot i).
+    pub slot_masked: Signal<In, Bits<MAX_SLOTS>>,
     /// Kind.
     pub kind: Signal<In, Bits<2>>,
     /// Slot.
@@ -1284,7 +1285,7 @@ impl<const NW: usize> RecordFinisher<NW> {
         Ok(RecordFinisher {
             n_window: Default::default(),
             planes_done: Default::default(),
-            slot_masked: lanes(cfg.slots),
+            slot_masked: Default::default(),
             kind: Default::default(),
             slot: Default::default(),
             flags: Default::default(),
@@ -1359,7 +1360,7 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
         self.o_empty_masked.next = false;
         for i in 0..self._m {
             if self.slot.val() == self.ids[i].val() {
-                self.o_empty_masked.next = self.slot_masked[i].val();
+                self.o_empty_masked.next = self.slot_masked.val().get_bit(i);
             }
         }
     }

@@ -383,12 +383,7 @@ impl<
         self.agg.tr_plane.next = self.tracker.plane.val();
         self.agg.tr_rows.next = self.tracker.rows_done.val();
         for q in 0..(2 * self._m) {
-            self.agg.sh_live[q].next = self.tracker.sh_live[q].val();
-            self.agg.sh_pre[q].next = self.tracker.sh_pre[q].val();
-            self.agg.sh_fresh[q].next = self.tracker.sh_fresh[q].val();
-            self.agg.sh_ax[q].next = self.tracker.sh_ax[q].val();
-            self.agg.sh_ay[q].next = self.tracker.sh_ay[q].val();
-            self.agg.sh_bank[q].next = self.tracker.sh_bank[q].val();
+            self.agg.sh[q].next = self.tracker.sh[q].val();
         }
 
         // Record queue.
@@ -408,9 +403,7 @@ impl<
         // Derived Blink fields.
         self.fin.n_window.next = self.n_window.val();
         self.fin.planes_done.next = self.agg.planes_done.val();
-        for i in 0..self._m {
-            self.fin.slot_masked[i].next = self.agg.slot_masked[i].val();
-        }
+        self.fin.slot_masked.next = self.agg.slot_masked.val();
         self.fin.kind.next = self.queue.h_kind.val();
         self.fin.slot.next = self.queue.h_slot.val();
         self.fin.flags.next = self.queue.h_flags.val();

@@ -44,7 +44,7 @@
 //! slack, plus the rows the tracker may fall behind at each plane's end
 //! (`M + 3` clocks): [`BackHalfConfig::default_row_slack`].
 
-use crate::blink_tracker::COORD_BITS;
+use crate::blink_tracker::{COORD_BITS, MAX_SLOTS};
 use crate::bram::{Bram, RamStyle};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
@@ -80,18 +80,10 @@ pub struct RoiAggregator<
     pub tr_plane: Signal<In, Bits<48>>,
     /// Tracker rows done in that plane.
     pub tr_rows: Signal<In, Bits<16>>,
-    /// Tracker ROI view: sum live (index parity·M + slot).
-    pub sh_live: Vec<Signal<In, Bit>>,
-    /// Tracker ROI view: sum delayed.
-    pub sh_pre: Vec<Signal<In, Bit>>,
-    /// Tracker ROI view: first plane of the segment.
-    pub sh_fresh: Vec<Signal<In, Bit>>,
-    /// Tracker ROI view: anchor column.
-    pub sh_ax: Vec<Signal<In, Bits<COORD_BITS>>>,
-    /// Tracker ROI view: anchor row.
-    pub sh_ay: Vec<Signal<In, Bits<COORD_BITS>>>,
-    /// Tracker ROI view: bank.
-    pub sh_bank: Vec<Signal<In, Bits<BW>>>,
+    /// Tracker ROI view (index parity·M + slot): one word per entry, the
+    /// fields at
+    /// [`crate::blink_tracker::shadow`]'s offsets.
+    pub sh: Vec<Signal<In, Bits<64>>>,
     /// Planes whose every row has been swept.
     pub planes_done: Signal<Out, Bits<48>>,
     /// The ring was overrun (sticky; sums are then wrong).
@@ -112,7 +104,8 @@ pub struct RoiAggregator<
     pub rd_masked: Signal<Out, Bit>,
     /// Per slot: MASKED of the ROI of its latest segment that summed a plane
     /// (for a continuation cut off by the stream end before summing any).
-    pub slot_masked: Vec<Signal<Out, Bit>>,
+    /// (Bit i: slot i.)
+    pub slot_masked: Signal<Out, Bits<MAX_SLOTS>>,
     ring: Vec<Bram<P, RAW>>,
     cnt: Vec<Bram<RCW, CAW>>,
     msk: Bram<1, CAW>,
@@ -124,7 +117,9 @@ pub struct RoiAggregator<
     ovf: DFF<Bit>,
     // Sweep.
     sweeping: DFF<Bit>,
-    rel: Vec<DFF<Bit>>,
+    /// Slots still to sweep in the row (bit i: slot i; so are `s1_sel` and
+    /// `mflag`: one register per field, not per slot, as in the tracker).
+    rel: DFF<Bits<MAX_SLOTS>>,
     rbase: DFF<Bits<RAW>>,
     rslot: DFF<Bits<16>>,
     gs: DFF<Bits<16>>,
@@ -140,8 +135,8 @@ pub struct RoiAggregator<
     s1_odd: DFF<Bit>,
     s1_addr: DFF<Bits<CAW>>,
     s1_first: DFF<Bit>,
-    s1_sel: Vec<DFF<Bit>>,
-    mflag: Vec<DFF<Bit>>,
+    s1_sel: DFF<Bits<MAX_SLOTS>>,
+    mflag: DFF<Bits<MAX_SLOTS>>,
     // Combinational.
     pending: Signal<Local, Bits<16>>,
     par: Signal<Local, Bit>,
@@ -150,14 +145,19 @@ pub struct RoiAggregator<
     ra_c: Signal<Local, Bits<COORD_BITS>>,
     row_lo: Signal<Local, Bits<COORD_BITS>>,
     row_hi: Signal<Local, Bits<COORD_BITS>>,
-    rtaken: Vec<Signal<Local, Bit>>,
-    rsel: Vec<Signal<Local, Bit>>,
+    /// The lowest slot of `rel`, and the others.
+    rsel: Signal<Local, Bits<MAX_SLOTS>>,
+    rest: Signal<Local, Bits<MAX_SLOTS>>,
     any_rel: Signal<Local, Bit>,
-    rest_taken: Vec<Signal<Local, Bit>>,
     rest_any: Signal<Local, Bit>,
     now_rel: Vec<Signal<Local, Bit>>,
-    now_taken: Vec<Signal<Local, Bit>>,
+    /// `now_rel` packed, bit i: slot i.
+    now_v: Signal<Local, Bits<MAX_SLOTS>>,
     now_any: Signal<Local, Bit>,
+    /// MASKED bits to set: the slot of S1 if its ROI row has a masked pixel.
+    m_set: Signal<Local, Bits<MAX_SLOTS>>,
+    /// The slots below slot i.
+    below: Vec<Constant<Bits<MAX_SLOTS>>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
     k_live: Signal<Local, Bit>,
@@ -236,12 +236,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             in_mask: Default::default(),
             tr_plane: Default::default(),
             tr_rows: Default::default(),
-            sh_live: lanes(2 * m),
-            sh_pre: lanes(2 * m),
-            sh_fresh: lanes(2 * m),
-            sh_ax: lanes(2 * m),
-            sh_ay: lanes(2 * m),
-            sh_bank: lanes(2 * m),
+            sh: lanes(2 * m),
             planes_done: Default::default(),
             overrun: Default::default(),
             backlog: Default::default(),
@@ -250,7 +245,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             rd_grant: Default::default(),
             rd_counts: lanes(r),
             rd_masked: Default::default(),
-            slot_masked: lanes(m),
+            slot_masked: Default::default(),
             ring: (0..6).map(|_| Bram::new(ring_depth, ring_style)).collect(),
             cnt: (0..r)
                 .map(|_| Bram::new(counter_rows, RamStyle::Block))
@@ -264,7 +259,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             gw: Default::default(),
             ovf: Default::default(),
             sweeping: Default::default(),
-            rel: lanes(m),
+            rel: Default::default(),
             rbase: Default::default(),
             rslot: Default::default(),
             gs: Default::default(),
@@ -280,8 +275,8 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             s1_odd: Default::default(),
             s1_addr: Default::default(),
             s1_first: Default::default(),
-            s1_sel: lanes(m),
-            mflag: lanes(m),
+            s1_sel: Default::default(),
+            mflag: Default::default(),
             pending: Default::default(),
             par: Default::default(),
             need: Default::default(),
@@ -289,14 +284,17 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             ra_c: Default::default(),
             row_lo: Default::default(),
             row_hi: Default::default(),
-            rtaken: lanes(m + 1),
-            rsel: lanes(m),
+            rsel: Default::default(),
+            rest: Default::default(),
             any_rel: Default::default(),
-            rest_taken: lanes(m + 1),
             rest_any: Default::default(),
             now_rel: lanes(m),
-            now_taken: lanes(m + 1),
+            now_v: Default::default(),
             now_any: Default::default(),
+            m_set: Default::default(),
+            below: (0..m)
+                .map(|i| Constant::new(((1u64 << i) - 1).to_bits()))
+                .collect(),
             row_done: Default::default(),
             s0: Default::default(),
             k_live: Default::default(),
@@ -352,16 +350,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
     fn update(&mut self) {
         dff_setup!(
             self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, ra, s1_valid,
-            s1_live, s1_pre, s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first
+            s1_live, s1_pre, s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel,
+            s1_sel, mflag
         );
-        for i in 0..self._m {
-            self.rel[i].clock.next = self.clock.val();
-            self.rel[i].d.next = self.rel[i].q.val();
-            self.s1_sel[i].clock.next = self.clock.val();
-            self.mflag[i].clock.next = self.clock.val();
-            self.mflag[i].d.next = self.mflag[i].q.val();
-            self.slot_masked[i].next = self.mflag[i].q.val();
-        }
+        self.slot_masked.next = self.mflag.q.val();
         for q in 0..6 {
             self.ring[q].clock.next = self.clock.val();
         }
@@ -421,38 +413,45 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         }
         self.row_hi.next = self.ra_c.val() + self.h_c.val();
 
-        // ---- Slots whose ROI covers row ra and that sum this plane.
-        self.now_taken[0].next = false;
-        for mm in self._m..(self._m + 1) {
-            for i in 0..self._m {
-                if self.par.val() {
-                    self.now_rel[i].next = (self.sh_live[i + mm].val() | self.sh_pre[i + mm].val())
-                        & (self.sh_ay[i + mm].val() >= self.row_lo.val())
-                        & (self.sh_ay[i + mm].val() <= self.row_hi.val());
-                } else {
-                    self.now_rel[i].next = (self.sh_live[i].val() | self.sh_pre[i].val())
-                        & (self.sh_ay[i].val() >= self.row_lo.val())
-                        & (self.sh_ay[i].val() <= self.row_hi.val());
-                }
-                self.now_taken[i + 1].next = self.now_taken[i].val() | self.now_rel[i].val();
-            }
-            self.now_any.next = self.now_taken[mm].val();
+        // ---- Slots whose ROI covers row ra and that sum this plane: read
+        // only when a row's sweep starts (and computed only then, which
+        // costs nothing in hardware and saves a simulator the 32 slots'
+        // comparisons on the other clocks).
+        self.now_v.next = 0.into();
+        for i in 0..self._m {
+            self.now_rel[i].next = false;
         }
+        if !self.sweeping.q.val() & self.trig.val() {
+            for mm in self._m..(self._m + 1) {
+                for i in 0..self._m {
+                    // (Offsets: `shadow`; literals for hdl_gen.)
+                    if self.par.val() {
+                        self.now_rel[i].next = (self.sh[i + mm].val().get_bit(61)
+                            | self.sh[i + mm].val().get_bit(62))
+                            & (self.sh[i + mm].val().get_bits::<10>(10) >= self.row_lo.val())
+                            & (self.sh[i + mm].val().get_bits::<10>(10) <= self.row_hi.val());
+                    } else {
+                        self.now_rel[i].next = (self.sh[i].val().get_bit(61)
+                            | self.sh[i].val().get_bit(62))
+                            & (self.sh[i].val().get_bits::<10>(10) >= self.row_lo.val())
+                            & (self.sh[i].val().get_bits::<10>(10) <= self.row_hi.val());
+                    }
+                    self.now_v.next = self.now_v.val().replace_bit(i, self.now_rel[i].val());
+                }
+            }
+        }
+        self.now_any.next = self.now_v.val().any();
 
         // ---- The lowest relevant slot, and its view.
-        self.rtaken[0].next = false;
-        self.rest_taken[0].next = false;
-        for i in 0..self._m {
-            self.rsel[i].next = self.rel[i].q.val() & !self.rtaken[i].val();
-            self.rtaken[i + 1].next = self.rtaken[i].val() | self.rel[i].q.val();
-            self.rest_taken[i + 1].next =
-                self.rest_taken[i].val() | (self.rel[i].q.val() & !self.rsel[i].val());
-        }
-        for mm in self._m..(self._m + 1) {
-            self.any_rel.next = self.rtaken[mm].val();
-            self.rest_any.next = self.rest_taken[mm].val();
-        }
+        self.rsel.next = self.rel.q.val() & (!self.rel.q.val() + 1);
+        self.rest.next = self.rel.q.val() & !self.rsel.val();
+        self.any_rel.next = self.rel.q.val().any();
+        self.rest_any.next = self.rest.val().any();
         self.s0.next = self.sweeping.q.val() & self.any_rel.val();
+        // (The slot's test reads `rel` itself: with `rsel`, a local this
+        // block writes, in the conditions Verilator no longer splits this
+        // block from the counter address, which reads the bank through
+        // `bank_base`, and reports a false loop.)
         self.k_live.next = false;
         self.k_pre.next = false;
         self.k_fresh.next = false;
@@ -461,21 +460,21 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.k_bank.next = 0.into();
         for mm in self._m..(self._m + 1) {
             for i in 0..self._m {
-                if self.rsel[i].val() {
+                if self.rel.q.val().get_bit(i) & !(self.rel.q.val() & self.below[i].val()).any() {
                     if self.par.val() {
-                        self.k_live.next = self.sh_live[i + mm].val();
-                        self.k_pre.next = self.sh_pre[i + mm].val();
-                        self.k_fresh.next = self.sh_fresh[i + mm].val();
-                        self.k_ax.next = self.sh_ax[i + mm].val();
-                        self.k_ay.next = self.sh_ay[i + mm].val();
-                        self.k_bank.next = self.sh_bank[i + mm].val();
+                        self.k_live.next = self.sh[i + mm].val().get_bit(61);
+                        self.k_pre.next = self.sh[i + mm].val().get_bit(62);
+                        self.k_fresh.next = self.sh[i + mm].val().get_bit(63);
+                        self.k_ax.next = self.sh[i + mm].val().get_bits::<10>(0);
+                        self.k_ay.next = self.sh[i + mm].val().get_bits::<10>(10);
+                        self.k_bank.next = self.sh[i + mm].val().get_bits::<BW>(20);
                     } else {
-                        self.k_live.next = self.sh_live[i].val();
-                        self.k_pre.next = self.sh_pre[i].val();
-                        self.k_fresh.next = self.sh_fresh[i].val();
-                        self.k_ax.next = self.sh_ax[i].val();
-                        self.k_ay.next = self.sh_ay[i].val();
-                        self.k_bank.next = self.sh_bank[i].val();
+                        self.k_live.next = self.sh[i].val().get_bit(61);
+                        self.k_pre.next = self.sh[i].val().get_bit(62);
+                        self.k_fresh.next = self.sh[i].val().get_bit(63);
+                        self.k_ax.next = self.sh[i].val().get_bits::<10>(0);
+                        self.k_ay.next = self.sh[i].val().get_bits::<10>(10);
+                        self.k_bank.next = self.sh[i].val().get_bits::<BW>(20);
                     }
                 }
             }
@@ -513,8 +512,9 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         }
         self.rd_grant.next = self.rd_req.val() & !self.s0.val();
         self.s1_valid.d.next = self.s0.val();
-        for i in 0..self._m {
-            self.s1_sel[i].d.next = self.rsel[i].val() & self.s0.val();
+        self.s1_sel.d.next = 0.into();
+        if self.s0.val() {
+            self.s1_sel.d.next = self.rsel.val();
         }
         self.s1_live.d.next = self.k_live.val();
         self.s1_pre.d.next = self.k_pre.val();
@@ -591,13 +591,15 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.any_m.next = (self.win_m.val() & self.roi_mask.val()).any();
         self.msk.write_address.next = self.s1_addr.q.val();
         self.msk.write_data.next = (self.old_m.val() | self.any_m.val()).into();
-        for i in 0..self._m {
-            if self.s1_valid.q.val() & self.s1_sel[i].q.val() & self.s1_fresh.q.val() {
-                if self.s1_first.q.val() {
-                    self.mflag[i].d.next = self.any_m.val();
-                } else {
-                    self.mflag[i].d.next = self.mflag[i].q.val() | self.any_m.val();
-                }
+        self.m_set.next = 0.into();
+        if self.any_m.val() {
+            self.m_set.next = self.s1_sel.q.val();
+        }
+        if self.s1_valid.q.val() & self.s1_fresh.q.val() {
+            if self.s1_first.q.val() {
+                self.mflag.d.next = (self.mflag.q.val() & !self.s1_sel.q.val()) | self.m_set.val();
+            } else {
+                self.mflag.d.next = self.mflag.q.val() | self.m_set.val();
             }
         }
         self.msk.write_enable.next = self.s1_valid.q.val();
@@ -610,19 +612,13 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             if self.trig.val() {
                 if self.now_any.val() {
                     self.sweeping.d.next = true;
-                    for i in 0..self._m {
-                        self.rel[i].d.next = self.now_rel[i].val();
-                    }
+                    self.rel.d.next = self.now_v.val();
                 } else {
                     self.row_done.next = true;
                 }
             }
         } else {
-            for i in 0..self._m {
-                if self.rsel[i].val() {
-                    self.rel[i].d.next = false;
-                }
-            }
+            self.rel.d.next = self.rest.val();
             if !self.rest_any.val() {
                 self.sweeping.d.next = false;
                 self.row_done.next = true;
@@ -657,9 +653,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             self.ta.d.next = 0.into();
             self.ra.d.next = 0.into();
             self.s1_valid.d.next = false;
-            for i in 0..self._m {
-                self.rel[i].d.next = false;
-            }
+            self.rel.d.next = 0.into();
         }
         self.planes_done.next = self.ta.q.val();
         self.overrun.next = self.ovf.q.val();

@@ -18,7 +18,7 @@ use proptest::prelude::*;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::blink_tracker::{record_kind, BlinkTracker};
+use smartagg_hdl::blink_tracker::{record_kind, shadow, BlinkTracker, COORD_BITS};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig};
 use smartagg_hdl::sim::{settle, Bench};
 use smartagg_model::blink_tracker::{BlinkTracker as Model, Completed, Slot};
@@ -349,12 +349,16 @@ fn run(pr: &Params) -> (usize, usize, usize) {
         if plane == sweep + 1 && rows == H {
             waited += 1;
         }
-        let view = |u: &Dut, par: usize, i: usize| View {
-            live: u.sh_live[par * m + i].val(),
-            pre: u.sh_pre[par * m + i].val(),
-            fresh: u.sh_fresh[par * m + i].val(),
-            ax: u.sh_ax[par * m + i].val().to_u64() as u16,
-            ay: u.sh_ay[par * m + i].val().to_u64() as u16,
+        let view = |u: &Dut, par: usize, i: usize| {
+            let w = u.sh[par * m + i].val().to_u64();
+            let field = |at: usize| ((w >> at) & ((1 << COORD_BITS) - 1)) as u16;
+            View {
+                live: w >> shadow::LIVE & 1 == 1,
+                pre: w >> shadow::PRE & 1 == 1,
+                fresh: w >> shadow::FRESH & 1 == 1,
+                ax: field(shadow::AX),
+                ay: field(shadow::AY),
+            }
         };
         for (tt, all_rows) in [(plane as i64 - 1, true), (plane as i64, false)] {
             // Plane t − 1's view is needed until the sweep has finished it;

@@ -249,12 +249,7 @@ fn run_stream(
         a.tr_plane.next = t.plane.val();
         a.tr_rows.next = t.rows_done.val();
         for q in 0..2 * slots {
-            a.sh_live[q].next = t.sh_live[q].val();
-            a.sh_pre[q].next = t.sh_pre[q].val();
-            a.sh_fresh[q].next = t.sh_fresh[q].val();
-            a.sh_ax[q].next = t.sh_ax[q].val();
-            a.sh_ay[q].next = t.sh_ay[q].val();
-            a.sh_bank[q].next = t.sh_bank[q].val();
+            a.sh[q].next = t.sh[q].val();
         }
         pool.uut.pop.next = t.fb_pop.val();
         if t.rec_push.val() && t.rec_room.val() {
@@ -303,7 +298,7 @@ fn run_stream(
                         got.push(Record::Blink(smartagg_model::record::BlinkRecord {
                             slot,
                             flags: fl
-                                | if a.slot_masked[slot as usize].val() {
+                                | if a.slot_masked.val().get_bit(slot as usize) {
                                     flags::MASKED
                                 } else {
                                     0
