@@ -250,6 +250,8 @@ pub struct Packetiser<
     rec_prefix: Vec<Signal<Local, Bits<8>>>,
     ovf_prefix: Vec<Signal<Local, Bits<8>>>,
     the_byte: Signal<Local, Bits<8>>,
+    /// A state that sends bytes.
+    emitting: Signal<Local, Bit>,
     pk_shift: Signal<Local, Bits<72>>,
     pk_low: Signal<Local, Bits<72>>,
     pad_shift: Signal<Local, Bits<72>>,
@@ -431,6 +433,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             rec_prefix: lanes(PW / 8),
             ovf_prefix: lanes(PW / 8),
             the_byte: Default::default(),
+            emitting: Default::default(),
             pk_shift: Default::default(),
             pk_low: Default::default(),
             pad_shift: Default::default(),
@@ -722,102 +725,108 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         }
         // (Verilog cannot slice an expression: N widened into a signal first.)
         self.n16.next = bit_cast::<16, NW>(self.n_window.val());
-        // Header: magic "SA", version 1, type, sequence number, length.
-        self.rec_prefix[0].next = 0x53.into();
-        self.rec_prefix[1].next = 0x41.into();
-        self.rec_prefix[2].next = 1.into();
-        self.rec_prefix[3].next = self.type_code.val();
-        for b in 0..4 {
-            self.rec_prefix[4 + b].next = self.seq_ctr.q.val().get_bits::<8>(8 * b);
-        }
-        for b in 0..2 {
-            self.rec_prefix[8 + b].next = self.payload_len.val().get_bits::<8>(8 * b);
-        }
-        match self.r_kind.val().index() {
-            1 => {
-                self.rec_prefix[10].next = self.r_slot.val();
-                self.rec_prefix[11].next =
-                    self.r_flags.val() | (bit_cast::<8, 1>(self.masked.q.val().into()) << 1);
-                for b in 0..2 {
-                    self.rec_prefix[12 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[14 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
-                }
-                for b in 0..6 {
-                    self.rec_prefix[16 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[22 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[28 + b].next = self.r_ts.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[34 + b].next = self.r_te.val().get_bits::<8>(8 * b);
-                }
-                for b in 0..4 {
-                    self.rec_prefix[40 + b].next = self.r_planes.val().get_bits::<8>(8 * b);
-                }
-                self.rec_prefix[44].next = self.roi_side.val();
-                self.rec_prefix[45].next = self.tb0.val();
-                self.rec_prefix[46].next = self.tb1.val();
-                self.rec_prefix[47].next = self.tb2.val();
-                self.rec_prefix[48].next = self.tb3.val();
-                self.rec_prefix[49].next = self.tb4.val();
-                self.rec_prefix[50].next = self.tb5.val();
+        // Read only when a packet starts (Decide, and Crc after an Overflow
+        // packet), and computed only then.
+        if (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc) {
+            // Header: magic "SA", version 1, type, sequence number, length.
+            self.rec_prefix[0].next = 0x53.into();
+            self.rec_prefix[1].next = 0x41.into();
+            self.rec_prefix[2].next = 1.into();
+            self.rec_prefix[3].next = self.type_code.val();
+            for b in 0..4 {
+                self.rec_prefix[4 + b].next = self.seq_ctr.q.val().get_bits::<8>(8 * b);
             }
-            2 => {
-                for b in 0..6 {
-                    self.rec_prefix[10 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
-                }
-                for b in 0..4 {
-                    self.rec_prefix[16 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
-                }
-                for b in 0..2 {
-                    self.rec_prefix[20 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[22 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
-                }
+            for b in 0..2 {
+                self.rec_prefix[8 + b].next = self.payload_len.val().get_bits::<8>(8 * b);
             }
-            3 => {
-                for b in 0..8 {
-                    self.rec_prefix[10 + b].next = self.c_planes.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[18 + b].next = self.c_blinks.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[26 + b].next = self.c_unconf.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[34 + b].next = self.c_dropped.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[42 + b].next = self.c_bridged.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[50 + b].next = self.c_cuts.val().get_bits::<8>(8 * b);
-                }
-            }
-            _ => {
-                // StreamStart: the generation's constant bytes (field, kernel)
-                // with the runtime registers in their zero bytes.
-                for j in 10..self._pb {
-                    self.rec_prefix[j].next = self.start_bytes[j].val();
-                }
-                for b in 0..2 {
-                    self.rec_prefix[14 + b].next = self.n16.val().get_bits::<8>(8 * b);
-                }
-                for b in 0..4 {
-                    self.rec_prefix[18 + b].next = self.threshold.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[22 + b].next = self.l_min.val().get_bits::<8>(8 * b);
-                    self.rec_prefix[26 + b].next = self.l_max.val().get_bits::<8>(8 * b);
-                }
-                for o in self._o_period..(self._o_period + 1) {
+            match self.r_kind.val().index() {
+                1 => {
+                    self.rec_prefix[10].next = self.r_slot.val();
+                    self.rec_prefix[11].next =
+                        self.r_flags.val() | (bit_cast::<8, 1>(self.masked.q.val().into()) << 1);
+                    for b in 0..2 {
+                        self.rec_prefix[12 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[14 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
+                    }
+                    for b in 0..6 {
+                        self.rec_prefix[16 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[22 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[28 + b].next = self.r_ts.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[34 + b].next = self.r_te.val().get_bits::<8>(8 * b);
+                    }
                     for b in 0..4 {
-                        self.rec_prefix[o + b].next = self.plane_period.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[40 + b].next = self.r_planes.val().get_bits::<8>(8 * b);
+                    }
+                    self.rec_prefix[44].next = self.roi_side.val();
+                    self.rec_prefix[45].next = self.tb0.val();
+                    self.rec_prefix[46].next = self.tb1.val();
+                    self.rec_prefix[47].next = self.tb2.val();
+                    self.rec_prefix[48].next = self.tb3.val();
+                    self.rec_prefix[49].next = self.tb4.val();
+                    self.rec_prefix[50].next = self.tb5.val();
+                }
+                2 => {
+                    for b in 0..6 {
+                        self.rec_prefix[10 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
+                    }
+                    for b in 0..4 {
+                        self.rec_prefix[16 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
+                    }
+                    for b in 0..2 {
+                        self.rec_prefix[20 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[22 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
                     }
                 }
-                for o in self._o_masked..(self._o_masked + 1) {
+                3 => {
+                    for b in 0..8 {
+                        self.rec_prefix[10 + b].next = self.c_planes.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[18 + b].next = self.c_blinks.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[26 + b].next = self.c_unconf.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[34 + b].next = self.c_dropped.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[42 + b].next = self.c_bridged.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[50 + b].next = self.c_cuts.val().get_bits::<8>(8 * b);
+                    }
+                }
+                _ => {
+                    // StreamStart: the generation's constant bytes (field, kernel)
+                    // with the runtime registers in their zero bytes.
+                    for j in 10..self._pb {
+                        self.rec_prefix[j].next = self.start_bytes[j].val();
+                    }
+                    for b in 0..2 {
+                        self.rec_prefix[14 + b].next = self.n16.val().get_bits::<8>(8 * b);
+                    }
                     for b in 0..4 {
-                        self.rec_prefix[o + b].next = self.masked_pixels.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[18 + b].next = self.threshold.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[22 + b].next = self.l_min.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[26 + b].next = self.l_max.val().get_bits::<8>(8 * b);
+                    }
+                    for o in self._o_period..(self._o_period + 1) {
+                        for b in 0..4 {
+                            self.rec_prefix[o + b].next =
+                                self.plane_period.val().get_bits::<8>(8 * b);
+                        }
+                    }
+                    for o in self._o_masked..(self._o_masked + 1) {
+                        for b in 0..4 {
+                            self.rec_prefix[o + b].next =
+                                self.masked_pixels.val().get_bits::<8>(8 * b);
+                        }
                     }
                 }
             }
-        }
-        // Overflow: header (type 0x7F, the first lost number), length 8,
-        // first lost number and count.
-        self.ovf_prefix[0].next = 0x53.into();
-        self.ovf_prefix[1].next = 0x41.into();
-        self.ovf_prefix[2].next = 1.into();
-        self.ovf_prefix[3].next = 0x7F.into();
-        self.ovf_prefix[8].next = 8.into();
-        for b in 0..4 {
-            self.ovf_prefix[4 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
-            self.ovf_prefix[10 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
-            self.ovf_prefix[14 + b].next = self.pend_cnt.q.val().get_bits::<8>(8 * b);
+            // Overflow: header (type 0x7F, the first lost number), length 8,
+            // first lost number and count.
+            self.ovf_prefix[0].next = 0x53.into();
+            self.ovf_prefix[1].next = 0x41.into();
+            self.ovf_prefix[2].next = 1.into();
+            self.ovf_prefix[3].next = 0x7F.into();
+            self.ovf_prefix[8].next = 8.into();
+            for b in 0..4 {
+                self.ovf_prefix[4 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
+                self.ovf_prefix[10 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
+                self.ovf_prefix[14 + b].next = self.pend_cnt.q.val().get_bits::<8>(8 * b);
+            }
         }
 
         // ---- The byte of this clock and the CRC.
@@ -830,57 +839,74 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.pad_shift.next = self.pk_low.val() << ((8 - self.nb.q.val()) & 7);
         self.pad_byte.next = self.pad_shift.val().get_bits::<8>(0);
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
-        // Byte `bidx` of the prefix through a binary tree of 2:1 byte
-        // multiplexers (node i of the heap layout selects between 2i and
-        // 2i + 1 by one bit of bidx; the leaves are the prefix bytes).
-        // (rust-hdl's Verilog indexes with loop variables only.)
-        self.sel_tree[0].next = 0.into();
-        for lv in self._leaves..(self._leaves + 1) {
-            for j in 0..self._leaves {
-                self.sel_tree[lv + j].next = 0.into();
-            }
-            for j in 0..self._pb {
-                self.sel_tree[lv + j].next = self.prefix[j].q.val();
-            }
+        // Read only while bytes go out (Ovf, Emit, Codes), and computed only
+        // then: free in hardware, and a simulator skips the tree and the CRC
+        // step on the other clocks.
+        self.emitting.next = (self.state.q.val() == PacketState::Ovf)
+            | (self.state.q.val() == PacketState::Emit)
+            | (self.state.q.val() == PacketState::Codes);
+        for j in 0..(2 * self._leaves) {
+            self.sel_tree[j].next = 0.into();
         }
-        // Deepest nodes first (i = leaves − k), so that the process assigns
-        // every node before it reads it.
-        for lv in self._leaves..(self._leaves + 1) {
-            for k in 1..self._leaves {
-                self.sel_tree[lv - k].next = self.sel_tree[2 * (lv - k)].val();
-                if self
-                    .bidx
-                    .q
-                    .val()
-                    .get_bit(self.tree_bit[lv - k].val().index())
-                {
-                    self.sel_tree[lv - k].next = self.sel_tree[2 * (lv - k) + 1].val();
-                }
-            }
-        }
-        self.the_byte.next = self.sel_tree[1].val();
-        if self.state.q.val() == PacketState::Codes {
-            self.the_byte.next = self.pad_byte.val();
-            if self.nb.q.val() >= 8 {
-                self.the_byte.next = self.pk_byte.val();
-            }
-        }
-        self.crc_v.next = self.crc.q.val().get_bits::<8>(0) ^ self.the_byte.val();
+        self.the_byte.next = 0.into();
+        self.crc_v.next = 0.into();
         for i in 0..8 {
             self.ct[i].next = 0.into();
-            if self.crc_v.val().get_bit(i) {
-                self.ct[i].next = self.crc_t[i].val();
-            }
         }
-        self.crc_next.next = (self.crc.q.val() >> 8)
-            ^ self.ct[0].val()
-            ^ self.ct[1].val()
-            ^ self.ct[2].val()
-            ^ self.ct[3].val()
-            ^ self.ct[4].val()
-            ^ self.ct[5].val()
-            ^ self.ct[6].val()
-            ^ self.ct[7].val();
+        self.crc_next.next = 0.into();
+        if self.emitting.val() {
+            // Byte `bidx` of the prefix through a binary tree of 2:1 byte
+            // multiplexers (node i of the heap layout selects between 2i and
+            // 2i + 1 by one bit of bidx; the leaves are the prefix bytes).
+            // (rust-hdl's Verilog indexes with loop variables only.)
+            self.sel_tree[0].next = 0.into();
+            for lv in self._leaves..(self._leaves + 1) {
+                for j in 0..self._leaves {
+                    self.sel_tree[lv + j].next = 0.into();
+                }
+                for j in 0..self._pb {
+                    self.sel_tree[lv + j].next = self.prefix[j].q.val();
+                }
+            }
+            // Deepest nodes first (i = leaves − k), so that the process assigns
+            // every node before it reads it.
+            for lv in self._leaves..(self._leaves + 1) {
+                for k in 1..self._leaves {
+                    self.sel_tree[lv - k].next = self.sel_tree[2 * (lv - k)].val();
+                    if self
+                        .bidx
+                        .q
+                        .val()
+                        .get_bit(self.tree_bit[lv - k].val().index())
+                    {
+                        self.sel_tree[lv - k].next = self.sel_tree[2 * (lv - k) + 1].val();
+                    }
+                }
+            }
+            self.the_byte.next = self.sel_tree[1].val();
+            if self.state.q.val() == PacketState::Codes {
+                self.the_byte.next = self.pad_byte.val();
+                if self.nb.q.val() >= 8 {
+                    self.the_byte.next = self.pk_byte.val();
+                }
+            }
+            self.crc_v.next = self.crc.q.val().get_bits::<8>(0) ^ self.the_byte.val();
+            for i in 0..8 {
+                self.ct[i].next = 0.into();
+                if self.crc_v.val().get_bit(i) {
+                    self.ct[i].next = self.crc_t[i].val();
+                }
+            }
+            self.crc_next.next = (self.crc.q.val() >> 8)
+                ^ self.ct[0].val()
+                ^ self.ct[1].val()
+                ^ self.ct[2].val()
+                ^ self.ct[3].val()
+                ^ self.ct[4].val()
+                ^ self.ct[5].val()
+                ^ self.ct[6].val()
+                ^ self.ct[7].val();
+        }
 
         self.out_valid.next = false;
         self.out_byte.next = self.the_byte.val();
