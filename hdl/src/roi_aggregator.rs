@@ -146,7 +146,9 @@ pub struct RoiAggregator<
     row_lo: Signal<Local, Bits<COORD_BITS>>,
     row_hi: Signal<Local, Bits<COORD_BITS>>,
     /// The lowest slot of `rel`, and the others.
-    rsel: Signal<Local, Bits<MAX_SLOTS>>,
+    rsel_v: Signal<Local, Bits<MAX_SLOTS>>,
+    rsel: Vec<Signal<Local, Bit>>,
+    rtaken: Vec<Signal<Local, Bit>>,
     rest: Signal<Local, Bits<MAX_SLOTS>>,
     any_rel: Signal<Local, Bit>,
     rest_any: Signal<Local, Bit>,
@@ -156,8 +158,6 @@ pub struct RoiAggregator<
     now_any: Signal<Local, Bit>,
     /// MASKED bits to set: the slot of S1 if its ROI row has a masked pixel.
     m_set: Signal<Local, Bits<MAX_SLOTS>>,
-    /// The slots below slot i.
-    below: Vec<Constant<Bits<MAX_SLOTS>>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
     k_live: Signal<Local, Bit>,
@@ -284,7 +284,9 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             ra_c: Default::default(),
             row_lo: Default::default(),
             row_hi: Default::default(),
-            rsel: Default::default(),
+            rsel_v: Default::default(),
+            rsel: lanes(m),
+            rtaken: lanes(m + 1),
             rest: Default::default(),
             any_rel: Default::default(),
             rest_any: Default::default(),
@@ -292,9 +294,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             now_v: Default::default(),
             now_any: Default::default(),
             m_set: Default::default(),
-            below: (0..m)
-                .map(|i| Constant::new(((1u64 << i) - 1).to_bits()))
-                .collect(),
             row_done: Default::default(),
             s0: Default::default(),
             k_live: Default::default(),
@@ -443,15 +442,22 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.now_any.next = self.now_v.val().any();
 
         // ---- The lowest relevant slot, and its view.
-        self.rsel.next = self.rel.q.val() & (!self.rel.q.val() + 1);
-        self.rest.next = self.rel.q.val() & !self.rsel.val();
+        // (A priority chain, as the slots' flags were before they were
+        // packed: `rel & (!rel + 1)` would be a 32-bit carry chain.)
+        self.rtaken[0].next = false;
+        self.rsel_v.next = 0.into();
+        for i in 0..self._m {
+            self.rsel[i].next = self.rel.q.val().get_bit(i) & !self.rtaken[i].val();
+            self.rtaken[i + 1].next = self.rtaken[i].val() | self.rel.q.val().get_bit(i);
+            self.rsel_v.next = self.rsel_v.val().replace_bit(i, self.rsel[i].val());
+        }
+        self.rest.next = self.rel.q.val() & !self.rsel_v.val();
         self.any_rel.next = self.rel.q.val().any();
         self.rest_any.next = self.rest.val().any();
         self.s0.next = self.sweeping.q.val() & self.any_rel.val();
-        // (The slot's test reads `rel` itself: with `rsel`, a local this
-        // block writes, in the conditions Verilator no longer splits this
-        // block from the counter address, which reads the bank through
-        // `bank_base`, and reports a false loop.)
+        // (The one-bit `rsel` of each slot, which `crate::schedule` isolates
+        // for Verilator with the chain that computes it, as the bank read
+        // through `bank_base` requires.)
         self.k_live.next = false;
         self.k_pre.next = false;
         self.k_fresh.next = false;
@@ -460,7 +466,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.k_bank.next = 0.into();
         for mm in self._m..(self._m + 1) {
             for i in 0..self._m {
-                if self.rel.q.val().get_bit(i) & !(self.rel.q.val() & self.below[i].val()).any() {
+                if self.rsel[i].val() {
                     if self.par.val() {
                         self.k_live.next = self.sh[i + mm].val().get_bit(61);
                         self.k_pre.next = self.sh[i + mm].val().get_bit(62);
@@ -514,7 +520,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.s1_valid.d.next = self.s0.val();
         self.s1_sel.d.next = 0.into();
         if self.s0.val() {
-            self.s1_sel.d.next = self.rsel.val();
+            self.s1_sel.d.next = self.rsel_v.val();
         }
         self.s1_live.d.next = self.k_live.val();
         self.s1_pre.d.next = self.k_pre.val();
