@@ -248,7 +248,7 @@ impl<const DW: usize> WordWindow<DW> {
             out_y: Default::default(),
             win: lanes(n),
             cur: lanes(p),
-            prev: lanes(p),
+            prev: lanes(ctx),
             win_q: lanes(n),
             cur_valid: Default::default(),
             cur_flush: Default::default(),
@@ -273,8 +273,10 @@ impl<const DW: usize> Logic for WordWindow<DW> {
         self.o_valid.d.next = false;
         for i in 0..self._p {
             self.cur[i].clock.next = self.clock.val();
-            self.prev[i].clock.next = self.clock.val();
             self.cur[i].d.next = self.cur[i].q.val();
+        }
+        for i in 0..self._ctx {
+            self.prev[i].clock.next = self.clock.val();
             self.prev[i].d.next = self.prev[i].q.val();
         }
         for i in 0..(self._p + 2 * self._ctx) {
@@ -289,7 +291,15 @@ impl<const DW: usize> Logic for WordWindow<DW> {
             self.cur_y.d.next = self.y.val();
             for i in 0..self._p {
                 self.cur[i].d.next = self.lanes[i].val();
-                self.prev[i].d.next = self.cur[i].q.val();
+            }
+            // Only the last ctx lanes of the previous word are context
+            // (a register a simulator copies every clock is one too many).
+            for pp in self._p..(self._p + 1) {
+                for cc in self._ctx..(self._ctx + 1) {
+                    for i in 0..self._ctx {
+                        self.prev[i].d.next = self.cur[i + pp - cc].q.val();
+                    }
+                }
             }
             if self.cur_valid.q.val() {
                 self.o_valid.d.next = true;
@@ -303,7 +313,7 @@ impl<const DW: usize> Logic for WordWindow<DW> {
                         for i in 0..self._ctx {
                             self.win_q[i].d.next = 0.into();
                             if self.cur_x.q.val() != 0 {
-                                self.win_q[i].d.next = self.prev[i + pp - cc].q.val();
+                                self.win_q[i].d.next = self.prev[i].q.val();
                             }
                         }
                         for i in 0..self._p {
