@@ -515,15 +515,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
                 ),
             });
         }
-        if cfg.slots > MAX_SLOTS {
-            return Err(GatewareError::Invalid {
-                field: "slots",
-                value: cfg.slots.to_string(),
-                why: format!(
-                    "the blink tracker holds at most {MAX_SLOTS} slots (one bit of a register per slot and flag)"
-                ),
-            });
-        }
+        // (`validate` refuses more than MAX_SLOTS slots.)
         if BW > slot_word::BANK_BITS_MAX || P > 32 {
             return Err(GatewareError::Invalid {
                 field: "slots/pixels_per_clock",

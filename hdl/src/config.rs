@@ -283,7 +283,9 @@ impl GatewareConfig {
 pub struct BackHalfConfig {
     /// The front half (sensor size, P, N_max, kernel).
     pub front: GatewareConfig,
-    /// Tracking slots M (1..=255).
+    /// Tracking slots M (1..=[`crate::blink_tracker::MAX_SLOTS`]: the
+    /// tracker and the aggregator keep one bit per slot of each flag in one
+    /// register).
     pub slots: usize,
     /// ROI side R (odd, 1..=31, at most P).
     pub roi_size: usize,
@@ -348,8 +350,13 @@ impl BackHalfConfig {
                 "the back half needs a power of two (word and lane of a column by shifts)",
             ));
         }
-        if self.slots == 0 || self.slots > 255 {
-            return Err(invalid("slots", self.slots, "must be 1..=255"));
+        let max_slots = crate::blink_tracker::MAX_SLOTS;
+        if self.slots == 0 || self.slots > max_slots {
+            return Err(invalid(
+                "slots",
+                self.slots,
+                format!("must be 1..={max_slots} (one bit per slot of each flag register)"),
+            ));
         }
         let r = self.roi_size;
         if r == 0 || r.is_multiple_of(2) || r > 31 || r > p {

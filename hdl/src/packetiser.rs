@@ -1306,6 +1306,7 @@ pub struct RecordFinisher<const NW: usize> {
 impl<const NW: usize> RecordFinisher<NW> {
     /// The finisher of a configuration.
     pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
+        cfg.validate()?;
         GatewareConfig::check_width("RecordFinisher", "NW", NW, cfg.front.count_bits())?;
         let h = cfg.roi_half() as u64;
         Ok(RecordFinisher {

@@ -579,3 +579,27 @@ fn tracker_refuses_a_field_its_coordinates_cannot_hold() {
     check_generation(W, MAX_FIELD, None, true, "width/height");
     check_generation(W, MAX_FIELD + 1, None, false, "width/height");
 }
+
+/// The packed per-slot flags hold `MAX_SLOTS` slots: more are refused
+/// with the back half's configuration, naming the field; `MAX_SLOTS`
+/// itself builds a tracker.
+#[test]
+fn tracker_refuses_more_slots_than_its_flags_hold() {
+    use smartagg_hdl::blink_tracker::MAX_SLOTS;
+    let config = |slots: usize| {
+        let mut mcfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, THR);
+        mcfg.slots = slots;
+        mcfg.roi_size = 3;
+        let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
+        BackHalfConfig::new(&mcfg, front, mcfg.l_max)
+    };
+    let mut bh = config(MAX_SLOTS).unwrap();
+    bh.queue_log2 = 2;
+    // 32 + 4 banks: 6-bit bank indices.
+    BlinkTracker::<4, 3, 6>::new(&bh).unwrap();
+    let e = config(MAX_SLOTS + 1).unwrap_err().to_string();
+    assert!(
+        e.contains("slots") && e.contains(&MAX_SLOTS.to_string()),
+        "{e}"
+    );
+}

@@ -158,7 +158,12 @@
 //! byte tree and CRC step were computed only in the states that read them.
 //! Full field, libraries swapped in turn, 120 planes, four runs each, idle
 //! machine: **1.06–1.08 M cycles/s** against 0.70–0.72 M for the Verilog
-//! before (≈ 1.5×; the target is 1 M). Byte-exact throughout. Gating the
+//! before (≈ 1.5×; the target is 1 M). Byte-exact throughout. The
+//! machine's own speed drifts by about 10 % within an hour: in a slower
+//! period the same comparison read 0.89–0.91 M against 0.66–0.67 M, and
+//! 0.95–1.00 M once the word window kept only the `ctx` context lanes of
+//! the previous word (its other P − ctx lanes were registers that
+//! synthesis pruned and Verilator copied). Gating the
 //! filter's adders by their stage's valid tag the same way was measured
 //! too and dropped: the hold (`d = q`) it needs on the other clocks costs
 //! Verilator as much as the adders it skips (0.96–1.03 M against
