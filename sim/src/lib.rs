@@ -163,7 +163,9 @@
 //! period the same comparison read 0.89–0.91 M against 0.66–0.67 M, and
 //! 0.95–1.00 M once the word window kept only the `ctx` context lanes of
 //! the previous word (its other P − ctx lanes were registers that
-//! synthesis pruned and Verilator copied). Gating the
+//! synthesis pruned and Verilator copied), and 0.92–0.94 M against
+//! 0.64–0.67 M later still: the 1 M target holds only in the machine's
+//! faster periods. Gating the
 //! filter's adders by their stage's valid tag the same way was measured
 //! too and dropped: the hold (`d = q`) it needs on the other clocks costs
 //! Verilator as much as the adders it skips (0.96–1.03 M against
