@@ -439,11 +439,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     n_bank_w: Signal<Local, Bits<64>>,
     /// The walked slot's ROI view entry for plane t + 1.
     n_sh: Signal<Local, Bits<64>>,
-    /// The flags the stream end's `finish` clears in the walked slot's
-    /// ROI view entry: live, and pre-roll if the track ends unconfirmed.
-    fin_clear: Signal<Local, Bits<64>>,
-    fin_drop: Signal<Local, Bit>,
-    /// The bits of the entry that `finish` keeps.
+    /// The bits of the walked slot's ROI view entry that the stream end's
+    /// `finish` keeps: all but live, and pre-roll too if the track ends
+    /// unconfirmed.
     fin_keep: Signal<Local, Bits<64>>,
     /// The walked slot is free for plane t + 1.
     n_free: Signal<Local, Bit>,
@@ -724,8 +722,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             n_fresh: Default::default(),
             n_bank_w: Default::default(),
             n_sh: Default::default(),
-            fin_clear: Default::default(),
-            fin_drop: Default::default(),
             fin_keep: Default::default(),
             n_free: Default::default(),
             we_walk: Default::default(),
@@ -1185,10 +1181,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // (A value shifted into a wider word is a signal of its own: Verilog
         // widens the operands of `~` before inverting them.)
         self.n_free.next = !self.n_busy.val();
-        self.fin_drop.next = self.w_busy.val() & self.w_live.val() & !self.w_fconf.val();
-        self.fin_clear.next = (bit_cast::<64, 1>(true.into()) << 61)
-            | (bit_cast::<64, 1>(self.fin_drop.val().into()) << 62);
-        self.fin_keep.next = self.sh_used.val() & !self.fin_clear.val();
+        self.fin_keep.next = self.sh_keep_live.val();
+        if self.w_busy.val() & self.w_live.val() & !self.w_fconf.val() {
+            self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
+        }
 
         // Every walk takes one slot per step; the states say where the last goes.
         self.walk_last.next = self.walk.q.val() == self.last_slot.val();
