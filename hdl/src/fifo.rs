@@ -10,6 +10,7 @@
 //! `overflow` flag (the owner reports it; nothing is lost silently).
 
 use crate::bram::{Bram, RamStyle};
+use crate::stream::EnableRegs;
 use rust_hdl::prelude::*;
 
 /// FWFT FIFO of `DW`-bit entries, `2^AW` in memory (plus up to two in the
@@ -40,9 +41,11 @@ pub struct Fifo<const DW: usize, const AW: usize> {
     wr: DFF<Bits<16>>,
     rd: DFF<Bits<16>>,
     o_valid: DFF<Bit>,
-    o_data: DFF<Bits<DW>>,
+    // The data registers take a clock enable: wide entries are copied only
+    // on the clocks that move one.
+    o_data: EnableRegs<Bits<DW>>,
     l_valid: DFF<Bit>,
-    l_data: DFF<Bits<DW>>,
+    l_data: EnableRegs<Bits<DW>>,
     f_valid: DFF<Bit>,
     ovf: DFF<Bit>,
     mem_count: Signal<Local, Bits<16>>,
@@ -50,6 +53,8 @@ pub struct Fifo<const DW: usize, const AW: usize> {
     consume: Signal<Local, Bit>,
     keep: Signal<Local, Bit>,
     issue: Signal<Local, Bit>,
+    o_load: Signal<Local, Bit>,
+    l_load: Signal<Local, Bit>,
     depth: Constant<Bits<16>>,
 }
 
@@ -75,9 +80,9 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
             wr: Default::default(),
             rd: Default::default(),
             o_valid: Default::default(),
-            o_data: Default::default(),
+            o_data: EnableRegs::new(1),
             l_valid: Default::default(),
-            l_data: Default::default(),
+            l_data: EnableRegs::new(1),
             f_valid: Default::default(),
             ovf: Default::default(),
             mem_count: Default::default(),
@@ -85,6 +90,8 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
             consume: Default::default(),
             keep: Default::default(),
             issue: Default::default(),
+            o_load: Default::default(),
+            l_load: Default::default(),
             depth: Constant::new((1u64 << AW).to_bits()),
         }
     }
@@ -93,7 +100,8 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
 impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, wr, rd, o_valid, o_data, l_valid, l_data, f_valid, ovf);
+        dff_setup!(self, clock, wr, rd, o_valid, l_valid, f_valid, ovf);
+        clock!(self, clock, o_data, l_data);
         self.mem.clock.next = self.clock.val();
         self.mem_count.next = self.wr.q.val() - self.rd.q.val();
         self.full.next = self.mem_count.val() == self.depth.val();
@@ -125,22 +133,29 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
 
         // Landing: head first, then the landing register.
         if !self.keep.val() {
+            self.o_valid.d.next = self.l_valid.q.val() | self.f_valid.q.val();
             if self.l_valid.q.val() {
-                self.o_valid.d.next = true;
-                self.o_data.d.next = self.l_data.q.val();
                 self.l_valid.d.next = self.f_valid.q.val();
-                if self.f_valid.q.val() {
-                    self.l_data.d.next = self.mem.read_data.val();
-                }
-            } else if self.f_valid.q.val() {
-                self.o_valid.d.next = true;
-                self.o_data.d.next = self.mem.read_data.val();
-            } else {
-                self.o_valid.d.next = false;
             }
         } else if self.f_valid.q.val() {
             self.l_valid.d.next = true;
-            self.l_data.d.next = self.mem.read_data.val();
+        }
+        // The head takes the landing register's entry, else the arriving
+        // one; the landing register takes an arriving entry the head cannot.
+        self.o_load.next = !self.keep.val() & (self.l_valid.q.val() | self.f_valid.q.val());
+        self.l_load.next = self.f_valid.q.val() & (self.keep.val() | self.l_valid.q.val());
+        self.o_data.enable.next = self.o_load.val();
+        self.o_data.d[0].next = 0.into();
+        if self.o_load.val() {
+            self.o_data.d[0].next = self.mem.read_data.val();
+            if self.l_valid.q.val() {
+                self.o_data.d[0].next = self.l_data.q[0].val();
+            }
+        }
+        self.l_data.enable.next = self.l_load.val();
+        self.l_data.d[0].next = 0.into();
+        if self.l_load.val() {
+            self.l_data.d[0].next = self.mem.read_data.val();
         }
 
         if self.restart.val() {
@@ -153,7 +168,7 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
         }
 
         self.out_valid.next = self.o_valid.q.val();
-        self.out_data.next = self.o_data.q.val();
+        self.out_data.next = self.o_data.q[0].val();
         self.room.next = !self.full.val();
         self.count.next = self.mem_count.val()
             + bit_cast::<16, 1>(self.o_valid.q.val().into())

@@ -35,7 +35,7 @@ use crate::bram::RamStyle;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::spatial_filter::ConstMul;
-use crate::stream::lanes;
+use crate::stream::{lanes, EnableRegs};
 use rust_hdl::prelude::*;
 
 /// Packetiser states.
@@ -212,7 +212,8 @@ pub struct Packetiser<
     bestk: DFF<Bits<8>>,
     scan: DFF<Bits<8>>,
     // Emission.
-    prefix: Vec<DFF<Bits<8>>>,
+    /// The packet's prefix bytes, loaded once a packet (see `prefix_load`).
+    prefix: EnableRegs<Bits<8>>,
     prefix_len: DFF<Bits<16>>,
     bidx: DFF<Bits<16>>,
     crc: DFF<Bits<32>>,
@@ -249,6 +250,10 @@ pub struct Packetiser<
     sel_tree: Vec<Signal<Local, Bits<8>>>,
     rec_prefix: Vec<Signal<Local, Bits<8>>>,
     ovf_prefix: Vec<Signal<Local, Bits<8>>>,
+    /// The prefix registers load this clock: with `ovf_prefix` if
+    /// `prefix_ovf`, else `rec_prefix`.
+    prefix_load: Signal<Local, Bit>,
+    prefix_ovf: Signal<Local, Bit>,
     the_byte: Signal<Local, Bits<8>>,
     /// A state that sends bytes.
     emitting: Signal<Local, Bit>,
@@ -396,7 +401,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             best: Default::default(),
             bestk: Default::default(),
             scan: Default::default(),
-            prefix: lanes(PW / 8),
+            prefix: EnableRegs::new(PW / 8),
             prefix_len: Default::default(),
             bidx: Default::default(),
             crc: Default::default(),
@@ -432,6 +437,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             sel_tree: lanes(2 * (PW / 8).next_power_of_two()),
             rec_prefix: lanes(PW / 8),
             ovf_prefix: lanes(PW / 8),
+            prefix_load: Default::default(),
+            prefix_ovf: Default::default(),
             the_byte: Default::default(),
             emitting: Default::default(),
             pk_shift: Default::default(),
@@ -504,10 +511,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             cs_wait, row_valid, cs_dy, cs_dx, base, masked, best, bestk, scan, prefix_len, bidx,
             crc, crc_i, nb, pk
         );
-        for j in 0..self._pb {
-            self.prefix[j].clock.next = self.clock.val();
-            self.prefix[j].d.next = self.prefix[j].q.val();
-        }
+        self.prefix.clock.next = self.clock.val();
+        self.prefix_load.next = false;
+        self.prefix_ovf.next = false;
         for dx in 0..self._r {
             self.row[dx].clock.next = self.clock.val();
             self.row[dx].d.next = self.row[dx].q.val();
@@ -865,7 +871,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.sel_tree[lv + j].next = 0.into();
                 }
                 for j in 0..self._pb {
-                    self.sel_tree[lv + j].next = self.prefix[j].q.val();
+                    self.sel_tree[lv + j].next = self.prefix.q[j].val();
                 }
             }
             // Deepest nodes first (i = leaves − k), so that the process assigns
@@ -986,17 +992,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 if self.fifo_free.val() >= self.need.val() {
                     self.bidx.d.next = 0.into();
                     self.crc.d.next = 0xFFFF_FFFF_u64.into();
+                    self.prefix_load.next = true;
                     if self.pend_cnt.q.val() != 0 {
-                        for j in 0..self._pb {
-                            self.prefix[j].d.next = self.ovf_prefix[j].val();
-                        }
+                        self.prefix_ovf.next = true;
                         self.prefix_len.d.next = 18.into();
                         self.in_ovf.d.next = true;
                         self.state.d.next = PacketState::Ovf;
                     } else {
-                        for j in 0..self._pb {
-                            self.prefix[j].d.next = self.rec_prefix[j].val();
-                        }
                         self.prefix_len.d.next = self.rec_prefix_len.val();
                         self.in_ovf.d.next = false;
                         self.state.d.next = PacketState::Emit;
@@ -1065,9 +1067,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                         // The Overflow packet is out: now the record.
                         self.pend_cnt.d.next = 0.into();
                         self.in_ovf.d.next = false;
-                        for j in 0..self._pb {
-                            self.prefix[j].d.next = self.rec_prefix[j].val();
-                        }
+                        self.prefix_load.next = true;
                         self.prefix_len.d.next = self.rec_prefix_len.val();
                         self.bidx.d.next = 0.into();
                         self.crc.d.next = 0xFFFF_FFFF_u64.into();
@@ -1092,6 +1092,18 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.pend_cnt.d.next = 0.into();
             self.ovf_flag.d.next = false;
             self.cs_active.d.next = false;
+        }
+        // The prefix registers hold between packets without a copy a clock
+        // (a clock enable): their next value exists only when they load.
+        self.prefix.enable.next = self.prefix_load.val();
+        for j in 0..self._pb {
+            self.prefix.d[j].next = 0.into();
+            if self.prefix_load.val() {
+                self.prefix.d[j].next = self.rec_prefix[j].val();
+                if self.prefix_ovf.val() {
+                    self.prefix.d[j].next = self.ovf_prefix[j].val();
+                }
+            }
         }
         self.idle.next = (self.state.q.val() == PacketState::Idle) & !self.r_valid.val();
         self.overflowed.next = self.ovf_flag.q.val();

@@ -32,7 +32,7 @@
 
 use crate::bram::{Bram, RamStyle};
 use crate::config::{GatewareConfig, GatewareError};
-use crate::stream::{lanes, RowSkew, TagReg, Widen, WordWindow};
+use crate::stream::{lanes, EnableRegs, RowSkew, TagReg, Widen, WordWindow};
 use rust_hdl::prelude::*;
 
 /// The signed binary digits of `weight` with no two adjacent non-zero
@@ -208,7 +208,7 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     /// The (k − 1)·CW bits of a column word.
     line_mask: Constant<Bits<LINE_BITS>>,
     t1: TagReg,
-    s1: Vec<DFF<Bits<CW>>>,
+    s1: EnableRegs<Bits<CW>>,
     skew: RowSkew,
     yoc: Signal<Local, Bits<16>>,
     tap_lo: Vec<Constant<Bits<16>>>,
@@ -218,24 +218,24 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     vwid: Vec<Widen<CW, VW>>,
     tap: Vec<Signal<Local, Bits<VW>>>,
     t2: TagReg,
-    vpair: Vec<DFF<Bits<VW>>>,
+    vpair: EnableRegs<Bits<VW>>,
     vmul: Vec<ConstMul<VW>>,
     t3: TagReg,
-    vprod: Vec<DFF<Bits<VW>>>,
+    vprod: EnableRegs<Bits<VW>>,
     vsum: Vec<Signal<Local, Bits<VW>>>,
     t4: TagReg,
-    vout: Vec<DFF<Bits<VW>>>,
+    vout: EnableRegs<Bits<VW>>,
     // Horizontal pass.
     window: WordWindow<VW>,
     hwid: Vec<Widen<VW, HW>>,
     t5: TagReg,
-    hpair: Vec<DFF<Bits<HW>>>,
+    hpair: EnableRegs<Bits<HW>>,
     hmul: Vec<ConstMul<HW>>,
     t6: TagReg,
-    hprod: Vec<DFF<Bits<HW>>>,
+    hprod: EnableRegs<Bits<HW>>,
     hsum: Vec<Signal<Local, Bits<HW>>>,
     t7: TagReg,
-    hout: Vec<DFF<Bits<HW>>>,
+    hout: EnableRegs<Bits<HW>>,
     _p: usize,
     _k: usize,
     _c: usize,
@@ -320,7 +320,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
                 (0..(k - 1) * CW).fold(Bits::<LINE_BITS>::default(), |b, i| b.replace_bit(i, true)),
             ),
             t1: Default::default(),
-            s1: lanes(p),
+            s1: EnableRegs::new(p),
             skew: RowSkew::new(c, cfg.height),
             yoc: Default::default(),
             tap_lo,
@@ -330,23 +330,23 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             vwid: lanes(p * k),
             tap: lanes(p * k),
             t2: Default::default(),
-            vpair: lanes(p * (c + 1)),
+            vpair: EnableRegs::new(p * (c + 1)),
             vmul: (n_mul..2 * n_mul).map(|m| ConstMul::of(mul(m))).collect(),
             t3: Default::default(),
-            vprod: lanes(p * (c + 1)),
+            vprod: EnableRegs::new(p * (c + 1)),
             vsum: lanes(p * (c + 2)),
             t4: Default::default(),
-            vout: lanes(p),
+            vout: EnableRegs::new(p),
             window: WordWindow::new(p, c, wpr),
             hwid: lanes(p + 2 * c),
             t5: Default::default(),
-            hpair: lanes(p * (c + 1)),
+            hpair: EnableRegs::new(p * (c + 1)),
             hmul: (0..n_mul).map(|m| ConstMul::of(mul(m))).collect(),
             t6: Default::default(),
-            hprod: lanes(p * (c + 1)),
+            hprod: EnableRegs::new(p * (c + 1)),
             hsum: lanes(p * (c + 2)),
             t7: Default::default(),
-            hout: lanes(p),
+            hout: EnableRegs::new(p),
             _p: p,
             _k: k,
             _c: c,
@@ -360,7 +360,20 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
     #[hdl_gen]
     fn update(&mut self) {
         // Clocks and restarts of the tag pipeline.
-        clock!(self, clock, t1, t2, t3, t4, t5, t6, t7, skew, window);
+        clock!(
+            self, clock, t1, t2, t3, t4, t5, t6, t7, skew, window, s1, vpair, vprod, vout, hpair,
+            hprod, hout
+        );
+        // The lane registers load only with a word (one clock enable per
+        // stage, its word's valid tag), and their next values are computed
+        // only then: most clocks carry no word.
+        self.s1.enable.next = self.valid.val();
+        self.vpair.enable.next = self.skew.out_valid.val();
+        self.vprod.enable.next = self.t2.out_valid.val();
+        self.vout.enable.next = self.t3.out_valid.val();
+        self.hpair.enable.next = self.window.out_valid.val();
+        self.hprod.enable.next = self.t5.out_valid.val();
+        self.hout.enable.next = self.t6.out_valid.val();
         self.t1.restart.next = self.restart.val();
         self.t2.restart.next = self.restart.val();
         self.t3.restart.next = self.restart.val();
@@ -377,8 +390,11 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         self.t1.x.next = self.x.val();
         self.t1.y.next = self.y.val();
         for i in 0..self._p {
-            self.s1[i].clock.next = self.clock.val();
-            self.s1[i].d.next = self.counts[i].val();
+            if self.valid.val() {
+                self.s1.d[i].next = self.counts[i].val();
+            } else {
+                self.s1.d[i].next = 0.into();
+            }
         }
         for i in 0..self._p {
             self.line[i].clock.next = self.clock.val();
@@ -404,20 +420,36 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
                 for i in 0..self._p {
                     // The column moves down a row: the new row at the bottom
                     // bits, the oldest row shifted out (and masked off).
-                    self.lup[i].next = self.line[i].read_data.val() << self.row_step.val();
-                    self.lwid[i].x.next = self.s1[i].q.val();
-                    self.lnew[i].next = self.lup[i].val() | self.lwid[i].y.val();
-                    self.line[i].write_data.next = self.lnew[i].val() & self.line_mask.val();
-                    self.vwid[i * kk].x.next = self.s1[i].q.val();
+                    // (Only a word's clock writes the line or reads its taps.)
+                    self.lwid[i].x.next = self.s1.q[i].val();
+                    self.vwid[i * kk].x.next = self.s1.q[i].val();
+                    if self.t1.out_valid.val() {
+                        self.lup[i].next = self.line[i].read_data.val() << self.row_step.val();
+                        self.lnew[i].next = self.lup[i].val() | self.lwid[i].y.val();
+                        self.line[i].write_data.next = self.lnew[i].val() & self.line_mask.val();
+                        for m in 1..self._k {
+                            self.lrow[i * km + m - 1].x.next =
+                                self.line[i].read_data.val() >> self.row_shift[m - 1].val();
+                        }
+                    } else {
+                        self.lup[i].next = 0.into();
+                        self.lnew[i].next = 0.into();
+                        self.line[i].write_data.next = 0.into();
+                        for m in 1..self._k {
+                            self.lrow[i * km + m - 1].x.next = 0.into();
+                        }
+                    }
                     for m in 1..self._k {
-                        self.lrow[i * km + m - 1].x.next =
-                            self.line[i].read_data.val() >> self.row_shift[m - 1].val();
                         self.vwid[i * kk + m].x.next = self.lrow[i * km + m - 1].y.val();
                     }
                     for m in 0..self._k {
                         self.tap[i * kk + m].next = 0.into();
-                        if self.mask[m].val() {
-                            self.tap[i * kk + m].next = self.vwid[i * kk + m].y.val();
+                    }
+                    if self.skew.out_valid.val() {
+                        for m in 0..self._k {
+                            if self.mask[m].val() {
+                                self.tap[i * kk + m].next = self.vwid[i * kk + m].y.val();
+                            }
                         }
                     }
                 }
@@ -431,11 +463,17 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             for c1 in (self._c + 1)..(self._c + 2) {
                 for cc in self._c..(self._c + 1) {
                     for i in 0..self._p {
-                        for j in 0..self._c {
-                            self.vpair[i * c1 + j].d.next =
-                                self.tap[i * kk + j].val() + self.tap[i * kk + kk - 1 - j].val();
+                        if self.skew.out_valid.val() {
+                            for j in 0..self._c {
+                                self.vpair.d[i * c1 + j].next = self.tap[i * kk + j].val()
+                                    + self.tap[i * kk + kk - 1 - j].val();
+                            }
+                            self.vpair.d[i * c1 + cc].next = self.tap[i * kk + cc].val();
+                        } else {
+                            for j in 0..(self._c + 1) {
+                                self.vpair.d[i * c1 + j].next = 0.into();
+                            }
                         }
-                        self.vpair[i * c1 + cc].d.next = self.tap[i * kk + cc].val();
                     }
                 }
             }
@@ -443,10 +481,12 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
 
         // V2: constant multiplies. V3: sum of the c + 1 products.
         for q in 0..(self._p * (self._c + 1)) {
-            self.vpair[q].clock.next = self.clock.val();
-            self.vmul[q].x.next = self.vpair[q].q.val();
-            self.vprod[q].clock.next = self.clock.val();
-            self.vprod[q].d.next = self.vmul[q].y.val();
+            self.vmul[q].x.next = self.vpair.q[q].val();
+            if self.t2.out_valid.val() {
+                self.vprod.d[q].next = self.vmul[q].y.val();
+            } else {
+                self.vprod.d[q].next = 0.into();
+            }
         }
         self.t3.valid.next = self.t2.out_valid.val();
         self.t3.flush.next = self.t2.out_flush.val();
@@ -456,12 +496,17 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             for c2 in (self._c + 2)..(self._c + 3) {
                 for i in 0..self._p {
                     self.vsum[i * c2].next = 0.into();
-                    for j in 0..(self._c + 1) {
-                        self.vsum[i * c2 + j + 1].next =
-                            self.vsum[i * c2 + j].val() + self.vprod[i * c1 + j].q.val();
+                    if self.t3.out_valid.val() {
+                        for j in 0..(self._c + 1) {
+                            self.vsum[i * c2 + j + 1].next =
+                                self.vsum[i * c2 + j].val() + self.vprod.q[i * c1 + j].val();
+                        }
+                    } else {
+                        for j in 0..(self._c + 1) {
+                            self.vsum[i * c2 + j + 1].next = 0.into();
+                        }
                     }
-                    self.vout[i].clock.next = self.clock.val();
-                    self.vout[i].d.next = self.vsum[i * c2 + c1].val();
+                    self.vout.d[i].next = self.vsum[i * c2 + c1].val();
                 }
             }
         }
@@ -476,7 +521,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         self.window.x.next = self.t4.out_x.val();
         self.window.y.next = self.t4.out_y.val();
         for i in 0..self._p {
-            self.window.lanes[i].next = self.vout[i].q.val();
+            self.window.lanes[i].next = self.vout.q[i].val();
         }
 
         // H1: pre-add pairs; H2: multiplies; H3: sums.
@@ -491,20 +536,28 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             for c1 in (self._c + 1)..(self._c + 2) {
                 for cc in self._c..(self._c + 1) {
                     for i in 0..self._p {
-                        for j in 0..self._c {
-                            self.hpair[i * c1 + j].d.next =
-                                self.hwid[i + j].y.val() + self.hwid[i + kk - 1 - j].y.val();
+                        if self.window.out_valid.val() {
+                            for j in 0..self._c {
+                                self.hpair.d[i * c1 + j].next =
+                                    self.hwid[i + j].y.val() + self.hwid[i + kk - 1 - j].y.val();
+                            }
+                            self.hpair.d[i * c1 + cc].next = self.hwid[i + cc].y.val();
+                        } else {
+                            for j in 0..(self._c + 1) {
+                                self.hpair.d[i * c1 + j].next = 0.into();
+                            }
                         }
-                        self.hpair[i * c1 + cc].d.next = self.hwid[i + cc].y.val();
                     }
                 }
             }
         }
         for q in 0..(self._p * (self._c + 1)) {
-            self.hpair[q].clock.next = self.clock.val();
-            self.hmul[q].x.next = self.hpair[q].q.val();
-            self.hprod[q].clock.next = self.clock.val();
-            self.hprod[q].d.next = self.hmul[q].y.val();
+            self.hmul[q].x.next = self.hpair.q[q].val();
+            if self.t5.out_valid.val() {
+                self.hprod.d[q].next = self.hmul[q].y.val();
+            } else {
+                self.hprod.d[q].next = 0.into();
+            }
         }
         self.t6.valid.next = self.t5.out_valid.val();
         self.t6.flush.next = self.t5.out_flush.val();
@@ -514,13 +567,18 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             for c2 in (self._c + 2)..(self._c + 3) {
                 for i in 0..self._p {
                     self.hsum[i * c2].next = 0.into();
-                    for j in 0..(self._c + 1) {
-                        self.hsum[i * c2 + j + 1].next =
-                            self.hsum[i * c2 + j].val() + self.hprod[i * c1 + j].q.val();
+                    if self.t6.out_valid.val() {
+                        for j in 0..(self._c + 1) {
+                            self.hsum[i * c2 + j + 1].next =
+                                self.hsum[i * c2 + j].val() + self.hprod.q[i * c1 + j].val();
+                        }
+                    } else {
+                        for j in 0..(self._c + 1) {
+                            self.hsum[i * c2 + j + 1].next = 0.into();
+                        }
                     }
-                    self.hout[i].clock.next = self.clock.val();
-                    self.hout[i].d.next = self.hsum[i * c2 + c1].val();
-                    self.filtered[i].next = self.hout[i].q.val();
+                    self.hout.d[i].next = self.hsum[i * c2 + c1].val();
+                    self.filtered[i].next = self.hout.q[i].val();
                 }
             }
         }

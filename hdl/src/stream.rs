@@ -212,9 +212,12 @@ pub struct WordWindow<const DW: usize> {
     pub out_y: Signal<Out, Bits<16>>,
     /// Window lanes `P + 2·ctx`: lane `ctx + i` is pixel i of the word.
     pub win: Vec<Signal<Out, Bits<DW>>>,
-    cur: Vec<DFF<Bits<DW>>>,
-    prev: Vec<DFF<Bits<DW>>>,
-    win_q: Vec<DFF<Bits<DW>>>,
+    // Lane registers with a clock enable: they move only with a word.
+    cur: EnableRegs<Bits<DW>>,
+    prev: EnableRegs<Bits<DW>>,
+    win_q: EnableRegs<Bits<DW>>,
+    /// A word arrives while one is held: the window is emitted.
+    emit: Signal<Local, Bit>,
     cur_valid: DFF<Bit>,
     cur_flush: DFF<Bit>,
     cur_x: DFF<Bits<16>>,
@@ -247,9 +250,10 @@ impl<const DW: usize> WordWindow<DW> {
             out_x: Default::default(),
             out_y: Default::default(),
             win: lanes(n),
-            cur: lanes(p),
-            prev: lanes(ctx),
-            win_q: lanes(n),
+            cur: EnableRegs::new(p),
+            prev: EnableRegs::new(ctx),
+            win_q: EnableRegs::new(n),
+            emit: Default::default(),
             cur_valid: Default::default(),
             cur_flush: Default::default(),
             cur_x: Default::default(),
@@ -271,18 +275,20 @@ impl<const DW: usize> Logic for WordWindow<DW> {
         dff_setup!(self, clock, cur_valid, cur_flush, cur_x, cur_y, o_flush, o_x, o_y);
         self.o_valid.clock.next = self.clock.val();
         self.o_valid.d.next = false;
+        self.emit.next = self.valid.val() & self.cur_valid.q.val();
+        clock!(self, clock, cur, prev, win_q);
+        self.cur.enable.next = self.valid.val();
+        self.prev.enable.next = self.valid.val();
+        self.win_q.enable.next = self.emit.val();
         for i in 0..self._p {
-            self.cur[i].clock.next = self.clock.val();
-            self.cur[i].d.next = self.cur[i].q.val();
+            self.cur.d[i].next = 0.into();
         }
         for i in 0..self._ctx {
-            self.prev[i].clock.next = self.clock.val();
-            self.prev[i].d.next = self.prev[i].q.val();
+            self.prev.d[i].next = 0.into();
         }
         for i in 0..(self._p + 2 * self._ctx) {
-            self.win_q[i].clock.next = self.clock.val();
-            self.win_q[i].d.next = self.win_q[i].q.val();
-            self.win[i].next = self.win_q[i].q.val();
+            self.win_q.d[i].next = 0.into();
+            self.win[i].next = self.win_q.q[i].val();
         }
         if self.valid.val() {
             self.cur_valid.d.next = true;
@@ -290,18 +296,18 @@ impl<const DW: usize> Logic for WordWindow<DW> {
             self.cur_x.d.next = self.x.val();
             self.cur_y.d.next = self.y.val();
             for i in 0..self._p {
-                self.cur[i].d.next = self.lanes[i].val();
+                self.cur.d[i].next = self.lanes[i].val();
             }
             // Only the last ctx lanes of the previous word are context
             // (a register a simulator copies every clock is one too many).
             for pp in self._p..(self._p + 1) {
                 for cc in self._ctx..(self._ctx + 1) {
                     for i in 0..self._ctx {
-                        self.prev[i].d.next = self.cur[i + pp - cc].q.val();
+                        self.prev.d[i].next = self.cur.q[i + pp - cc].val();
                     }
                 }
             }
-            if self.cur_valid.q.val() {
+            if self.emit.val() {
                 self.o_valid.d.next = true;
                 self.o_flush.d.next = self.cur_flush.q.val();
                 self.o_x.d.next = self.cur_x.q.val();
@@ -311,18 +317,18 @@ impl<const DW: usize> Logic for WordWindow<DW> {
                 for pp in self._p..(self._p + 1) {
                     for cc in self._ctx..(self._ctx + 1) {
                         for i in 0..self._ctx {
-                            self.win_q[i].d.next = 0.into();
+                            self.win_q.d[i].next = 0.into();
                             if self.cur_x.q.val() != 0 {
-                                self.win_q[i].d.next = self.prev[i].q.val();
+                                self.win_q.d[i].next = self.prev.q[i].val();
                             }
                         }
                         for i in 0..self._p {
-                            self.win_q[i + cc].d.next = self.cur[i].q.val();
+                            self.win_q.d[i + cc].next = self.cur.q[i].val();
                         }
                         for i in 0..self._ctx {
-                            self.win_q[i + cc + pp].d.next = 0.into();
+                            self.win_q.d[i + cc + pp].next = 0.into();
                             if self.cur_x.q.val() != self.last_x.val() {
-                                self.win_q[i + cc + pp].d.next = self.lanes[i].val();
+                                self.win_q.d[i + cc + pp].next = self.lanes[i].val();
                             }
                         }
                     }
@@ -342,6 +348,69 @@ impl<const DW: usize> Logic for WordWindow<DW> {
 /// `n` default-constructed lanes (signals or registers).
 pub fn lanes<T: Default>(n: usize) -> Vec<T> {
     (0..n).map(|_| T::default()).collect()
+}
+
+/// A group of pipeline registers that load their `d` only on clocks with
+/// `enable` high and hold otherwise: flip-flops on one clock-enable net in
+/// the fabric. In a Verilated model the whole group's copy is one branch an
+/// idle clock skips, where a register held by `d = q` is copied twice every
+/// clock; one enable for the group, because one per register would be a
+/// variable and a branch each. The owner drives `d` only when it loads
+/// (zero otherwise, which synthesis folds into the flip-flops' reset).
+#[derive(Clone, Debug, LogicBlock)]
+pub struct EnableRegs<T: Synth> {
+    /// Next values, taken when `enable` is high.
+    pub d: Vec<Signal<In, T>>,
+    /// Load every `d` at this clock's edge.
+    pub enable: Signal<In, Bit>,
+    /// The registers.
+    pub q: Vec<Signal<Out, T>>,
+    /// Clock.
+    pub clock: Signal<In, Clock>,
+}
+
+impl<T: Synth> EnableRegs<T> {
+    /// `n` registers on one enable.
+    pub fn new(n: usize) -> Self {
+        Self {
+            d: lanes(n),
+            enable: Signal::default(),
+            q: lanes(n),
+            clock: Signal::default(),
+        }
+    }
+}
+
+impl<T: Synth> Logic for EnableRegs<T> {
+    fn update(&mut self) {
+        if self.clock.pos_edge() && self.enable.val() {
+            for (q, d) in self.q.iter_mut().zip(&self.d) {
+                q.next = d.val();
+            }
+        }
+    }
+    fn connect(&mut self) {
+        for q in &mut self.q {
+            q.connect();
+        }
+    }
+    fn hdl(&self) -> Verilog {
+        let zero = T::default().verilog();
+        let n = self.q.len();
+        let init: String = (0..n).map(|i| format!("   q${i} = {zero:x};\n")).collect();
+        let load: String = (0..n).map(|i| format!("      q${i} <= d${i};\n")).collect();
+        Verilog::Custom(format!(
+            "initial begin\n{init}end\n\nalways @(posedge clock) begin\n   if (enable) begin\n{load}   end\nend\n"
+        ))
+    }
+    fn timing(&self) -> Vec<TimingInfo> {
+        vec![TimingInfo {
+            name: "enable_regs".into(),
+            clock: "clock".into(),
+            inputs: vec!["d".into(), "enable".into()],
+            outputs: vec!["q".into()],
+        }]
+    }
 }
 
 /// One pipeline register of a word's tag: valid, flush, column, row.

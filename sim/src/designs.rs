@@ -517,7 +517,7 @@ pub fn inject_filter_fault(verilog: &str) -> Result<String, DesignError> {
         + verilog[start..]
             .find("endmodule")
             .ok_or_else(|| DesignError::Fault("unterminated filter module".into()))?;
-    // Lane 0's pairs `vpair$i$d = tap$a + tap$b;` come first; the one with
+    // Lane 0's pairs `vpair$d$i = tap$a + tap$b;` come first; the one with
     // the smallest b − a is next to the centre.
     let mut best: Option<(usize, usize, usize)> = None; // (gap, position of b, length of b)
     let mut at = start;
@@ -526,7 +526,10 @@ pub fn inject_filter_fault(verilog: &str) -> Result<String, DesignError> {
         let line_end = line_start + verilog[line_start..end].find(';').unwrap_or(0);
         let line = &verilog[line_start..line_end];
         at = line_end.max(line_start + 1);
-        let Some((_, rhs)) = line.split_once("$d = tap$") else {
+        let Some((_, rhs)) = line
+            .split_once("$d$")
+            .and_then(|(_, r)| r.split_once(" = tap$"))
+        else {
             continue;
         };
         let Some((a, b)) = rhs.split_once(" + tap$") else {
