@@ -93,7 +93,7 @@
 
 use crate::bram::{Bram, RamStyle};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
-use crate::stream::{lanes, EnableRegs};
+use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
 /// Bits of a slot's ages (`age`, and of the L_min, L_max and N it is
@@ -322,8 +322,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     opened: DFF<Bits<MAX_SLOTS>>,
     hit: DFF<Bits<MAX_SLOTS>>,
     ev_bridge: DFF<Bits<MAX_SLOTS>>,
-    geo: EnableRegs<Bits<64>>,
-    win: EnableRegs<Bits<64>>,
+    geo: Vec<DFF<Bits<64>>>,
+    win: Vec<DFF<Bits<64>>>,
     // What the clock's writes make of them so far (`d` once all are done).
     busy_nx: Signal<Local, Bits<MAX_SLOTS>>,
     live_nx: Signal<Local, Bits<MAX_SLOTS>>,
@@ -345,7 +345,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     wm_fwd: DFF<Bit>,
     wm_last: DFF<Bits<37>>,
     /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
-    sv: EnableRegs<Bits<64>>,
+    sv: Vec<DFF<Bits<64>>>,
     // Combinational.
     rem: Signal<Local, Bits<P>>,
     low: Signal<Local, Bits<P>>,
@@ -372,9 +372,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     o_frow: Signal<Local, Bits<COORD_BITS>>,
     /// An opened slot's `geo` word without its bank, its `win` word and its
     /// ROI view entry without its bank.
-    /// The slot words (`geo`, `sv`) may be written this clock.
-    geo_we: Signal<Local, Bit>,
-    sv_we: Signal<Local, Bit>,
     o_geo: Signal<Local, Bits<64>>,
     o_win: Signal<Local, Bits<64>>,
     o_sh: Signal<Local, Bits<64>>,
@@ -623,8 +620,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             opened: Default::default(),
             hit: Default::default(),
             ev_bridge: Default::default(),
-            geo: EnableRegs::new(m),
-            win: EnableRegs::new(m),
+            geo: lanes(m),
+            win: lanes(m),
             busy_nx: Default::default(),
             live_nx: Default::default(),
             dip_nx: Default::default(),
@@ -637,7 +634,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             walk_mem: Bram::new(m, RamStyle::Distributed),
             wm_fwd: Default::default(),
             wm_last: Default::default(),
-            sv: EnableRegs::new(2 * m),
+            sv: lanes(2 * m),
             rem: Default::default(),
             low: Default::default(),
             has_cand: Default::default(),
@@ -661,8 +658,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             o_ml: Default::default(),
             o_mh: Default::default(),
             o_frow: Default::default(),
-            geo_we: Default::default(),
-            sv_we: Default::default(),
             o_geo: Default::default(),
             o_win: Default::default(),
             o_sh: Default::default(),
@@ -799,9 +794,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.opened_nx.next = self.opened.q.val();
         self.hit_nx.next = self.hit.q.val();
         self.ev_bridge_nx.next = self.ev_bridge.q.val();
-        clock!(self, clock, geo, win, sv);
+        for i in 0..self._m {
+            self.geo[i].clock.next = self.clock.val();
+            self.win[i].clock.next = self.clock.val();
+            // (Held through the masks of the bits in use, so that synthesis
+            // sees the others constant, also where no reader prunes them.)
+            self.geo[i].d.next = self.geo[i].q.val() & self.geo_used.val();
+            self.win[i].d.next = self.win[i].q.val() & self.win_used.val();
+        }
         for q in 0..(2 * self._m) {
-            self.sh[q].next = self.sv.q[q].val();
+            self.sv[q].clock.next = self.clock.val();
+            self.sv[q].d.next = self.sv[q].q.val() & self.sh_used.val();
+            self.sh[q].next = self.sv[q].q.val();
         }
 
         // ---- Shared values.
@@ -920,10 +924,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
         if self.go.val() {
             for i in 0..self._m {
-                self.near[i].next = (self.geo.q[i].val().get_bits::<10>(0) >= self.cx_lo.val())
-                    & (self.geo.q[i].val().get_bits::<10>(0) <= self.cx_hi.val())
-                    & (self.geo.q[i].val().get_bits::<10>(10) >= self.cy_lo.val())
-                    & (self.geo.q[i].val().get_bits::<10>(10) <= self.cy_hi.val());
+                self.near[i].next = (self.geo[i].q.val().get_bits::<10>(0) >= self.cx_lo.val())
+                    & (self.geo[i].q.val().get_bits::<10>(0) <= self.cx_hi.val())
+                    & (self.geo[i].q.val().get_bits::<10>(10) >= self.cy_lo.val())
+                    & (self.geo[i].q.val().get_bits::<10>(10) <= self.cy_hi.val());
                 self.absorb[i].next = self.busy.q.val().get_bit(i)
                     & (self.aprev.q.val().get_bit(i) | self.opened.q.val().get_bit(i))
                     & self.near[i].val();
@@ -932,13 +936,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.abs_any[i + 1].next = self.abs_any[i].val() | self.absorb[i].val();
                 self.fsel[i].next = self.freeable[i].val() & !self.ftaken[i].val();
                 self.ftaken[i + 1].next = self.ftaken[i].val() | self.freeable[i].val();
-                self.row_ok[i].next = (self.geo.q[i].val().get_bits::<10>(10) >= self.y_m1.val())
-                    & (self.geo.q[i].val().get_bits::<10>(10) <= self.y_p1.val());
+                self.row_ok[i].next = (self.geo[i].q.val().get_bits::<10>(10) >= self.y_m1.val())
+                    & (self.geo[i].q.val().get_bits::<10>(10) <= self.y_p1.val());
                 self.hw[i].next = self.row_ok[i].val()
-                    & (((self.in_xc.val() == self.geo.q[i].val().get_bits::<10>(34))
-                        & (self.in_above.val() & self.win.q[i].val().get_bits::<P>(0)).any())
-                        | ((self.in_xc.val() == self.geo.q[i].val().get_bits::<10>(44))
-                            & (self.in_above.val() & self.win.q[i].val().get_bits::<P>(32)).any()));
+                    & (((self.in_xc.val() == self.geo[i].q.val().get_bits::<10>(34))
+                        & (self.in_above.val() & self.win[i].q.val().get_bits::<P>(0)).any())
+                        | ((self.in_xc.val() == self.geo[i].q.val().get_bits::<10>(44))
+                            & (self.in_above.val() & self.win[i].q.val().get_bits::<P>(32)).any()));
                 self.on[i].next = self.hit.q.val().get_bit(i) | self.hw[i].val();
             }
         }
@@ -985,9 +989,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.w_pend.next = self.pend.q.val().get_bit(i);
                     self.w_opened.next = self.opened.q.val().get_bit(i);
                     self.w_bridge.next = self.ev_bridge.q.val().get_bit(i);
-                    self.w_ax.next = self.geo.q[i].val().get_bits::<10>(0);
-                    self.w_ay.next = self.geo.q[i].val().get_bits::<10>(10);
-                    self.w_bank.next = self.geo.q[i].val().get_bits::<BW>(20);
+                    self.w_ax.next = self.geo[i].q.val().get_bits::<10>(0);
+                    self.w_ay.next = self.geo[i].q.val().get_bits::<10>(10);
+                    self.w_bank.next = self.geo[i].q.val().get_bits::<BW>(20);
                 }
             }
         }
@@ -1322,34 +1326,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // ---- The slot words load only on the clocks that may write one (a
-        // clock enable per array: the walks, an opening, a row's end, a
-        // restart), and are held (and their next values computed) only then.
-        // (Held through the masks of the bits in use, so that synthesis sees
-        // the others constant, also where no reader prunes them.)
-        self.geo_we.next = self.walking.val() | self.do_open.val() | self.restart.val();
-        self.sv_we.next =
-            self.walking.val() | self.do_open.val() | self.do_fin.val() | self.restart.val();
-        self.geo.enable.next = self.geo_we.val();
-        self.win.enable.next = self.do_open.val();
-        self.sv.enable.next = self.sv_we.val();
-        for i in 0..self._m {
-            self.geo.d[i].next = 0.into();
-            if self.geo_we.val() {
-                self.geo.d[i].next = self.geo.q[i].val() & self.geo_used.val();
-            }
-            self.win.d[i].next = 0.into();
-            if self.do_open.val() {
-                self.win.d[i].next = self.win.q[i].val() & self.win_used.val();
-            }
-        }
-        for q in 0..(2 * self._m) {
-            self.sv.d[q].next = 0.into();
-            if self.sv_we.val() {
-                self.sv.d[q].next = self.sv.q[q].val() & self.sh_used.val();
-            }
-        }
-
         // ---- The walks write the walked slot. (Packed registers: each
         // write replaces its bits of `d` as assigned so far.)
         if self.walking.val() {
@@ -1363,8 +1339,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         if self.w_cut.val() {
                             self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         }
-                        self.geo.d[i].next =
-                            (self.geo.q[i].val() & self.geo_keep.val()) | self.n_bank_w.val();
+                        self.geo[i].d.next =
+                            (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                         // Association state at the end of plane t.
                         self.aprev_nx.next = self
                             .aprev_nx
@@ -1389,22 +1365,22 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     }
                     if self.sel[i].val() & self.we_fin.val() {
                         if self.par.val() {
-                            self.sv.d[i + mm].next = self.sv.q[i + mm].val() & self.fin_keep.val();
+                            self.sv[i + mm].d.next = self.sv[i + mm].q.val() & self.fin_keep.val();
                         } else {
-                            self.sv.d[i].next = self.sv.q[i].val() & self.fin_keep.val();
+                            self.sv[i].d.next = self.sv[i].q.val() & self.fin_keep.val();
                         }
                     }
                     if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
                         self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
-                        self.geo.d[i].next =
-                            (self.geo.q[i].val() & self.geo_keep.val()) | self.n_bank_w.val();
+                        self.geo[i].d.next =
+                            (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                     }
                     // The slot's ROI view for plane t + 1.
                     if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
                         if self.par1.val() {
-                            self.sv.d[i + mm].next = self.n_sh.val();
+                            self.sv[i + mm].d.next = self.n_sh.val();
                         } else {
-                            self.sv.d[i].next = self.n_sh.val();
+                            self.sv[i].d.next = self.n_sh.val();
                         }
                     }
                 }
@@ -1420,15 +1396,15 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.live_nx.next = self.live_nx.val().replace_bit(i, true);
                         self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         self.opened_nx.next = self.opened_nx.val().replace_bit(i, true);
-                        self.geo.d[i].next =
-                            (self.geo.q[i].val() & self.bank_mask.val()) | self.o_geo.val();
-                        self.win.d[i].next = self.o_win.val();
+                        self.geo[i].d.next =
+                            (self.geo[i].q.val() & self.bank_mask.val()) | self.o_geo.val();
+                        self.win[i].d.next = self.o_win.val();
                         if self.par.val() {
-                            self.sv.d[i + mm].next =
-                                (self.geo.q[i].val() & self.bank_mask.val()) | self.o_sh.val();
+                            self.sv[i + mm].d.next =
+                                (self.geo[i].q.val() & self.bank_mask.val()) | self.o_sh.val();
                         } else {
-                            self.sv.d[i].next =
-                                (self.geo.q[i].val() & self.bank_mask.val()) | self.o_sh.val();
+                            self.sv[i].d.next =
+                                (self.geo[i].q.val() & self.bank_mask.val()) | self.o_sh.val();
                         }
                     }
                 }
@@ -1451,7 +1427,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         & self.aprev.q.val().get_bit(i)
                         & self.busy.q.val().get_bit(i)
                         & self.live.q.val().get_bit(i)
-                        & (self.geo.q[i].val().get_bits::<10>(54) == self.in_yc.val())
+                        & (self.geo[i].q.val().get_bits::<10>(54) == self.in_yc.val())
                     {
                         if self.on[i].val() {
                             if self.dip.q.val().get_bit(i) {
@@ -1468,10 +1444,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                             self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                             self.pend_nx.next = self.pend_nx.val().replace_bit(i, true);
                             if self.par.val() {
-                                self.sv.d[i + mm].next =
-                                    self.sv.q[i + mm].val() & self.sh_keep_live.val();
+                                self.sv[i + mm].d.next =
+                                    self.sv[i + mm].q.val() & self.sh_keep_live.val();
                             } else {
-                                self.sv.d[i].next = self.sv.q[i].val() & self.sh_keep_live.val();
+                                self.sv[i].d.next = self.sv[i].q.val() & self.sh_keep_live.val();
                             }
                         }
                     }
@@ -1507,10 +1483,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             // without flags: the other fields are read only after an
             // opening or a walk has written them.
             for i in 0..self._m {
-                self.geo.d[i].next = self.bank_init[i].val();
+                self.geo[i].d.next = self.bank_init[i].val();
             }
             for q in 0..(2 * self._m) {
-                self.sv.d[q].next = 0.into();
+                self.sv[q].d.next = 0.into();
             }
         }
 
