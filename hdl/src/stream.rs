@@ -356,7 +356,11 @@ pub fn lanes<T: Default>(n: usize) -> Vec<T> {
 /// idle clock skips, where a register held by `d = q` is copied twice every
 /// clock; one enable for the group, because one per register would be a
 /// variable and a branch each. The owner drives `d` only when it loads
-/// (zero otherwise, which synthesis folds into the flip-flops' reset).
+/// (zero otherwise, which synthesis folds into the flip-flops' reset when
+/// that choice is the outermost one of `d`, on the enable's own net; a
+/// register written at the end of a chain of conditions, as the blink
+/// tracker's slot words, would pay a multiplexer a bit and stays on a
+/// `d = q` hold: `hdl/RESOURCES.md`).
 #[derive(Clone, Debug, LogicBlock)]
 pub struct EnableRegs<T: Synth> {
     /// Next values, taken when `enable` is high.

