@@ -299,7 +299,7 @@ impl<const DW: usize> Logic for WordWindow<DW> {
                 self.cur.d[i].next = self.lanes[i].val();
             }
             // Only the last ctx lanes of the previous word are context
-            // (a register a simulator copies every clock is one too many).
+            // (more would be registers that synthesis prunes and a simulator copies).
             for pp in self._p..(self._p + 1) {
                 for cc in self._ctx..(self._ctx + 1) {
                     for i in 0..self._ctx {
