@@ -108,7 +108,19 @@ fn print(name: &str, r: &Resources) {
             "", l.levels, l.carry_chain
         );
         let path: Vec<String> = l.path.iter().map(|(t, n)| format!("{t} {n}")).collect();
-        println!("{:<34} worst path: {}", "", path.join(" -> "));
+        println!(
+            "{:<34} worst path: {} -> {}",
+            "",
+            l.start,
+            path.join(" -> ")
+        );
+        let deep: Vec<String> = l
+            .ends
+            .iter()
+            .filter(|(_, d)| *d > 6)
+            .map(|(n, d)| format!("{n} {d}"))
+            .collect();
+        println!("{:<34} ends deeper than 6: {}", "", deep.join(", "));
     }
     for (dev, luts, ffs, brams, dsps) in DEVICES {
         println!(
@@ -123,6 +135,17 @@ fn print(name: &str, r: &Resources) {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // `levels NETLIST.json`: the LUT levels of a netlist mapped by any
+    // script (e.g. classic `abc`, which maps each cone level-optimally).
+    let argv: Vec<String> = std::env::args().collect();
+    if argv.len() == 3 && argv[1] == "levels" {
+        let l = smartagg_hdl::lut_levels::lut_levels(&std::fs::read_to_string(&argv[2])?, "top")?;
+        println!("LUT levels {}; start {}", l.levels, l.start);
+        for (n, d) in l.ends.iter().filter(|(_, d)| *d > 6) {
+            println!("  {d:>3} {n}");
+        }
+        return Ok(());
+    }
     let preset = Preset::new(PresetName::Spcimager, 150)?;
     let sigma = preset.sigma_px();
     let k = 2 * (2.0 * sigma).ceil() as usize + 1;

@@ -50,6 +50,12 @@ pub struct LutLevels {
     /// or the cell's own name where yosys kept no signal name; only the
     /// cells that count or carry (LUTs, LUT RAM, CARRY4, MUXF7/8).
     pub path: Vec<(String, String)>,
+    /// The register, memory or port bit where the worst path starts.
+    pub start: String,
+    /// Every group of path ends (a register, memory or port, named by its
+    /// output signal without the bit index, or by the cell) with the
+    /// deepest path into it, deepest first: the work list for pipelining.
+    pub ends: Vec<(String, u32)>,
 }
 
 /// How a cell type takes part in paths.
@@ -272,6 +278,7 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
         .map(|(n, d)| (*n, d.0));
     let mut path = Vec::new();
     let mut levels = 0;
+    let mut start = String::new();
     if let Some((mut n, l)) = worst {
         levels = l;
         let mut last_cell = None;
@@ -292,11 +299,56 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
             }
             match depth.get(&n).and_then(|d| d.1) {
                 Some(prev) => n = prev,
-                None => break,
+                None => {
+                    start = match (net_name.get(&n), driver.get(&n)) {
+                        (Some((false, name)), _) => name.clone(),
+                        (_, Some((c, port, bit))) => format!("{}.{port}[{bit}]", cells[*c].name),
+                        _ => format!("net {n}"),
+                    };
+                    break;
+                }
             }
         }
         path.reverse();
     }
+
+    // Path ends: the inputs of the cells that begin and end paths (and the
+    // written side of LUT RAM), grouped by what the cell drives.
+    let mut out_name: HashMap<usize, String> = HashMap::new();
+    for (net, (c, _, _)) in &driver {
+        if let Some((false, name)) = net_name.get(net) {
+            let base = name.split('[').next().unwrap_or(name).to_string();
+            let e = out_name.entry(*c).or_insert_with(|| base.clone());
+            if base < *e {
+                *e = base;
+            }
+        }
+    }
+    let mut end_depth: HashMap<String, u32> = HashMap::new();
+    for (i, cell) in cells.iter().enumerate() {
+        let ends_here = |p: &str| match cell.kind {
+            Kind::Boundary => true,
+            Kind::LutRam => !is_read_address(p),
+            _ => false,
+        };
+        let d = cell
+            .inputs
+            .iter()
+            .filter(|(p, _)| ends_here(p))
+            .flat_map(|(_, bits)| bits.iter().flatten())
+            .map(|n| depth.get(n).map_or(0, |d| d.0))
+            .max();
+        if let Some(d) = d {
+            let label = out_name
+                .get(&i)
+                .cloned()
+                .unwrap_or_else(|| cell.name.clone());
+            let e = end_depth.entry(label).or_insert(0);
+            *e = (*e).max(d);
+        }
+    }
+    let mut ends: Vec<(String, u32)> = end_depth.into_iter().collect();
+    ends.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
 
     // Carry chains: CARRY4 whose CI comes from another CARRY4.
     let carry_pred = |c: usize| -> Option<usize> {
@@ -336,6 +388,8 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
         levels,
         carry_chain,
         path,
+        start,
+        ends,
     })
 }
 
@@ -405,6 +459,14 @@ mod tests {
         // Cells are named by the user signal they drive where there is one.
         assert_eq!(names, ["a", "c0", "c1", "sum[0]", "g", "sum[1]"]);
         assert_eq!(r.path[4].0, "LUT1");
+        // Unnamed nets are named by the cell and port that drive them.
+        assert_eq!(r.start, "q.Q[0]");
+        // Every end with its deepest path: the FF d and the LUT RAM's
+        // written data both 3, the FF e behind the RAM's read 2.
+        assert_eq!(
+            r.ends[..3],
+            [("d".into(), 3), ("r".into(), 3), ("e".into(), 2)]
+        );
     }
 
     #[test]

@@ -21,7 +21,15 @@
 //! them (the ring keeps even and odd words in separate banks, so both are
 //! read in one clock; columns outside the sensor read 0), and the R counters
 //! of that ROI row are read, incremented by `live·sums_live +
-//! delayed·sums_preroll`, and written back the next clock. In the first
+//! delayed·sums_preroll`, and written back the next clock. Three stages, so
+//! that no path between registers is long: S0 picks the slot (a priority
+//! chain over `rel`) and registers its view; SA computes the word and
+//! counter addresses; S1 adds and writes. The view of plane t stays
+//! untouched until the sweep has finished t, so reading it at S0 is as good
+//! as at the row's start; `planes_done` and the rows the writer may reuse
+//! lag the sweep's own counters by the clock that SA adds. `need`, `rlo`
+//! and `rhi` (what row `ra` waits for and which ROI rows cover it) move with
+//! `ra` instead of being computed from it. In the first
 //! plane of a segment (`fresh`) the old counts read as zero, so counters
 //! never need clearing. ROI rows outside the sensor are never swept; the
 //! packetiser reads them as 0. The MASKED flag is the OR of the mask bits
@@ -124,6 +132,29 @@ pub struct RoiAggregator<
     rslot: DFF<Bits<16>>,
     gs: DFF<Bits<16>>,
     ta: DFF<Bits<48>>,
+    /// The ROI rows that cover row `ra`: `max(ra − h, 0)` and `ra + h`,
+    /// kept beside `ra` rather than computed from it.
+    rlo: DFF<Bits<COORD_BITS>>,
+    rhi: DFF<Bits<COORD_BITS>>,
+    /// `gs` one clock later: the rows the writer may reuse (a row's last
+    /// slot reads the ring one clock after the row is done).
+    gs_w: DFF<Bits<16>>,
+    /// `ta` one clock later: a swept plane's last counter write comes one
+    /// clock after its row is done.
+    pd: DFF<Bits<48>>,
+    // Address stage (SA): the selected slot's view, registered after the
+    // slot multiplexer, with the row it sweeps.
+    a_valid: DFF<Bit>,
+    a_sel: DFF<Bits<MAX_SLOTS>>,
+    a_live: DFF<Bit>,
+    a_pre: DFF<Bit>,
+    a_fresh: DFF<Bit>,
+    a_ax: DFF<Bits<COORD_BITS>>,
+    a_ay: DFF<Bits<COORD_BITS>>,
+    a_bank: DFF<Bits<BW>>,
+    a_row_hi: DFF<Bits<COORD_BITS>>,
+    a_ra0: DFF<Bit>,
+    a_rbase: DFF<Bits<RAW>>,
     ra: DFF<Bits<16>>,
     s1_valid: DFF<Bit>,
     s1_live: DFF<Bit>,
@@ -140,26 +171,39 @@ pub struct RoiAggregator<
     // Combinational.
     pending: Signal<Local, Bits<16>>,
     par: Signal<Local, Bit>,
-    need: Signal<Local, Bits<16>>,
+    /// Tracker rows that row `ra` waits for: `min(ra + h + 2, H)`, kept
+    /// beside `ra` rather than computed from it.
+    need: DFF<Bits<16>>,
+    /// The tracker's plane minus the sweep's, low four bits.
+    dplane: Signal<Local, Bits<4>>,
     trig: Signal<Local, Bit>,
-    ra_c: Signal<Local, Bits<COORD_BITS>>,
-    row_lo: Signal<Local, Bits<COORD_BITS>>,
-    row_hi: Signal<Local, Bits<COORD_BITS>>,
+    /// Start the sweep of row `ra`.
+    go: Signal<Local, Bit>,
+    /// `rhi + 1`.
+    rhi1: Signal<Local, Bits<COORD_BITS>>,
     /// The lowest slot of `rel`, and the others.
     rsel_v: Signal<Local, Bits<MAX_SLOTS>>,
     rsel: Vec<Signal<Local, Bit>>,
-    rtaken: Vec<Signal<Local, Bit>>,
+    /// Prefix ORs of `rel` over 2, 4, 8, 16 slots, and over every lower slot.
+    pre1: Signal<Local, Bits<MAX_SLOTS>>,
+    pre2: Signal<Local, Bits<MAX_SLOTS>>,
+    pre4: Signal<Local, Bits<MAX_SLOTS>>,
+    pre8: Signal<Local, Bits<MAX_SLOTS>>,
+    taken: Signal<Local, Bits<MAX_SLOTS>>,
     rest: Signal<Local, Bits<MAX_SLOTS>>,
     any_rel: Signal<Local, Bit>,
     rest_any: Signal<Local, Bit>,
+    now_any: Signal<Local, Bit>,
     now_rel: Vec<Signal<Local, Bit>>,
     /// `now_rel` packed, bit i: slot i.
     now_v: Signal<Local, Bits<MAX_SLOTS>>,
-    now_any: Signal<Local, Bit>,
     /// MASKED bits to set: the slot of S1 if its ROI row has a masked pixel.
     m_set: Signal<Local, Bits<MAX_SLOTS>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
+    /// The selected slot's view entry, and the OR tree that finds it.
+    k_word: Signal<Local, Bits<64>>,
+    kt: Vec<Signal<Local, Bits<64>>>,
     k_live: Signal<Local, Bit>,
     k_pre: Signal<Local, Bit>,
     k_fresh: Signal<Local, Bit>,
@@ -188,7 +232,9 @@ pub struct RoiAggregator<
     any_m: Signal<Local, Bit>,
     // Constants.
     h_c: Constant<Bits<COORD_BITS>>,
-    h2: Constant<Bits<16>>,
+    two_h: Constant<Bits<COORD_BITS>>,
+    /// `min(h + 2, H)`: `need` of row 0.
+    need0: Constant<Bits<16>>,
     p_minus_h: Constant<Bits<16>>,
     pw: Constant<Bits<16>>,
     pm1: Constant<Bits<16>>,
@@ -264,6 +310,21 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             rslot: Default::default(),
             gs: Default::default(),
             ta: Default::default(),
+            rlo: Default::default(),
+            rhi: Default::default(),
+            gs_w: Default::default(),
+            pd: Default::default(),
+            a_valid: Default::default(),
+            a_sel: Default::default(),
+            a_live: Default::default(),
+            a_pre: Default::default(),
+            a_fresh: Default::default(),
+            a_ax: Default::default(),
+            a_ay: Default::default(),
+            a_bank: Default::default(),
+            a_row_hi: Default::default(),
+            a_ra0: Default::default(),
+            a_rbase: Default::default(),
             ra: Default::default(),
             s1_valid: Default::default(),
             s1_live: Default::default(),
@@ -280,22 +341,28 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             pending: Default::default(),
             par: Default::default(),
             need: Default::default(),
+            dplane: Default::default(),
             trig: Default::default(),
-            ra_c: Default::default(),
-            row_lo: Default::default(),
-            row_hi: Default::default(),
+            go: Default::default(),
+            rhi1: Default::default(),
             rsel_v: Default::default(),
             rsel: lanes(m),
-            rtaken: lanes(m + 1),
+            pre1: Default::default(),
+            pre2: Default::default(),
+            pre4: Default::default(),
+            pre8: Default::default(),
+            taken: Default::default(),
             rest: Default::default(),
             any_rel: Default::default(),
             rest_any: Default::default(),
+            now_any: Default::default(),
             now_rel: lanes(m),
             now_v: Default::default(),
-            now_any: Default::default(),
             m_set: Default::default(),
             row_done: Default::default(),
             s0: Default::default(),
+            k_word: Default::default(),
+            kt: lanes(2 * m - 1),
             k_live: Default::default(),
             k_pre: Default::default(),
             k_fresh: Default::default(),
@@ -323,7 +390,8 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             old_m: Default::default(),
             any_m: Default::default(),
             h_c: Constant::new((h as u64).to_bits()),
-            h2: c16(h as u64 + 2),
+            two_h: Constant::new((2 * h as u64).to_bits()),
+            need0: c16((h as u64 + 2).min(f.height as u64)),
             p_minus_h: c16((P - h) as u64),
             pw: c16(P as u64),
             pm1: c16(P as u64 - 1),
@@ -348,9 +416,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, ra, s1_valid,
-            s1_live, s1_pre, s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel,
-            s1_sel, mflag
+            self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rlo, rhi, gs_w, pd,
+            ra, need, a_valid, a_sel, a_live, a_pre, a_fresh, a_ax, a_ay, a_bank, a_row_hi, a_ra0,
+            a_rbase, s1_valid, s1_live, s1_pre, s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd,
+            s1_addr, s1_first, rel, s1_sel, mflag
         );
         self.slot_masked.next = self.mflag.q.val();
         for q in 0..6 {
@@ -362,7 +431,9 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.msk.clock.next = self.clock.val();
 
         // ---- Writer: even words to ring 0..2, odd words to ring 3..5.
-        self.pending.next = self.gw.q.val() - self.gs.q.val();
+        self.pending.next = self.gw.q.val() - self.gs_w.q.val();
+        self.gs_w.d.next = self.gs.q.val();
+        self.pd.d.next = self.ta.q.val();
         for q in 0..6 {
             self.ring[q].write_address.next =
                 self.wbase.q.val() + bit_cast::<RAW, 16>(self.in_x.val() >> 1);
@@ -397,20 +468,14 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
 
         // ---- Is the next raw row (ta, ra) ready to sweep?
         self.par.next = self.ta.q.val().get_bit(0);
-        self.need.next = self.ra.q.val() + self.h2.val();
-        if self.need.val() > self.rows_h.val() {
-            self.need.next = self.rows_h.val();
-        }
-        self.trig.next = (self.pending.val() != 0)
-            & ((self.tr_plane.val() > self.ta.q.val())
-                | ((self.tr_plane.val() == self.ta.q.val())
-                    & (self.tr_rows.val() >= self.need.val())));
-        self.ra_c.next = bit_cast::<10, 16>(self.ra.q.val());
-        self.row_lo.next = 0.into();
-        if self.ra_c.val() >= self.h_c.val() {
-            self.row_lo.next = self.ra_c.val() - self.h_c.val();
-        }
-        self.row_hi.next = self.ra_c.val() + self.h_c.val();
+        // The tracker never runs more than a plane ahead of the sweep (its
+        // plane ends wait for `planes_done`) and the sweep never passes it,
+        // so the low four bits of the planes' difference decide.
+        self.dplane.next = self.tr_plane.val().get_bits::<4>(0) - self.ta.q.val().get_bits::<4>(0);
+        self.trig.next = (self.gw.q.val() != self.gs.q.val())
+            & (((self.dplane.val() != 0) & !self.dplane.val().get_bit(3))
+                | ((self.dplane.val() == 0) & (self.tr_rows.val() >= self.need.q.val())));
+        self.go.next = self.trig.val() & !self.sweeping.q.val();
 
         // ---- Slots whose ROI covers row ra and that sum this plane: read
         // only when a row's sweep starts (and computed only then, which
@@ -420,76 +485,99 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         for i in 0..self._m {
             self.now_rel[i].next = false;
         }
-        if !self.sweeping.q.val() & self.trig.val() {
+        if self.go.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
                     // (Offsets: `shadow`; literals for hdl_gen.)
                     if self.par.val() {
                         self.now_rel[i].next = (self.sh[i + mm].val().get_bit(61)
                             | self.sh[i + mm].val().get_bit(62))
-                            & (self.sh[i + mm].val().get_bits::<10>(10) >= self.row_lo.val())
-                            & (self.sh[i + mm].val().get_bits::<10>(10) <= self.row_hi.val());
+                            & (self.sh[i + mm].val().get_bits::<10>(10) >= self.rlo.q.val())
+                            & (self.sh[i + mm].val().get_bits::<10>(10) <= self.rhi.q.val());
                     } else {
                         self.now_rel[i].next = (self.sh[i].val().get_bit(61)
                             | self.sh[i].val().get_bit(62))
-                            & (self.sh[i].val().get_bits::<10>(10) >= self.row_lo.val())
-                            & (self.sh[i].val().get_bits::<10>(10) <= self.row_hi.val());
+                            & (self.sh[i].val().get_bits::<10>(10) >= self.rlo.q.val())
+                            & (self.sh[i].val().get_bits::<10>(10) <= self.rhi.q.val());
                     }
                     self.now_v.next = self.now_v.val().replace_bit(i, self.now_rel[i].val());
                 }
             }
         }
-        self.now_any.next = self.now_v.val().any();
 
         // ---- The lowest relevant slot, and its view.
-        // (A priority chain, as the slots' flags were before they were
-        // packed: `rel & (!rel + 1)` would be a 32-bit carry chain.)
-        self.rtaken[0].next = false;
-        self.rsel_v.next = 0.into();
+        // `taken` (bit i: a slot below i is relevant) is a prefix OR in five
+        // doubling steps: a tree a few LUTs deep, where the chain
+        // `taken[i + 1] = taken[i] | rel[i]` was 32 ORs deep and
+        // `rel & (!rel + 1)` a 32-bit carry chain.
+        self.pre1.next = self.rel.q.val() | (self.rel.q.val() << 1);
+        self.pre2.next = self.pre1.val() | (self.pre1.val() << 2);
+        self.pre4.next = self.pre2.val() | (self.pre2.val() << 4);
+        self.pre8.next = self.pre4.val() | (self.pre4.val() << 8);
+        self.taken.next = (self.pre8.val() | (self.pre8.val() << 16)) << 1;
+        self.rsel_v.next = self.rel.q.val() & !self.taken.val();
         for i in 0..self._m {
-            self.rsel[i].next = self.rel.q.val().get_bit(i) & !self.rtaken[i].val();
-            self.rtaken[i + 1].next = self.rtaken[i].val() | self.rel.q.val().get_bit(i);
-            self.rsel_v.next = self.rsel_v.val().replace_bit(i, self.rsel[i].val());
+            self.rsel[i].next = self.rsel_v.val().get_bit(i);
         }
-        self.rest.next = self.rel.q.val() & !self.rsel_v.val();
+        self.rest.next = self.rel.q.val() & self.taken.val();
         self.any_rel.next = self.rel.q.val().any();
-        self.rest_any.next = self.rest.val().any();
         self.s0.next = self.sweeping.q.val() & self.any_rel.val();
-        // (The one-bit `rsel` of each slot, which `crate::schedule` isolates
-        // for Verilator with the chain that computes it, as the bank read
-        // through `bank_base` requires.)
-        self.k_live.next = false;
-        self.k_pre.next = false;
-        self.k_fresh.next = false;
-        self.k_ax.next = 0.into();
-        self.k_ay.next = 0.into();
-        self.k_bank.next = 0.into();
-        for mm in self._m..(self._m + 1) {
-            for i in 0..self._m {
-                if self.rsel[i].val() {
-                    if self.par.val() {
-                        self.k_live.next = self.sh[i + mm].val().get_bit(61);
-                        self.k_pre.next = self.sh[i + mm].val().get_bit(62);
-                        self.k_fresh.next = self.sh[i + mm].val().get_bit(63);
-                        self.k_ax.next = self.sh[i + mm].val().get_bits::<10>(0);
-                        self.k_ay.next = self.sh[i + mm].val().get_bits::<10>(10);
-                        self.k_bank.next = self.sh[i + mm].val().get_bits::<BW>(20);
-                    } else {
-                        self.k_live.next = self.sh[i].val().get_bit(61);
-                        self.k_pre.next = self.sh[i].val().get_bit(62);
-                        self.k_fresh.next = self.sh[i].val().get_bit(63);
-                        self.k_ax.next = self.sh[i].val().get_bits::<10>(0);
-                        self.k_ay.next = self.sh[i].val().get_bits::<10>(10);
-                        self.k_bank.next = self.sh[i].val().get_bits::<BW>(20);
+        // An OR tree over the entries, each zero unless its slot is the one
+        // selected (`rsel` is one-hot): a few LUT levels, where an if-chain
+        // or an OR accumulated slot by slot is a 32-deep chain to synthesis.
+        // Tree layout: leaves 0 … M − 1, node M + j = node 2j | node 2j + 1,
+        // the root last (every node reads lower ones only).
+        for n in 0..(2 * self._m - 1) {
+            self.kt[n].next = 0.into();
+        }
+        // (`rel`, hence `rsel`, is empty unless sweeping: the register is
+        // the cheapest gate for a simulator.)
+        if self.sweeping.q.val() {
+            for mm in self._m..(self._m + 1) {
+                for i in 0..self._m {
+                    if self.rsel[i].val() {
+                        if self.par.val() {
+                            self.kt[i].next = self.sh[i + mm].val();
+                        } else {
+                            self.kt[i].next = self.sh[i].val();
+                        }
                     }
                 }
             }
+            for mm in self._m..(self._m + 1) {
+                for j in 0..(self._m - 1) {
+                    self.kt[mm + j].next = self.kt[2 * j].val() | self.kt[2 * j + 1].val();
+                }
+            }
         }
+        for mm in self._m..(self._m + 1) {
+            self.k_word.next = self.kt[2 * mm - 2].val();
+        }
+        self.k_live.next = self.k_word.val().get_bit(61);
+        self.k_pre.next = self.k_word.val().get_bit(62);
+        self.k_fresh.next = self.k_word.val().get_bit(63);
+        self.k_ax.next = self.k_word.val().get_bits::<10>(0);
+        self.k_ay.next = self.k_word.val().get_bits::<10>(10);
+        self.k_bank.next = self.k_word.val().get_bits::<BW>(20);
 
-        // ---- S0: addresses of the two words and of the counter row.
-        self.dy.next = self.row_hi.val() - self.k_ay.val();
+        // ---- S0 → SA: the selected slot's view and its row, registered
+        // (the priority chain and the slot multiplexer are the stage's logic).
+        self.a_valid.d.next = self.s0.val();
+        self.a_sel.d.next = self.rsel_v.val();
+        self.a_live.d.next = self.k_live.val();
+        self.a_pre.d.next = self.k_pre.val();
+        self.a_fresh.d.next = self.k_fresh.val();
+        self.a_ax.d.next = self.k_ax.val();
+        self.a_ay.d.next = self.k_ay.val();
+        self.a_bank.d.next = self.k_bank.val();
+        self.a_row_hi.d.next = self.rhi.q.val();
+        self.a_ra0.d.next = self.ra.q.val() == 0;
+        self.a_rbase.d.next = self.rbase.q.val();
+
+        // ---- SA: addresses of the two words and of the counter row.
+        self.dy.next = self.a_row_hi.q.val() - self.a_ay.q.val();
         // Column ax − h, shifted by one word so that it is never negative.
-        self.x0p.next = bit_cast::<16, 10>(self.k_ax.val()) + self.p_minus_h.val();
+        self.x0p.next = bit_cast::<16, 10>(self.a_ax.q.val()) + self.p_minus_h.val();
         self.wq.next = self.x0p.val() >> self.log2p.val();
         self.half_wq.next = self.wq.val() >> 1;
         self.odd_addr.next = self.half_wq.val();
@@ -498,40 +586,37 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         }
         for q in 0..3 {
             self.ring[q].read_address.next =
-                self.rbase.q.val() + bit_cast::<RAW, 16>(self.half_wq.val());
+                self.a_rbase.q.val() + bit_cast::<RAW, 16>(self.half_wq.val());
         }
         for q in 3..6 {
             self.ring[q].read_address.next =
-                self.rbase.q.val() + bit_cast::<RAW, 16>(self.odd_addr.val());
+                self.a_rbase.q.val() + bit_cast::<RAW, 16>(self.odd_addr.val());
         }
-        self.bank_base.x.next = bit_cast::<CAW, BW>(self.k_bank.val());
+        self.bank_base.x.next = bit_cast::<CAW, BW>(self.a_bank.q.val());
         self.caddr.next = self.bank_base.y.val() + bit_cast::<CAW, 10>(self.dy.val());
         for dx in 0..self._r {
             self.cnt[dx].read_address.next = self.rd_addr.val();
-            if self.s0.val() {
+            if self.a_valid.q.val() {
                 self.cnt[dx].read_address.next = self.caddr.val();
             }
         }
         self.msk.read_address.next = self.rd_addr.val();
-        if self.s0.val() {
+        if self.a_valid.q.val() {
             self.msk.read_address.next = self.caddr.val();
         }
-        self.rd_grant.next = self.rd_req.val() & !self.s0.val();
-        self.s1_valid.d.next = self.s0.val();
-        self.s1_sel.d.next = 0.into();
-        if self.s0.val() {
-            self.s1_sel.d.next = self.rsel_v.val();
-        }
-        self.s1_live.d.next = self.k_live.val();
-        self.s1_pre.d.next = self.k_pre.val();
-        self.s1_fresh.d.next = self.k_fresh.val();
+        self.rd_grant.next = self.rd_req.val() & !self.a_valid.q.val();
+        self.s1_valid.d.next = self.a_valid.q.val();
+        self.s1_sel.d.next = self.a_sel.q.val();
+        self.s1_live.d.next = self.a_live.q.val();
+        self.s1_pre.d.next = self.a_pre.q.val();
+        self.s1_fresh.d.next = self.a_fresh.q.val();
         self.s1_off.d.next = self.x0p.val() & self.pm1.val();
         self.s1_lo_ok.d.next = self.wq.val() != 0;
         self.s1_hi_ok.d.next = self.wq.val() < self.words.val();
         self.s1_odd.d.next = self.wq.val().get_bit(0);
         self.s1_addr.d.next = self.caddr.val();
         // The first in-sensor row of the ROI.
-        self.s1_first.d.next = (self.dy.val() == 0) | (self.ra.q.val() == 0);
+        self.s1_first.d.next = (self.dy.val() == 0) | self.a_ra0.q.val();
 
         // ---- S1: the R columns of the ROI row, added to its counters.
         // Word a = wq − 1 (left) is even when wq is odd.
@@ -613,23 +698,25 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
 
         // ---- Sweep control: a row costs one clock per relevant slot (at
         // least one); the row is done with its last slot.
+        self.now_any.next = self.now_v.val().any();
+        self.rest_any.next = self.rest.val().any();
         self.row_done.next = false;
-        if !self.sweeping.q.val() {
-            if self.trig.val() {
-                if self.now_any.val() {
-                    self.sweeping.d.next = true;
-                    self.rel.d.next = self.now_v.val();
-                } else {
-                    self.row_done.next = true;
-                }
+        if self.go.val() {
+            if self.now_any.val() {
+                self.sweeping.d.next = true;
+                self.rel.d.next = self.now_v.val();
+            } else {
+                self.row_done.next = true;
             }
-        } else {
+        }
+        if self.sweeping.q.val() {
             self.rel.d.next = self.rest.val();
             if !self.rest_any.val() {
                 self.sweeping.d.next = false;
                 self.row_done.next = true;
             }
         }
+        self.rhi1.next = self.rhi.q.val() + 1;
         if self.row_done.val() {
             self.gs.d.next = self.gs.q.val() + 1;
             if self.rslot.q.val() == self.last_slot_row.val() {
@@ -642,8 +729,18 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             if self.ra.q.val() == self.last_row.val() {
                 self.ra.d.next = 0.into();
                 self.ta.d.next = self.ta.q.val() + 1;
+                self.need.d.next = self.need0.val();
+                self.rlo.d.next = 0.into();
+                self.rhi.d.next = self.h_c.val();
             } else {
                 self.ra.d.next = self.ra.q.val() + 1;
+                self.rhi.d.next = self.rhi1.val();
+                if self.rhi1.val() >= self.two_h.val() {
+                    self.rlo.d.next = self.rhi1.val() - self.two_h.val();
+                }
+                if self.need.q.val() != self.rows_h.val() {
+                    self.need.d.next = self.need.q.val() + 1;
+                }
             }
         }
 
@@ -657,11 +754,17 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             self.rslot.d.next = 0.into();
             self.gs.d.next = 0.into();
             self.ta.d.next = 0.into();
+            self.need.d.next = self.need0.val();
+            self.gs_w.d.next = 0.into();
+            self.pd.d.next = 0.into();
+            self.rlo.d.next = 0.into();
+            self.rhi.d.next = self.h_c.val();
+            self.a_valid.d.next = false;
             self.ra.d.next = 0.into();
             self.s1_valid.d.next = false;
             self.rel.d.next = 0.into();
         }
-        self.planes_done.next = self.ta.q.val();
+        self.planes_done.next = self.pd.q.val();
         self.overrun.next = self.ovf.q.val();
         self.backlog.next = self.pending.val();
     }

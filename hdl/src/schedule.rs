@@ -74,19 +74,10 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
 
 /// In any module: the pipeline's `mask_loadable` (a function of the control
 /// state, read back by the XEM6310 core to drive `load`); the ROI
-/// aggregator's bank-base multiplier operand, the bank it is taken from and
-/// what selects that bank (the plane parity, the released-slot priority
-/// chain), all functions of registers, whose product the aggregator's
-/// process reads. A name ending in `$` stands for every element of that
-/// vector (`rsel$0`, `rsel$1`, …).
-const ANY_MODULE_SIGNALS: &[&str] = &[
-    "mask_loadable",
-    "bank_base$x",
-    "k_bank",
-    "par",
-    "rsel$",
-    "rtaken$",
-];
+/// aggregator's bank-base multiplier operand (a register's value), whose
+/// product the aggregator's process reads. A name ending in `$` stands for
+/// every element of that vector (`lane$0`, `lane$1`, …).
+const ANY_MODULE_SIGNALS: &[&str] = &["mask_loadable", "bank_base$x"];
 
 /// The signal `name` is one of `list`'s.
 fn listed(list: &[&str], name: &str) -> bool {
