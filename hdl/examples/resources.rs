@@ -122,6 +122,21 @@ fn print(name: &str, r: &Resources) {
             .collect();
         println!("{:<34} ends deeper than 6: {}", "", deep.join(", "));
     }
+    if let Some(l) = &r.unit_levels {
+        let deep: Vec<String> = l
+            .ends
+            .iter()
+            .filter(|(_, d)| *d > 6)
+            .map(|(n, d)| format!("{n} {d}"))
+            .collect();
+        println!(
+            "{:<34} level-optimal (abc): LUT levels {}, from {}; ends deeper than 6: {}",
+            "",
+            l.levels,
+            l.start,
+            deep.join(", ")
+        );
+    }
     for (dev, luts, ffs, brams, dsps) in DEVICES {
         println!(
             "{:<34} {dev}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",

@@ -347,6 +347,27 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
             *e = (*e).max(d);
         }
     }
+    // The module's outputs end paths too.
+    if let Some(ports) = module.get("ports").and_then(Value::as_object) {
+        for (name, p) in ports {
+            if p.get("direction").and_then(Value::as_str) == Some("input") {
+                continue;
+            }
+            let d = p
+                .get("bits")
+                .map(nets)
+                .transpose()?
+                .unwrap_or_default()
+                .iter()
+                .flatten()
+                .map(|n| depth.get(n).map_or(0, |d| d.0))
+                .max();
+            if let Some(d) = d {
+                let e = end_depth.entry(name.clone()).or_insert(0);
+                *e = (*e).max(d);
+            }
+        }
+    }
     let mut ends: Vec<(String, u32)> = end_depth.into_iter().collect();
     ends.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
 

@@ -220,6 +220,19 @@ pub struct Packetiser<
     crc_i: DFF<Bits<8>>,
     nb: DFF<Bits<8>>,
     pk: DFF<Bits<72>>,
+    /// The output FIFO has room for the packet (`need`), as of last clock.
+    room: DFF<Bit>,
+    /// Decide's second clock on: `room` speaks of this record.
+    dec_ready: DFF<Bit>,
+    // The code pipeline (Codes): A offset, B quotient, C code.
+    ca_v: DFF<Bit>,
+    ca_d: DFF<Bits<RCW>>,
+    cb_v: DFF<Bit>,
+    cb_q: DFF<Bits<32>>,
+    cb_d: DFF<Bits<RCW>>,
+    cc_v: DFF<Bit>,
+    cc_code: DFF<Bits<64>>,
+    cc_len: DFF<Bits<8>>,
     bank_base: ConstMul<CAW>,
     // Combinational.
     is_blink: Signal<Local, Bit>,
@@ -230,11 +243,11 @@ pub struct Packetiser<
     in_sensor: Signal<Local, Bit>,
     dd: Signal<Local, Bits<RCW>>,
     d32: Signal<Local, Bits<32>>,
-    d64: Signal<Local, Bits<64>>,
     q: Vec<Signal<Local, Bits<32>>>,
     len: Vec<Signal<Local, Bits<32>>>,
     acc_j: Signal<Local, Bits<16>>,
-    vlen: Signal<Local, Bits<16>>,
+    /// LEB128 bytes of the base (a register: read only from Decide on).
+    vlen: DFF<Bits<16>>,
     tb0: Signal<Local, Bits<8>>,
     tb1: Signal<Local, Bits<8>>,
     tb2: Signal<Local, Bits<8>>,
@@ -270,8 +283,13 @@ pub struct Packetiser<
     cq: Signal<Local, Bits<32>>,
     cesc: Signal<Local, Bit>,
     clen: Signal<Local, Bits<8>>,
-    ones_q: Signal<Local, Bits<64>>,
-    low_k: Signal<Local, Bits<64>>,
+    /// The offset of stage B, 64 bits wide.
+    cd64: Signal<Local, Bits<64>>,
+    in_codes: Signal<Local, Bit>,
+    in_pass2: Signal<Local, Bit>,
+    free_a: Signal<Local, Bit>,
+    free_b: Signal<Local, Bit>,
+    free_c: Signal<Local, Bit>,
     code: Signal<Local, Bits<64>>,
     // Constants.
     ids: Vec<Constant<Bits<8>>>,
@@ -291,7 +309,7 @@ pub struct Packetiser<
     /// Covers every k below `_kn` (a power of two minus one).
     k_mask: Constant<Bits<8>>,
     low_byte: Constant<Bits<72>>,
-    one64: Constant<Bits<64>>,
+    all64: Constant<Bits<64>>,
     all_ones: Constant<Bits<RCW>>,
     _r: usize,
     /// Rice parameters with a length accumulator: 0 ..= RCW (see
@@ -408,6 +426,16 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             crc_i: Default::default(),
             nb: Default::default(),
             pk: Default::default(),
+            room: Default::default(),
+            dec_ready: Default::default(),
+            ca_v: Default::default(),
+            ca_d: Default::default(),
+            cb_v: Default::default(),
+            cb_q: Default::default(),
+            cb_d: Default::default(),
+            cc_v: Default::default(),
+            cc_code: Default::default(),
+            cc_len: Default::default(),
             bank_base: ConstMul::new(r as u32),
             is_blink: Default::default(),
             take: Default::default(),
@@ -417,7 +445,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             in_sensor: Default::default(),
             dd: Default::default(),
             d32: Default::default(),
-            d64: Default::default(),
             q: lanes(kn),
             len: lanes(kn),
             acc_j: Default::default(),
@@ -454,8 +481,12 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             cq: Default::default(),
             cesc: Default::default(),
             clen: Default::default(),
-            ones_q: Default::default(),
-            low_k: Default::default(),
+            cd64: Default::default(),
+            in_codes: Default::default(),
+            in_pass2: Default::default(),
+            free_a: Default::default(),
+            free_b: Default::default(),
+            free_c: Default::default(),
             code: Default::default(),
             ids: (0..r).map(|i| c8(i as u64)).collect(),
             kc: (0..kn).map(|k| c8(k as u64)).collect(),
@@ -487,7 +518,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             k_last: c8(kn as u64 - 1),
             k_mask: c8(kn.next_power_of_two() as u64 - 1),
             low_byte: Constant::new(0xFFu64.to_bits()),
-            one64: Constant::new(1u64.to_bits()),
+            all64: Constant::new(u64::MAX.to_bits()),
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,
             _kn: kn,
@@ -509,7 +540,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         dff_setup!(
             self, clock, state, seq_ctr, pend_first, pend_cnt, ovf_flag, in_ovf, cs_active,
             cs_wait, row_valid, cs_dy, cs_dx, base, masked, best, bestk, scan, prefix_len, bidx,
-            crc, crc_i, nb, pk
+            crc, crc_i, nb, pk, vlen, room, dec_ready, ca_v, ca_d, cb_v, cb_q, cb_d, cc_v, cc_code,
+            cc_len
         );
         self.prefix.clock.next = self.clock.val();
         self.prefix_load.next = false;
@@ -538,6 +570,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.c_val.next = self.row[dx].q.val();
             }
         }
+        // The code pipeline's room (see below: "The codes").
+        self.bk.next = self.bestk.q.val() & self.k_mask.val();
+        self.in_codes.next = self.state.q.val() == PacketState::Codes;
+        self.in_pass2.next = self.state.q.val() == PacketState::Pass2;
+        self.free_c.next = !self.cc_v.q.val() | (self.in_codes.val() & (self.nb.q.val() < 8));
+        self.free_b.next = !self.cb_v.q.val() | self.free_c.val();
+        self.free_a.next = !self.ca_v.q.val() | self.free_b.val();
         // `take` (set below by the pass that consumes) advances the streamer.
         self.take.next = false;
         match self.state.q.val() {
@@ -548,7 +587,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.take.next = true;
             }
             PacketState::Codes => {
-                self.take.next = self.nb.q.val() < 8;
+                self.take.next = self.free_a.val();
             }
             _ => {}
         }
@@ -597,8 +636,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
 
         // ---- Offsets from the base, and the code lengths for every k.
         self.dd.next = self.c_val.val() - self.base.q.val();
-        self.d32.next = bit_cast::<32, RCW>(self.dd.val());
-        self.d64.next = bit_cast::<64, RCW>(self.dd.val());
+        // Pass 2 reads the offsets from stage A of the code pipeline.
+        self.d32.next = bit_cast::<32, RCW>(self.ca_d.q.val());
         for k in 0..self._kn {
             self.q[k].next = self.d32.val() >> self.kc[k].val();
             self.len[k].next = self.q[k].val() + self.kp1[k].val();
@@ -613,35 +652,56 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
         }
 
-        // ---- The code of the current count with the chosen k.
+        // ---- The codes (Codes), in three registered steps so that none is
+        // deeper than a barrel shifter or a thermometer: A the offset from
+        // the base (also pass 2's input), B its quotient by 2^k, C the code
+        // and its length, which the bit packer appends. A stage takes the one before it when it is
+        // empty or its content moves on this clock (`free_*`).
         // The masks change no value (bestk < _kn; cq < 32 unless escaped,
         // when the code is replaced) but tell synthesis how few shift
         // stages the barrel shifters need.
-        self.bk.next = self.bestk.q.val() & self.k_mask.val();
-        self.cq.next = self.d32.val() >> self.bk.val();
+        // C from B: the code is 1…1 (q ones) 0 (bit k) and the k low bits
+        // of the offset: bits k + 1 … clen − 1 set, as the difference of two
+        // thermometers.
+        self.cq.next = self.cb_q.q.val();
+        self.cd64.next = bit_cast::<64, RCW>(self.cb_d.q.val());
         self.cesc.next = (self.cq.val() >> 5).any();
-        self.ones_q.next = ((self.one64.val() << (self.cq.val() & 31)) - 1) << (self.bk.val() + 1);
-        self.low_k.next = (self.one64.val() << self.bk.val()) - 1;
-        self.code.next = self.ones_q.val() | (self.d64.val() & self.low_k.val());
-        self.clen.next = bit_cast::<8, 32>(self.cq.val()) + self.bk.val() + 1;
+        self.clen.next = bit_cast::<8, 32>(self.cq.val() & 31) + self.bk.val() + 1;
+        self.code.next = (!(self.all64.val() << self.clen.val())
+            & (self.all64.val() << (self.bk.val() + 1)))
+            | (self.cd64.val() & !(self.all64.val() << self.bk.val()));
         if self.cesc.val() {
-            self.code.next = (bit_cast::<64, 32>(0xFFFF_FFFF_u64.into()) << 32) | self.d64.val();
+            self.code.next = (bit_cast::<64, 32>(0xFFFF_FFFF_u64.into()) << 32) | self.cd64.val();
             self.clen.next = 64.into();
+        }
+        if self.free_c.val() {
+            self.cc_v.d.next = self.cb_v.q.val();
+            self.cc_code.d.next = self.code.val();
+            self.cc_len.d.next = self.clen.val();
+        }
+        if self.free_b.val() {
+            self.cb_v.d.next = self.ca_v.q.val() & self.in_codes.val();
+            self.cb_q.d.next = bit_cast::<32, RCW>(self.ca_d.q.val()) >> self.bk.val();
+            self.cb_d.d.next = self.ca_d.q.val();
+        }
+        if self.free_a.val() {
+            self.ca_v.d.next = (self.in_codes.val() | self.in_pass2.val()) & self.c_valid.val();
+            self.ca_d.d.next = self.dd.val();
         }
 
         // ---- Count block tail of the header: base as LEB128, then k.
-        self.vlen.next = 5.into();
+        self.vlen.d.next = 5.into();
         if (self.base.q.val() >> 28) == 0 {
-            self.vlen.next = 4.into();
+            self.vlen.d.next = 4.into();
         }
         if (self.base.q.val() >> 21) == 0 {
-            self.vlen.next = 3.into();
+            self.vlen.d.next = 3.into();
         }
         if (self.base.q.val() >> 14) == 0 {
-            self.vlen.next = 2.into();
+            self.vlen.d.next = 2.into();
         }
         if (self.base.q.val() >> 7) == 0 {
-            self.vlen.next = 1.into();
+            self.vlen.d.next = 1.into();
         }
         self.vb[0].next = bit_cast::<8, RCW>(self.base.q.val()) & 0x7F;
         self.vb[1].next = bit_cast::<8, RCW>(self.base.q.val() >> 7) & 0x7F;
@@ -649,48 +709,48 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.vb[3].next = bit_cast::<8, RCW>(self.base.q.val() >> 21) & 0x7F;
         self.vb[4].next = bit_cast::<8, RCW>(self.base.q.val() >> 28) & 0x7F;
         self.tb0.next = self.vb[0].val();
-        if self.vlen.val() > 1 {
+        if self.vlen.q.val() > 1 {
             self.tb0.next = self.vb[0].val() | 0x80;
         }
         self.tb1.next = 0.into();
-        if self.vlen.val() == 1 {
+        if self.vlen.q.val() == 1 {
             self.tb1.next = self.bestk.q.val();
         }
-        if self.vlen.val() == 2 {
+        if self.vlen.q.val() == 2 {
             self.tb1.next = self.vb[1].val();
         }
-        if self.vlen.val() > 2 {
+        if self.vlen.q.val() > 2 {
             self.tb1.next = self.vb[1].val() | 0x80;
         }
         self.tb2.next = 0.into();
-        if self.vlen.val() == 2 {
+        if self.vlen.q.val() == 2 {
             self.tb2.next = self.bestk.q.val();
         }
-        if self.vlen.val() == 3 {
+        if self.vlen.q.val() == 3 {
             self.tb2.next = self.vb[2].val();
         }
-        if self.vlen.val() > 3 {
+        if self.vlen.q.val() > 3 {
             self.tb2.next = self.vb[2].val() | 0x80;
         }
         self.tb3.next = 0.into();
-        if self.vlen.val() == 3 {
+        if self.vlen.q.val() == 3 {
             self.tb3.next = self.bestk.q.val();
         }
-        if self.vlen.val() == 4 {
+        if self.vlen.q.val() == 4 {
             self.tb3.next = self.vb[3].val();
         }
-        if self.vlen.val() > 4 {
+        if self.vlen.q.val() > 4 {
             self.tb3.next = self.vb[3].val() | 0x80;
         }
         self.tb4.next = 0.into();
-        if self.vlen.val() == 4 {
+        if self.vlen.q.val() == 4 {
             self.tb4.next = self.bestk.q.val();
         }
-        if self.vlen.val() == 5 {
+        if self.vlen.q.val() == 5 {
             self.tb4.next = self.vb[4].val();
         }
         self.tb5.next = 0.into();
-        if self.vlen.val() == 5 {
+        if self.vlen.q.val() == 5 {
             self.tb5.next = self.bestk.q.val();
         }
 
@@ -701,8 +761,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         match self.r_kind.val().index() {
             1 => {
                 self.type_code.next = 2.into();
-                self.payload_len.next = self.vlen.val() + 36 + ((self.best.q.val() + 7) >> 3);
-                self.rec_prefix_len.next = self.vlen.val() + 46;
+                self.payload_len.next = self.vlen.q.val() + 36 + ((self.best.q.val() + 7) >> 3);
+                self.rec_prefix_len.next = self.vlen.q.val() + 46;
             }
             2 => {
                 self.type_code.next = 3.into();
@@ -722,6 +782,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         if self.pend_cnt.q.val() != 0 {
             self.need.next = self.payload_len.val() + 36;
         }
+        // The room check is registered: Decide acts from its second clock,
+        // when `room` was computed from this record's final lengths.
+        self.room.d.next = self.fifo_free.val() >= self.need.val();
+        self.dec_ready.d.next = self.state.q.val() == PacketState::Decide;
         // Byte by byte: a byte lane per prefix byte (the same multiplexers as
         // one wide vector, without the wide shifts that dominated the
         // packetiser's simulation).
@@ -965,7 +1029,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
             }
             PacketState::Pass2 => {
-                if self.c_valid.val() {
+                // (The last offset reaches stage A on the clock the streamer
+                // stops, and is added on the clock that leaves Pass2.)
+                if self.ca_v.q.val() {
                     for k in 0..self._kn {
                         self.acc[k].d.next =
                             self.acc[k].q.val() + self.len[k].val().get_bits::<16>(0);
@@ -989,7 +1055,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
             }
             PacketState::Decide => {
-                if self.fifo_free.val() >= self.need.val() {
+                if self.dec_ready.q.val() & self.room.q.val() {
                     self.bidx.d.next = 0.into();
                     self.crc.d.next = 0xFFFF_FFFF_u64.into();
                     self.prefix_load.next = true;
@@ -1003,7 +1069,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                         self.in_ovf.d.next = false;
                         self.state.d.next = PacketState::Emit;
                     }
-                } else if (self.r_kind.val() == 1) | (self.r_kind.val() == 2) {
+                } else if self.dec_ready.q.val()
+                    & ((self.r_kind.val() == 1) | (self.r_kind.val() == 2))
+                {
                     // No room for the whole packet: drop the record, count it.
                     self.ovf_flag.d.next = true;
                     if self.pend_cnt.q.val() == 0 {
@@ -1044,11 +1112,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.out_valid.next = true;
                     self.crc.d.next = self.crc_next.val();
                     self.nb.d.next = self.nb.q.val() - 8;
-                } else if self.c_valid.val() {
-                    self.pk.d.next = (self.pk_low.val() << self.clen.val())
-                        | bit_cast::<72, 64>(self.code.val());
-                    self.nb.d.next = self.nb.q.val() + self.clen.val();
-                } else if !self.cs_active.q.val() {
+                } else if self.cc_v.q.val() {
+                    self.pk.d.next = (self.pk_low.val() << self.cc_len.q.val())
+                        | bit_cast::<72, 64>(self.cc_code.q.val());
+                    self.nb.d.next = self.nb.q.val() + self.cc_len.q.val();
+                } else if !self.cs_active.q.val() & !self.ca_v.q.val() & !self.cb_v.q.val() {
                     if self.nb.q.val() != 0 {
                         self.out_valid.next = true;
                         self.crc.d.next = self.crc_next.val();
@@ -1092,6 +1160,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.pend_cnt.d.next = 0.into();
             self.ovf_flag.d.next = false;
             self.cs_active.d.next = false;
+            self.ca_v.d.next = false;
+            self.cb_v.d.next = false;
+            self.cc_v.d.next = false;
         }
         // The prefix registers hold between packets without a copy a clock
         // (a clock enable): their next value exists only when they load.

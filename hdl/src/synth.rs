@@ -159,6 +159,13 @@ pub struct Resources {
     /// count 0, LUT-RAM reads 1), the longest carry chain and the worst
     /// path's cells: [`crate::lut_levels`] on the mapped netlist.
     pub lut_levels: Option<crate::lut_levels::LutLevels>,
+    /// The same, on the same Verilog mapped by the classic `abc`
+    /// ([`LEVELS_SCRIPT`]): unit delay per LUT, each cone between registers
+    /// and carry chains mapped to its fewest levels. `abc9` instead stretches
+    /// every path with slack against its critical *delay* (set by the long
+    /// carry chains) into chains of small LUTs, so its levels say what it
+    /// allowed, not what the logic needs; the ≤ 6 target is read here.
+    pub unit_levels: Option<crate::lut_levels::LutLevels>,
 }
 
 impl Resources {
@@ -252,30 +259,51 @@ pub const YOSYS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; fl
      synth_xilinx -family xc6s -top top -flatten -abc9; stat; write_json netlist.json; \
      delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig; ltp";
 
+/// The yosys command whose mapping [`Resources::unit_levels`] measures:
+/// Spartan-6 synthesis with the classic `abc` LUT mapping, the netlist as
+/// JSON (`levels.json`).
+pub const LEVELS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; \
+     synth_xilinx -family xc6s -top top -flatten; write_json levels.json";
+
 /// Synthesises the Verilog for the Spartan-6 with yosys in `dir` and returns
-/// the cell counts (the log is left in `dir/yosys.log`).
+/// the cell counts (the log is left in `dir/yosys.log`), and the LUT levels
+/// of both mappings: [`YOSYS_SCRIPT`] and, in a second yosys run beside it,
+/// [`LEVELS_SCRIPT`] (log `dir/levels.log`).
 pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError> {
     write_file(dir, "top.v", verilog)?;
-    let log = run(
-        "yosys",
-        Command::new("yosys")
-            .current_dir(dir)
-            .arg("-q")
-            .arg("-l")
-            .arg("yosys.log")
-            .arg("-p")
-            .arg(YOSYS_SCRIPT),
-    )?;
+    let yosys = |log: &str, script: &str| {
+        run(
+            "yosys",
+            Command::new("yosys")
+                .current_dir(dir)
+                .arg("-q")
+                .arg("-l")
+                .arg(log)
+                .arg("-p")
+                .arg(script),
+        )
+    };
+    let (main, unit) = std::thread::scope(|s| {
+        let unit = s.spawn(|| yosys("levels.log", LEVELS_SCRIPT));
+        let main = yosys("yosys.log", YOSYS_SCRIPT);
+        (main, unit.join())
+    });
+    let log = main?;
+    unit.unwrap_or_else(|p| std::panic::resume_unwind(p))?;
     let full = std::fs::read_to_string(dir.join("yosys.log")).unwrap_or(log);
     let mut r = parse_yosys_stat(&full)?;
-    let netlist = dir.join("netlist.json");
-    let json = std::fs::read_to_string(&netlist).map_err(|source| ToolError::Io {
-        path: netlist.clone(),
-        source,
-    })?;
-    r.lut_levels = Some(crate::lut_levels::lut_levels(&json, "top")?);
     // The netlist of a whole design is hundreds of MB; the figures are kept.
-    let _ = std::fs::remove_file(&netlist);
+    let levels = |name: &str| -> Result<crate::lut_levels::LutLevels, ToolError> {
+        let netlist = dir.join(name);
+        let json = std::fs::read_to_string(&netlist).map_err(|source| ToolError::Io {
+            path: netlist.clone(),
+            source,
+        })?;
+        let _ = std::fs::remove_file(&netlist);
+        Ok(crate::lut_levels::lut_levels(&json, "top")?)
+    };
+    r.lut_levels = Some(levels("netlist.json")?);
+    r.unit_levels = Some(levels("levels.json")?);
     Ok(r)
 }
 

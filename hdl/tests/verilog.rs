@@ -54,6 +54,14 @@ fn yosys_maps_the_test_front_half_to_spartan6() {
         "{r:?}"
     );
     assert!(!l.path.is_empty(), "{r:?}");
+    // The level-optimal mapping of the same Verilog: a depth as well, and
+    // its deepest end is the path's.
+    let u = r
+        .unit_levels
+        .as_ref()
+        .expect("levels of the classic mapping");
+    assert!(u.levels >= 1, "{r:?}");
+    assert_eq!(u.ends.first().map(|e| e.1), Some(u.levels), "{r:?}");
     // The test configuration gives the filter no DSP slice: every multiply
     // is shift-and-add.
     assert_eq!(r.dsp48a1, 0, "{r:?}");

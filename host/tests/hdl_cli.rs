@@ -181,6 +181,10 @@ fn resources_synthesises_the_given_file_and_reports_its_hash() {
     assert!((1..20).contains(&depth), "{j}");
     let levels = j["lut_levels"].as_u64().unwrap();
     assert!(levels >= 1 && levels <= depth, "{j}");
+    // The level-optimal mapping reads a depth too, never above yosys' count.
+    let unit = j["lut_levels_abc"].as_u64().unwrap();
+    assert!(unit >= 1 && unit <= depth, "{j}");
+    assert!(!j["worst_path_abc"].as_array().unwrap().is_empty(), "{j}");
     let devices = j["devices"].as_array().unwrap();
     assert_eq!(devices[0]["device"], "XC6SLX45");
     assert_eq!(devices[0]["fits"], true);

@@ -241,6 +241,13 @@ struct Report {
     lut_levels: Option<u32>,
     carry_chain: Option<u32>,
     worst_path: Vec<String>,
+    /// LUT levels of the level-optimal (classic `abc`) mapping of the same
+    /// Verilog: the figure for the ≤ 6 target.
+    lut_levels_abc: Option<u32>,
+    worst_path_abc: Vec<String>,
+    /// Path ends deeper than 6 levels in that mapping, deepest first (at
+    /// most 40): the work list for pipelining.
+    deep_ends_abc: Vec<(String, u32)>,
     devices: Vec<DeviceUse>,
     throughput: Option<Throughput>,
 }
@@ -303,6 +310,28 @@ fn report(name: String, v: &str, r: &Resources, seconds: f64, d: Option<&Design>
             .lut_levels
             .as_ref()
             .map(|l| l.path.iter().map(|(t, n)| format!("{t} {n}")).collect())
+            .unwrap_or_default(),
+        lut_levels_abc: r.unit_levels.as_ref().map(|l| l.levels),
+        worst_path_abc: r
+            .unit_levels
+            .as_ref()
+            .map(|l| {
+                std::iter::once(l.start.clone())
+                    .chain(l.path.iter().map(|(t, n)| format!("{t} {n}")))
+                    .collect()
+            })
+            .unwrap_or_default(),
+        deep_ends_abc: r
+            .unit_levels
+            .as_ref()
+            .map(|l| {
+                l.ends
+                    .iter()
+                    .filter(|(_, d)| *d > 6)
+                    .take(40)
+                    .cloned()
+                    .collect()
+            })
             .unwrap_or_default(),
         devices,
         throughput,
@@ -368,15 +397,29 @@ fn resources(a: ResourcesArgs) -> anyhow::Result<()> {
         rep.multipliers,
         rep.multipliers
     );
+    let unknown = |x: Option<u32>| x.map_or("unknown".into(), |x| x.to_string());
     println!(
-        "logic depth between registers: {} LUT levels (target <= 6; CARRY4 and MUXF7/8 count 0), \
-         longest carry chain {} CARRY4; yosys ltp {} cells",
-        rep.lut_levels.map_or("unknown".into(), |x| x.to_string()),
-        rep.carry_chain.map_or("unknown".into(), |x| x.to_string()),
+        "logic depth between registers: {} LUT levels mapped level-optimally by the classic abc \
+         (target <= 6; CARRY4 and MUXF7/8 count 0); {} as abc9 mapped it (paths stretched up to \
+         its critical delay); longest carry chain {} CARRY4; yosys ltp {} cells",
+        unknown(rep.lut_levels_abc),
+        unknown(rep.lut_levels),
+        unknown(rep.carry_chain),
         rep.logic_depth.map_or("unknown".into(), |x| x.to_string())
     );
+    if !rep.worst_path_abc.is_empty() {
+        println!("worst path (abc): {}", rep.worst_path_abc.join(" -> "));
+    }
+    if !rep.deep_ends_abc.is_empty() {
+        let ends: Vec<String> = rep
+            .deep_ends_abc
+            .iter()
+            .map(|(n, d)| format!("{n} {d}"))
+            .collect();
+        println!("path ends deeper than 6 (abc): {}", ends.join(", "));
+    }
     if !rep.worst_path.is_empty() {
-        println!("worst path: {}", rep.worst_path.join(" -> "));
+        println!("worst path (abc9): {}", rep.worst_path.join(" -> "));
     }
     for u in &rep.devices {
         println!(
