@@ -114,21 +114,11 @@ fn print(name: &str, r: &Resources) {
             l.start,
             path.join(" -> ")
         );
-        let deep: Vec<String> = l
-            .ends
-            .iter()
-            .filter(|(_, d)| *d > 6)
-            .map(|(n, d)| format!("{n} {d}"))
-            .collect();
+        let deep = l.ends_deeper_than(6);
         println!("{:<34} ends deeper than 6: {}", "", deep.join(", "));
     }
     if let Some(l) = &r.unit_levels {
-        let deep: Vec<String> = l
-            .ends
-            .iter()
-            .filter(|(_, d)| *d > 6)
-            .map(|(n, d)| format!("{n} {d}"))
-            .collect();
+        let deep = l.ends_deeper_than(6);
         println!(
             "{:<34} level-optimal (abc): LUT levels {}, from {}; ends deeper than 6: {}",
             "",
@@ -156,8 +146,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if argv.len() == 3 && argv[1] == "levels" {
         let l = smartagg_hdl::lut_levels::lut_levels(&std::fs::read_to_string(&argv[2])?, "top")?;
         println!("LUT levels {}; start {}", l.levels, l.start);
-        for (n, d) in l.ends.iter().filter(|(_, d)| *d > 6) {
-            println!("  {d:>3} {n}");
+        for e in l.ends_deeper_than(6) {
+            println!("  {e}");
         }
         return Ok(());
     }

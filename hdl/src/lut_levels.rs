@@ -58,6 +58,18 @@ pub struct LutLevels {
     pub ends: Vec<(String, u32)>,
 }
 
+impl LutLevels {
+    /// The path ends deeper than `levels`, deepest first, as
+    /// `"name depth"`.
+    pub fn ends_deeper_than(&self, levels: u32) -> Vec<String> {
+        self.ends
+            .iter()
+            .filter(|(_, d)| *d > levels)
+            .map(|(n, d)| format!("{n} {d}"))
+            .collect()
+    }
+}
+
 /// How a cell type takes part in paths.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
@@ -488,6 +500,7 @@ mod tests {
             r.ends[..3],
             [("d".into(), 3), ("r".into(), 3), ("e".into(), 2)]
         );
+        assert_eq!(r.ends_deeper_than(2), ["d 3", "r 3"]);
     }
 
     #[test]
