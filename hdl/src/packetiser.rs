@@ -11,8 +11,13 @@
 //! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`; 16 bits suffice for
 //! R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
 //! scan takes the smallest total (ties: smallest k), and
-//! pass 3 emits the codes MSB first through a bit packer. ROI rows outside
-//! the sensor read as 0. The header's length is known after pass 2.
+//! pass 3 emits the codes MSB first through a bit packer. Passes 2 and 3
+//! read each offset from a register, and pass 3 builds a code in two more
+//! registered steps (quotient, then code and length), so that no path is
+//! deeper than one barrel shifter or thermometer. ROI rows outside
+//! the sensor read as 0. The header's length is known after pass 2; the
+//! room check for the whole packet is a register too (Decide acts on its
+//! second clock).
 //!
 //! **Sequence numbers and overflow.** Every record but Overflow takes the
 //! next number (from `seq_init` at stream start). A record the tracker could

@@ -22,8 +22,8 @@
 //! read in one clock; columns outside the sensor read 0), and the R counters
 //! of that ROI row are read, incremented by `live·sums_live +
 //! delayed·sums_preroll`, and written back the next clock. Three stages, so
-//! that no path between registers is long: S0 picks the slot (a priority
-//! chain over `rel`) and registers its view; SA computes the word and
+//! that no path between registers is long: S0 picks the slot (the lowest
+//! bit of `rel`) and registers its view; SA computes the word and
 //! counter addresses; S1 adds and writes. The view of plane t stays
 //! untouched until the sweep has finished t, so reading it at S0 is as good
 //! as at the row's start; `planes_done` and the rows the writer may reuse
