@@ -252,7 +252,9 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
 /// start and end at them).
 ///
 /// LUT mapping by `abc9` (yosys' delay-driven flow) rather than the
-/// classic `abc`: fewer LUTs and levels on the same Verilog. Neither maps
+/// classic `abc`: fewer LUTs on the same Verilog; its levels stretch up to
+/// its critical delay, so the depth is also read from [`LEVELS_SCRIPT`]'s
+/// mapping ([`Resources::unit_levels`]). Neither maps
 /// the one flat netlist of a whole top steadily: a rewrite that changes no
 /// logic can move the count by ±7 % (figures in `hdl/RESOURCES.md`).
 pub const YOSYS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; stat; \
