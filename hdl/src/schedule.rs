@@ -107,8 +107,8 @@ fn reg_name(line: &str) -> Option<&str> {
     decl.rsplit(char::is_whitespace).next()
 }
 
-/// Marks the loop-cutting signals ([`MODULE_RULES`] in the modules of those
-/// port lists, [`ANY_MODULE_SIGNALS`] anywhere) with
+/// Marks the loop-cutting signals (`MODULE_RULES` in the modules of those
+/// port lists, `ANY_MODULE_SIGNALS` anywhere) with
 /// [`ISOLATE`]. Returns the Verilog and the number of declarations marked.
 pub fn isolate_false_loops(verilog: &str) -> (String, usize) {
     let mut out = String::with_capacity(verilog.len() + 4096);

@@ -5,7 +5,7 @@
 //! **Black boxes.** Opal Kelly's FrontPanel HDL (okHost, okWireIn, okWireOut,
 //! okTriggerIn, okBTPipeIn, okBTPipeOut, okWireOR) and the Xilinx MIG DDR2
 //! controller are proprietary or generated netlists, never a dependency:
-//! [`OkHost`], [`OkWireIn`], … instantiate them by name, and the generated
+//! [`OkHost`], [`OkEndpoint`], [`OkWireOr`] … instantiate them by name, and the generated
 //! Verilog carries `(* blackbox *)` declarations of their ports (written from
 //! Opal Kelly's public FrontPanel user's manual and Xilinx UG388; stub bodies
 //! only drive outputs to 0 so that Verilator can lint the design). To build a
