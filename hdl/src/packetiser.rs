@@ -285,7 +285,6 @@ pub struct Packetiser<
     ct: Vec<Signal<Local, Bits<32>>>,
     crc_next: Signal<Local, Bits<32>>,
     bk: Signal<Local, Bits<8>>,
-    cq: Signal<Local, Bits<32>>,
     cesc: Signal<Local, Bit>,
     clen: Signal<Local, Bits<8>>,
     /// The offset of stage B, 64 bits wide.
@@ -483,7 +482,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             ct: lanes(8),
             crc_next: Default::default(),
             bk: Default::default(),
-            cq: Default::default(),
             cesc: Default::default(),
             clen: Default::default(),
             cd64: Default::default(),
@@ -660,18 +658,18 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // ---- The codes (Codes), in three registered steps so that none is
         // deeper than a barrel shifter or a thermometer: A the offset from
         // the base (also pass 2's input), B its quotient by 2^k, C the code
-        // and its length, which the bit packer appends. A stage takes the one before it when it is
-        // empty or its content moves on this clock (`free_*`).
+        // and its length, which the bit packer appends. A stage takes the
+        // one before it when it is empty or its content moves on this clock
+        // (`free_*`).
         // The masks change no value (bestk < _kn; cq < 32 unless escaped,
         // when the code is replaced) but tell synthesis how few shift
         // stages the barrel shifters need.
         // C from B: the code is 1…1 (q ones) 0 (bit k) and the k low bits
         // of the offset: bits k + 1 … clen − 1 set, as the difference of two
         // thermometers.
-        self.cq.next = self.cb_q.q.val();
         self.cd64.next = bit_cast::<64, RCW>(self.cb_d.q.val());
-        self.cesc.next = (self.cq.val() >> 5).any();
-        self.clen.next = bit_cast::<8, 32>(self.cq.val() & 31) + self.bk.val() + 1;
+        self.cesc.next = (self.cb_q.q.val() >> 5).any();
+        self.clen.next = bit_cast::<8, 32>(self.cb_q.q.val() & 31) + self.bk.val() + 1;
         self.code.next = (!(self.all64.val() << self.clen.val())
             & (self.all64.val() << (self.bk.val() + 1)))
             | (self.cd64.val() & !(self.all64.val() << self.bk.val()));

@@ -146,12 +146,9 @@ pub struct RoiAggregator<
     // slot multiplexer, with the row it sweeps.
     a_valid: DFF<Bit>,
     a_sel: DFF<Bits<MAX_SLOTS>>,
-    a_live: DFF<Bit>,
-    a_pre: DFF<Bit>,
-    a_fresh: DFF<Bit>,
-    a_ax: DFF<Bits<COORD_BITS>>,
-    a_ay: DFF<Bits<COORD_BITS>>,
-    a_bank: DFF<Bits<BW>>,
+    /// The selected slot's view entry (fields at
+    /// [`crate::blink_tracker::shadow`]'s offsets).
+    a_view: DFF<Bits<64>>,
     a_row_hi: DFF<Bits<COORD_BITS>>,
     a_ra0: DFF<Bit>,
     a_rbase: DFF<Bits<RAW>>,
@@ -181,9 +178,8 @@ pub struct RoiAggregator<
     go: Signal<Local, Bit>,
     /// `rhi + 1`.
     rhi1: Signal<Local, Bits<COORD_BITS>>,
-    /// The lowest slot of `rel`, and the others.
+    /// The lowest slot of `rel` (one-hot).
     rsel_v: Signal<Local, Bits<MAX_SLOTS>>,
-    rsel: Vec<Signal<Local, Bit>>,
     /// Prefix ORs of `rel` over 2, 4, 8, 16 slots, and over every lower slot.
     pre1: Signal<Local, Bits<MAX_SLOTS>>,
     pre2: Signal<Local, Bits<MAX_SLOTS>>,
@@ -201,15 +197,8 @@ pub struct RoiAggregator<
     m_set: Signal<Local, Bits<MAX_SLOTS>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
-    /// The selected slot's view entry, and the OR tree that finds it.
-    k_word: Signal<Local, Bits<64>>,
+    /// The OR tree that finds the selected slot's view entry.
     kt: Vec<Signal<Local, Bits<64>>>,
-    k_live: Signal<Local, Bit>,
-    k_pre: Signal<Local, Bit>,
-    k_fresh: Signal<Local, Bit>,
-    k_ax: Signal<Local, Bits<COORD_BITS>>,
-    k_ay: Signal<Local, Bits<COORD_BITS>>,
-    k_bank: Signal<Local, Bits<BW>>,
     dy: Signal<Local, Bits<COORD_BITS>>,
     x0p: Signal<Local, Bits<16>>,
     wq: Signal<Local, Bits<16>>,
@@ -316,12 +305,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             pd: Default::default(),
             a_valid: Default::default(),
             a_sel: Default::default(),
-            a_live: Default::default(),
-            a_pre: Default::default(),
-            a_fresh: Default::default(),
-            a_ax: Default::default(),
-            a_ay: Default::default(),
-            a_bank: Default::default(),
+            a_view: Default::default(),
             a_row_hi: Default::default(),
             a_ra0: Default::default(),
             a_rbase: Default::default(),
@@ -346,7 +330,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             go: Default::default(),
             rhi1: Default::default(),
             rsel_v: Default::default(),
-            rsel: lanes(m),
             pre1: Default::default(),
             pre2: Default::default(),
             pre4: Default::default(),
@@ -361,14 +344,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             m_set: Default::default(),
             row_done: Default::default(),
             s0: Default::default(),
-            k_word: Default::default(),
             kt: lanes(2 * m - 1),
-            k_live: Default::default(),
-            k_pre: Default::default(),
-            k_fresh: Default::default(),
-            k_ax: Default::default(),
-            k_ay: Default::default(),
-            k_bank: Default::default(),
             dy: Default::default(),
             x0p: Default::default(),
             wq: Default::default(),
@@ -417,9 +393,8 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
     fn update(&mut self) {
         dff_setup!(
             self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rlo, rhi, gs_w, pd,
-            ra, need, a_valid, a_sel, a_live, a_pre, a_fresh, a_ax, a_ay, a_bank, a_row_hi, a_ra0,
-            a_rbase, s1_valid, s1_live, s1_pre, s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd,
-            s1_addr, s1_first, rel, s1_sel, mflag
+            ra, need, a_valid, a_sel, a_view, a_row_hi, a_ra0, a_rbase, s1_valid, s1_live, s1_pre,
+            s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel, s1_sel, mflag
         );
         self.slot_masked.next = self.mflag.q.val();
         for q in 0..6 {
@@ -516,26 +491,23 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.pre8.next = self.pre4.val() | (self.pre4.val() << 8);
         self.taken.next = (self.pre8.val() | (self.pre8.val() << 16)) << 1;
         self.rsel_v.next = self.rel.q.val() & !self.taken.val();
-        for i in 0..self._m {
-            self.rsel[i].next = self.rsel_v.val().get_bit(i);
-        }
         self.rest.next = self.rel.q.val() & self.taken.val();
         self.any_rel.next = self.rel.q.val().any();
         self.s0.next = self.sweeping.q.val() & self.any_rel.val();
         // An OR tree over the entries, each zero unless its slot is the one
-        // selected (`rsel` is one-hot): a few LUT levels, where an if-chain
+        // selected (`rsel_v` is one-hot): a few LUT levels, where an if-chain
         // or an OR accumulated slot by slot is a 32-deep chain to synthesis.
         // Tree layout: leaves 0 … M − 1, node M + j = node 2j | node 2j + 1,
         // the root last (every node reads lower ones only).
         for n in 0..(2 * self._m - 1) {
             self.kt[n].next = 0.into();
         }
-        // (`rel`, hence `rsel`, is empty unless sweeping: the register is
+        // (`rel`, hence `rsel_v`, is empty unless sweeping: the register is
         // the cheapest gate for a simulator.)
         if self.sweeping.q.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
-                    if self.rsel[i].val() {
+                    if self.rsel_v.val().get_bit(i) {
                         if self.par.val() {
                             self.kt[i].next = self.sh[i + mm].val();
                         } else {
@@ -550,34 +522,23 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 }
             }
         }
-        for mm in self._m..(self._m + 1) {
-            self.k_word.next = self.kt[2 * mm - 2].val();
-        }
-        self.k_live.next = self.k_word.val().get_bit(61);
-        self.k_pre.next = self.k_word.val().get_bit(62);
-        self.k_fresh.next = self.k_word.val().get_bit(63);
-        self.k_ax.next = self.k_word.val().get_bits::<10>(0);
-        self.k_ay.next = self.k_word.val().get_bits::<10>(10);
-        self.k_bank.next = self.k_word.val().get_bits::<BW>(20);
 
         // ---- S0 → SA: the selected slot's view and its row, registered
         // (the priority chain and the slot multiplexer are the stage's logic).
         self.a_valid.d.next = self.s0.val();
         self.a_sel.d.next = self.rsel_v.val();
-        self.a_live.d.next = self.k_live.val();
-        self.a_pre.d.next = self.k_pre.val();
-        self.a_fresh.d.next = self.k_fresh.val();
-        self.a_ax.d.next = self.k_ax.val();
-        self.a_ay.d.next = self.k_ay.val();
-        self.a_bank.d.next = self.k_bank.val();
+        for mm in self._m..(self._m + 1) {
+            self.a_view.d.next = self.kt[2 * mm - 2].val();
+        }
         self.a_row_hi.d.next = self.rhi.q.val();
         self.a_ra0.d.next = self.ra.q.val() == 0;
         self.a_rbase.d.next = self.rbase.q.val();
 
         // ---- SA: addresses of the two words and of the counter row.
-        self.dy.next = self.a_row_hi.q.val() - self.a_ay.q.val();
+        self.dy.next = self.a_row_hi.q.val() - self.a_view.q.val().get_bits::<10>(10);
         // Column ax − h, shifted by one word so that it is never negative.
-        self.x0p.next = bit_cast::<16, 10>(self.a_ax.q.val()) + self.p_minus_h.val();
+        self.x0p.next =
+            bit_cast::<16, 10>(self.a_view.q.val().get_bits::<10>(0)) + self.p_minus_h.val();
         self.wq.next = self.x0p.val() >> self.log2p.val();
         self.half_wq.next = self.wq.val() >> 1;
         self.odd_addr.next = self.half_wq.val();
@@ -592,7 +553,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             self.ring[q].read_address.next =
                 self.a_rbase.q.val() + bit_cast::<RAW, 16>(self.odd_addr.val());
         }
-        self.bank_base.x.next = bit_cast::<CAW, BW>(self.a_bank.q.val());
+        self.bank_base.x.next = bit_cast::<CAW, BW>(self.a_view.q.val().get_bits::<BW>(20));
         self.caddr.next = self.bank_base.y.val() + bit_cast::<CAW, 10>(self.dy.val());
         for dx in 0..self._r {
             self.cnt[dx].read_address.next = self.rd_addr.val();
@@ -607,9 +568,9 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.rd_grant.next = self.rd_req.val() & !self.a_valid.q.val();
         self.s1_valid.d.next = self.a_valid.q.val();
         self.s1_sel.d.next = self.a_sel.q.val();
-        self.s1_live.d.next = self.a_live.q.val();
-        self.s1_pre.d.next = self.a_pre.q.val();
-        self.s1_fresh.d.next = self.a_fresh.q.val();
+        self.s1_live.d.next = self.a_view.q.val().get_bit(61);
+        self.s1_pre.d.next = self.a_view.q.val().get_bit(62);
+        self.s1_fresh.d.next = self.a_view.q.val().get_bit(63);
         self.s1_off.d.next = self.x0p.val() & self.pm1.val();
         self.s1_lo_ok.d.next = self.wq.val() != 0;
         self.s1_hi_ok.d.next = self.wq.val() < self.words.val();
