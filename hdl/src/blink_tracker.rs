@@ -28,7 +28,7 @@
 //!   slot's state comes through one multiplexer (the fields only the walks
 //!   read — ages, confirmation, continuation, truncation — from a LUT RAM
 //!   read one clock ahead), and one comparator of
-//!   each kind serves every slot: a `pend` drop's t_drop and confirmation,
+//!   each kind serves every slot (see "Walk pipeline"): a `pend` drop's t_drop and confirmation,
 //!   the cut at L_max, the unconfirmed free or the completion, the Blink
 //!   record and its continuation, the counters, and the slot's state and
 //!   ROI view for plane t + 1. Then the Dropped record and plane t + 1.
@@ -36,6 +36,40 @@
 //!   slot's decision reads only that slot, so one slot at a time gives the
 //!   same records. The stream end's `finish` and the drain planes' ends
 //!   are walks too.
+//!
+//! **Pipeline** (so that no path between registers is deeper than a few
+//! LUTs). A word goes through three registered stages, one item per clock:
+//! * the *item* stage (`x_…`) takes the head word's lowest candidate lane
+//!   not yet taken (`done_mask`), or the word itself when it has none, and
+//!   pops the word with its last item;
+//! * the *compare* stage (`r_…`) holds, per slot, whether the candidate is
+//!   in the slot's association window (`bnd`, stored when the slot opened:
+//!   the opening candidate's own window), whether the word hits its 3x3
+//!   window, and whether the word's row ends that window; and what an
+//!   opening would write;
+//! * the *decide* stage acts on it in Run: the association against the
+//!   current flags, the opening or drop, the hits, the end-of-row step.
+//!
+//! Only an opening changes what the compare stage reads (the new slot's
+//! window), and only for a candidate: a candidate compared in the clock of
+//! an opening is compared again (`replay`, one clock) before it is decided.
+//! A word's hits on a slot opened in this plane, or on a free one, may be
+//! stale, and need not be right: only slots active at the end of t − 1 have
+//! their on/off step, and the walk clears every slot's hits. The lowest free
+//! slot (`fpick`) is a register of the previous clock's flags: after an
+//! opening the next candidate is replayed, and after a walk comes WalkEnd.
+//!
+//! **Walk pipeline.** A walk also runs in three stages, one slot per clock:
+//! the read stage takes slot `walk`'s flags and anchor through the
+//! multiplexer, and its word from `walk_mem`, into W1; W1 computes what the
+//! walk does (the comparisons with L_min, L_max and N, the cut, the
+//! completion, the record's planes, the slot's next state and words) into
+//! W2; W2 waits for the sweep and the bank, pushes the record and writes
+//! the slot. W2 writes slot k while the read stage reads k + 1 or k + 2, and
+//! a walk starts reading once the previous writer of its slots is done (the
+//! decide stage, or the previous walk's W2), so no stage reads a slot that
+//! an earlier one has yet to write; the one exception, with a single slot,
+//! is the word written as the next walk's read of it is issued (`wm_fwd`).
 //!
 //! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
 //! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
@@ -324,6 +358,47 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     ev_bridge: DFF<Bits<MAX_SLOTS>>,
     geo: Vec<DFF<Bits<64>>>,
     win: Vec<DFF<Bits<64>>>,
+    /// Per slot, the association window around its anchor, which a
+    /// candidate must fall in: x from 0, x to 10, y from 20, y to 30
+    /// (written when the slot opens: the opening candidate's own window).
+    bnd: Vec<DFF<Bits<64>>>,
+    // The item stage (see "Pipeline" in the module doc): one candidate lane
+    // of the head word, or the word itself when it has none.
+    x_valid: DFF<Bit>,
+    x_cand: DFF<Bit>,
+    x_last: DFF<Bit>,
+    x_eor: DFF<Bit>,
+    x_lastrow: DFF<Bit>,
+    x_cx: DFF<Bits<COORD_BITS>>,
+    x_yc: DFF<Bits<COORD_BITS>>,
+    x_xc: DFF<Bits<COORD_BITS>>,
+    x_ym1: DFF<Bits<COORD_BITS>>,
+    x_yp1: DFF<Bits<COORD_BITS>>,
+    x_above: DFF<Bits<P>>,
+    // The compare stage: the item, what it does to each slot (bit i: slot
+    // i), and what an opening writes.
+    r_valid: DFF<Bit>,
+    r_cand: DFF<Bit>,
+    r_last: DFF<Bit>,
+    r_eor: DFF<Bit>,
+    r_lastrow: DFF<Bit>,
+    r_cx: DFF<Bits<COORD_BITS>>,
+    r_yc: DFF<Bits<COORD_BITS>>,
+    r_near: DFF<Bits<MAX_SLOTS>>,
+    r_hw: DFF<Bits<MAX_SLOTS>>,
+    r_frow: DFF<Bits<MAX_SLOTS>>,
+    r_geo: DFF<Bits<64>>,
+    r_win: DFF<Bits<64>>,
+    r_sh: DFF<Bits<64>>,
+    r_bnd: DFF<Bits<64>>,
+    /// The compare stage's candidate was compared before the opening of the
+    /// previous clock: compare it again rather than decide it.
+    replay: DFF<Bit>,
+    /// The lowest slot free at the end of t − 1 and not yet taken, one-hot,
+    /// and whether there is one (of the previous clock's flags: an opening
+    /// is followed by a replay, a walk by WalkEnd, before it is read).
+    fpick: DFF<Bits<MAX_SLOTS>>,
+    fpick_any: DFF<Bit>,
     // What the clock's writes make of them so far (`d` once all are done).
     busy_nx: Signal<Local, Bits<MAX_SLOTS>>,
     live_nx: Signal<Local, Bits<MAX_SLOTS>>,
@@ -336,17 +411,81 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     ev_bridge_nx: Signal<Local, Bits<MAX_SLOTS>>,
     /// The fields that only the walks read, one 37-bit word per slot in LUT
     /// RAM (bits 0–17 age, 18–33 dage, 34 conf, 35 cont, 36 trunc), read at
-    /// the walk's next slot so that the word is there when the walk is.
+    /// the read stage's next slot so that the word is there when it is.
     walk_mem: Bram<37, 8>,
     /// The word written on the previous clock, for a read of the slot just
-    /// written: only with M = 1, where the last drain walk's step writes
-    /// slot 0 and Emit starts at slot 0 in the same clock (`one_slot`: for
+    /// written: only with M = 1, where a walk's last step writes slot 0 in
+    /// the clock the next walk issues its read of slot 0 (`one_slot`: for
     /// M > 1 synthesis removes the bypass).
     wm_fwd: DFF<Bit>,
     wm_last: DFF<Bits<37>>,
     /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
     sv: Vec<DFF<Bits<64>>>,
+    /// The walks' constants: N − 1, L_min, L_min + 1, L_max − 1.
+    n_m1: DFF<Bits<AGE_BITS>>,
+    lmin: DFF<Bits<AGE_BITS>>,
+    lmin_p1: DFF<Bits<AGE_BITS>>,
+    lmax_m1: DFF<Bits<AGE_BITS>>,
+    /// `view_free` a clock ago.
+    vf: DFF<Bit>,
+    // The walk pipeline: the read stage is on (`walk` is its slot); W1
+    // holds a slot's state, W2 what the walk does to it.
+    rd_on: DFF<Bit>,
+    w1_valid: DFF<Bit>,
+    w1_sel: DFF<Bits<MAX_SLOTS>>,
+    w1_slot: DFF<Bits<8>>,
+    w1_last: DFF<Bit>,
+    w1_busy: DFF<Bit>,
+    w1_live: DFF<Bit>,
+    w1_dip: DFF<Bit>,
+    w1_pend: DFF<Bit>,
+    w1_opened: DFF<Bit>,
+    w1_bridge: DFF<Bit>,
+    w1_ax: DFF<Bits<COORD_BITS>>,
+    w1_ay: DFF<Bits<COORD_BITS>>,
+    w1_bank: DFF<Bits<BW>>,
+    w1_word: DFF<Bits<37>>,
+    w2_valid: DFF<Bit>,
+    w2_sel: DFF<Bits<MAX_SLOTS>>,
+    w2_slot: DFF<Bits<8>>,
+    w2_last: DFF<Bit>,
+    w2_busy: DFF<Bit>,
+    w2_live: DFF<Bit>,
+    w2_bridge: DFF<Bit>,
+    w2_ax: DFF<Bits<COORD_BITS>>,
+    w2_ay: DFF<Bits<COORD_BITS>>,
+    w2_bank: DFF<Bits<BW>>,
+    w2_cut: DFF<Bit>,
+    w2_unconf: DFF<Bit>,
+    w2_comp: DFF<Bit>,
+    w2_flags: DFF<Bits<8>>,
+    w2_tc: DFF<Bits<48>>,
+    w2_td: DFF<Bits<48>>,
+    w2_n_busy: DFF<Bit>,
+    w2_n_live: DFF<Bit>,
+    w2_n_pre: DFF<Bit>,
+    w2_n_fresh: DFF<Bit>,
+    /// `finish` ends a live track; it ends it unconfirmed.
+    w2_fin_end: DFF<Bit>,
+    w2_fin_unconf: DFF<Bit>,
+    /// The slot's word for `walk_mem`.
+    w2_word: DFF<Bits<37>>,
     // Combinational.
+    run: Signal<Local, Bit>,
+    d_go: Signal<Local, Bit>,
+    r_from_x: Signal<Local, Bit>,
+    x_ready: Signal<Local, Bit>,
+    x_take: Signal<Local, Bit>,
+    s_cx: Signal<Local, Bits<COORD_BITS>>,
+    s_cy: Signal<Local, Bits<COORD_BITS>>,
+    near_v: Signal<Local, Bits<MAX_SLOTS>>,
+    hw_v: Signal<Local, Bits<MAX_SLOTS>>,
+    frow_v: Signal<Local, Bits<MAX_SLOTS>>,
+    free_v: Signal<Local, Bits<MAX_SLOTS>>,
+    on_v: Signal<Local, Bits<MAX_SLOTS>>,
+    o_bnd: Signal<Local, Bits<64>>,
+    /// An opening's ROI view pre-roll flag (plane t ≥ N), at its offset.
+    sh_pre: Signal<Local, Bits<64>>,
     rem: Signal<Local, Bits<P>>,
     low: Signal<Local, Bits<P>>,
     has_cand: Signal<Local, Bit>,
@@ -385,14 +524,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     t_ge_n: Signal<Local, Bit>,
     t1_ge_n: Signal<Local, Bit>,
     n32: Signal<Local, Bits<AGE_BITS>>,
-    n_m1: Signal<Local, Bits<AGE_BITS>>,
-    lmin: Signal<Local, Bits<AGE_BITS>>,
-    lmin_p1: Signal<Local, Bits<AGE_BITS>>,
-    lmax_m1: Signal<Local, Bits<AGE_BITS>>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
     view_free: Signal<Local, Bit>,
-    go: Signal<Local, Bit>,
     do_open: Signal<Local, Bit>,
     do_drop: Signal<Local, Bit>,
     do_fin: Signal<Local, Bit>,
@@ -452,20 +586,18 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     walk_last: Signal<Local, Bit>,
     rec_tc: Signal<Local, Bits<48>>,
     rec_td: Signal<Local, Bits<48>>,
-    near: Vec<Signal<Local, Bit>>,
-    absorb: Vec<Signal<Local, Bit>>,
-    freeable: Vec<Signal<Local, Bit>>,
-    abs_any: Vec<Signal<Local, Bit>>,
-    ftaken: Vec<Signal<Local, Bit>>,
-    fsel: Vec<Signal<Local, Bit>>,
     absorbed: Signal<Local, Bit>,
-    any_free: Signal<Local, Bit>,
-    row_ok: Vec<Signal<Local, Bit>>,
-    hw: Vec<Signal<Local, Bit>>,
-    on: Vec<Signal<Local, Bit>>,
-    sel: Vec<Signal<Local, Bit>>,
     /// A walk state (one slot per clock).
     walking: Signal<Local, Bit>,
+    w1_ready: Signal<Local, Bit>,
+    w2_ready: Signal<Local, Bit>,
+    rd: Signal<Local, Bit>,
+    /// The read stage's slot, one-hot.
+    sel_v: Signal<Local, Bits<MAX_SLOTS>>,
+    ge_lmin: Signal<Local, Bit>,
+    ge_lmin1: Signal<Local, Bit>,
+    ge_lmax1: Signal<Local, Bit>,
+    ge_n1: Signal<Local, Bit>,
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
     /// Slot i's first bank, i, at the bank's offset of `geo`.
@@ -622,6 +754,35 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             ev_bridge: Default::default(),
             geo: lanes(m),
             win: lanes(m),
+            bnd: lanes(m),
+            x_valid: Default::default(),
+            x_cand: Default::default(),
+            x_last: Default::default(),
+            x_eor: Default::default(),
+            x_lastrow: Default::default(),
+            x_cx: Default::default(),
+            x_yc: Default::default(),
+            x_xc: Default::default(),
+            x_ym1: Default::default(),
+            x_yp1: Default::default(),
+            x_above: Default::default(),
+            r_valid: Default::default(),
+            r_cand: Default::default(),
+            r_last: Default::default(),
+            r_eor: Default::default(),
+            r_lastrow: Default::default(),
+            r_cx: Default::default(),
+            r_yc: Default::default(),
+            r_near: Default::default(),
+            r_hw: Default::default(),
+            r_frow: Default::default(),
+            r_geo: Default::default(),
+            r_win: Default::default(),
+            r_sh: Default::default(),
+            r_bnd: Default::default(),
+            replay: Default::default(),
+            fpick: Default::default(),
+            fpick_any: Default::default(),
             busy_nx: Default::default(),
             live_nx: Default::default(),
             dip_nx: Default::default(),
@@ -635,6 +796,63 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             wm_fwd: Default::default(),
             wm_last: Default::default(),
             sv: lanes(2 * m),
+            n_m1: Default::default(),
+            lmin: Default::default(),
+            lmin_p1: Default::default(),
+            lmax_m1: Default::default(),
+            vf: Default::default(),
+            rd_on: Default::default(),
+            w1_valid: Default::default(),
+            w1_sel: Default::default(),
+            w1_slot: Default::default(),
+            w1_last: Default::default(),
+            w1_busy: Default::default(),
+            w1_live: Default::default(),
+            w1_dip: Default::default(),
+            w1_pend: Default::default(),
+            w1_opened: Default::default(),
+            w1_bridge: Default::default(),
+            w1_ax: Default::default(),
+            w1_ay: Default::default(),
+            w1_bank: Default::default(),
+            w1_word: Default::default(),
+            w2_valid: Default::default(),
+            w2_sel: Default::default(),
+            w2_slot: Default::default(),
+            w2_last: Default::default(),
+            w2_busy: Default::default(),
+            w2_live: Default::default(),
+            w2_bridge: Default::default(),
+            w2_ax: Default::default(),
+            w2_ay: Default::default(),
+            w2_bank: Default::default(),
+            w2_cut: Default::default(),
+            w2_unconf: Default::default(),
+            w2_comp: Default::default(),
+            w2_flags: Default::default(),
+            w2_tc: Default::default(),
+            w2_td: Default::default(),
+            w2_n_busy: Default::default(),
+            w2_n_live: Default::default(),
+            w2_n_pre: Default::default(),
+            w2_n_fresh: Default::default(),
+            w2_fin_end: Default::default(),
+            w2_fin_unconf: Default::default(),
+            w2_word: Default::default(),
+            run: Default::default(),
+            d_go: Default::default(),
+            r_from_x: Default::default(),
+            x_ready: Default::default(),
+            x_take: Default::default(),
+            s_cx: Default::default(),
+            s_cy: Default::default(),
+            near_v: Default::default(),
+            hw_v: Default::default(),
+            frow_v: Default::default(),
+            free_v: Default::default(),
+            on_v: Default::default(),
+            o_bnd: Default::default(),
+            sh_pre: Default::default(),
             rem: Default::default(),
             low: Default::default(),
             has_cand: Default::default(),
@@ -671,14 +889,9 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             t_ge_n: Default::default(),
             t1_ge_n: Default::default(),
             n32: Default::default(),
-            n_m1: Default::default(),
-            lmin: Default::default(),
-            lmin_p1: Default::default(),
-            lmax_m1: Default::default(),
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
             view_free: Default::default(),
-            go: Default::default(),
             do_open: Default::default(),
             do_drop: Default::default(),
             do_fin: Default::default(),
@@ -731,19 +944,16 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             walk_last: Default::default(),
             rec_tc: Default::default(),
             rec_td: Default::default(),
-            near: lanes(m),
-            absorb: lanes(m),
-            freeable: lanes(m),
-            abs_any: lanes(m + 1),
-            ftaken: lanes(m + 1),
-            fsel: lanes(m),
             absorbed: Default::default(),
-            any_free: Default::default(),
-            row_ok: lanes(m),
-            hw: lanes(m),
-            on: lanes(m),
-            sel: lanes(m),
             walking: Default::default(),
+            w1_ready: Default::default(),
+            w2_ready: Default::default(),
+            rd: Default::default(),
+            sel_v: Default::default(),
+            ge_lmin: Default::default(),
+            ge_lmin1: Default::default(),
+            ge_lmax1: Default::default(),
+            ge_n1: Default::default(),
             slot_id: (0..m)
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
@@ -779,8 +989,97 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, t, rows, done_mask, walk, lost, drops, drop_x, drop_y, c_blinks,
-            c_unconf, c_dropped, c_bridged, c_cuts, bank_err, bank_waits, wm_fwd, wm_last
+            self,
+            clock,
+            state,
+            t,
+            rows,
+            done_mask,
+            walk,
+            lost,
+            drops,
+            drop_x,
+            drop_y,
+            c_blinks,
+            c_unconf,
+            c_dropped,
+            c_bridged,
+            c_cuts,
+            bank_err,
+            bank_waits,
+            wm_fwd,
+            wm_last,
+            x_valid,
+            x_cand,
+            x_last,
+            x_eor,
+            x_lastrow,
+            x_cx,
+            x_yc,
+            x_xc,
+            x_ym1,
+            x_yp1,
+            x_above,
+            r_valid,
+            r_cand,
+            r_last,
+            r_eor,
+            r_lastrow,
+            r_cx,
+            r_yc,
+            r_near,
+            r_hw,
+            r_frow,
+            r_geo,
+            r_win,
+            r_sh,
+            r_bnd,
+            replay,
+            fpick,
+            fpick_any,
+            n_m1,
+            lmin,
+            lmin_p1,
+            lmax_m1,
+            vf,
+            rd_on,
+            w1_valid,
+            w1_sel,
+            w1_slot,
+            w1_last,
+            w1_busy,
+            w1_live,
+            w1_dip,
+            w1_pend,
+            w1_opened,
+            w1_bridge,
+            w1_ax,
+            w1_ay,
+            w1_bank,
+            w1_word,
+            w2_valid,
+            w2_sel,
+            w2_slot,
+            w2_last,
+            w2_busy,
+            w2_live,
+            w2_bridge,
+            w2_ax,
+            w2_ay,
+            w2_bank,
+            w2_cut,
+            w2_unconf,
+            w2_comp,
+            w2_flags,
+            w2_tc,
+            w2_td,
+            w2_n_busy,
+            w2_n_live,
+            w2_n_pre,
+            w2_n_fresh,
+            w2_fin_end,
+            w2_fin_unconf,
+            w2_word
         );
         self.walk_mem.clock.next = self.clock.val();
         // (The flags' `d` is their `_nx`, assigned at the end.)
@@ -797,6 +1096,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         for i in 0..self._m {
             self.geo[i].clock.next = self.clock.val();
             self.win[i].clock.next = self.clock.val();
+            self.bnd[i].clock.next = self.clock.val();
+            self.bnd[i].d.next = self.bnd[i].q.val();
             // (Held through the masks of the bits in use, so that synthesis
             // sees the others constant, also where no reader prunes them.)
             self.geo[i].d.next = self.geo[i].q.val() & self.geo_used.val();
@@ -814,15 +1115,29 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.t_m1.next = self.t.q.val() - 1;
         self.t_p1.next = self.t.q.val() + 1;
         self.n32.next = bit_cast::<18, NW>(self.n_window.val());
-        self.n_m1.next = self.n32.val() - 1;
-        self.lmin.next = bit_cast::<18, 32>(self.l_min.val());
-        self.lmin_p1.next = self.lmin.val() + 1;
-        self.lmax_m1.next = bit_cast::<18, 32>(self.l_max.val()) - 1;
+        // (Registered: the walk compares ages with them; the registers are
+        // written long before a walk.)
+        self.n_m1.d.next = self.n32.val() - 1;
+        self.lmin.d.next = bit_cast::<18, 32>(self.l_min.val());
+        self.lmin_p1.d.next = bit_cast::<18, 32>(self.l_min.val()) + 1;
+        self.lmax_m1.d.next = bit_cast::<18, 32>(self.l_max.val()) - 1;
         self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.t1_ge_n.next = self.t_p1.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
         self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
         self.can_push.next = self.rec_room.val() & self.fb_valid.val();
+
+        // ---- Flow (see "Pipeline" in the module doc): the decide stage takes
+        // the compare stage's item in Run unless it is replayed; the compare
+        // stage takes the item stage's when it is empty or decided; the item
+        // stage takes the head word's next lane when it is empty or moves on.
+        // (When `fin_cond` holds, both stages are empty: they take only real
+        // words, and every real plane is done.)
+        self.run.next = self.state.q.val() == TrackerState::Run;
+        self.d_go.next = self.run.val() & self.r_valid.q.val() & !self.replay.q.val();
+        self.r_from_x.next = !self.replay.q.val() & (!self.r_valid.q.val() | self.run.val());
+        self.x_ready.next = !self.x_valid.q.val() | self.r_from_x.val();
+        self.x_take.next = self.x_ready.val() & self.in_valid.val() & !self.in_flush.val();
 
         // ---- The head word: candidate lanes, lowest first.
         self.rem.next = self.in_cand.val() & !self.done_mask.q.val();
@@ -839,34 +1154,59 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.in_yc.next = bit_cast::<10, 16>(self.in_y.val());
         self.cx.next = (self.in_xc.val() << self.log2p.val()) | self.lane.val();
         self.eor.next = self.in_x.val() == self.last_word.val();
+        // Rows y − 1 .. y + 1 see the word.
+        self.y_m1.next = 0.into();
+        if self.in_yc.val() != 0 {
+            self.y_m1.next = self.in_yc.val() - 1;
+        }
+        self.y_p1.next = self.in_yc.val() + 1;
         // The ROI view of plane t − 1 may be overwritten (see `swept`).
         self.view_free.next = self.swept.val() >= self.t.q.val();
-        self.go.next = (self.state.q.val() == TrackerState::Run)
-            & !self.fin_cond.val()
-            & self.in_valid.val()
-            & !self.in_flush.val();
 
-        // Association window of the candidate: [c − r, c + r] in x and y.
+        // ---- Item stage.
+        self.in_pop.next = false;
+        self.x_valid.d.next = self.x_valid.q.val() & !self.r_from_x.val();
+        if self.x_take.val() {
+            self.x_valid.d.next = true;
+            self.x_cand.d.next = self.has_cand.val();
+            self.x_last.d.next = !self.more.val();
+            self.x_eor.d.next = self.eor.val();
+            self.x_lastrow.d.next = self.in_yc.val() == self.last_row.val();
+            self.x_cx.d.next = self.cx.val();
+            self.x_yc.d.next = self.in_yc.val();
+            self.x_xc.d.next = self.in_xc.val();
+            self.x_ym1.d.next = self.y_m1.val();
+            self.x_yp1.d.next = self.y_p1.val();
+            self.x_above.d.next = self.in_above.val();
+            if self.more.val() {
+                self.done_mask.d.next = self.done_mask.q.val() | self.low.val();
+            } else {
+                self.in_pop.next = true;
+                self.done_mask.d.next = 0.into();
+            }
+        }
+
+        // ---- What an opening by the item writes: its association window
+        // [c − r, c + r] in x and y, and the 3x3 window of the new anchor,
+        // columns [cx − 1, cx + 1] clipped, as lane masks of the (at most
+        // two) words that hold them.
         self.cx_lo.next = 0.into();
-        if self.cx.val() >= self.r_assoc.val() {
-            self.cx_lo.next = self.cx.val() - self.r_assoc.val();
+        if self.x_cx.q.val() >= self.r_assoc.val() {
+            self.cx_lo.next = self.x_cx.q.val() - self.r_assoc.val();
         }
-        self.cx_hi.next = self.cx.val() + self.r_assoc.val();
+        self.cx_hi.next = self.x_cx.q.val() + self.r_assoc.val();
         self.cy_lo.next = 0.into();
-        if self.in_yc.val() >= self.r_assoc.val() {
-            self.cy_lo.next = self.in_yc.val() - self.r_assoc.val();
+        if self.x_yc.q.val() >= self.r_assoc.val() {
+            self.cy_lo.next = self.x_yc.q.val() - self.r_assoc.val();
         }
-        self.cy_hi.next = self.in_yc.val() + self.r_assoc.val();
-
-        // The 3x3 window of a new anchor: columns [cx − 1, cx + 1] clipped, as
-        // lane masks of the (at most two) words that hold them.
+        self.cy_hi.next = self.x_yc.q.val() + self.r_assoc.val();
         self.lo_col.next = 0.into();
-        if self.cx.val() != 0 {
-            self.lo_col.next = self.cx.val() - 1;
+        if self.x_cx.q.val() != 0 {
+            self.lo_col.next = self.x_cx.q.val() - 1;
         }
-        self.hi_col.next = self.cx.val() + 1;
-        if self.cx.val() == self.last_col.val() {
-            self.hi_col.next = self.cx.val();
+        self.hi_col.next = self.x_cx.q.val() + 1;
+        if self.x_cx.q.val() == self.last_col.val() {
+            self.hi_col.next = self.x_cx.q.val();
         }
         self.o_wl.next = self.lo_col.val() >> self.log2p.val();
         self.o_wh.next = self.hi_col.val() >> self.log2p.val();
@@ -880,97 +1220,151 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.o_ml.next = self.m_lo.val() & self.m_hi.val();
             self.o_mh.next = self.m_lo.val() & self.m_hi.val();
         }
-        self.o_frow.next = self.in_yc.val() + 1;
-        if self.in_yc.val() == self.last_row.val() {
-            self.o_frow.next = self.in_yc.val();
+        self.o_frow.next = self.x_yc.q.val() + 1;
+        if self.x_lastrow.q.val() {
+            self.o_frow.next = self.x_yc.q.val();
         }
         // (Offsets: `slot_word` and `shadow`; literals for hdl_gen.)
-        self.o_geo.next = bit_cast::<64, 10>(self.cx.val())
-            | (bit_cast::<64, 10>(self.in_yc.val()) << 10)
+        self.o_geo.next = bit_cast::<64, 10>(self.x_cx.q.val())
+            | (bit_cast::<64, 10>(self.x_yc.q.val()) << 10)
             | (bit_cast::<64, 10>(self.o_wl.val()) << 34)
             | (bit_cast::<64, 10>(self.o_wh.val()) << 44)
             | (bit_cast::<64, 10>(self.o_frow.val()) << 54);
         self.o_win.next =
             bit_cast::<64, P>(self.o_ml.val()) | (bit_cast::<64, P>(self.o_mh.val()) << 32);
-        self.o_sh.next = bit_cast::<64, 10>(self.cx.val())
-            | (bit_cast::<64, 10>(self.in_yc.val()) << 10)
-            | self.sh_open.val()
-            | (bit_cast::<64, 1>(self.t_ge_n.val().into()) << 62);
+        self.o_sh.next = bit_cast::<64, 10>(self.x_cx.q.val())
+            | (bit_cast::<64, 10>(self.x_yc.q.val()) << 10)
+            | self.sh_open.val();
+        self.o_bnd.next = bit_cast::<64, 10>(self.cx_lo.val())
+            | (bit_cast::<64, 10>(self.cx_hi.val()) << 10)
+            | (bit_cast::<64, 10>(self.cy_lo.val()) << 20)
+            | (bit_cast::<64, 10>(self.cy_hi.val()) << 30);
 
-        // Rows y − 1 .. y + 1 see the word.
-        self.y_m1.next = 0.into();
-        if self.in_yc.val() != 0 {
-            self.y_m1.next = self.in_yc.val() - 1;
-        }
-        self.y_p1.next = self.in_yc.val() + 1;
-
-        // ---- Per slot: association, window hits, chains. Read only when a
-        // word is taken (`go`), and computed only then: in a simulator the
+        // ---- Compare stage: per slot, whether the candidate falls in its
+        // association window, whether the word hits its 3x3 window, and
+        // whether the word's row is the one at whose end the window has
+        // streamed. Computed only when the stage loads (in a simulator the
         // 32 slots' comparators cost most of the tracker's time, and most
-        // clocks bring no word (in hardware the gating is free: every
-        // reader is gated by `go` already).
-        self.abs_any[0].next = false;
-        self.ftaken[0].next = false;
-        for i in 0..self._m {
-            self.near[i].next = false;
-            self.absorb[i].next = false;
-            self.freeable[i].next = false;
-            self.abs_any[i + 1].next = false;
-            self.fsel[i].next = false;
-            self.ftaken[i + 1].next = false;
-            self.row_ok[i].next = false;
-            self.hw[i].next = false;
-            self.on[i].next = false;
+        // clocks bring no word).
+        self.s_cx.next = self.x_cx.q.val();
+        self.s_cy.next = self.x_yc.q.val();
+        if self.replay.q.val() {
+            self.s_cx.next = self.r_cx.q.val();
+            self.s_cy.next = self.r_yc.q.val();
         }
-        if self.go.val() {
+        self.near_v.next = 0.into();
+        self.hw_v.next = 0.into();
+        self.frow_v.next = 0.into();
+        if self.replay.q.val() | (self.r_from_x.val() & self.x_valid.q.val()) {
             for i in 0..self._m {
-                self.near[i].next = (self.geo[i].q.val().get_bits::<10>(0) >= self.cx_lo.val())
-                    & (self.geo[i].q.val().get_bits::<10>(0) <= self.cx_hi.val())
-                    & (self.geo[i].q.val().get_bits::<10>(10) >= self.cy_lo.val())
-                    & (self.geo[i].q.val().get_bits::<10>(10) <= self.cy_hi.val());
-                self.absorb[i].next = self.busy.q.val().get_bit(i)
-                    & (self.aprev.q.val().get_bit(i) | self.opened.q.val().get_bit(i))
-                    & self.near[i].val();
-                self.freeable[i].next =
-                    self.fprev.q.val().get_bit(i) & !self.opened.q.val().get_bit(i);
-                self.abs_any[i + 1].next = self.abs_any[i].val() | self.absorb[i].val();
-                self.fsel[i].next = self.freeable[i].val() & !self.ftaken[i].val();
-                self.ftaken[i + 1].next = self.ftaken[i].val() | self.freeable[i].val();
-                self.row_ok[i].next = (self.geo[i].q.val().get_bits::<10>(10) >= self.y_m1.val())
-                    & (self.geo[i].q.val().get_bits::<10>(10) <= self.y_p1.val());
-                self.hw[i].next = self.row_ok[i].val()
-                    & (((self.in_xc.val() == self.geo[i].q.val().get_bits::<10>(34))
-                        & (self.in_above.val() & self.win[i].q.val().get_bits::<P>(0)).any())
-                        | ((self.in_xc.val() == self.geo[i].q.val().get_bits::<10>(44))
-                            & (self.in_above.val() & self.win[i].q.val().get_bits::<P>(32)).any()));
-                self.on[i].next = self.hit.q.val().get_bit(i) | self.hw[i].val();
+                self.near_v.next = self.near_v.val().replace_bit(
+                    i,
+                    (self.s_cx.val() >= self.bnd[i].q.val().get_bits::<10>(0))
+                        & (self.s_cx.val() <= self.bnd[i].q.val().get_bits::<10>(10))
+                        & (self.s_cy.val() >= self.bnd[i].q.val().get_bits::<10>(20))
+                        & (self.s_cy.val() <= self.bnd[i].q.val().get_bits::<10>(30)),
+                );
+                self.hw_v.next = self.hw_v.val().replace_bit(
+                    i,
+                    (self.geo[i].q.val().get_bits::<10>(10) >= self.x_ym1.q.val())
+                        & (self.geo[i].q.val().get_bits::<10>(10) <= self.x_yp1.q.val())
+                        & (((self.x_xc.q.val() == self.geo[i].q.val().get_bits::<10>(34))
+                            & (self.x_above.q.val() & self.win[i].q.val().get_bits::<P>(0)).any())
+                            | ((self.x_xc.q.val() == self.geo[i].q.val().get_bits::<10>(44))
+                                & (self.x_above.q.val() & self.win[i].q.val().get_bits::<P>(32))
+                                    .any())),
+                );
+                self.frow_v.next = self.frow_v.val().replace_bit(
+                    i,
+                    self.geo[i].q.val().get_bits::<10>(54) == self.x_yc.q.val(),
+                );
             }
         }
+        if self.replay.q.val() {
+            self.r_near.d.next = self.near_v.val();
+        }
+        if self.r_from_x.val() {
+            self.r_valid.d.next = self.x_valid.q.val();
+            self.r_cand.d.next = self.x_cand.q.val();
+            self.r_last.d.next = self.x_last.q.val();
+            self.r_eor.d.next = self.x_eor.q.val();
+            self.r_lastrow.d.next = self.x_lastrow.q.val();
+            self.r_cx.d.next = self.x_cx.q.val();
+            self.r_yc.d.next = self.x_yc.q.val();
+            self.r_near.d.next = self.near_v.val();
+            self.r_hw.d.next = self.hw_v.val();
+            self.r_frow.d.next = self.frow_v.val();
+            self.r_geo.d.next = self.o_geo.val();
+            self.r_win.d.next = self.o_win.val();
+            self.r_sh.d.next = self.o_sh.val();
+            self.r_bnd.d.next = self.o_bnd.val();
+        }
+
+        // ---- Decide stage: the item against the slots as they are now. An
+        // opening of the previous clock is in the flags already but not in
+        // the compares: a candidate compared then is replayed (`replay`).
+        // The lowest free slot is a register of the previous clock's flags.
+        self.free_v.next = self.fprev.q.val() & !self.opened.q.val();
+        self.fpick.d.next = self.free_v.val() & (!self.free_v.val() + 1);
+        self.fpick_any.d.next = self.free_v.val().any();
+        self.absorbed.next =
+            (self.busy.q.val() & (self.aprev.q.val() | self.opened.q.val()) & self.r_near.q.val())
+                .any();
+        self.on_v.next = self.hit.q.val() | self.r_hw.q.val();
+        self.do_open.next =
+            self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & self.fpick_any.q.val();
+        self.do_drop.next =
+            self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & !self.fpick_any.q.val();
+        self.do_fin.next = self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val();
+        self.sh_pre.next = bit_cast::<64, 1>(self.t_ge_n.val().into()) << 62;
+        self.replay.d.next = self.do_open.val() & self.x_valid.q.val() & self.x_cand.q.val();
+
+        // ---- The walks (see "Walk pipeline" in the module doc): the read
+        // stage takes the slot at `walk` into W1, W1 decides what the walk
+        // does to it into W2, and W2 does it, one slot per clock each.
         self.walking.next = (self.state.q.val() == TrackerState::Walk)
             | (self.state.q.val() == TrackerState::Finish)
             | (self.state.q.val() == TrackerState::DrainWalk)
             | (self.state.q.val() == TrackerState::Emit);
-        for i in 0..self._m {
-            self.sel[i].next = false;
-        }
-        if self.walking.val() {
-            for i in 0..self._m {
-                self.sel[i].next = self.walk.q.val() == self.slot_id[i].val();
-            }
-        }
-        for mm in self._m..(self._m + 1) {
-            self.absorbed.next = self.abs_any[mm].val();
-            self.any_free.next = self.ftaken[mm].val();
-        }
-        self.do_open.next =
-            self.go.val() & self.has_cand.val() & !self.absorbed.val() & self.any_free.val();
-        self.do_drop.next =
-            self.go.val() & self.has_cand.val() & !self.absorbed.val() & !self.any_free.val();
-        self.do_fin.next = self.go.val() & !self.more.val() & self.eor.val();
+        // W2's step: the end of a plane waits until the sweep has finished
+        // plane t − 1, whose ROI view it overwrites (`vf`, a clock old: t
+        // changes only at the end of a walk, two stages before W2 can act
+        // again); a Blink waits for its fresh bank.
+        self.vf.d.next = self.view_free.val();
+        self.need_bank.next = self.w2_valid.q.val()
+            & (((self.state.q.val() == TrackerState::Walk)
+                & self.vf.q.val()
+                & self.w2_comp.q.val())
+                | ((self.state.q.val() == TrackerState::Emit) & self.w2_busy.q.val()));
+        // The queue has room but the free list shows no bank: the bank of the
+        // record the packetiser has just finished is on its way back (the
+        // queue counts that record until it is popped, the pool shows the
+        // bank a few clocks later), so the walk waits for it rather than
+        // lose the record. Room in the queue means at most Q − 1 queued
+        // Blinks, so one of the Q spare banks is free or returning.
+        self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
+        self.we_walk.next = self.w2_valid.q.val()
+            & (self.state.q.val() == TrackerState::Walk)
+            & self.vf.q.val()
+            & !self.bank_wait.val();
+        self.we_fin.next = self.w2_valid.q.val() & (self.state.q.val() == TrackerState::Finish);
+        self.we_drain.next = self.w2_valid.q.val()
+            & (self.state.q.val() == TrackerState::DrainWalk)
+            & self.vf.q.val();
+        self.we_emit.next = self.w2_valid.q.val()
+            & (self.state.q.val() == TrackerState::Emit)
+            & !self.bank_wait.val();
+        self.w2_ready.next = !self.w2_valid.q.val()
+            | self.we_walk.val()
+            | self.we_fin.val()
+            | self.we_drain.val()
+            | self.we_emit.val();
+        self.w1_ready.next = !self.w1_valid.q.val() | self.w2_ready.val();
+        self.rd.next = self.rd_on.q.val() & self.w1_ready.val();
 
-        // ---- The walked slot: its state through one multiplexer, and what
-        // the walk makes of it, with one comparator of each kind for all
-        // slots (the walks visit one slot per clock).
+        // Read stage: the slot's state through one multiplexer; the fields
+        // only the walks read come from its word in `walk_mem`, read a clock
+        // ahead (at `walk.d`).
         self.w_busy.next = false;
         self.w_live.next = false;
         self.w_dip.next = false;
@@ -980,9 +1374,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.w_ax.next = 0.into();
         self.w_ay.next = 0.into();
         self.w_bank.next = 0.into();
-        if self.walking.val() {
+        self.sel_v.next = 0.into();
+        if self.rd_on.q.val() {
             for i in 0..self._m {
-                if self.sel[i].val() {
+                if self.walk.q.val() == self.slot_id[i].val() {
+                    self.sel_v.next = self.sel_v.val().replace_bit(i, true);
                     self.w_busy.next = self.busy.q.val().get_bit(i);
                     self.w_live.next = self.live.q.val().get_bit(i);
                     self.w_dip.next = self.dip.q.val().get_bit(i);
@@ -995,51 +1391,77 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
         }
-        // The walk-only fields come from the slot's word in `walk_mem`. A slot
-        // opened in this plane has not been walked since: its word is a
-        // previous track's, and the opening's values (age 0, unconfirmed, no
-        // continuation, not truncated) stand in for it (so that the opening
-        // needs no second write port; `dage` means nothing until the drop).
         self.w_word.next = self.walk_mem.read_data.val();
         if self.wm_fwd.q.val() {
             self.w_word.next = self.wm_last.q.val();
         }
-        self.w_age.next = self.w_word.val().get_bits::<18>(0);
-        self.w_dage.next = self.w_word.val().get_bits::<16>(18);
-        self.w_conf.next = self.w_word.val().get_bit(34);
-        self.w_cont.next = self.w_word.val().get_bit(35);
-        self.w_trunc.next = self.w_word.val().get_bit(36);
-        if self.w_opened.val() {
+        self.w1_valid.d.next = self.w1_valid.q.val() & !self.w2_ready.val();
+        if self.rd.val() {
+            self.w1_valid.d.next = true;
+            self.w1_sel.d.next = self.sel_v.val();
+            self.w1_slot.d.next = self.walk.q.val();
+            self.w1_last.d.next = self.walk.q.val() == self.last_slot.val();
+            self.w1_busy.d.next = self.w_busy.val();
+            self.w1_live.d.next = self.w_live.val();
+            self.w1_dip.d.next = self.w_dip.val();
+            self.w1_pend.d.next = self.w_pend.val();
+            self.w1_opened.d.next = self.w_opened.val();
+            self.w1_bridge.d.next = self.w_bridge.val();
+            self.w1_ax.d.next = self.w_ax.val();
+            self.w1_ay.d.next = self.w_ay.val();
+            self.w1_bank.d.next = self.w_bank.val();
+            self.w1_word.d.next = self.w_word.val();
+            self.walk.d.next = self.walk.q.val() + 1;
+            if self.walk.q.val() == self.last_slot.val() {
+                self.rd_on.d.next = false;
+            }
+        }
+
+        // W1: what the walk makes of the slot. A slot opened in this plane
+        // has not been walked since: its word is a previous track's, and the
+        // opening's values (age 0, unconfirmed, no continuation, not
+        // truncated) stand in for it (so that the opening needs no second
+        // write port; `dage` means nothing until the drop).
+        self.w_age.next = self.w1_word.q.val().get_bits::<18>(0);
+        self.w_dage.next = self.w1_word.q.val().get_bits::<16>(18);
+        self.w_conf.next = self.w1_word.q.val().get_bit(34);
+        self.w_cont.next = self.w1_word.q.val().get_bit(35);
+        self.w_trunc.next = self.w1_word.q.val().get_bit(36);
+        if self.w1_opened.q.val() {
             self.w_age.next = 0.into();
             self.w_conf.next = false;
             self.w_cont.next = false;
             self.w_trunc.next = false;
         }
+        self.ge_lmin.next = self.w_age.val() >= self.lmin.q.val();
+        self.ge_lmin1.next = self.w_age.val() >= self.lmin_p1.q.val();
+        self.ge_lmax1.next = self.w_age.val() >= self.lmax_m1.q.val();
+        self.ge_n1.next = self.w_age.val() >= self.n_m1.q.val();
         // A blink that ended in this plane (its on/off step found the second
         // plane below: `pend`) ended at t_drop = t − 1, confirmed if it lasted
         // L_min planes.
         self.w_conf1.next = self.w_conf.val();
         self.w_dage1.next = self.w_dage.val();
-        if self.w_pend.val() {
-            self.w_conf1.next = self.w_cont.val() | (self.w_age.val() >= self.lmin_p1.val());
+        if self.w1_pend.q.val() {
+            self.w_conf1.next = self.w_cont.val() | self.ge_lmin1.val();
             self.w_dage1.next = 1.into();
         }
         // Cut at L_max; an ended track unconfirmed is freed, a confirmed one
         // completes once its last plane is out of the window.
-        self.w_cut.next = self.w_busy.val()
-            & self.w_live.val()
-            & !self.w_dip.val()
-            & (self.w_age.val() >= self.lmax_m1.val());
-        self.w_unconf.next = self.w_busy.val() & !self.w_live.val() & !self.w_conf1.val();
+        self.w_cut.next = self.w1_busy.q.val()
+            & self.w1_live.q.val()
+            & !self.w1_dip.q.val()
+            & self.ge_lmax1.val();
+        self.w_unconf.next = self.w1_busy.q.val() & !self.w1_live.q.val() & !self.w_conf1.val();
         self.w_comp.next = self.w_cut.val()
-            | (self.w_busy.val()
-                & !self.w_live.val()
+            | (self.w1_busy.q.val()
+                & !self.w1_live.q.val()
                 & self.w_conf1.val()
-                & (self.w_cont.val() | (self.w_age.val() >= self.n_m1.val())));
+                & (self.w_cont.val() | self.ge_n1.val()));
         // The model's `finish`: a live track is confirmed if it lasted L_min planes.
         self.w_fconf.next = self.w_cont.val()
-            | (!self.w_dip.val() & (self.w_age.val() >= self.lmin.val()))
-            | (self.w_dip.val() & (self.w_age.val() >= self.lmin_p1.val()));
+            | (!self.w1_dip.q.val() & self.ge_lmin.val())
+            | (self.w1_dip.q.val() & self.ge_lmin1.val());
         // Record flag bits (model `flags`): CUT 0x04, CONTINUATION 0x08, TRUNCATED 0x10.
         self.w_flags.next = 0.into();
         if self.w_cut.val() {
@@ -1059,11 +1481,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // The slot after the walk, ages advanced to plane t + 1: a cut blink
         // goes on as a continuation from t + 1 (age 0 at t + 1); a
         // completed or unconfirmed one frees the slot.
-        self.n_busy.next = self.w_busy.val() & !self.w_unconf.val();
+        self.n_busy.next = self.w1_busy.q.val() & !self.w_unconf.val();
         if self.w_comp.val() & !self.w_cut.val() {
             self.n_busy.next = false;
         }
-        self.n_live.next = self.w_live.val() | self.w_cut.val();
+        self.n_live.next = self.w1_live.q.val() | self.w_cut.val();
         self.n_cont.next = self.w_cont.val() | self.w_cut.val();
         self.n_age.next = self.w_age.val() + 1;
         self.n_dage.next = self.w_dage1.val() + 1;
@@ -1073,14 +1495,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         }
         // A drain plane ends no track: the slot only ages.
         if self.state.q.val() == TrackerState::DrainWalk {
-            self.n_busy.next = self.w_busy.val();
+            self.n_busy.next = self.w1_busy.q.val();
         }
-        // Its ROI view for plane t + 1.
+        // Its ROI view for plane t + 1: the pre-roll while t + 1 < t_cross + N,
+        // i.e. n_age < N (n_age is 0 after a cut, age + 1 < N otherwise);
+        // the first plane of a segment where n_age = 0, i.e. after a cut
+        // (ages stay below 2^AGE_BITS − 1, so age + 1 is never 0).
         self.n_pre.next = self.n_busy.val()
             & !self.n_cont.val()
             & self.t1_ge_n.val()
-            & (self.n_age.val() < self.n32.val());
-        self.n_fresh.next = self.n_busy.val() & (self.n_age.val() == 0);
+            & (self.w_cut.val() | !self.ge_n1.val());
+        self.n_fresh.next = self.n_busy.val() & self.w_cut.val();
         // What the walk writes back to the slot's word: the end of a plane
         // its next state, the stream end's `finish` the end of a live track
         // (at t − 1 = p − 1, truncated), a drain plane's end the ages.
@@ -1099,35 +1524,45 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.state.q.val() == TrackerState::Finish {
             self.wr_age.next = self.w_age.val();
             self.wr_dage.next = self.w_dage.val();
-            if self.w_busy.val() & self.w_live.val() {
+            if self.w1_busy.q.val() & self.w1_live.q.val() {
                 self.wr_dage.next = 1.into();
                 self.wr_trunc.next = true;
                 self.wr_conf.next = self.w_fconf.val();
             }
         }
-
-        // The walk's steps: the end of a plane waits until the sweep has
-        // finished plane t − 1, whose ROI view it overwrites; a Blink waits
-        // for its fresh bank.
-        self.need_bank.next =
-            ((self.state.q.val() == TrackerState::Walk) & self.view_free.val() & self.w_comp.val())
-                | ((self.state.q.val() == TrackerState::Emit) & self.w_busy.val());
-        // The queue has room but the free list shows no bank: the bank of the
-        // record the packetiser has just finished is on its way back (the
-        // queue counts that record until it is popped, the pool shows the
-        // bank a few clocks later), so the walk waits for it rather than
-        // lose the record. Room in the queue means at most Q − 1 queued
-        // Blinks, so one of the Q spare banks is free or returning.
-        self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
-        self.we_walk.next = (self.state.q.val() == TrackerState::Walk)
-            & self.view_free.val()
-            & !self.bank_wait.val();
-        self.we_fin.next = (self.state.q.val() == TrackerState::Finish) & (self.t.q.val() != 0);
-        self.we_drain.next = (self.state.q.val() == TrackerState::DrainWalk) & self.view_free.val();
-        self.we_emit.next = (self.state.q.val() == TrackerState::Emit) & !self.bank_wait.val();
+        self.w2_valid.d.next = self.w2_valid.q.val() & !self.w2_ready.val();
+        if self.w2_ready.val() {
+            self.w2_valid.d.next = self.w1_valid.q.val();
+            self.w2_sel.d.next = self.w1_sel.q.val();
+            self.w2_slot.d.next = self.w1_slot.q.val();
+            self.w2_last.d.next = self.w1_last.q.val();
+            self.w2_busy.d.next = self.w1_busy.q.val();
+            self.w2_live.d.next = self.w1_live.q.val();
+            self.w2_bridge.d.next = self.w1_bridge.q.val();
+            self.w2_ax.d.next = self.w1_ax.q.val();
+            self.w2_ay.d.next = self.w1_ay.q.val();
+            self.w2_bank.d.next = self.w1_bank.q.val();
+            self.w2_cut.d.next = self.w_cut.val();
+            self.w2_unconf.d.next = self.w_unconf.val();
+            self.w2_comp.d.next = self.w_comp.val();
+            self.w2_flags.d.next = self.w_flags.val();
+            self.w2_tc.d.next = self.rec_tc.val();
+            self.w2_td.d.next = self.rec_td.val();
+            self.w2_n_busy.d.next = self.n_busy.val();
+            self.w2_n_live.d.next = self.n_live.val();
+            self.w2_n_pre.d.next = self.n_pre.val();
+            self.w2_n_fresh.d.next = self.n_fresh.val();
+            self.w2_fin_end.d.next = self.w1_busy.q.val() & self.w1_live.q.val();
+            self.w2_fin_unconf.d.next =
+                self.w1_busy.q.val() & self.w1_live.q.val() & !self.w_fconf.val();
+            self.w2_word.d.next = bit_cast::<37, 18>(self.wr_age.val())
+                | (bit_cast::<37, 16>(self.wr_dage.val()) << 18)
+                | (bit_cast::<37, 1>(self.wr_conf.val().into()) << 34)
+                | (bit_cast::<37, 1>(self.wr_cont.val().into()) << 35)
+                | (bit_cast::<37, 1>(self.wr_trunc.val().into()) << 36);
+        }
 
         // ---- Record port defaults.
-        self.in_pop.next = false;
         self.rec_push.next = false;
         self.rec_kind.next = 0.into();
         self.rec_lost.next = self.lost.q.val();
@@ -1140,17 +1575,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.rec_bank.next = 0.into();
         self.rec_tag.next = self.t.q.val();
         self.fb_pop.next = false;
-        // A walked slot's Blink record.
-        if (self.we_walk.val() & self.w_comp.val()) | (self.we_emit.val() & self.w_busy.val()) {
+        // W2: a walked slot's Blink record.
+        if (self.we_walk.val() & self.w2_comp.q.val()) | (self.we_emit.val() & self.w2_busy.q.val())
+        {
             self.c_blinks.d.next = self.c_blinks.q.val() + 1;
             self.rec_kind.next = 1.into();
-            self.rec_slot.next = self.walk.q.val();
-            self.rec_flags.next = self.w_flags.val();
-            self.rec_ax.next = bit_cast::<16, 10>(self.w_ax.val());
-            self.rec_ay.next = bit_cast::<16, 10>(self.w_ay.val());
-            self.rec_t0.next = self.rec_tc.val();
-            self.rec_t1.next = self.rec_td.val();
-            self.rec_bank.next = self.w_bank.val();
+            self.rec_slot.next = self.w2_slot.q.val();
+            self.rec_flags.next = self.w2_flags.q.val();
+            self.rec_ax.next = bit_cast::<16, 10>(self.w2_ax.q.val());
+            self.rec_ay.next = bit_cast::<16, 10>(self.w2_ay.q.val());
+            self.rec_t0.next = self.w2_tc.q.val();
+            self.rec_t1.next = self.w2_td.q.val();
+            self.rec_bank.next = self.w2_bank.q.val();
             if self.state.q.val() == TrackerState::Emit {
                 self.rec_tag.next = self.t_m1.val();
             }
@@ -1165,40 +1601,31 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // The walked slot's bank from now on (and in its ROI view for plane
         // t + 1): a fresh one if it has just handed its bank to a Blink record.
-        self.n_bank.next = self.w_bank.val();
+        self.n_bank.next = self.w2_bank.q.val();
         if self.fb_pop.val() {
             self.n_bank.next = self.fb_bank.val();
         }
         self.n_bank_w.next = bit_cast::<64, BW>(self.n_bank.val()) << 20;
-        self.n_sh.next = bit_cast::<64, 10>(self.w_ax.val())
-            | (bit_cast::<64, 10>(self.w_ay.val()) << 10)
+        self.n_sh.next = bit_cast::<64, 10>(self.w2_ax.q.val())
+            | (bit_cast::<64, 10>(self.w2_ay.q.val()) << 10)
             | self.n_bank_w.val()
             | (bit_cast::<64, 1>(
-                (self.n_busy.val() & self.n_live.val() & self.we_walk.val()).into(),
+                (self.w2_n_busy.q.val() & self.w2_n_live.q.val() & self.we_walk.val()).into(),
             ) << 61)
-            | (bit_cast::<64, 1>(self.n_pre.val().into()) << 62)
-            | (bit_cast::<64, 1>((self.n_fresh.val() & self.we_walk.val()).into()) << 63);
+            | (bit_cast::<64, 1>(self.w2_n_pre.q.val().into()) << 62)
+            | (bit_cast::<64, 1>((self.w2_n_fresh.q.val() & self.we_walk.val()).into()) << 63);
         // (A value shifted into a wider word is a signal of its own: Verilog
         // widens the operands of `~` before inverting them.)
-        self.n_free.next = !self.n_busy.val();
+        self.n_free.next = !self.w2_n_busy.q.val();
         self.fin_keep.next = self.sh_keep_live.val();
-        if self.w_busy.val() & self.w_live.val() & !self.w_fconf.val() {
+        if self.w2_fin_unconf.q.val() {
             self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
         }
-
-        // Every walk takes one slot per step; the states say where the last goes.
-        self.walk_last.next = self.walk.q.val() == self.last_slot.val();
-        self.walk_mem.write_address.next = self.walk.q.val();
+        self.walk_last.next = self.w2_last.q.val();
+        self.walk_mem.write_address.next = self.w2_slot.q.val();
         self.walk_mem.write_enable.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
-        self.walk_mem.write_data.next = bit_cast::<37, 18>(self.wr_age.val())
-            | (bit_cast::<37, 16>(self.wr_dage.val()) << 18)
-            | (bit_cast::<37, 1>(self.wr_conf.val().into()) << 34)
-            | (bit_cast::<37, 1>(self.wr_cont.val().into()) << 35)
-            | (bit_cast::<37, 1>(self.wr_trunc.val().into()) << 36);
-        if self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val() {
-            self.walk.d.next = self.walk.q.val() + 1;
-        }
+        self.walk_mem.write_data.next = self.w2_word.q.val();
 
         match self.state.q.val() {
             TrackerState::Start => {
@@ -1211,35 +1638,29 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             TrackerState::Run => {
                 if self.fin_cond.val() {
                     self.walk.d.next = 0.into();
+                    self.rd_on.d.next = self.t.q.val() != 0;
                     self.state.d.next = TrackerState::Finish;
-                } else if self.go.val() {
-                    for i in 0..self._m {
-                        self.hit_nx.next = self.hit_nx.val().replace_bit(i, self.on[i].val());
-                    }
-                    if self.more.val() {
-                        self.done_mask.d.next = self.done_mask.q.val() | self.low.val();
-                    } else {
-                        self.in_pop.next = true;
-                        self.done_mask.d.next = 0.into();
-                        if self.eor.val() {
-                            self.rows.d.next = self.in_y.val() + 1;
-                            if self.in_yc.val() == self.last_row.val() {
-                                self.walk.d.next = 0.into();
-                                self.state.d.next = TrackerState::Walk;
-                            }
+                } else if self.d_go.val() {
+                    self.hit_nx.next = self.on_v.val();
+                    if self.r_last.q.val() & self.r_eor.q.val() {
+                        self.rows.d.next = bit_cast::<16, 10>(self.r_yc.q.val()) + 1;
+                        if self.r_lastrow.q.val() {
+                            self.walk.d.next = 0.into();
+                            self.rd_on.d.next = true;
+                            self.state.d.next = TrackerState::Walk;
                         }
                     }
                 }
             }
             TrackerState::Walk => {
                 if self.we_walk.val() {
-                    if self.w_bridge.val() {
+                    if self.w2_bridge.q.val() {
                         self.c_bridged.d.next = self.c_bridged.q.val() + 1;
                     }
-                    if self.w_unconf.val() {
+                    if self.w2_unconf.q.val() {
                         self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
-                    if self.w_cut.val() {
+                    if self.w2_cut.q.val() {
                         self.c_cuts.d.next = self.c_cuts.q.val() + 1;
                     }
                     if self.walk_last.val() {
@@ -1269,8 +1690,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             TrackerState::Finish => {
                 if self.t.q.val() == 0 {
                     self.state.d.next = TrackerState::End;
-                } else {
-                    if self.w_busy.val() & self.w_live.val() & !self.w_fconf.val() {
+                } else if self.we_fin.val() {
+                    if self.w2_fin_unconf.q.val() {
                         self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
                     if self.walk_last.val() {
@@ -1285,6 +1706,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.rows.d.next = self.in_y.val() + 1;
                         if self.in_yc.val() == self.last_row.val() {
                             self.walk.d.next = 0.into();
+                            self.rd_on.d.next = true;
                             self.state.d.next = TrackerState::DrainWalk;
                         }
                     }
@@ -1297,6 +1719,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.state.d.next = TrackerState::Drain;
                     if self.t_p1.val() == self.p_plus_n.val() {
                         self.walk.d.next = 0.into();
+                        self.rd_on.d.next = true;
                         self.state.d.next = TrackerState::Emit;
                     }
                 }
@@ -1328,15 +1751,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // ---- The walks write the walked slot. (Packed registers: each
         // write replaces its bits of `d` as assigned so far.)
-        if self.walking.val() {
+        if self.w2_valid.q.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
-                    if self.sel[i].val() & self.we_walk.val() {
-                        self.busy_nx.next = self.busy_nx.val().replace_bit(i, self.n_busy.val());
-                        self.live_nx.next = self.live_nx.val().replace_bit(i, self.n_live.val());
+                    if self.w2_sel.q.val().get_bit(i) & self.we_walk.val() {
+                        self.busy_nx.next =
+                            self.busy_nx.val().replace_bit(i, self.w2_n_busy.q.val());
+                        self.live_nx.next =
+                            self.live_nx.val().replace_bit(i, self.w2_n_live.q.val());
                         self.pend_nx.next = self.pend_nx.val().replace_bit(i, false);
                         self.ev_bridge_nx.next = self.ev_bridge_nx.val().replace_bit(i, false);
-                        if self.w_cut.val() {
+                        if self.w2_cut.q.val() {
                             self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         }
                         self.geo[i].d.next =
@@ -1345,38 +1770,38 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.aprev_nx.next = self
                             .aprev_nx
                             .val()
-                            .replace_bit(i, self.n_busy.val() & self.n_live.val());
+                            .replace_bit(i, self.w2_n_busy.q.val() & self.w2_n_live.q.val());
                         self.fprev_nx.next = self.fprev_nx.val().replace_bit(i, self.n_free.val());
                         self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
                         self.hit_nx.next = self.hit_nx.val().replace_bit(i, false);
                     }
                     // (`opened` too, so that the drain walks and Emit read the
                     // word `finish` writes.)
-                    if self.sel[i].val() & self.we_fin.val() {
+                    if self.w2_sel.q.val().get_bit(i) & self.we_fin.val() {
                         self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
                     }
-                    if self.sel[i].val() & self.we_fin.val() & self.w_busy.val() & self.w_live.val()
+                    if self.w2_sel.q.val().get_bit(i) & self.we_fin.val() & self.w2_fin_end.q.val()
                     {
                         self.live_nx.next = self.live_nx.val().replace_bit(i, false);
                         self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                        if !self.w_fconf.val() {
+                        if self.w2_fin_unconf.q.val() {
                             self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
                         }
                     }
-                    if self.sel[i].val() & self.we_fin.val() {
+                    if self.w2_sel.q.val().get_bit(i) & self.we_fin.val() {
                         if self.par.val() {
                             self.sv[i + mm].d.next = self.sv[i + mm].q.val() & self.fin_keep.val();
                         } else {
                             self.sv[i].d.next = self.sv[i].q.val() & self.fin_keep.val();
                         }
                     }
-                    if self.sel[i].val() & self.we_emit.val() & self.w_busy.val() {
+                    if self.w2_sel.q.val().get_bit(i) & self.we_emit.val() & self.w2_busy.q.val() {
                         self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
                         self.geo[i].d.next =
                             (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                     }
                     // The slot's ROI view for plane t + 1.
-                    if self.sel[i].val() & (self.we_walk.val() | self.we_drain.val()) {
+                    if self.w2_sel.q.val().get_bit(i) & (self.we_walk.val() | self.we_drain.val()) {
                         if self.par1.val() {
                             self.sv[i + mm].d.next = self.n_sh.val();
                         } else {
@@ -1391,20 +1816,23 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.do_open.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
-                    if self.do_open.val() & self.fsel[i].val() {
+                    if self.do_open.val() & self.fpick.q.val().get_bit(i) {
                         self.busy_nx.next = self.busy_nx.val().replace_bit(i, true);
                         self.live_nx.next = self.live_nx.val().replace_bit(i, true);
                         self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         self.opened_nx.next = self.opened_nx.val().replace_bit(i, true);
                         self.geo[i].d.next =
-                            (self.geo[i].q.val() & self.bank_mask.val()) | self.o_geo.val();
-                        self.win[i].d.next = self.o_win.val();
+                            (self.geo[i].q.val() & self.bank_mask.val()) | self.r_geo.q.val();
+                        self.win[i].d.next = self.r_win.q.val();
+                        self.bnd[i].d.next = self.r_bnd.q.val();
                         if self.par.val() {
-                            self.sv[i + mm].d.next =
-                                (self.geo[i].q.val() & self.bank_mask.val()) | self.o_sh.val();
+                            self.sv[i + mm].d.next = (self.geo[i].q.val() & self.bank_mask.val())
+                                | self.r_sh.q.val()
+                                | self.sh_pre.val();
                         } else {
-                            self.sv[i].d.next =
-                                (self.geo[i].q.val() & self.bank_mask.val()) | self.o_sh.val();
+                            self.sv[i].d.next = (self.geo[i].q.val() & self.bank_mask.val())
+                                | self.r_sh.q.val()
+                                | self.sh_pre.val();
                         }
                     }
                 }
@@ -1414,8 +1842,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.c_dropped.d.next = self.c_dropped.q.val() + 1;
             self.drops.d.next = self.drops.q.val() + 1;
             if self.drops.q.val() == 0 {
-                self.drop_x.d.next = self.cx.val();
-                self.drop_y.d.next = self.in_yc.val();
+                self.drop_x.d.next = self.r_cx.q.val();
+                self.drop_y.d.next = self.r_yc.q.val();
             }
         }
 
@@ -1427,9 +1855,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         & self.aprev.q.val().get_bit(i)
                         & self.busy.q.val().get_bit(i)
                         & self.live.q.val().get_bit(i)
-                        & (self.geo[i].q.val().get_bits::<10>(54) == self.in_yc.val())
+                        & self.r_frow.q.val().get_bit(i)
                     {
-                        if self.on[i].val() {
+                        if self.on_v.val().get_bit(i) {
                             if self.dip.q.val().get_bit(i) {
                                 self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                                 self.ev_bridge_nx.next =
@@ -1463,6 +1891,12 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.t.d.next = 0.into();
             self.rows.d.next = 0.into();
             self.done_mask.d.next = 0.into();
+            self.x_valid.d.next = false;
+            self.r_valid.d.next = false;
+            self.replay.d.next = false;
+            self.rd_on.d.next = false;
+            self.w1_valid.d.next = false;
+            self.w2_valid.d.next = false;
             self.lost.d.next = 0.into();
             self.drops.d.next = 0.into();
             self.c_blinks.d.next = 0.into();
@@ -1506,7 +1940,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.walk_mem.read_address.next = self.walk.d.val();
         self.wm_fwd.d.next = self.one_slot.val()
             & self.walk_mem.write_enable.val()
-            & (self.walk.d.val() == self.walk.q.val());
+            & (self.walk.d.val() == self.w2_slot.q.val());
         self.wm_last.d.next = self.walk_mem.write_data.val();
 
         self.plane.next = self.t.q.val();

@@ -456,12 +456,14 @@ impl BackHalfConfig {
 
     /// Sweep backlog bound, rows: all M ROIs on the same R rows need
     /// R·(M + 1) sweep clocks while R rows bring R·W/P word clocks (at the
-    /// full input rate); the tracker pauses M + 3 clocks at each plane's end;
-    /// plus one row of margin.
+    /// full input rate); the tracker pauses at most 2M + 5 clocks a plane
+    /// (M + 5 at its end: the walk's M slots through its three stages and
+    /// WalkEnd; and one replay after each of at most M openings); plus one
+    /// row of margin.
     pub fn default_row_slack(&self) -> usize {
         let wpr = self.front.words_per_row();
         let excess = (self.roi_size * (self.slots + 1)).saturating_sub(self.roi_size * wpr);
-        excess.div_ceil(wpr) + (self.slots + 3).div_ceil(wpr) + 1
+        excess.div_ceil(wpr) + (2 * self.slots + 5).div_ceil(wpr) + 1
     }
 
     /// Rows of the ROI row buffer (a ring).

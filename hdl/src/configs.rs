@@ -238,6 +238,10 @@ impl Design {
     /// The Verilog of the design (top module `top`): the file that
     /// `smartagg hdl generate` writes, yosys synthesises and Verilator lints.
     pub fn verilog(&self) -> Result<String, GatewareError> {
+        on_generation_stack(|| self.verilog_here())
+    }
+
+    fn verilog_here(&self) -> Result<String, GatewareError> {
         let c = &self.config;
         let k = c.front.kernel.len();
         Ok(match (self.delay_line, k) {
@@ -288,6 +292,28 @@ impl Design {
     pub fn delay_line_bits(&self) -> u64 {
         self.config.front.delay_line_bits()
     }
+}
+
+/// Stack of the thread that builds and generates a design, bytes.
+pub const GENERATION_STACK: usize = 256 << 20;
+
+/// Runs `f` on a thread of its own with a [`GENERATION_STACK`]-byte stack
+/// and returns its result. A whole top is a value of about 200 KB that is
+/// moved several times while its blocks are built, and its generation
+/// recurses through every block: more than a test thread's 2 MiB holds,
+/// whatever thread the caller is on. (Only the pages used are committed.)
+pub fn on_generation_stack<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    std::thread::scope(|s| {
+        let h = std::thread::Builder::new()
+            .name("hdl-generation".into())
+            .stack_size(GENERATION_STACK)
+            .spawn_scoped(s, f)
+            .expect("the system refused a thread for the design's generation");
+        match h.join() {
+            Ok(v) => v,
+            Err(e) => std::panic::resume_unwind(e),
+        }
+    })
 }
 
 /// The XEM6310 top of the SPCImager at 150× (k = 9, N_max = 128, DDR2).

@@ -25,7 +25,8 @@
 //!
 //! **Throughput.** Every stage takes one word per clock; the back half needs
 //! one clock per word with an above-threshold pixel, one per extra candidate
-//! in a word, M + 3 per plane and one per ROI row per slot; the sensor's
+//! in a word, one after each opening that another candidate follows (at most
+//! M a plane), M + 5 per plane and one per ROI row per slot; the sensor's
 //! 47.6 % duty cycle at P = 16 (see the crate docs) leaves that headroom.
 //! A source that can wait (the replay) is paced by `ready` instead: the
 //! stream accepts words and the back half has room (the tracker's FIFO and
@@ -1447,16 +1448,19 @@ pub fn test_back_config(
     b.queue_log2 = 4;
     b.tracker_fifo_log2 = 5;
     b.output_fifo_log2 = 11;
-    b.row_slack = b.default_row_slack();
+    // Six rows beyond the default, so that `room` lets a paced source run
+    // ahead of the sweep by more than its fixed lag even in this 6-row
+    // field (with the default, `ring_room_rows` is the lag itself).
+    b.row_slack = b.default_row_slack() + 6;
     b.validate()?;
     Ok(b)
 }
 
 /// [`Pipeline`] of [`test_back_config`]`(4, 3, 1)`.
-pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
 
 /// [`PipelineDdr`] of [`test_back_config`]`(4, 3, 1)`, prefetch of 64 words.
-pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
 
 /// The SPCImager at 150× (320×240, P = 16, N_max = 128, the model's kernel
 /// for σ = 1.51 px) with the model's defaults M = 32, 9×9 ROIs (R = k),

@@ -49,8 +49,9 @@
 //! **Throughput.** A row costs one clock plus one per relevant slot beyond
 //! the first; R rows bring R·W/P word clocks at most, so the sweep keeps up
 //! when `M + 1 ≤ W/P` and otherwise needs `⌈R·(M + 1 − W/P)/(W/P)⌉` rows of
-//! slack, plus the rows the tracker may fall behind at each plane's end
-//! (`M + 3` clocks): [`BackHalfConfig::default_row_slack`].
+//! slack, plus the rows the tracker may fall behind in a plane (`2M + 5`
+//! clocks: its walk, and its replays after openings):
+//! [`BackHalfConfig::default_row_slack`].
 
 use crate::blink_tracker::{COORD_BITS, MAX_SLOTS};
 use crate::bram::{Bram, RamStyle};

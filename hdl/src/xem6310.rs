@@ -852,7 +852,7 @@ impl<
 
 /// [`XemCore`] of [`crate::pipeline::test_back_config`]`(4, 3, 1)` (the
 /// parameters of [`crate::pipeline::TestPipelineDdr`]).
-pub type TestXemCore = XemCore<4, 6, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestXemCore = XemCore<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
 
 /// Depth (address bits) of the sensor port's clock-crossing FIFO.
 pub const SENSOR_FIFO_BITS: usize = 5;
@@ -1252,4 +1252,4 @@ pub type Spcimager150Xem =
     Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
 
 /// A small XEM6310 top ([`crate::pipeline::test_back_config`]) for lint.
-pub type TestXem = Xem6310Top<4, 6, 3, 5, 7, 11, 2, 5, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestXem = Xem6310Top<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;

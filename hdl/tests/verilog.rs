@@ -4,6 +4,7 @@
 //! (`constraints/xem6310.ucf`) against the top's ports.
 //! The tools are required: a missing tool fails with an install hint.
 
+use smartagg_hdl::configs::on_generation_stack;
 use smartagg_hdl::front_half::{
     spcimager150_config, test_front_half_verilog, verilog, Spcimager150FrontHalf,
 };
@@ -116,7 +117,7 @@ fn ucf_locations(ucf: &str) -> Vec<(String, String)> {
 #[test]
 fn ucf_places_every_port_of_the_xem6310_top_and_nothing_else() {
     let cfg = spcimager150_back_config().unwrap();
-    let v = verilog(Spcimager150Xem::new(&cfg).unwrap());
+    let v = on_generation_stack(|| verilog(Spcimager150Xem::new(&cfg).unwrap()));
     let ports = top_port_bits(&v);
     assert!(ports.len() > 100, "{ports:?}");
     let ucf_path = concat!(env!("CARGO_MANIFEST_DIR"), "/../constraints/xem6310.ucf");
