@@ -210,10 +210,15 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     t1: TagReg,
     s1: EnableRegs<Bits<CW>>,
     skew: RowSkew,
-    yoc: Signal<Local, Bits<16>>,
+    /// The word's output row plus c, registered with the tag: the row
+    /// itself, or the row plus H for rows that finish the previous plane
+    /// (`RowSkew`: row y − c, or y + H − c), so that V1's tap masks start
+    /// from a register.
+    yoc: DFF<Bits<16>>,
     tap_lo: Vec<Constant<Bits<16>>>,
     tap_hi: Vec<Constant<Bits<16>>>,
     half: Constant<Bits<16>>,
+    height: Constant<Bits<16>>,
     mask: Vec<Signal<Local, Bit>>,
     vwid: Vec<Widen<CW, VW>>,
     tap: Vec<Signal<Local, Bits<VW>>>,
@@ -326,6 +331,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             tap_lo,
             tap_hi,
             half: c16(c),
+            height: c16(cfg.height),
             mask: lanes(k),
             vwid: lanes(p * k),
             tap: lanes(p * k),
@@ -384,7 +390,13 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         self.skew.restart.next = self.restart.val();
         self.window.restart.next = self.restart.val();
 
-        // V0: read the k − 1 older rows of this column word.
+        // V0: read the k − 1 older rows of this column word; its output row
+        // plus c (`yoc`).
+        self.yoc.clock.next = self.clock.val();
+        self.yoc.d.next = self.y.val();
+        if self.y.val() < self.half.val() {
+            self.yoc.d.next = self.y.val() + self.height.val();
+        }
         self.t1.valid.next = self.valid.val();
         self.t1.flush.next = self.flush.val();
         self.t1.x.next = self.x.val();
@@ -404,17 +416,16 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         }
 
         // V1: output row, tap masks, shift the column down, pre-add pairs.
+        // Tap 0 (the newest row) is never above the plane.
+        self.mask[0].next = self.yoc.q.val() < self.tap_hi[0].val();
+        for m in 1..self._k {
+            self.mask[m].next = (self.tap_lo[m - 1].val() <= self.yoc.q.val())
+                & (self.yoc.q.val() < self.tap_hi[m].val());
+        }
         self.skew.valid.next = self.t1.out_valid.val();
         self.skew.flush.next = self.t1.out_flush.val();
         self.skew.x.next = self.t1.out_x.val();
         self.skew.y.next = self.t1.out_y.val();
-        self.yoc.next = self.skew.out_y.val() + self.half.val();
-        // Tap 0 (the newest row) is never above the plane.
-        self.mask[0].next = self.yoc.val() < self.tap_hi[0].val();
-        for m in 1..self._k {
-            self.mask[m].next = (self.tap_lo[m - 1].val() <= self.yoc.val())
-                & (self.yoc.val() < self.tap_hi[m].val());
-        }
         for kk in self._k..(self._k + 1) {
             for km in (self._k - 1)..self._k {
                 for i in 0..self._p {
