@@ -48,6 +48,10 @@ pub struct Fifo<const DW: usize, const AW: usize> {
     l_data: EnableRegs<Bits<DW>>,
     f_valid: DFF<Bit>,
     ovf: DFF<Bit>,
+    /// `count` as a register: accepted pushes minus pops, the same number
+    /// as the memory's, in-flight and output registers' entries, without
+    /// the adders between those registers and the readers of `count`.
+    held: DFF<Bits<16>>,
     mem_count: Signal<Local, Bits<16>>,
     full: Signal<Local, Bit>,
     consume: Signal<Local, Bit>,
@@ -85,6 +89,7 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
             l_data: EnableRegs::new(1),
             f_valid: Default::default(),
             ovf: Default::default(),
+            held: Default::default(),
             mem_count: Default::default(),
             full: Default::default(),
             consume: Default::default(),
@@ -100,7 +105,7 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
 impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, wr, rd, o_valid, l_valid, f_valid, ovf);
+        dff_setup!(self, clock, wr, rd, o_valid, l_valid, f_valid, ovf, held);
         clock!(self, clock, o_data, l_data);
         self.mem.clock.next = self.clock.val();
         self.mem_count.next = self.wr.q.val() - self.rd.q.val();
@@ -119,6 +124,11 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
         self.mem.write_enable.next = self.push.val() & !self.full.val();
         if self.push.val() & !self.full.val() {
             self.wr.d.next = self.wr.q.val() + 1;
+            if !self.consume.val() {
+                self.held.d.next = self.held.q.val() + 1;
+            }
+        } else if self.consume.val() {
+            self.held.d.next = self.held.q.val() - 1;
         }
         if self.push.val() & self.full.val() {
             self.ovf.d.next = true;
@@ -165,15 +175,13 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
             self.l_valid.d.next = false;
             self.f_valid.d.next = false;
             self.ovf.d.next = false;
+            self.held.d.next = 0.into();
         }
 
         self.out_valid.next = self.o_valid.q.val();
         self.out_data.next = self.o_data.q[0].val();
         self.room.next = !self.full.val();
-        self.count.next = self.mem_count.val()
-            + bit_cast::<16, 1>(self.o_valid.q.val().into())
-            + bit_cast::<16, 1>(self.l_valid.q.val().into())
-            + bit_cast::<16, 1>(self.f_valid.q.val().into());
+        self.count.next = self.held.q.val();
         self.overflow.next = self.ovf.q.val();
     }
 }

@@ -753,6 +753,8 @@ pub struct BankPool<const BW: usize, const QAW: usize> {
     pub ret_bank: Signal<In, Bits<BW>>,
     fresh: DFF<Bits<BW>>,
     left: DFF<Bits<16>>,
+    /// `left ≠ 0`, as a register: `valid` then costs the tracker one LUT.
+    any_left: DFF<Bit>,
     fifo: Fifo<BW, QAW>,
     first: Constant<Bits<BW>>,
     spare: Constant<Bits<16>>,
@@ -773,6 +775,7 @@ impl<const BW: usize, const QAW: usize> BankPool<BW, QAW> {
             ret_bank: Default::default(),
             fresh: Default::default(),
             left: Default::default(),
+            any_left: Default::default(),
             fifo: Fifo::new(RamStyle::Distributed),
             first: Constant::new((cfg.slots as u64).to_bits()),
             spare: Constant::new((cfg.queue_depth() as u64).to_bits()),
@@ -783,18 +786,19 @@ impl<const BW: usize, const QAW: usize> BankPool<BW, QAW> {
 impl<const BW: usize, const QAW: usize> Logic for BankPool<BW, QAW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, fresh, left);
+        dff_setup!(self, clock, fresh, left, any_left);
         self.fifo.clock.next = self.clock.val();
         self.fifo.restart.next = self.restart.val();
         self.fifo.push.next = self.ret.val();
         self.fifo.push_data.next = self.ret_bank.val();
         self.fifo.pop.next = false;
-        if self.left.q.val() != 0 {
+        if self.any_left.q.val() {
             self.valid.next = true;
             self.bank.next = self.fresh.q.val();
             if self.pop.val() {
                 self.fresh.d.next = self.fresh.q.val() + 1;
                 self.left.d.next = self.left.q.val() - 1;
+                self.any_left.d.next = self.left.q.val() != 1;
             }
         } else {
             self.valid.next = self.fifo.out_valid.val();
@@ -804,6 +808,7 @@ impl<const BW: usize, const QAW: usize> Logic for BankPool<BW, QAW> {
         if self.restart.val() {
             self.fresh.d.next = self.first.val();
             self.left.d.next = self.spare.val();
+            self.any_left.d.next = self.spare.val() != 0;
         }
     }
 }
