@@ -450,7 +450,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w2_slot: DFF<Bits<8>>,
     w2_last: DFF<Bit>,
     w2_busy: DFF<Bit>,
-    w2_live: DFF<Bit>,
     w2_bridge: DFF<Bit>,
     w2_ax: DFF<Bits<COORD_BITS>>,
     w2_ay: DFF<Bits<COORD_BITS>>,
@@ -583,12 +582,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
-    walk_last: Signal<Local, Bit>,
     rec_tc: Signal<Local, Bits<48>>,
     rec_td: Signal<Local, Bits<48>>,
     absorbed: Signal<Local, Bit>,
-    /// A walk state (one slot per clock).
-    walking: Signal<Local, Bit>,
     w1_ready: Signal<Local, Bit>,
     w2_ready: Signal<Local, Bit>,
     rd: Signal<Local, Bit>,
@@ -821,7 +817,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w2_slot: Default::default(),
             w2_last: Default::default(),
             w2_busy: Default::default(),
-            w2_live: Default::default(),
             w2_bridge: Default::default(),
             w2_ax: Default::default(),
             w2_ay: Default::default(),
@@ -941,11 +936,9 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             we_fin: Default::default(),
             we_drain: Default::default(),
             we_emit: Default::default(),
-            walk_last: Default::default(),
             rec_tc: Default::default(),
             rec_td: Default::default(),
             absorbed: Default::default(),
-            walking: Default::default(),
             w1_ready: Default::default(),
             w2_ready: Default::default(),
             rd: Default::default(),
@@ -1062,7 +1055,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             w2_slot,
             w2_last,
             w2_busy,
-            w2_live,
             w2_bridge,
             w2_ax,
             w2_ay,
@@ -1322,10 +1314,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // ---- The walks (see "Walk pipeline" in the module doc): the read
         // stage takes the slot at `walk` into W1, W1 decides what the walk
         // does to it into W2, and W2 does it, one slot per clock each.
-        self.walking.next = (self.state.q.val() == TrackerState::Walk)
-            | (self.state.q.val() == TrackerState::Finish)
-            | (self.state.q.val() == TrackerState::DrainWalk)
-            | (self.state.q.val() == TrackerState::Emit);
         // W2's step: the end of a plane waits until the sweep has finished
         // plane t − 1, whose ROI view it overwrites (`vf`, a clock old: t
         // changes only at the end of a walk, two stages before W2 can act
@@ -1537,7 +1525,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.w2_slot.d.next = self.w1_slot.q.val();
             self.w2_last.d.next = self.w1_last.q.val();
             self.w2_busy.d.next = self.w1_busy.q.val();
-            self.w2_live.d.next = self.w1_live.q.val();
             self.w2_bridge.d.next = self.w1_bridge.q.val();
             self.w2_ax.d.next = self.w1_ax.q.val();
             self.w2_ay.d.next = self.w1_ay.q.val();
@@ -1621,7 +1608,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.w2_fin_unconf.q.val() {
             self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
         }
-        self.walk_last.next = self.w2_last.q.val();
         self.walk_mem.write_address.next = self.w2_slot.q.val();
         self.walk_mem.write_enable.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
@@ -1663,7 +1649,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.w2_cut.q.val() {
                         self.c_cuts.d.next = self.c_cuts.q.val() + 1;
                     }
-                    if self.walk_last.val() {
+                    if self.w2_last.q.val() {
                         self.state.d.next = TrackerState::WalkEnd;
                     }
                 }
@@ -1694,7 +1680,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.w2_fin_unconf.q.val() {
                         self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
-                    if self.walk_last.val() {
+                    if self.w2_last.q.val() {
                         self.state.d.next = TrackerState::Drain;
                     }
                 }
@@ -1713,7 +1699,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::DrainWalk => {
-                if self.we_drain.val() & self.walk_last.val() {
+                if self.we_drain.val() & self.w2_last.q.val() {
                     self.t.d.next = self.t_p1.val();
                     self.rows.d.next = 0.into();
                     self.state.d.next = TrackerState::Drain;
@@ -1725,7 +1711,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::Emit => {
-                if self.we_emit.val() & self.walk_last.val() {
+                if self.we_emit.val() & self.w2_last.q.val() {
                     self.state.d.next = TrackerState::End;
                 }
             }
