@@ -15,7 +15,8 @@
 //! * `spc150`: the SPCImager 150× front half (320×240, P = 16, N_max = 128,
 //!   k = 9, a = 8) without its delay line (9.8 Mbit: DDR2).
 //! * `filter150`: its spatial filter alone; `mask150`: its hot-pixel mask;
-//!   `dl24`: a 24-plane block-RAM delay line.
+//!   `dl24`: a 24-plane block-RAM delay line; `ddr150`: its DDR2 delay
+//!   line alone (N_max 128 planes behind the MCB port).
 //! * `xem150`: the whole XEM6310 top for the SPCImager at 150×, DDR2 delay
 //!   line, M = 32, 9×9 ROIs, for the LX45 (FrontPanel and MIG are black
 //!   boxes: their own cost comes on top, see the report).
@@ -35,6 +36,7 @@ use smartagg_hdl::blink_tracker::BlinkTracker;
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
+use smartagg_hdl::delay_line_ddr::DelayLineDdr;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
 use smartagg_hdl::packetiser::Packetiser;
@@ -301,6 +303,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &dir.join("dl24"),
         )?;
         print("BRAM delay line 320x240, N_max 24", &r);
+    }
+    if want("ddr150") {
+        let cfg = spcimager150_back_config()?;
+        let r = yosys_resources(
+            &verilog(DelayLineDdr::<16, 8, 9>::new(&cfg.front)?),
+            &dir.join("ddr150"),
+        )?;
+        print("SPCImager 150x DDR2 delay line", &r);
     }
     if want("xem150") {
         let cfg = spcimager150_back_config()?;

@@ -31,6 +31,22 @@
 //! order on the port). Drain planes are read but not written; the flush
 //! plane is neither.
 //!
+//! **Commands come from registers.** A read is decided on one clock (the
+//! next burst is written and fits) and waits in a one-command register
+//! for the port, as a write command does; the port takes the waiting write
+//! first. The decision itself reads only registers: whether the next burst
+//! is written and has room is computed on the clock before. That is exact
+//! enough because a decision blocks the next clock's (its command is still
+//! waiting), and between decisions the two flags can only lag towards
+//! caution (more writes issued, more words popped). The burst after the
+//! one decided is known in advance (every burst is full but a plane's
+//! last), so no arithmetic on the decision's side sets the next one up.
+//! At most one read is decided every other clock. A plane's reads need one
+//! command per burst of B words, that is one per K·B stream clocks, so the
+//! decisions keep up whenever K·B ≥ 2: every configuration but P = 32 with
+//! one-word bursts (planes under 512 bits), which [`DelayLineDdr::new`]
+//! refuses.
+//!
 //! **Zero before the stream.** As in the block-RAM version, a saturating
 //! plane count forces `B_{t−N}` to zero for `t < N`, so whatever DDR2 holds
 //! after power-up or from an earlier stream never comes out. Reads still in
@@ -129,18 +145,29 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     pub write_error: Signal<Out, Bit>,
     pos: RasterPosition,
     pf: Fifo<32, PAW>,
-    n_reg: DFF<Bits<NW>>,
+    /// N − 1, latched with N.
+    n_last: DFF<Bits<NW>>,
     planes: DFF<Bits<NW>>,
     zero: DFF<Bit>,
+    /// Fewer than N planes so far (`planes < N`, kept as a register so that
+    /// the zero rule reaches the FIFO pop from a register).
+    young: DFF<Bit>,
     wslot: DFF<Bits<NW>>,
-    // Read side.
+    // Read side: the next burst to read (slot, first word, whether it is
+    // the plane's last), whether it may be read (decided from the clock
+    // before), and the read command waiting for the port.
     rslot: DFF<Bits<NW>>,
     rword: DFF<Bits<16>>,
-    rdone: DFF<Bits<16>>,
-    wdone: DFF<Bits<16>>,
+    rfinal: DFF<Bit>,
+    ahead: DFF<Bits<16>>,
     wissued: DFF<Bits<16>>,
     outstanding: DFF<Bits<16>>,
     discard: DFF<Bits<16>>,
+    readable: DFF<Bit>,
+    room_ok: DFF<Bit>,
+    rpend: DFF<Bit>,
+    rpend_addr: DFF<Bits<30>>,
+    rpend_bl: DFF<Bits<6>>,
     // Write side.
     acc: DFF<Bits<32>>,
     wcount: DFF<Bits<8>>,
@@ -149,6 +176,15 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     pend: DFF<Bit>,
     pend_addr: DFF<Bits<30>>,
     pend_bl: DFF<Bits<6>>,
+    /// The waiting write belongs to the stream before a restart: it still
+    /// goes out (its data is in the MCB's write FIFO) but counts for nothing.
+    pend_old: DFF<Bit>,
+    /// A burst cut short by a restart: its words are in the write FIFO
+    /// without a command, so one goes out for them (old stream, old slot)
+    /// before the new stream's first.
+    spend: DFF<Bit>,
+    spend_addr: DFF<Bits<30>>,
+    spend_bl: DFF<Bits<6>>,
     under: DFF<Bit>,
     werr: DFF<Bit>,
     // Output registers.
@@ -170,9 +206,14 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     shifted: Signal<Local, Bits<32>>,
     delayed_now: Signal<Local, Bits<P>>,
     rlen: Signal<Local, Bits<16>>,
-    room_needed: Signal<Local, Bits<16>>,
-    issue: Signal<Local, Bit>,
-    ahead: Signal<Local, Bits<16>>,
+    rnext: Signal<Local, Bits<16>>,
+    fill: Signal<Local, Bit>,
+    rcmd_go: Signal<Local, Bit>,
+    scmd_go: Signal<Local, Bit>,
+    wfin: Signal<Local, Bit>,
+    rfin: Signal<Local, Bit>,
+    pushed: Signal<Local, Bit>,
+    out_add: Signal<Local, Bits<16>>,
     written: Signal<Local, Bit>,
     rcmd_addr: Signal<Local, Bits<30>>,
     wcmd_go: Signal<Local, Bit>,
@@ -189,6 +230,9 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     plane_words: Constant<Bits<16>>,
     last_word: Constant<Bits<16>>,
     burst: Constant<Bits<16>>,
+    last_start: Constant<Bits<16>>,
+    last_len: Constant<Bits<16>>,
+    one_burst: Constant<Bit>,
     slot_shift: Constant<Bits<8>>,
     cap: Constant<Bits<16>>,
     last_stream_word: Constant<Bits<32>>,
@@ -235,6 +279,13 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
                 why: "the prefetch FIFO must hold two bursts".into(),
             });
         }
+        let burst = burst_words(plane_words);
+        if k * burst < 2 {
+            return Err(bad(format!(
+                "planes of {plane_words} words read in one-word bursts need a read command every clock at P = {P}"
+            )));
+        }
+        let last_start = plane_words.div_ceil(burst) * burst - burst;
         let c16 = |v: u64| Constant::new(v.to_bits());
         let c8 = |v: u64| Constant::new(v.to_bits());
         Ok(DelayLineDdr {
@@ -273,17 +324,23 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             write_error: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
             pf: Fifo::new(RamStyle::Block),
-            n_reg: Default::default(),
+            n_last: Default::default(),
             planes: Default::default(),
             zero: Default::default(),
+            young: Default::default(),
             wslot: Default::default(),
             rslot: Default::default(),
             rword: Default::default(),
-            rdone: Default::default(),
-            wdone: Default::default(),
+            rfinal: Default::default(),
+            ahead: Default::default(),
             wissued: Default::default(),
             outstanding: Default::default(),
             discard: Default::default(),
+            readable: Default::default(),
+            room_ok: Default::default(),
+            rpend: Default::default(),
+            rpend_addr: Default::default(),
+            rpend_bl: Default::default(),
             acc: Default::default(),
             wcount: Default::default(),
             wstart: Default::default(),
@@ -291,6 +348,10 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             pend: Default::default(),
             pend_addr: Default::default(),
             pend_bl: Default::default(),
+            pend_old: Default::default(),
+            spend: Default::default(),
+            spend_addr: Default::default(),
+            spend_bl: Default::default(),
             under: Default::default(),
             werr: Default::default(),
             v1: Default::default(),
@@ -310,9 +371,14 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             shifted: Default::default(),
             delayed_now: Default::default(),
             rlen: Default::default(),
-            room_needed: Default::default(),
-            issue: Default::default(),
-            ahead: Default::default(),
+            rnext: Default::default(),
+            fill: Default::default(),
+            rcmd_go: Default::default(),
+            scmd_go: Default::default(),
+            wfin: Default::default(),
+            rfin: Default::default(),
+            pushed: Default::default(),
+            out_add: Default::default(),
             written: Default::default(),
             rcmd_addr: Default::default(),
             wcmd_go: Default::default(),
@@ -327,7 +393,10 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             log2k: c8(k.trailing_zeros() as u64),
             plane_words: c16(plane_words as u64),
             last_word: c16(plane_words as u64 - 1),
-            burst: c16(burst_words(plane_words) as u64),
+            burst: c16(burst as u64),
+            last_start: c16(last_start as u64),
+            last_len: c16((plane_words - last_start) as u64),
+            one_burst: Constant::new(last_start == 0),
             slot_shift: c8(slot_bits as u64),
             cap: c16(cap as u64),
             last_stream_word: Constant::new((cfg.words_per_plane() as u64 - 1).to_bits()),
@@ -341,17 +410,23 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         dff_setup!(
             self,
             clock,
-            n_reg,
+            n_last,
             planes,
             zero,
+            young,
             wslot,
             rslot,
             rword,
-            rdone,
-            wdone,
+            rfinal,
+            ahead,
             wissued,
             outstanding,
             discard,
+            readable,
+            room_ok,
+            rpend,
+            rpend_addr,
+            rpend_bl,
             acc,
             wcount,
             wstart,
@@ -359,6 +434,10 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             pend,
             pend_addr,
             pend_bl,
+            pend_old,
+            spend,
+            spend_addr,
+            spend_bl,
             under,
             werr,
             v1,
@@ -382,11 +461,13 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         self.slot_now.next = self.wslot.q.val();
         self.zero_now.next = self.zero.q.val();
         if self.stored.val() & self.sop.val() {
-            self.zero_now.next = self.planes.q.val() < self.n_reg.q.val();
-            if self.planes.q.val() < self.n_reg.q.val() {
+            self.zero_now.next = self.young.q.val();
+            if self.young.q.val() {
+                // planes < N before, so planes + 1 < N unless planes = N − 1.
                 self.planes.d.next = self.planes.q.val() + 1;
+                self.young.d.next = self.planes.q.val() != self.n_last.q.val();
             }
-            if (self.planes.q.val() == 0) | (self.wslot.q.val() == self.n_reg.q.val() - 1) {
+            if (self.planes.q.val() == 0) | (self.wslot.q.val() == self.n_last.q.val()) {
                 self.slot_now.next = 0.into();
             } else {
                 self.slot_now.next = self.wslot.q.val() + 1;
@@ -444,8 +525,16 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         // A write command follows its last data word by one clock (UG388:
         // the data must be in the write FIFO first) and has priority.
         self.wcmd_go.next = self.pend.q.val() & !self.cmd_full.val();
+        self.wfin.next = false;
         if self.wcmd_go.val() {
             self.pend.d.next = false;
+            self.pend_old.d.next = false;
+        }
+        self.scmd_go.next = self.spend.q.val() & !self.pend.q.val() & !self.cmd_full.val();
+        if self.scmd_go.val() {
+            self.spend.d.next = false;
+        }
+        if self.wcmd_go.val() & !self.pend_old.q.val() {
             // Writes issued so far of the plane being written.
             self.wissued.d.next =
                 self.wissued.q.val() + bit_cast::<16, 6>(self.pend_bl.q.val()) + 1;
@@ -453,73 +542,113 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
                 == self.plane_words.val()
             {
                 self.wissued.d.next = 0.into();
-                self.wdone.d.next = self.wdone.q.val() + 1;
+                self.wfin.next = true;
             }
         }
         if self.wdue.val() {
-            if self.pend.q.val() & !self.wcmd_go.val() {
+            // (A write still waiting would go out after this one, or not at
+            // all: flagged.)
+            if (self.pend.q.val() & !self.wcmd_go.val())
+                | (self.spend.q.val() & !self.scmd_go.val())
+            {
                 self.werr.d.next = true;
             }
             self.pend.d.next = true;
+            self.pend_old.d.next = false;
             self.pend_addr.d.next = self.waddr.val();
             self.pend_bl.d.next = bit_cast::<6, 8>(self.wcount.q.val());
         }
 
         // ---- Read side: bursts of written planes into the prefetch FIFO.
-        self.rlen.next = self.plane_words.val() - self.rword.q.val();
-        if self.rlen.val() > self.burst.val() {
-            self.rlen.next = self.burst.val();
+        // A read is decided (`fill`) on one clock and waits in `rpend` for
+        // the port. Whether the next burst is written and has room comes
+        // from registers computed on the clock before: a decision blocks
+        // the next clock's (`rpend` is set), and between decisions those
+        // flags only lag towards caution (more writes issued, more words
+        // popped), so the decision path starts at registers.
+        self.rlen.next = self.burst.val();
+        if self.rfinal.q.val() {
+            self.rlen.next = self.last_len.val();
         }
-        // Planes the writer has completed beyond the one being read (signed).
-        self.ahead.next = self.wdone.q.val() - self.rdone.q.val();
-        self.written.next = ((self.ahead.val() != 0) & !self.ahead.val().get_bit(15))
-            | ((self.ahead.val() == 0)
+        // `ahead`: planes the writer has completed beyond the one being
+        // read (never negative; the sign is checked all the same).
+        self.written.next = ((self.ahead.q.val() != 0) & !self.ahead.q.val().get_bit(15))
+            | ((self.ahead.q.val() == 0)
                 & (self.rword.q.val() + self.rlen.val() <= self.wissued.q.val()));
-        self.room_needed.next = self.pf.count.val() + self.outstanding.q.val() + self.rlen.val();
-        self.issue.next = self.calib_done.val()
-            & !self.cmd_full.val()
-            & !self.wcmd_go.val()
-            & self.written.val()
-            & (self.room_needed.val() <= self.cap.val());
+        self.readable.d.next = self.written.val();
+        self.room_ok.d.next =
+            self.pf.count.val() + self.outstanding.q.val() + self.rlen.val() <= self.cap.val();
+        self.fill.next = self.calib_done.val()
+            & !self.rpend.q.val()
+            & self.readable.q.val()
+            & self.room_ok.q.val()
+            & !self.restart.val();
         self.rcmd_addr.next = (bit_cast::<30, NW>(self.rslot.q.val()) << self.slot_shift.val())
             | (bit_cast::<30, 16>(self.rword.q.val()) << 2);
-        self.cmd_en.next = self.wcmd_go.val() | self.issue.val();
-        self.cmd_instr.next = 0.into();
-        self.cmd_bl.next = self.pend_bl.q.val();
-        self.cmd_addr.next = self.pend_addr.q.val();
-        if self.issue.val() {
-            self.cmd_instr.next = 1.into();
-            self.cmd_bl.next = bit_cast::<6, 16>(self.rlen.val() - 1);
-            self.cmd_addr.next = self.rcmd_addr.val();
+        // The port: a waiting write first (it follows its data; a burst cut
+        // short by a restart after it), then the waiting read; all from
+        // registers.
+        self.rcmd_go.next =
+            self.rpend.q.val() & !self.pend.q.val() & !self.spend.q.val() & !self.cmd_full.val();
+        self.cmd_en.next =
+            (self.pend.q.val() | self.spend.q.val() | self.rpend.q.val()) & !self.cmd_full.val();
+        self.cmd_instr.next = 1.into();
+        self.cmd_bl.next = self.rpend_bl.q.val();
+        self.cmd_addr.next = self.rpend_addr.q.val();
+        if self.spend.q.val() {
+            self.cmd_instr.next = 0.into();
+            self.cmd_bl.next = self.spend_bl.q.val();
+            self.cmd_addr.next = self.spend_addr.q.val();
         }
-        // Only words this block asked for (a port that powers up showing a
-        // word does not unbalance the count).
-        self.transfer.next =
-            !self.rd_empty.val() & ((self.outstanding.q.val() != 0) | (self.discard.q.val() != 0));
-        self.rd_en.next = self.transfer.val();
-        self.pf.push.next = self.transfer.val() & (self.discard.q.val() == 0);
-        self.pf.push_data.next = self.rd_data.val();
-        if self.issue.val() {
-            self.rword.d.next = self.rword.q.val() + self.rlen.val();
-            if self.rword.q.val() + self.rlen.val() == self.plane_words.val() {
+        if self.pend.q.val() {
+            self.cmd_instr.next = 0.into();
+            self.cmd_bl.next = self.pend_bl.q.val();
+            self.cmd_addr.next = self.pend_addr.q.val();
+        }
+        if self.rcmd_go.val() {
+            self.rpend.d.next = false;
+        }
+        self.rnext.next = self.rword.q.val() + self.burst.val();
+        self.rfin.next = self.fill.val() & self.rfinal.q.val();
+        if self.fill.val() {
+            self.rpend.d.next = true;
+            self.rpend_addr.d.next = self.rcmd_addr.val();
+            self.rpend_bl.d.next = bit_cast::<6, 16>(self.rlen.val() - 1);
+            self.rword.d.next = self.rnext.val();
+            self.rfinal.d.next = self.rnext.val() == self.last_start.val();
+            if self.rfinal.q.val() {
                 self.rword.d.next = 0.into();
-                self.rdone.d.next = self.rdone.q.val() + 1;
-                if self.rslot.q.val() == self.n_reg.q.val() - 1 {
+                self.rfinal.d.next = self.one_burst.val();
+                if self.rslot.q.val() == self.n_last.q.val() {
                     self.rslot.d.next = 0.into();
                 } else {
                     self.rslot.d.next = self.rslot.q.val() + 1;
                 }
             }
         }
-        self.outstanding.d.next = self.outstanding.q.val();
-        if self.issue.val() & !(self.transfer.val() & (self.discard.q.val() == 0)) {
-            self.outstanding.d.next = self.outstanding.q.val() + self.rlen.val();
+        if self.wfin.val() & !self.rfin.val() {
+            self.ahead.d.next = self.ahead.q.val() + 1;
         }
-        if !self.issue.val() & self.transfer.val() & (self.discard.q.val() == 0) {
-            self.outstanding.d.next = self.outstanding.q.val() - 1;
+        if self.rfin.val() & !self.wfin.val() {
+            self.ahead.d.next = self.ahead.q.val() - 1;
         }
-        if self.issue.val() & self.transfer.val() & (self.discard.q.val() == 0) {
-            self.outstanding.d.next = self.outstanding.q.val() + self.rlen.val() - 1;
+        // Only words this block asked for (a port that powers up showing a
+        // word does not unbalance the count); none move on a restart's
+        // clock, so that the count handed to `discard` is exact.
+        self.transfer.next = !self.rd_empty.val()
+            & !self.restart.val()
+            & ((self.outstanding.q.val() != 0) | (self.discard.q.val() != 0));
+        self.rd_en.next = self.transfer.val();
+        self.pushed.next = self.transfer.val() & (self.discard.q.val() == 0);
+        self.pf.push.next = self.pushed.val();
+        self.pf.push_data.next = self.rd_data.val();
+        self.out_add.next = 0.into();
+        if self.fill.val() {
+            self.out_add.next = self.rlen.val();
+        }
+        self.outstanding.d.next = self.outstanding.q.val() + self.out_add.val();
+        if self.pushed.val() {
+            self.outstanding.d.next = self.outstanding.q.val() + self.out_add.val() - 1;
         }
         if self.transfer.val() & (self.discard.q.val() != 0) {
             self.discard.d.next = self.discard.q.val() - 1;
@@ -542,23 +671,40 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         }
 
         if self.restart.val() {
-            self.n_reg.d.next = self.n_window.val();
+            self.n_last.d.next = self.n_window.val() - 1;
+            self.young.d.next = self.n_window.val() != 0;
             self.planes.d.next = 0.into();
             self.wslot.d.next = 0.into();
             self.rslot.d.next = 0.into();
             self.rword.d.next = 0.into();
-            self.rdone.d.next = 0.into();
-            self.wdone.d.next = 0.into();
+            self.rfinal.d.next = self.one_burst.val();
+            self.ahead.d.next = 0.into();
             self.wissued.d.next = 0.into();
+            self.readable.d.next = false;
+            self.room_ok.d.next = false;
             self.outstanding.d.next = 0.into();
-            // Reads still on their way belong to the old stream.
-            self.discard.d.next = self.outstanding.q.val();
+            // Reads still on their way belong to the old stream, and so does
+            // a read still waiting in `rpend` (it goes out; `outstanding`
+            // counts it).
+            self.discard.d.next = self.discard.q.val() + self.outstanding.q.val();
             self.wcount.d.next = 0.into();
             self.wstart.d.next = 0.into();
             self.wword.d.next = 0.into();
-            self.pend.d.next = false;
+            // A write waiting for the port, and the words of a burst cut
+            // short, are the old stream's: they still go out, first.
+            self.pend_old.d.next = self.pend.q.val() & !self.wcmd_go.val();
             self.under.d.next = false;
             self.werr.d.next = false;
+            if self.wcount.q.val() != 0 {
+                // Two cut bursts waiting at once (restarts faster than the
+                // port takes commands) cannot both be kept: flagged.
+                if self.spend.q.val() & !self.scmd_go.val() {
+                    self.werr.d.next = true;
+                }
+                self.spend.d.next = true;
+                self.spend_addr.d.next = self.waddr.val();
+                self.spend_bl.d.next = bit_cast::<6, 8>(self.wcount.q.val() - 1);
+            }
             self.v1.d.next = false;
         }
         self.out_valid.next = self.v1.q.val();

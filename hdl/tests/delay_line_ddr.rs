@@ -59,7 +59,10 @@ impl Rig {
     }
 }
 
-/// One stream; returns whether the delay line flagged an underrun.
+/// One stream; returns whether the delay line flagged an underrun. With
+/// `abort`, the stream is cut off after that many clocks, unchecked (the
+/// next stream's restart comes with its reads still in flight).
+#[allow(clippy::too_many_arguments)]
 fn run_stream(
     rig: &mut Rig,
     w: usize,
@@ -68,6 +71,7 @@ fn run_stream(
     seed: u64,
     planes: usize,
     stall: u64,
+    abort: Option<usize>,
 ) -> bool {
     let mut rng = common::rng(seed);
     let stream = common::random_planes(&mut rng, w, h, planes, 0.3);
@@ -113,6 +117,9 @@ fn run_stream(
         }
         rig.tick();
         cycles += 1;
+        if abort == Some(cycles) {
+            return false;
+        }
         assert!(cycles < 200_000, "stream did not complete");
     }
     let under = rig.dl.uut.underrun.val();
@@ -137,10 +144,10 @@ fn ddr2_delay_line_equals_model_with_latency_refresh_and_garbage() {
     let (w, h) = (64, 32); // 64 words per plane, bursts of 8
                            // 20-clock command latency, a 40-clock refresh every 300 clocks.
     let mut rig = Rig::new(w, h, McbModel::new(20, 300, 40, 50, 7));
-    assert!(!run_stream(&mut rig, w, h, 3, 11, 9, 30));
+    assert!(!run_stream(&mut rig, w, h, 3, 11, 9, 30, None));
     // Restart with another N; reads of the first stream may still arrive.
-    assert!(!run_stream(&mut rig, w, h, 5, 12, 8, 0));
-    assert!(!run_stream(&mut rig, w, h, 1, 13, 4, 50));
+    assert!(!run_stream(&mut rig, w, h, 5, 12, 8, 0, None));
+    assert!(!run_stream(&mut rig, w, h, 1, 13, 4, 50, None));
     assert!(rig.mcb.uut.words_written() > 0);
 }
 
@@ -148,8 +155,8 @@ fn ddr2_delay_line_equals_model_with_latency_refresh_and_garbage() {
 fn ddr2_delay_line_small_planes() {
     let (w, h) = (16, 4); // two 32-bit words per plane, one-word bursts
     let mut rig = Rig::new(w, h, McbModel::new(5, 100, 10, 3, 9));
-    assert!(!run_stream(&mut rig, w, h, 4, 21, 10, 20));
-    assert!(!run_stream(&mut rig, w, h, 2, 22, 6, 0));
+    assert!(!run_stream(&mut rig, w, h, 4, 21, 10, 20, None));
+    assert!(!run_stream(&mut rig, w, h, 2, 22, 6, 0, None));
 }
 
 #[test]
@@ -157,7 +164,45 @@ fn too_slow_memory_is_flagged() {
     let (w, h) = (32, 8);
     let mut rig = Rig::new(w, h, McbModel::new(400, 300, 40, 5, 3));
     assert!(
-        run_stream(&mut rig, w, h, 3, 31, 6, 0),
+        run_stream(&mut rig, w, h, 3, 31, 6, 0, None),
         "underrun must be flagged"
     );
+}
+
+#[test]
+fn read_decisions_that_cannot_keep_up_are_refused() {
+    // P = 32: one stream word per 32-bit DDR2 word; 64×4 planes are 8 words
+    // read in one-word bursts, a read command every clock.
+    let cfg = PipelineConfig::new(64, 4, 3, vec![1, 2, 1], 2, 3);
+    let g = GatewareConfig::new(&cfg, 32, 5).unwrap();
+    let err = DelayLineDdr::<32, 3, 6>::new(&g).err().expect("refused");
+    assert!(err.to_string().contains("one-word bursts"), "{err}");
+    // 64×8 planes read in two-word bursts keep up.
+    let cfg = PipelineConfig::new(64, 8, 3, vec![1, 2, 1], 2, 3);
+    let g = GatewareConfig::new(&cfg, 32, 5).unwrap();
+    assert!(DelayLineDdr::<32, 3, 6>::new(&g).is_ok());
+}
+
+#[test]
+fn restarts_with_reads_in_flight_lose_nothing() {
+    // Streams cut off at many points (a burst's words without their
+    // command, reads in flight, a read waiting for the port, words arriving
+    // on the restart's clock), some cut again a few clocks into the next
+    // stream (while the first one's reads still arrive), each followed by a
+    // whole stream that must equal the model: the old streams' reads are
+    // discarded, none of the new stream's. N = 3: plane 3 (from clock
+    // 1,536) is the first to read.
+    let (w, h) = (64, 32);
+    let mut rig = Rig::new(w, h, McbModel::new(12, 300, 40, 50, 5));
+    for (i, cut) in (700..3200).step_by(97).enumerate() {
+        let seed = 40 + i as u64;
+        run_stream(&mut rig, w, h, 3, seed, 9, 0, Some(cut));
+        if i % 2 == 1 {
+            run_stream(&mut rig, w, h, 3, seed + 50, 9, 0, Some(3 + i % 7));
+        }
+        assert!(
+            !run_stream(&mut rig, w, h, 2, seed + 100, 4, 0, None),
+            "cut at {cut}"
+        );
+    }
 }
