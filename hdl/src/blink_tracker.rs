@@ -428,6 +428,10 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     lmax_m1: DFF<Bits<AGE_BITS>>,
     /// `view_free` a clock ago.
     vf: DFF<Bit>,
+    /// `t + 1 = planes_total + N` (the last drain plane), a clock old: `t`
+    /// changes only at the end of a walk, and the drain walk that reads it
+    /// ends at least M + 2 clocks later.
+    drain_end: DFF<Bit>,
     // The walk pipeline: the read stage is on (`walk` is its slot); W1
     // holds a slot's state, W2 what the walk does to it.
     rd_on: DFF<Bit>,
@@ -489,6 +493,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     low: Signal<Local, Bits<P>>,
     has_cand: Signal<Local, Bit>,
     more: Signal<Local, Bit>,
+    /// Some lane below the one being looked at is a candidate.
+    seen: Signal<Local, Bit>,
     in_xc: Signal<Local, Bits<COORD_BITS>>,
     in_yc: Signal<Local, Bits<COORD_BITS>>,
     lane: Signal<Local, Bits<COORD_BITS>>,
@@ -797,6 +803,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             lmin_p1: Default::default(),
             lmax_m1: Default::default(),
             vf: Default::default(),
+            drain_end: Default::default(),
             rd_on: Default::default(),
             w1_valid: Default::default(),
             w1_sel: Default::default(),
@@ -852,6 +859,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             low: Default::default(),
             has_cand: Default::default(),
             more: Default::default(),
+            seen: Default::default(),
             in_xc: Default::default(),
             in_yc: Default::default(),
             lane: Default::default(),
@@ -1035,6 +1043,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             lmin_p1,
             lmax_m1,
             vf,
+            drain_end,
             rd_on,
             w1_valid,
             w1_sel,
@@ -1116,6 +1125,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.t1_ge_n.next = self.t_p1.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
+        self.drain_end.d.next = self.t_p1.val() == self.p_plus_n.val();
         self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
         self.can_push.next = self.rec_room.val() & self.fb_valid.val();
 
@@ -1135,7 +1145,19 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.rem.next = self.in_cand.val() & !self.done_mask.q.val();
         self.low.next = self.rem.val() & (!self.rem.val() + 1);
         self.has_cand.next = self.rem.val().any();
-        self.more.next = (self.rem.val() & (self.rem.val() - 1)).any();
+        // At least two candidate lanes left, as plain logic rather than
+        // `rem & (rem − 1)`: no carry chain, so the mapping can flatten it
+        // (the head word's pop waits on it).
+        self.more.next = false;
+        self.seen.next = false;
+        for j in 0..P {
+            if self.rem.val().get_bit(j) {
+                if self.seen.val() {
+                    self.more.next = true;
+                }
+                self.seen.next = true;
+            }
+        }
         self.lane.next = 0.into();
         for j in 0..P {
             if self.low.val().get_bit(j) {
@@ -1703,7 +1725,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.t.d.next = self.t_p1.val();
                     self.rows.d.next = 0.into();
                     self.state.d.next = TrackerState::Drain;
-                    if self.t_p1.val() == self.p_plus_n.val() {
+                    if self.drain_end.q.val() {
                         self.walk.d.next = 0.into();
                         self.rd_on.d.next = true;
                         self.state.d.next = TrackerState::Emit;

@@ -52,14 +52,19 @@ pub struct Fifo<const DW: usize, const AW: usize> {
     /// as the memory's, in-flight and output registers' entries, without
     /// the adders between those registers and the readers of `count`.
     held: DFF<Bits<16>>,
+    /// The memory is full, as a register (its next value from the memory's
+    /// count and this clock's write and fetch), so that `room` reaches the
+    /// producer from a register.
+    full: DFF<Bit>,
     mem_count: Signal<Local, Bits<16>>,
-    full: Signal<Local, Bit>,
+    wpush: Signal<Local, Bit>,
     consume: Signal<Local, Bit>,
     keep: Signal<Local, Bit>,
     issue: Signal<Local, Bit>,
     o_load: Signal<Local, Bit>,
     l_load: Signal<Local, Bit>,
     depth: Constant<Bits<16>>,
+    depth_m1: Constant<Bits<16>>,
 }
 
 impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
@@ -90,14 +95,16 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
             f_valid: Default::default(),
             ovf: Default::default(),
             held: Default::default(),
-            mem_count: Default::default(),
             full: Default::default(),
+            mem_count: Default::default(),
+            wpush: Default::default(),
             consume: Default::default(),
             keep: Default::default(),
             issue: Default::default(),
             o_load: Default::default(),
             l_load: Default::default(),
             depth: Constant::new((1u64 << AW).to_bits()),
+            depth_m1: Constant::new(((1u64 << AW) - 1).to_bits()),
         }
     }
 }
@@ -105,11 +112,10 @@ impl<const DW: usize, const AW: usize> Fifo<DW, AW> {
 impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, wr, rd, o_valid, l_valid, f_valid, ovf, held);
+        dff_setup!(self, clock, wr, rd, o_valid, l_valid, f_valid, ovf, held, full);
         clock!(self, clock, o_data, l_data);
         self.mem.clock.next = self.clock.val();
         self.mem_count.next = self.wr.q.val() - self.rd.q.val();
-        self.full.next = self.mem_count.val() == self.depth.val();
         self.consume.next = self.o_valid.q.val() & self.pop.val();
         self.keep.next = self.o_valid.q.val() & !self.consume.val();
         // Fetch only when at most one entry will be held after this clock.
@@ -121,8 +127,9 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
         // Write side.
         self.mem.write_address.next = bit_cast::<AW, 16>(self.wr.q.val());
         self.mem.write_data.next = self.push_data.val();
-        self.mem.write_enable.next = self.push.val() & !self.full.val();
-        if self.push.val() & !self.full.val() {
+        self.wpush.next = self.push.val() & !self.full.q.val();
+        self.mem.write_enable.next = self.wpush.val();
+        if self.wpush.val() {
             self.wr.d.next = self.wr.q.val() + 1;
             if !self.consume.val() {
                 self.held.d.next = self.held.q.val() + 1;
@@ -130,13 +137,18 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
         } else if self.consume.val() {
             self.held.d.next = self.held.q.val() - 1;
         }
-        if self.push.val() & self.full.val() {
+        if self.push.val() & self.full.q.val() {
             self.ovf.d.next = true;
         }
 
         // Fetch: the entry at `rd` arrives next clock.
         self.mem.read_address.next = bit_cast::<AW, 16>(self.rd.q.val());
         self.f_valid.d.next = self.issue.val();
+        // Full next clock: the memory's count + write − fetch = 2^AW.
+        self.full.d.next = ((self.mem_count.val() == self.depth.val()) & !self.issue.val())
+            | ((self.mem_count.val() == self.depth_m1.val())
+                & self.wpush.val()
+                & !self.issue.val());
         if self.issue.val() {
             self.rd.d.next = self.rd.q.val() + 1;
         }
@@ -176,11 +188,12 @@ impl<const DW: usize, const AW: usize> Logic for Fifo<DW, AW> {
             self.f_valid.d.next = false;
             self.ovf.d.next = false;
             self.held.d.next = 0.into();
+            self.full.d.next = false;
         }
 
         self.out_valid.next = self.o_valid.q.val();
         self.out_data.next = self.o_data.q[0].val();
-        self.room.next = !self.full.val();
+        self.room.next = !self.full.q.val();
         self.count.next = self.held.q.val();
         self.overflow.next = self.ovf.q.val();
     }

@@ -56,6 +56,9 @@ pub struct LutLevels {
     /// output signal without the bit index, or by the cell) with the
     /// deepest path into it, deepest first: the work list for pipelining.
     pub ends: Vec<(String, u32)>,
+    /// For every group of path ends, where its deepest path starts and the
+    /// named signals it passes (start first): what to register.
+    pub end_paths: HashMap<String, (String, Vec<String>)>,
 }
 
 impl LutLevels {
@@ -284,15 +287,9 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
         }
     }
 
-    let worst = depth
-        .iter()
-        .max_by_key(|(n, d)| (d.0, std::cmp::Reverse(**n)))
-        .map(|(n, d)| (*n, d.0));
-    let mut path = Vec::new();
-    let mut levels = 0;
-    let mut start = String::new();
-    if let Some((mut n, l)) = worst {
-        levels = l;
+    // The cells of the deepest path into `n` (start first) and its start.
+    let trace = |mut n: u64| -> (Vec<(String, String)>, String) {
+        let mut path = Vec::new();
         let mut last_cell = None;
         loop {
             if let Some((c, _, _)) = driver.get(&n) {
@@ -312,16 +309,25 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
             match depth.get(&n).and_then(|d| d.1) {
                 Some(prev) => n = prev,
                 None => {
-                    start = match (net_name.get(&n), driver.get(&n)) {
+                    let start = match (net_name.get(&n), driver.get(&n)) {
                         (Some((false, name)), _) => name.clone(),
                         (_, Some((c, port, bit))) => format!("{}.{port}[{bit}]", cells[*c].name),
                         _ => format!("net {n}"),
                     };
-                    break;
+                    path.reverse();
+                    return (path, start);
                 }
             }
         }
-        path.reverse();
+    };
+    let worst = depth
+        .iter()
+        .max_by_key(|(n, d)| (d.0, std::cmp::Reverse(**n)))
+        .map(|(n, d)| (*n, d.0));
+    let (mut path, mut levels, mut start) = (Vec::new(), 0, String::new());
+    if let Some((n, l)) = worst {
+        levels = l;
+        (path, start) = trace(n);
     }
 
     // Path ends: the inputs of the cells that begin and end paths (and the
@@ -336,7 +342,15 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
             }
         }
     }
-    let mut end_depth: HashMap<String, u32> = HashMap::new();
+    let mut end_depth: HashMap<String, (u32, Option<u64>)> = HashMap::new();
+    let mut deeper = |label: String, d: Option<(u32, u64)>| {
+        if let Some((d, n)) = d {
+            let e = end_depth.entry(label).or_insert((0, None));
+            if e.1.is_none() || d > e.0 {
+                *e = (d, Some(n));
+            }
+        }
+    };
     for (i, cell) in cells.iter().enumerate() {
         let ends_here = |p: &str| match cell.kind {
             Kind::Boundary => true,
@@ -348,16 +362,13 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
             .iter()
             .filter(|(p, _)| ends_here(p))
             .flat_map(|(_, bits)| bits.iter().flatten())
-            .map(|n| depth.get(n).map_or(0, |d| d.0))
-            .max();
-        if let Some(d) = d {
-            let label = out_name
-                .get(&i)
-                .cloned()
-                .unwrap_or_else(|| cell.name.clone());
-            let e = end_depth.entry(label).or_insert(0);
-            *e = (*e).max(d);
-        }
+            .map(|n| (depth.get(n).map_or(0, |d| d.0), *n))
+            .max_by_key(|(d, n)| (*d, std::cmp::Reverse(*n)));
+        let label = out_name
+            .get(&i)
+            .cloned()
+            .unwrap_or_else(|| cell.name.clone());
+        deeper(label, d);
     }
     // The module's outputs end paths too.
     if let Some(ports) = module.get("ports").and_then(Value::as_object) {
@@ -372,15 +383,23 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
                 .unwrap_or_default()
                 .iter()
                 .flatten()
-                .map(|n| depth.get(n).map_or(0, |d| d.0))
-                .max();
-            if let Some(d) = d {
-                let e = end_depth.entry(name.clone()).or_insert(0);
-                *e = (*e).max(d);
-            }
+                .map(|n| (depth.get(n).map_or(0, |d| d.0), *n))
+                .max_by_key(|(d, n)| (*d, std::cmp::Reverse(*n)));
+            deeper(name.clone(), d);
         }
     }
-    let mut ends: Vec<(String, u32)> = end_depth.into_iter().collect();
+    let mut end_paths = HashMap::new();
+    let mut ends: Vec<(String, u32)> = Vec::with_capacity(end_depth.len());
+    for (label, (d, n)) in end_depth {
+        if let Some(n) = n {
+            let (cells_on, from) = trace(n);
+            end_paths.insert(
+                label.clone(),
+                (from, cells_on.into_iter().map(|c| c.1).collect()),
+            );
+        }
+        ends.push((label, d));
+    }
     ends.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
 
     // Carry chains: CARRY4 whose CI comes from another CARRY4.
@@ -423,6 +442,7 @@ pub fn lut_levels(json: &str, top: &str) -> Result<LutLevels, LevelsError> {
         path,
         start,
         ends,
+        end_paths,
     })
 }
 
@@ -501,6 +521,16 @@ mod tests {
             [("d".into(), 3), ("r".into(), 3), ("e".into(), 2)]
         );
         assert_eq!(r.ends_deeper_than(2), ["d 3", "r 3"]);
+        // And where each end's deepest path comes from.
+        let path = |end: &str| {
+            let (from, cells) = &r.end_paths[end];
+            (
+                from.as_str(),
+                cells.iter().map(String::as_str).collect::<Vec<_>>(),
+            )
+        };
+        assert_eq!(path("e"), ("q.Q[0]", vec!["r", "f"]));
+        assert_eq!(path("d"), ("q.Q[0]", names));
     }
 
     #[test]

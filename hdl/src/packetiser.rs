@@ -1249,7 +1249,13 @@ pub struct RecordQueue<const BW: usize, const QAW: usize, const QW: usize> {
     /// Nothing queued, nothing in flight.
     pub empty: Signal<Out, Bit>,
     fifo: Fifo<QW, QAW>,
+    /// `room` as a register: the tracker's walk reads it (its next value
+    /// from the count and this clock's push and pop).
+    room_r: DFF<Bit>,
+    pushed: Signal<Local, Bit>,
+    popped: Signal<Local, Bit>,
     depth: Constant<Bits<16>>,
+    depth_m1: Constant<Bits<16>>,
 }
 
 impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW> {
@@ -1290,7 +1296,11 @@ impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW
             // Block RAM: a record is ~230 bits wide, 78 RAM64M (312 LUTs) of
             // LUT RAM for the SPCImager's 32 records, or four RAMB8s.
             fifo: Fifo::new(RamStyle::Block),
+            room_r: Default::default(),
+            pushed: Default::default(),
+            popped: Default::default(),
             depth: Constant::new((cfg.queue_depth() as u64).to_bits()),
+            depth_m1: Constant::new((cfg.queue_depth() as u64 - 1).to_bits()),
         })
     }
 }
@@ -1312,7 +1322,21 @@ impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<B
             | (bit_cast::<QW, 48>(self.tag.val()) << 178)
             | (bit_cast::<QW, BW>(self.bank.val()) << 226);
         self.fifo.pop.next = self.h_pop.val();
-        self.room.next = self.fifo.count.val() < self.depth.val();
+        // count' = count + pushed − popped < Q, from the count's compares
+        // with constants and the two flags.
+        self.room_r.clock.next = self.clock.val();
+        self.pushed.next = self.push.val() & self.fifo.room.val();
+        self.popped.next = self.h_pop.val() & self.fifo.out_valid.val();
+        self.room_r.d.next = (self.fifo.count.val() < self.depth_m1.val())
+            | ((self.fifo.count.val() == self.depth_m1.val())
+                & !(self.pushed.val() & !self.popped.val()))
+            | ((self.fifo.count.val() == self.depth.val())
+                & self.popped.val()
+                & !self.pushed.val());
+        if self.restart.val() {
+            self.room_r.d.next = true;
+        }
+        self.room.next = self.room_r.q.val();
         self.h_valid.next = self.fifo.out_valid.val();
         self.h_kind.next = self.fifo.out_data.val().get_bits::<2>(0);
         self.h_lost.next = self.fifo.out_data.val().get_bits::<32>(2);

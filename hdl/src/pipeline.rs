@@ -596,6 +596,9 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     ended_q: DFF<Bit>,
     cfg_err: DFF<Bit>,
     frm_err: DFF<Bit>,
+    /// `restart` as a register (it reaches every block): set on the clock
+    /// that enters Restart, or that takes a RESET in Idle.
+    rst: DFF<Bit>,
     regs_ok: Signal<Local, Bit>,
     plane_end: Signal<Local, Bit>,
     n_max: Constant<Bits<32>>,
@@ -673,6 +676,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             ended_q: Default::default(),
             cfg_err: Default::default(),
             frm_err: Default::default(),
+            rst: Default::default(),
             regs_ok: Default::default(),
             plane_end: Default::default(),
             n_max: c32(f.n_max as u64),
@@ -690,7 +694,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
     fn update(&mut self) {
         dff_setup!(
             self, clock, state, n, thr, lmin, lmax, period, masked, men, synced, stop_req, widx,
-            planes_in, drains, ended_q, cfg_err, frm_err
+            planes_in, drains, ended_q, cfg_err, frm_err, rst
         );
         // The model's PipelineConfig::validate, for the runtime registers.
         self.regs_ok.next = (self.reg_n.val() != 0)
@@ -701,7 +705,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             & (self.reg_l_max.val() >= self.reg_n.val())
             & (self.reg_l_max.val() <= self.l_max_max.val());
         self.plane_end.next = self.widx.q.val() == self.last_widx.val();
-        self.restart.next = false;
+        self.restart.next = self.rst.q.val();
+        self.rst.d.next = false;
         self.starting.next = self.state.q.val() == ControlState::Restart;
         self.w_valid.next = false;
         self.w_sop.next = self.widx.q.val() == 0;
@@ -727,18 +732,18 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                         self.frm_err.d.next = false;
                         self.ended_q.d.next = false;
                         self.state.d.next = ControlState::Restart;
+                        self.rst.d.next = true;
                     } else {
                         self.cfg_err.d.next = true;
                     }
                 } else if self.reset.val() {
-                    self.restart.next = true;
+                    self.rst.d.next = true;
                     self.cfg_err.d.next = false;
                     self.frm_err.d.next = false;
                     self.ended_q.d.next = false;
                 }
             }
             ControlState::Restart => {
-                self.restart.next = true;
                 self.synced.d.next = false;
                 self.stop_req.d.next = false;
                 self.widx.d.next = 0.into();

@@ -270,7 +270,8 @@ pub const LEVELS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; f
 /// Synthesises the Verilog for the Spartan-6 with yosys in `dir` and returns
 /// the cell counts (the log is left in `dir/yosys.log`), and the LUT levels
 /// of both mappings: [`YOSYS_SCRIPT`] and, in a second yosys run beside it,
-/// [`LEVELS_SCRIPT`] (log `dir/levels.log`).
+/// [`LEVELS_SCRIPT`] (log `dir/levels.log`; the deepest path into every
+/// end deeper than 5 levels of that mapping in `dir/levels-paths.txt`).
 pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError> {
     write_file(dir, "top.v", verilog)?;
     let yosys = |log: &str, script: &str| {
@@ -305,7 +306,16 @@ pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError
         Ok(crate::lut_levels::lut_levels(&json, "top")?)
     };
     r.lut_levels = Some(levels("netlist.json")?);
-    r.unit_levels = Some(levels("levels.json")?);
+    let unit = levels("levels.json")?;
+    // Where each deep end's path comes from, for the pipelining work list.
+    let mut report = String::new();
+    for (end, d) in unit.ends.iter().filter(|(_, d)| *d > 5) {
+        if let Some((from, cells)) = unit.end_paths.get(end) {
+            report += &format!("{d} {end} <- {from}: {}\n", cells.join(" > "));
+        }
+    }
+    write_file(dir, "levels-paths.txt", &report)?;
+    r.unit_levels = Some(unit);
     Ok(r)
 }
 
