@@ -331,6 +331,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     t: DFF<Bits<48>>,
     rows: DFF<Bits<16>>,
     done_mask: DFF<Bits<P>>,
+    /// The read stage's slot; 0 whenever no walk reads (a walk ends, and a
+    /// restart leaves it, at 0), so that a walk starts without writing it
+    /// and `walk_mem`'s read address does not wait on the state machine.
     walk: DFF<Bits<8>>,
     lost: DFF<Bits<32>>,
     drops: DFF<Bits<32>>,
@@ -1424,6 +1427,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.walk.d.next = self.walk.q.val() + 1;
             if self.walk.q.val() == self.last_slot.val() {
                 self.rd_on.d.next = false;
+                self.walk.d.next = 0.into();
             }
         }
 
@@ -1645,7 +1649,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             TrackerState::Run => {
                 if self.fin_cond.val() {
-                    self.walk.d.next = 0.into();
                     self.rd_on.d.next = self.t.q.val() != 0;
                     self.state.d.next = TrackerState::Finish;
                 } else if self.d_go.val() {
@@ -1653,7 +1656,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.r_last.q.val() & self.r_eor.q.val() {
                         self.rows.d.next = bit_cast::<16, 10>(self.r_yc.q.val()) + 1;
                         if self.r_lastrow.q.val() {
-                            self.walk.d.next = 0.into();
                             self.rd_on.d.next = true;
                             self.state.d.next = TrackerState::Walk;
                         }
@@ -1713,7 +1715,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.in_flush.val() & self.eor.val() {
                         self.rows.d.next = self.in_y.val() + 1;
                         if self.in_yc.val() == self.last_row.val() {
-                            self.walk.d.next = 0.into();
                             self.rd_on.d.next = true;
                             self.state.d.next = TrackerState::DrainWalk;
                         }
@@ -1726,7 +1727,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.rows.d.next = 0.into();
                     self.state.d.next = TrackerState::Drain;
                     if self.drain_end.q.val() {
-                        self.walk.d.next = 0.into();
                         self.rd_on.d.next = true;
                         self.state.d.next = TrackerState::Emit;
                     }
@@ -1903,6 +1903,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.r_valid.d.next = false;
             self.replay.d.next = false;
             self.rd_on.d.next = false;
+            self.walk.d.next = 0.into();
             self.w1_valid.d.next = false;
             self.w2_valid.d.next = false;
             self.lost.d.next = 0.into();

@@ -64,7 +64,6 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     t1: TagReg,
     h1: Vec<DFF<Bits<HW>>>,
     skew: RowSkew,
-    last_y: Constant<Bits<16>>,
     bot_ok: Signal<Local, Bit>,
     wmid: WordWindow<HW>,
     wbot: WordWindow<HW>,
@@ -123,7 +122,6 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
             t1: Default::default(),
             h1: lanes(p),
             skew: RowSkew::new(1, cfg.height),
-            last_y: Constant::new((cfg.height as u64 - 1).to_bits()),
             bot_ok: Default::default(),
             wmid: WordWindow::new(p, 1, wpr),
             wbot: WordWindow::new(p, 1, wpr),
@@ -171,7 +169,10 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
         self.skew.flush.next = self.t1.out_flush.val();
         self.skew.x.next = self.t1.out_x.val();
         self.skew.y.next = self.t1.out_y.val();
-        self.bot_ok.next = self.skew.out_y.val() != self.last_y.val();
+        // The output row y − 1 is the last row exactly when the input row is
+        // 0 (it wraps to H − 1): compared on the input's register, not
+        // behind the skew's subtraction.
+        self.bot_ok.next = self.t1.out_y.val() != 0;
         self.wmid.valid.next = self.skew.out_valid.val();
         self.wmid.flush.next = self.skew.out_flush.val();
         self.wmid.x.next = self.t1.out_x.val();

@@ -179,6 +179,8 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     /// The waiting write belongs to the stream before a restart: it still
     /// goes out (its data is in the MCB's write FIFO) but counts for nothing.
     pend_old: DFF<Bit>,
+    /// The waiting write is its plane's last burst.
+    pend_last: DFF<Bit>,
     /// A burst cut short by a restart: its words are in the write FIFO
     /// without a command, so one goes out for them (old stream, old slot)
     /// before the new stream's first.
@@ -349,6 +351,7 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             pend_addr: Default::default(),
             pend_bl: Default::default(),
             pend_old: Default::default(),
+            pend_last: Default::default(),
             spend: Default::default(),
             spend_addr: Default::default(),
             spend_bl: Default::default(),
@@ -435,6 +438,7 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             pend_addr,
             pend_bl,
             pend_old,
+            pend_last,
             spend,
             spend_addr,
             spend_bl,
@@ -538,9 +542,7 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             // Writes issued so far of the plane being written.
             self.wissued.d.next =
                 self.wissued.q.val() + bit_cast::<16, 6>(self.pend_bl.q.val()) + 1;
-            if self.wissued.q.val() + bit_cast::<16, 6>(self.pend_bl.q.val()) + 1
-                == self.plane_words.val()
-            {
+            if self.pend_last.q.val() {
                 self.wissued.d.next = 0.into();
                 self.wfin.next = true;
             }
@@ -557,6 +559,7 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             self.pend_old.d.next = false;
             self.pend_addr.d.next = self.waddr.val();
             self.pend_bl.d.next = bit_cast::<6, 8>(self.wcount.q.val());
+            self.pend_last.d.next = self.wword.q.val() == self.last_word.val();
         }
 
         // ---- Read side: bursts of written planes into the prefetch FIFO.

@@ -190,7 +190,6 @@ pub struct RoiAggregator<
     rest: Signal<Local, Bits<MAX_SLOTS>>,
     any_rel: Signal<Local, Bit>,
     rest_any: Signal<Local, Bit>,
-    now_any: Signal<Local, Bit>,
     now_rel: Vec<Signal<Local, Bit>>,
     /// `now_rel` packed, bit i: slot i.
     now_v: Signal<Local, Bits<MAX_SLOTS>>,
@@ -339,7 +338,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             rest: Default::default(),
             any_rel: Default::default(),
             rest_any: Default::default(),
-            now_any: Default::default(),
             now_rel: lanes(m),
             now_v: Default::default(),
             m_set: Default::default(),
@@ -658,18 +656,15 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.msk.write_enable.next = self.s1_valid.q.val();
         self.rd_masked.next = self.msk.read_data.val().any();
 
-        // ---- Sweep control: a row costs one clock per relevant slot (at
-        // least one); the row is done with its last slot.
-        self.now_any.next = self.now_v.val().any();
+        // ---- Sweep control: a row costs its start and one clock per
+        // relevant slot (at least one; a row no slot covers is done on the
+        // clock after its start, which reads `rel` rather than an OR of the
+        // comparisons it is loaded from); the row is done with its last slot.
         self.rest_any.next = self.rest.val().any();
         self.row_done.next = false;
         if self.go.val() {
-            if self.now_any.val() {
-                self.sweeping.d.next = true;
-                self.rel.d.next = self.now_v.val();
-            } else {
-                self.row_done.next = true;
-            }
+            self.sweeping.d.next = true;
+            self.rel.d.next = self.now_v.val();
         }
         if self.sweeping.q.val() {
             self.rel.d.next = self.rest.val();

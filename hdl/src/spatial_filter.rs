@@ -210,16 +210,16 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     t1: TagReg,
     s1: EnableRegs<Bits<CW>>,
     skew: RowSkew,
-    /// The word's output row plus c, registered with the tag: the row
-    /// itself, or the row plus H for rows that finish the previous plane
-    /// (`RowSkew`: row y − c, or y + H − c), so that V1's tap masks start
-    /// from a register.
-    yoc: DFF<Bits<16>>,
     tap_lo: Vec<Constant<Bits<16>>>,
     tap_hi: Vec<Constant<Bits<16>>>,
+    /// Tap m's lowest input row `m − H` in a plane's first c rows, for
+    /// m > H (entry m − `_kw`); the highest is `tap_lo[m − 1] − 1`.
+    wrap_lo: Vec<Constant<Bits<16>>>,
     half: Constant<Bits<16>>,
-    height: Constant<Bits<16>>,
-    mask: Vec<Signal<Local, Bit>>,
+    /// The tap masks (tap m's row lies in the plane), computed from `yoc`
+    /// as the word enters V0 and registered with its tag, so that V1's taps
+    /// start from registers.
+    mask: Vec<DFF<Bit>>,
     vwid: Vec<Widen<CW, VW>>,
     tap: Vec<Signal<Local, Bits<VW>>>,
     t2: TagReg,
@@ -243,6 +243,11 @@ pub struct SpatialFilter<const CW: usize, const VW: usize, const HW: usize, cons
     hout: EnableRegs<Bits<HW>>,
     _p: usize,
     _k: usize,
+    /// Taps 1 … `_kw − 1` have no lower bound in a plane's first c rows
+    /// (m ≤ H); taps `_kw` … k − 1 do (the plane is shorter than the kernel).
+    _kw: usize,
+    /// k − `_kw`.
+    _kn: usize,
     _c: usize,
 }
 
@@ -267,9 +272,12 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
         }
         let c16 = |v: usize| Constant::new((v as u64).to_bits());
         // Tap m (0 = newest row) of output row yo reads source row yo + c − m,
-        // inside the plane iff m ≤ yo + c < H + m.
+        // inside the plane iff m ≤ yo + c < H + m. For an input row y ≥ c
+        // (yo = y − c) that is m ≤ y < H + m; for y < c, a row that finishes
+        // the previous plane (yo = y + H − c), it is m − H ≤ y < m.
         let tap_lo = (1..k).map(c16).collect();
         let tap_hi = (0..k).map(|m| c16(cfg.height + m)).collect();
+        let wrap_lo = (cfg.height + 1..k).map(|m| c16(m - cfg.height)).collect();
         // The multiplies (q = lane·(c + 1) + j, weight k1[j]; the operand is a
         // pre-added pair but for the centre tap j = c), and which of them go
         // to DSP slices: those that save the most LUTs (adders × width),
@@ -327,12 +335,11 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             t1: Default::default(),
             s1: EnableRegs::new(p),
             skew: RowSkew::new(c, cfg.height),
-            yoc: Default::default(),
             tap_lo,
             tap_hi,
+            wrap_lo,
             half: c16(c),
-            height: c16(cfg.height),
-            mask: lanes(k),
+            mask: (0..k).map(|_| Default::default()).collect(),
             vwid: lanes(p * k),
             tap: lanes(p * k),
             t2: Default::default(),
@@ -355,6 +362,8 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize>
             hout: EnableRegs::new(p),
             _p: p,
             _k: k,
+            _kw: k.min(cfg.height + 1),
+            _kn: k - k.min(cfg.height + 1),
             _c: c,
         })
     }
@@ -390,12 +399,28 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         self.skew.restart.next = self.restart.val();
         self.window.restart.next = self.restart.val();
 
-        // V0: read the k − 1 older rows of this column word; its output row
-        // plus c (`yoc`).
-        self.yoc.clock.next = self.clock.val();
-        self.yoc.d.next = self.y.val();
-        if self.y.val() < self.half.val() {
-            self.yoc.d.next = self.y.val() + self.height.val();
+        // V0: read the k − 1 older rows of this column word; its tap masks
+        // (compares of the input row with constants; see `new`). Tap 0 (the
+        // newest row) is never above the plane.
+        for m in 0..self._k {
+            self.mask[m].clock.next = self.clock.val();
+        }
+        self.mask[0].d.next =
+            (self.y.val() >= self.half.val()) & (self.y.val() < self.tap_hi[0].val());
+        for m in 1..self._k {
+            self.mask[m].d.next = self.y.val() < self.tap_lo[m - 1].val();
+        }
+        for kw in self._kw..(self._kw + 1) {
+            for j in 0..self._kn {
+                self.mask[j + kw].d.next = (self.wrap_lo[j].val() <= self.y.val())
+                    & (self.y.val() < self.tap_lo[j + kw - 1].val());
+            }
+        }
+        for m in 1..self._k {
+            if self.y.val() >= self.half.val() {
+                self.mask[m].d.next = (self.tap_lo[m - 1].val() <= self.y.val())
+                    & (self.y.val() < self.tap_hi[m].val());
+            }
         }
         self.t1.valid.next = self.valid.val();
         self.t1.flush.next = self.flush.val();
@@ -415,13 +440,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             self.line[i].write_enable.next = self.t1.out_valid.val();
         }
 
-        // V1: output row, tap masks, shift the column down, pre-add pairs.
-        // Tap 0 (the newest row) is never above the plane.
-        self.mask[0].next = self.yoc.q.val() < self.tap_hi[0].val();
-        for m in 1..self._k {
-            self.mask[m].next = (self.tap_lo[m - 1].val() <= self.yoc.q.val())
-                & (self.yoc.q.val() < self.tap_hi[m].val());
-        }
+        // V1: output row, shift the column down, pre-add pairs.
         self.skew.valid.next = self.t1.out_valid.val();
         self.skew.flush.next = self.t1.out_flush.val();
         self.skew.x.next = self.t1.out_x.val();
@@ -456,11 +475,11 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
                     for m in 0..self._k {
                         self.tap[i * kk + m].next = 0.into();
                     }
-                    if self.skew.out_valid.val() {
-                        for m in 0..self._k {
-                            if self.mask[m].val() {
-                                self.tap[i * kk + m].next = self.vwid[i * kk + m].y.val();
-                            }
+                    // (Not gated by the skew's `out_valid`: `vpair` loads
+                    // only with it, so the gate was only depth.)
+                    for m in 0..self._k {
+                        if self.mask[m].q.val() {
+                            self.tap[i * kk + m].next = self.vwid[i * kk + m].y.val();
                         }
                     }
                 }
@@ -474,17 +493,11 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
             for c1 in (self._c + 1)..(self._c + 2) {
                 for cc in self._c..(self._c + 1) {
                     for i in 0..self._p {
-                        if self.skew.out_valid.val() {
-                            for j in 0..self._c {
-                                self.vpair.d[i * c1 + j].next = self.tap[i * kk + j].val()
-                                    + self.tap[i * kk + kk - 1 - j].val();
-                            }
-                            self.vpair.d[i * c1 + cc].next = self.tap[i * kk + cc].val();
-                        } else {
-                            for j in 0..(self._c + 1) {
-                                self.vpair.d[i * c1 + j].next = 0.into();
-                            }
+                        for j in 0..self._c {
+                            self.vpair.d[i * c1 + j].next =
+                                self.tap[i * kk + j].val() + self.tap[i * kk + kk - 1 - j].val();
                         }
+                        self.vpair.d[i * c1 + cc].next = self.tap[i * kk + cc].val();
                     }
                 }
             }
