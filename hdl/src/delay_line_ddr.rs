@@ -49,8 +49,12 @@
 //!
 //! **Zero before the stream.** As in the block-RAM version, a saturating
 //! plane count forces `B_{t−N}` to zero for `t < N`, so whatever DDR2 holds
-//! after power-up or from an earlier stream never comes out. Reads still in
-//! flight at a restart are discarded when they arrive.
+//! after power-up or from an earlier stream never comes out. A restart may
+//! come at any point of a stream: reads still in flight (and a read still
+//! waiting for the port) are discarded when they arrive, over any number of
+//! restarts; a write still waiting goes out uncounted; and a burst cut short
+//! gets a write command of its own (its words are already in the MCB's
+//! write FIFO, and the next write command would otherwise take them).
 //!
 //! **Errors are sticky flags**, never silent: `underrun` (a delayed word was
 //! needed before it arrived: the DDR2 bandwidth fell short) and
