@@ -416,6 +416,15 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// RAM (bits 0–17 age, 18–33 dage, 34 conf, 35 cont, 36 trunc), read at
     /// the read stage's next slot so that the word is there when it is.
     walk_mem: Bram<37, 8>,
+    /// A copy of `walk_mem` (written with it) read at the slot after
+    /// `walk`: with `walk_mem` read at `walk` itself, the word of either
+    /// next slot is there without the read address waiting on whether the
+    /// walk moves on (`rd`, behind the W2 stage's back-pressure); `wm_adv`
+    /// picks one. 37 × M bits of LUT RAM for a shallower path.
+    walk_mem_next: Bram<37, 8>,
+    /// The walk moved on to the next slot on the previous clock: the word
+    /// read is `walk_mem_next`'s.
+    wm_adv: DFF<Bit>,
     /// The word written on the previous clock, for a read of the slot just
     /// written: only with M = 1, where a walk's last step writes slot 0 in
     /// the clock the next walk issues its read of slot 0 (`one_slot`: for
@@ -798,6 +807,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             hit_nx: Default::default(),
             ev_bridge_nx: Default::default(),
             walk_mem: Bram::new(m, RamStyle::Distributed),
+            walk_mem_next: Bram::new(m, RamStyle::Distributed),
+            wm_adv: Default::default(),
             wm_fwd: Default::default(),
             wm_last: Default::default(),
             sv: lanes(2 * m),
@@ -1012,6 +1023,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             bank_err,
             bank_waits,
             wm_fwd,
+            wm_adv,
             wm_last,
             x_valid,
             x_cand,
@@ -1086,6 +1098,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             w2_word
         );
         self.walk_mem.clock.next = self.clock.val();
+        self.walk_mem_next.clock.next = self.clock.val();
         // (The flags' `d` is their `_nx`, assigned at the end.)
         clock!(self, clock, busy, live, dip, pend, aprev, fprev, opened, hit, ev_bridge);
         self.busy_nx.next = self.busy.q.val();
@@ -1405,6 +1418,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
         self.w_word.next = self.walk_mem.read_data.val();
+        if self.wm_adv.q.val() {
+            self.w_word.next = self.walk_mem_next.read_data.val();
+        }
         if self.wm_fwd.q.val() {
             self.w_word.next = self.wm_last.q.val();
         }
@@ -1638,6 +1654,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.walk_mem.write_enable.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
         self.walk_mem.write_data.next = self.w2_word.q.val();
+        self.walk_mem_next.write_address.next = self.walk_mem.write_address.val();
+        self.walk_mem_next.write_enable.next = self.walk_mem.write_enable.val();
+        self.walk_mem_next.write_data.next = self.walk_mem.write_data.val();
 
         match self.state.q.val() {
             TrackerState::Start => {
@@ -1944,9 +1963,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.hit.d.next = self.hit_nx.val();
         self.ev_bridge.d.next = self.ev_bridge_nx.val();
 
-        // Read the word of the slot the walk is at on the next clock (after
-        // every assignment of `walk.d`).
-        self.walk_mem.read_address.next = self.walk.d.val();
+        // Read the word of the slot the walk is at on the next clock: `walk.d`
+        // is `walk` (or 0 at a restart) unless the walk moves on, to the
+        // next slot (0 after the last).
+        self.walk_mem.read_address.next = self.walk.q.val();
+        if self.restart.val() {
+            self.walk_mem.read_address.next = 0.into();
+        }
+        self.walk_mem_next.read_address.next = self.walk.q.val() + 1;
+        if self.walk.q.val() == self.last_slot.val() {
+            self.walk_mem_next.read_address.next = 0.into();
+        }
+        self.wm_adv.d.next = self.rd.val() & !self.restart.val();
         self.wm_fwd.d.next = self.one_slot.val()
             & self.walk_mem.write_enable.val()
             & (self.walk.d.val() == self.w2_slot.q.val());

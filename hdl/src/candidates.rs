@@ -167,7 +167,7 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
         // outside the plane.
         self.skew.valid.next = self.t1.out_valid.val();
         self.skew.flush.next = self.t1.out_flush.val();
-        self.skew.x.next = self.t1.out_x.val();
+        self.skew.origin.next = self.t1.out_origin.val();
         self.skew.y.next = self.t1.out_y.val();
         // The output row y − 1 is the last row exactly when the input row is
         // 0 (it wraps to H − 1): compared on the input's register, not

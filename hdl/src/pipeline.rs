@@ -180,6 +180,11 @@ pub struct BackHalf<
     pkt: Packetiser<RCW, CAW, BW, NW, PW>,
     ofifo: Fifo<8, OAW>,
     faults: DFF<Bit>,
+    /// `room` as a register: it gates the source through the control and
+    /// the replay FIFO, which should not wait on the FIFO count's and the
+    /// ring backlog's compares. One clock late, it lets through at most one
+    /// word more, which [`ROOM_MARGIN_WORDS`] counts.
+    room_q: DFF<Bit>,
     ofree: Signal<Local, Bits<16>>,
     last_word: Constant<Bits<16>>,
     off_p: Constant<Bits<16>>,
@@ -194,8 +199,9 @@ pub struct BackHalf<
 }
 
 /// Words a source may still send after `room` falls (the stages between
-/// the source and the tracker's FIFO or the ROI ring hold fewer), so that
-/// `room` keeps that margin.
+/// the source and the tracker's FIFO or the ROI ring hold fewer, with the
+/// clock by which `room`, a register, lags the counts), so that `room`
+/// keeps that margin.
 pub const ROOM_MARGIN_WORDS: usize = 32;
 
 /// Rows of the ROI ring that `room` allows to fill: all but the margin
@@ -275,6 +281,7 @@ impl<
             pkt: Packetiser::new(cfg)?,
             ofifo: Fifo::new(RamStyle::Block),
             faults: Default::default(),
+            room_q: Default::default(),
             ofree: Default::default(),
             last_word: c16(cfg.front.words_per_row() as u64 - 1),
             off_p: c16(P as u64),
@@ -309,7 +316,7 @@ impl<
     #[hdl_gen]
     fn update(&mut self) {
         clock!(self, clock, tfifo, tracker, agg, pool, queue, pkt, ofifo);
-        dff_setup!(self, clock, faults);
+        dff_setup!(self, clock, faults, room_q);
         self.tfifo.restart.next = self.restart.val();
         self.tracker.restart.next = self.restart.val();
         self.tracker.emit_start.next = self.emit_start.val();
@@ -335,8 +342,9 @@ impl<
                 << self.off_y.val())
             | (bit_cast::<TW, 1>(self.fh_flush.val().into()) << self.off_f.val());
         self.tfifo.pop.next = self.tracker.in_pop.val();
-        self.room.next = (self.tfifo.count.val() < self.tfifo_room.val())
+        self.room_q.d.next = (self.tfifo.count.val() < self.tfifo_room.val())
             & (self.agg.backlog.val() < self.ring_room.val());
+        self.room.next = self.room_q.q.val();
 
         // Tracker.
         self.tracker.n_window.next = self.n_window.val();
@@ -591,8 +599,16 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     synced: DFF<Bit>,
     stop_req: DFF<Bit>,
     widx: DFF<Bits<32>>,
+    /// `widx = 0` and `widx` = the plane's last word, as registers (of
+    /// `widx.d`): the source's gate (`accepting`, and so the replay FIFO's
+    /// pop) and the word's plane end do not wait on 32-bit compares.
+    w_zero: DFF<Bit>,
+    w_last: DFF<Bit>,
     planes_in: DFF<Bits<48>>,
     drains: DFF<Bits<NW>>,
+    /// N − 1, latched with N: the last drain plane is found by an equality
+    /// with a register rather than behind an increment.
+    n_last: DFF<Bits<NW>>,
     ended_q: DFF<Bit>,
     cfg_err: DFF<Bit>,
     frm_err: DFF<Bit>,
@@ -671,8 +687,11 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             synced: Default::default(),
             stop_req: Default::default(),
             widx: Default::default(),
+            w_zero: Default::default(),
+            w_last: Default::default(),
             planes_in: Default::default(),
             drains: Default::default(),
+            n_last: Default::default(),
             ended_q: Default::default(),
             cfg_err: Default::default(),
             frm_err: Default::default(),
@@ -694,7 +713,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
     fn update(&mut self) {
         dff_setup!(
             self, clock, state, n, thr, lmin, lmax, period, masked, men, synced, stop_req, widx,
-            planes_in, drains, ended_q, cfg_err, frm_err, rst
+            w_zero, w_last, planes_in, drains, n_last, ended_q, cfg_err, frm_err, rst
         );
         // The model's PipelineConfig::validate, for the runtime registers.
         self.regs_ok.next = (self.reg_n.val() != 0)
@@ -704,12 +723,12 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             & (self.reg_l_max.val() >= self.reg_l_min.val())
             & (self.reg_l_max.val() >= self.reg_n.val())
             & (self.reg_l_max.val() <= self.l_max_max.val());
-        self.plane_end.next = self.widx.q.val() == self.last_widx.val();
+        self.plane_end.next = self.w_last.q.val();
         self.restart.next = self.rst.q.val();
         self.rst.d.next = false;
         self.starting.next = self.state.q.val() == ControlState::Restart;
         self.w_valid.next = false;
-        self.w_sop.next = self.widx.q.val() == 0;
+        self.w_sop.next = self.w_zero.q.val();
         self.w_flush.next = false;
         self.w_drain.next = false;
         self.w_live.next = 0.into();
@@ -719,6 +738,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 if self.start.val() {
                     if self.regs_ok.val() {
                         self.n.d.next = bit_cast::<NW, 32>(self.reg_n.val());
+                        self.n_last.d.next = bit_cast::<NW, 32>(self.reg_n.val()) - 1;
                         self.thr.d.next = self.reg_threshold.val();
                         self.lmin.d.next = self.reg_l_min.val();
                         self.lmax.d.next = self.reg_l_max.val();
@@ -754,7 +774,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 if self.stop.val() {
                     self.stop_req.d.next = true;
                 }
-                if self.stop_req.q.val() & (self.widx.q.val() == 0) {
+                if self.stop_req.q.val() & self.w_zero.q.val() {
                     // At a plane boundary: no more real planes.
                     self.drains.d.next = 0.into();
                     if self.planes_in.q.val() == 0 {
@@ -764,7 +784,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                     }
                 } else if self.in_valid.val() & (self.synced.q.val() | self.in_sop.val()) {
                     self.synced.d.next = true;
-                    if self.in_sop.val() & (self.widx.q.val() != 0) {
+                    if self.in_sop.val() & !self.w_zero.q.val() {
                         self.frm_err.d.next = true;
                     }
                     self.w_valid.next = true;
@@ -783,7 +803,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 if self.plane_end.val() {
                     self.widx.d.next = 0.into();
                     self.drains.d.next = self.drains.q.val() + 1;
-                    if self.drains.q.val() + 1 == self.n.q.val() {
+                    if self.drains.q.val() == self.n_last.q.val() {
                         self.state.d.next = ControlState::Flush;
                     }
                 }
@@ -825,7 +845,9 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             & (self.state.q.val() != ControlState::Restart);
         // STOP waits for the plane in progress to complete.
         self.accepting.next = (self.state.q.val() == ControlState::Run)
-            & !(self.stop_req.q.val() & (self.widx.q.val() == 0));
+            & !(self.stop_req.q.val() & self.w_zero.q.val());
+        self.w_zero.d.next = self.widx.d.val() == 0;
+        self.w_last.d.next = self.widx.d.val() == self.last_widx.val();
         self.ended.next = self.ended_q.q.val();
         self.config_error.next = self.cfg_err.q.val();
         self.framing_error.next = self.frm_err.q.val();

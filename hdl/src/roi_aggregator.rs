@@ -159,6 +159,9 @@ pub struct RoiAggregator<
     s1_pre: DFF<Bit>,
     s1_fresh: DFF<Bit>,
     s1_off: DFF<Bits<16>>,
+    /// P − `s1_off`, registered beside it: the window's shifts start from
+    /// registers rather than behind a subtraction.
+    s1_sh_hi: DFF<Bits<16>>,
     s1_lo_ok: DFF<Bit>,
     s1_hi_ok: DFF<Bit>,
     s1_odd: DFF<Bit>,
@@ -211,7 +214,6 @@ pub struct RoiAggregator<
     hi_l: Signal<Local, Bits<P>>,
     hi_d: Signal<Local, Bits<P>>,
     hi_m: Signal<Local, Bits<P>>,
-    sh_hi: Signal<Local, Bits<16>>,
     win_l: Signal<Local, Bits<P>>,
     win_d: Signal<Local, Bits<P>>,
     win_m: Signal<Local, Bits<P>>,
@@ -315,6 +317,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             s1_pre: Default::default(),
             s1_fresh: Default::default(),
             s1_off: Default::default(),
+            s1_sh_hi: Default::default(),
             s1_lo_ok: Default::default(),
             s1_hi_ok: Default::default(),
             s1_odd: Default::default(),
@@ -356,7 +359,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             hi_l: Default::default(),
             hi_d: Default::default(),
             hi_m: Default::default(),
-            sh_hi: Default::default(),
             win_l: Default::default(),
             win_d: Default::default(),
             win_m: Default::default(),
@@ -393,7 +395,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         dff_setup!(
             self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rlo, rhi, gs_w, pd,
             ra, need, a_valid, a_sel, a_view, a_row_hi, a_ra0, a_rbase, s1_valid, s1_live, s1_pre,
-            s1_fresh, s1_off, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel, s1_sel, mflag
+            s1_fresh, s1_off, s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel, s1_sel, mflag
         );
         self.slot_masked.next = self.mflag.q.val();
         for q in 0..6 {
@@ -571,6 +573,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.s1_pre.d.next = self.a_view.q.val().get_bit(62);
         self.s1_fresh.d.next = self.a_view.q.val().get_bit(63);
         self.s1_off.d.next = self.x0p.val() & self.pm1.val();
+        self.s1_sh_hi.d.next = self.pw.val() - (self.x0p.val() & self.pm1.val());
         self.s1_lo_ok.d.next = self.wq.val() != 0;
         self.s1_hi_ok.d.next = self.wq.val() < self.words.val();
         self.s1_odd.d.next = self.wq.val().get_bit(0);
@@ -608,13 +611,12 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 self.hi_m.next = self.ring[2].read_data.val();
             }
         }
-        self.sh_hi.next = self.pw.val() - self.s1_off.q.val();
         self.win_l.next =
-            (self.lo_l.val() >> self.s1_off.q.val()) | (self.hi_l.val() << self.sh_hi.val());
+            (self.lo_l.val() >> self.s1_off.q.val()) | (self.hi_l.val() << self.s1_sh_hi.q.val());
         self.win_d.next =
-            (self.lo_d.val() >> self.s1_off.q.val()) | (self.hi_d.val() << self.sh_hi.val());
+            (self.lo_d.val() >> self.s1_off.q.val()) | (self.hi_d.val() << self.s1_sh_hi.q.val());
         self.win_m.next =
-            (self.lo_m.val() >> self.s1_off.q.val()) | (self.hi_m.val() << self.sh_hi.val());
+            (self.lo_m.val() >> self.s1_off.q.val()) | (self.hi_m.val() << self.s1_sh_hi.q.val());
         for dx in 0..self._r {
             self.old[dx].next = self.cnt[dx].read_data.val();
             if self.s1_fresh.q.val() {

@@ -443,7 +443,7 @@ impl<const CW: usize, const VW: usize, const HW: usize, const LAW: usize> Logic
         // V1: output row, shift the column down, pre-add pairs.
         self.skew.valid.next = self.t1.out_valid.val();
         self.skew.flush.next = self.t1.out_flush.val();
-        self.skew.x.next = self.t1.out_x.val();
+        self.skew.origin.next = self.t1.out_origin.val();
         self.skew.y.next = self.t1.out_y.val();
         for kk in self._k..(self._k + 1) {
             for km in (self._k - 1)..self._k {

@@ -106,8 +106,10 @@ pub struct RowSkew {
     pub valid: Signal<In, Bit>,
     /// Input word is of a flush plane.
     pub flush: Signal<In, Bit>,
-    /// Input word column.
-    pub x: Signal<In, Bits<16>>,
+    /// The input word is the plane's first (column 0 of row 0): a
+    /// register's output ([`TagReg`]'s `out_origin`), so that the plane
+    /// history does not wait on two 16-bit compares.
+    pub origin: Signal<In, Bit>,
     /// Input row.
     pub y: Signal<In, Bits<16>>,
     /// An output row is due.
@@ -134,7 +136,7 @@ impl RowSkew {
             restart: Default::default(),
             valid: Default::default(),
             flush: Default::default(),
-            x: Default::default(),
+            origin: Default::default(),
             y: Default::default(),
             out_valid: Default::default(),
             out_flush: Default::default(),
@@ -154,7 +156,7 @@ impl Logic for RowSkew {
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(self, clock, started, cur_flush, prev_started, prev_flush);
-        self.sop.next = self.valid.val() & (self.x.val() == 0) & (self.y.val() == 0);
+        self.sop.next = self.valid.val() & self.origin.val();
         if self.sop.val() {
             self.started.d.next = true;
             self.cur_flush.d.next = self.flush.val();
@@ -440,16 +442,19 @@ pub struct TagReg {
     pub out_x: Signal<Out, Bits<16>>,
     /// `y`, one clock later.
     pub out_y: Signal<Out, Bits<16>>,
+    /// The registered word is column 0 of row 0 (a plane's first word).
+    pub out_origin: Signal<Out, Bit>,
     v: DFF<Bit>,
     f: DFF<Bit>,
     xr: DFF<Bits<16>>,
     yr: DFF<Bits<16>>,
+    org: DFF<Bit>,
 }
 
 impl Logic for TagReg {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, v, f, xr, yr);
+        dff_setup!(self, clock, v, f, xr, yr, org);
         self.v.d.next = self.valid.val() & !self.restart.val();
         self.f.d.next = self.flush.val();
         self.xr.d.next = self.x.val();
@@ -457,7 +462,9 @@ impl Logic for TagReg {
         self.out_valid.next = self.v.q.val();
         self.out_flush.next = self.f.q.val();
         self.out_x.next = self.xr.q.val();
+        self.org.d.next = (self.x.val() == 0) & (self.y.val() == 0);
         self.out_y.next = self.yr.q.val();
+        self.out_origin.next = self.org.q.val();
     }
 }
 

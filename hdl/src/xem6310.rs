@@ -525,6 +525,7 @@ pub struct XemCore<
     rshift: Signal<Local, Bits<32>>,
     mshift: Signal<Local, Bits<32>>,
     take_byte: Signal<Local, Bit>,
+    avail_base: Signal<Local, Bits<32>>,
     pad: Signal<Local, Bit>,
     byte32: Signal<Local, Bits<32>>,
     sop_bit: Constant<Bits<8>>,
@@ -636,6 +637,7 @@ impl<
             rshift: Default::default(),
             mshift: Default::default(),
             take_byte: Default::default(),
+            avail_base: Default::default(),
             pad: Default::default(),
             byte32: Default::default(),
             sop_bit: Constant::new((P as u64).to_bits()),
@@ -796,20 +798,19 @@ impl<
             }
         }
         // Bytes of the stream not yet read by the host (padding excluded).
-        self.avail.d.next = self.avail.q.val();
-        if self.pipe.out_pop.val() {
-            self.avail.d.next = self.avail.q.val() + 1;
-        }
+        // The host's read first, the byte taken this clock added last: the
+        // pop (behind the output FIFO's room) meets one adder, not two.
+        self.avail_base.next = self.avail.q.val();
         self.owords.pop.next = self.out_read.val();
         if self.out_read.val() {
             self.odata.d.next = self.owords.out_data.val();
+            self.avail_base.next = 0.into();
             if self.avail.q.val() >= 4 {
-                self.avail.d.next =
-                    self.avail.q.val() - 4 + bit_cast::<32, 1>(self.pipe.out_pop.val().into());
-            } else {
-                self.avail.d.next = bit_cast::<32, 1>(self.pipe.out_pop.val().into());
+                self.avail_base.next = self.avail.q.val() - 4;
             }
         }
+        self.avail.d.next =
+            self.avail_base.val() + bit_cast::<32, 1>(self.pipe.out_pop.val().into());
         if self.trigger.val().get_bit(0) | self.trigger.val().get_bit(1) {
             self.pack.d.next = 0.into();
             self.pbytes.d.next = 0.into();
