@@ -66,6 +66,13 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     slot: DFF<Bits<NW>>,
     base: DFF<Bits<AW>>,
     zero: DFF<Bit>,
+    /// The next stored plane starts the ring again (plane 0 of the stream,
+    /// or slot N − 1 now) and the base it takes otherwise, as registers of
+    /// this clock's `planes`, `slot` and `base`: the memory's address at a
+    /// plane's start is a multiplexer of registers, not behind N − 1's
+    /// compare and the base's adder.
+    wrap: DFF<Bit>,
+    next_base: DFF<Bits<AW>>,
     slot_now: Signal<Local, Bits<NW>>,
     base_now: Signal<Local, Bits<AW>>,
     zero_now: Signal<Local, Bit>,
@@ -115,6 +122,8 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             slot: Default::default(),
             base: Default::default(),
             zero: Default::default(),
+            wrap: Default::default(),
+            next_base: Default::default(),
             slot_now: Default::default(),
             base_now: Default::default(),
             zero_now: Default::default(),
@@ -136,8 +145,8 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, n_reg, planes, slot, base, zero, v1, f1, x1, y1, i1, live1, zero1, drain1,
-            side1
+            self, clock, n_reg, planes, slot, base, zero, wrap, next_base, v1, f1, x1, y1, i1, live1,
+            zero1, drain1, side1
         );
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
@@ -154,12 +163,12 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
                 self.planes.d.next = self.planes.q.val() + 1;
             }
             // Plane 0 of the stream, or the wrap of the ring of N slots.
-            if (self.planes.q.val() == 0) | (self.slot.q.val() == self.n_reg.q.val() - 1) {
+            if self.wrap.q.val() {
                 self.slot_now.next = 0.into();
                 self.base_now.next = 0.into();
             } else {
                 self.slot_now.next = self.slot.q.val() + 1;
-                self.base_now.next = self.base.q.val() + self.words_per_plane.val();
+                self.base_now.next = self.next_base.q.val();
             }
             self.slot.d.next = self.slot_now.val();
             self.base.d.next = self.base_now.val();
@@ -188,6 +197,10 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             self.planes.d.next = 0.into();
             self.v1.d.next = false;
         }
+        // (After every assignment of `planes`, `slot`, `base` and `n_reg`.)
+        self.wrap.d.next =
+            (self.planes.d.val() == 0) | (self.slot.d.val() == self.n_reg.d.val() - 1);
+        self.next_base.d.next = self.base.d.val() + self.words_per_plane.val();
 
         self.out_valid.next = self.v1.q.val();
         self.out_flush.next = self.f1.q.val() | self.drain1.q.val();
