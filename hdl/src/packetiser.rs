@@ -1470,7 +1470,10 @@ pub struct RecordFinisher<const NW: usize> {
     n48: Signal<Local, Bits<48>>,
     half: Signal<Local, Bits<48>>,
     cont: Signal<Local, Bit>,
-    first: Signal<Local, Bits<48>>,
+    /// `t_cross ≥ N`.
+    t0_ge_n: Signal<Local, Bit>,
+    /// The low 32 bits of t_drop − t_cross (all the planes count needs).
+    dt32: Signal<Local, Bits<32>>,
     at_edge: Signal<Local, Bit>,
     f_edge: Signal<Local, Bits<8>>,
     f_clip: Signal<Local, Bits<8>>,
@@ -1509,7 +1512,8 @@ impl<const NW: usize> RecordFinisher<NW> {
             n48: Default::default(),
             half: Default::default(),
             cont: Default::default(),
-            first: Default::default(),
+            t0_ge_n: Default::default(),
+            dt32: Default::default(),
             at_edge: Default::default(),
             f_edge: Default::default(),
             f_clip: Default::default(),
@@ -1539,14 +1543,18 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
         if self.flags.val().get_bit(2) | self.flags.val().get_bit(4) {
             self.o_te.next = self.t1.val();
         }
-        self.first.next = 0.into();
-        if self.t0.val() >= self.n48.val() {
-            self.first.next = self.t0.val() - self.n48.val();
+        // t_drop + 1 − first in 32 bits, one form per case of first (t_cross,
+        // t_cross − N or 0) computed beside the compare that picks one, so
+        // that the compare and the subtractions are not in series.
+        self.t0_ge_n.next = self.t0.val() >= self.n48.val();
+        self.dt32.next = bit_cast::<32, 48>(self.t1.val()) - bit_cast::<32, 48>(self.t0.val());
+        self.o_planes.next = bit_cast::<32, 48>(self.t1.val()) + 1;
+        if self.t0_ge_n.val() {
+            self.o_planes.next = self.dt32.val() + bit_cast::<32, NW>(self.n_window.val()) + 1;
         }
         if self.cont.val() {
-            self.first.next = self.t0.val();
+            self.o_planes.next = self.dt32.val() + 1;
         }
-        self.o_planes.next = bit_cast::<32, 48>(self.t1.val() + 1 - self.first.val());
         self.at_edge.next = (self.ax.val() < self.h.val())
             | (self.ay.val() < self.h.val())
             | (self.ax.val() > self.last_x.val())
@@ -1556,7 +1564,7 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
             self.f_edge.next = 1.into();
         }
         self.f_clip.next = 0.into();
-        if !self.cont.val() & (self.t0.val() < self.n48.val()) {
+        if !self.cont.val() & !self.t0_ge_n.val() {
             self.f_clip.next = 0x20.into();
         }
         self.o_flags.next = self.flags.val() | self.f_edge.val() | self.f_clip.val();
