@@ -8,8 +8,9 @@
 //! ([`crate::roi_aggregator`]) three times, one count per clock: pass 1 finds
 //! the minimum `base` (and ORs the rows' mask flags into MASKED), pass 2 feeds
 //! RCW + 1 length accumulators, one per Rice parameter k ≤ RCW (each code is
-//! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`; 16 bits suffice for
-//! R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
+//! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`: an accumulator
+//! starts at R² (k + 1) and adds q, or 63 − k for an escape; 16 bits suffice
+//! for R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
 //! scan takes the smallest total (ties: smallest k), and
 //! pass 3 emits the codes MSB first through a bit packer. A row of counts
 //! shifts down a lane per count taken, and the scan shifts the accumulators
@@ -315,7 +316,10 @@ pub struct Packetiser<
     // Constants.
     kc: Vec<Constant<Bits<8>>>,
     k5c: Vec<Constant<Bits<8>>>,
-    kp1: Vec<Constant<Bits<32>>>,
+    /// 63 − k: an escaped code's 64 bits less the k + 1 in `acc0`.
+    k63c: Vec<Constant<Bits<32>>>,
+    /// R² (k + 1): the 1 + k bits of every code, where the totals start.
+    acc0: Vec<Constant<Bits<16>>>,
     crc_t: Vec<Constant<Bits<32>>>,
     start_bytes: Vec<Constant<Bits<8>>>,
     start_len: Constant<Bits<16>>,
@@ -512,8 +516,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             code: Default::default(),
             kc: (0..kn).map(|k| c8(k as u64)).collect(),
             k5c: (0..kn).map(|k| c8(k as u64 + 5)).collect(),
-            kp1: (0..kn)
-                .map(|k| Constant::new((k as u64 + 1).to_bits()))
+            k63c: (0..kn)
+                .map(|k| Constant::new((63 - k as u64).to_bits()))
+                .collect(),
+            acc0: (0..kn)
+                .map(|k| Constant::new(((r * r * (k + 1)) as u64).to_bits()))
                 .collect(),
             crc_t: crc_bit_entries()
                 .iter()
@@ -696,9 +703,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.d32.next = bit_cast::<32, RCW>(self.ca_d.q.val());
         for k in 0..self._kn {
             self.q[k].next = self.d32.val() >> self.kc[k].val();
-            self.len[k].next = self.q[k].val() + self.kp1[k].val();
+            // A code's bits less its 1 + k, which `acc0` holds for all R²
+            // codes: one adder after the escape test, not two.
+            self.len[k].next = self.q[k].val();
             if (self.d32.val() >> self.k5c[k].val()).any() {
-                self.len[k].next = 64.into();
+                self.len[k].next = self.k63c[k].val();
             }
         }
         // Choose shifts the accumulators down a lane a clock: the total of
@@ -1077,7 +1086,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
                 if !self.cs_active.q.val() {
                     for k in 0..self._kn {
-                        self.acc[k].d.next = 0.into();
+                        self.acc[k].d.next = self.acc0[k].val();
                     }
                     self.cs_active.d.next = true;
                     self.cs_dy.d.next = 0.into();
