@@ -220,6 +220,14 @@ pub struct Packetiser<
     masked: DFF<Bit>,
     acc: Vec<DFF<Bits<16>>>,
     best: DFF<Bits<16>>,
+    /// Bytes of the codes, ⌈best / 8⌉, set with best (for the length).
+    best_bytes: DFF<Bits<16>>,
+    /// k + 1 and the code's masks of bit k + 1 up and of the k low bits,
+    /// a clock behind bestk: it last changes in Choose, and they are read
+    /// only in Codes (Decide and Emit lie between).
+    bk1: DFF<Bits<8>>,
+    k_hi: DFF<Bits<64>>,
+    k_lo: DFF<Bits<64>>,
     bestk: DFF<Bits<8>>,
     scan: DFF<Bits<8>>,
     // Emission.
@@ -441,6 +449,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             masked: Default::default(),
             acc: lanes(kn),
             best: Default::default(),
+            best_bytes: Default::default(),
+            bk1: Default::default(),
+            k_hi: Default::default(),
+            k_lo: Default::default(),
             bestk: Default::default(),
             scan: Default::default(),
             prefix: EnableRegs::new(PW / 8),
@@ -582,6 +594,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             base,
             masked,
             best,
+            best_bytes,
+            bk1,
+            k_hi,
+            k_lo,
             bestk,
             scan,
             prefix_rest,
@@ -632,6 +648,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.c_val.next = self.row[0].q.val();
         // The code pipeline's room (see below: "The codes").
         self.bk.next = self.bestk.q.val() & self.k_mask.val();
+        self.bk1.d.next = self.bk.val() + 1;
+        self.k_hi.d.next = self.all64.val() << (self.bk.val() + 1);
+        self.k_lo.d.next = !(self.all64.val() << self.bk.val());
         self.in_codes.next = self.state.q.val() == PacketState::Codes;
         self.in_pass2.next = self.state.q.val() == PacketState::Pass2;
         self.free_c.next = !self.cc_v.q.val() | (self.in_codes.val() & (self.nb.q.val() < 8));
@@ -728,10 +747,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // thermometers.
         self.cd64.next = bit_cast::<64, RCW>(self.cb_d.q.val());
         self.cesc.next = (self.cb_q.q.val() >> 5).any();
-        self.clen.next = bit_cast::<8, 32>(self.cb_q.q.val() & 31) + self.bk.val() + 1;
-        self.code.next = (!(self.all64.val() << self.clen.val())
-            & (self.all64.val() << (self.bk.val() + 1)))
-            | (self.cd64.val() & !(self.all64.val() << self.bk.val()));
+        self.clen.next = bit_cast::<8, 32>(self.cb_q.q.val() & 31) + self.bk1.q.val();
+        self.code.next = (!(self.all64.val() << self.clen.val()) & self.k_hi.q.val())
+            | (self.cd64.val() & self.k_lo.q.val());
         if self.cesc.val() {
             self.code.next = (bit_cast::<64, 32>(0xFFFF_FFFF_u64.into()) << 32) | self.cd64.val();
             self.clen.next = 64.into();
@@ -823,7 +841,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         match self.r_kind.val().index() {
             1 => {
                 self.type_code.next = 2.into();
-                self.payload_len.next = self.vlen.q.val() + 36 + ((self.best.q.val() + 7) >> 3);
+                self.payload_len.next = self.vlen.q.val() + 36 + self.best_bytes.q.val();
                 self.rec_prefix_rest.next = self.vlen.q.val() + 45;
             }
             2 => {
@@ -1105,6 +1123,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
                 if !self.cs_active.q.val() {
                     self.best.d.next = 0xFFFF.into();
+                    self.best_bytes.d.next = 0.into();
                     self.bestk.d.next = 0.into();
                     self.scan.d.next = 0.into();
                     self.state.d.next = PacketState::Choose;
@@ -1116,6 +1135,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
                 if self.acc_j.val() < self.best.q.val() {
                     self.best.d.next = self.acc_j.val();
+                    self.best_bytes.d.next = (self.acc_j.val() + 7) >> 3;
                     self.bestk.d.next = self.scan.q.val();
                 }
                 self.scan.d.next = self.scan.q.val() + 1;
