@@ -8,13 +8,19 @@
 //! ([`crate::roi_aggregator`]) three times, one count per clock: pass 1 finds
 //! the minimum `base` (and ORs the rows' mask flags into MASKED), pass 2 feeds
 //! RCW + 1 length accumulators, one per Rice parameter k ≤ RCW (each code is
-//! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`; 16 bits suffice for
-//! R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
+//! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`: an accumulator
+//! starts at R² (k + 1) and adds q, or 63 − k for an escape; 16 bits suffice
+//! for R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
 //! scan takes the smallest total (ties: smallest k), and
-//! pass 3 emits the codes MSB first through a bit packer. Passes 2 and 3
+//! pass 3 emits the codes MSB first through a bit packer. A row of counts
+//! shifts down a lane per count taken, and the scan shifts the accumulators
+//! down a lane per clock, so that the count and the total of the clock are
+//! registers (lane 0), not multiplexers. Passes 2 and 3
 //! read each offset from a register, and pass 3 builds a code in two more
 //! registered steps (quotient, then code and length), so that no path is
-//! deeper than one barrel shifter or thermometer. ROI rows outside
+//! deeper than one barrel shifter or thermometer; the packer's fill less 8
+//! (its byte's shift) and "this prefix byte is the last" are registers too.
+//! ROI rows outside
 //! the sensor read as 0. The header's length is known after pass 2; the
 //! room check for the whole packet is a register too (Decide acts on its
 //! second clock).
@@ -214,16 +220,35 @@ pub struct Packetiser<
     masked: DFF<Bit>,
     acc: Vec<DFF<Bits<16>>>,
     best: DFF<Bits<16>>,
+    /// Bytes of the codes, ⌈best / 8⌉, set with best (for the length).
+    best_bytes: DFF<Bits<16>>,
+    /// k + 1 and the code's masks of bit k + 1 up and of the k low bits,
+    /// a clock behind bestk: it last changes in Choose, and they are read
+    /// only in Codes (Decide and Emit lie between).
+    bk1: DFF<Bits<8>>,
+    k_hi: DFF<Bits<64>>,
+    k_lo: DFF<Bits<64>>,
     bestk: DFF<Bits<8>>,
     scan: DFF<Bits<8>>,
     // Emission.
     /// The packet's prefix bytes, loaded once a packet (see `prefix_load`).
     prefix: EnableRegs<Bits<8>>,
-    prefix_len: DFF<Bits<16>>,
+    /// Prefix bytes after the one of this clock (down-counted).
+    prefix_rest: DFF<Bits<16>>,
+    /// The byte of this clock is the prefix's last (`prefix_rest` = 0, as a
+    /// register so that Ovf and Emit decide without a compare).
+    prefix_last: DFF<Bit>,
     bidx: DFF<Bits<16>>,
+    /// `r_planes` a clock late: the finisher's arithmetic ends in a register.
+    /// It is read when a Blink's prefix loads (Decide's second clock on, or
+    /// Crc after an Overflow), when the head record has been the same for
+    /// clocks (it changes only after Finish's pop).
+    planes_r: DFF<Bits<32>>,
     crc: DFF<Bits<32>>,
     crc_i: DFF<Bits<8>>,
     nb: DFF<Bits<8>>,
+    /// `nb − 8` (mod 256), kept beside nb: the byte's shift reads a register.
+    nb8: DFF<Bits<8>>,
     pk: DFF<Bits<72>>,
     /// The output FIFO has room for the packet (`need`), as of last clock.
     room: DFF<Bit>,
@@ -261,7 +286,8 @@ pub struct Packetiser<
     tb5: Signal<Local, Bits<8>>,
     vb: Vec<Signal<Local, Bits<8>>>,
     payload_len: Signal<Local, Bits<16>>,
-    rec_prefix_len: Signal<Local, Bits<16>>,
+    /// The record's prefix length minus one.
+    rec_prefix_rest: Signal<Local, Bits<16>>,
     need: Signal<Local, Bits<16>>,
     type_code: Signal<Local, Bits<8>>,
     n16: Signal<Local, Bits<16>>,
@@ -296,10 +322,12 @@ pub struct Packetiser<
     free_c: Signal<Local, Bit>,
     code: Signal<Local, Bits<64>>,
     // Constants.
-    ids: Vec<Constant<Bits<8>>>,
     kc: Vec<Constant<Bits<8>>>,
     k5c: Vec<Constant<Bits<8>>>,
-    kp1: Vec<Constant<Bits<32>>>,
+    /// 63 − k: an escaped code's 64 bits less the k + 1 in `acc0`.
+    k63c: Vec<Constant<Bits<32>>>,
+    /// R² (k + 1): the 1 + k bits of every code, where the totals start.
+    acc0: Vec<Constant<Bits<16>>>,
     crc_t: Vec<Constant<Bits<32>>>,
     start_bytes: Vec<Constant<Bits<8>>>,
     start_len: Constant<Bits<16>>,
@@ -421,14 +449,21 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             masked: Default::default(),
             acc: lanes(kn),
             best: Default::default(),
+            best_bytes: Default::default(),
+            bk1: Default::default(),
+            k_hi: Default::default(),
+            k_lo: Default::default(),
             bestk: Default::default(),
             scan: Default::default(),
             prefix: EnableRegs::new(PW / 8),
-            prefix_len: Default::default(),
+            prefix_rest: Default::default(),
+            prefix_last: Default::default(),
             bidx: Default::default(),
+            planes_r: Default::default(),
             crc: Default::default(),
             crc_i: Default::default(),
             nb: Default::default(),
+            nb8: Default::default(),
             pk: Default::default(),
             room: Default::default(),
             dec_ready: Default::default(),
@@ -461,7 +496,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             tb5: Default::default(),
             vb: lanes(5),
             payload_len: Default::default(),
-            rec_prefix_len: Default::default(),
+            rec_prefix_rest: Default::default(),
             need: Default::default(),
             type_code: Default::default(),
             n16: Default::default(),
@@ -491,11 +526,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             free_b: Default::default(),
             free_c: Default::default(),
             code: Default::default(),
-            ids: (0..r).map(|i| c8(i as u64)).collect(),
             kc: (0..kn).map(|k| c8(k as u64)).collect(),
             k5c: (0..kn).map(|k| c8(k as u64 + 5)).collect(),
-            kp1: (0..kn)
-                .map(|k| Constant::new((k as u64 + 1).to_bits()))
+            k63c: (0..kn)
+                .map(|k| Constant::new((63 - k as u64).to_bits()))
+                .collect(),
+            acc0: (0..kn)
+                .map(|k| Constant::new(((r * r * (k + 1)) as u64).to_bits()))
                 .collect(),
             crc_t: crc_bit_entries()
                 .iter()
@@ -541,9 +578,47 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, seq_ctr, pend_first, pend_cnt, ovf_flag, in_ovf, cs_active,
-            cs_wait, row_valid, cs_dy, cs_dx, base, masked, best, bestk, scan, prefix_len, bidx,
-            crc, crc_i, nb, pk, vlen, room, dec_ready, ca_v, ca_d, cb_v, cb_q, cb_d, cc_v, cc_code,
+            self,
+            clock,
+            state,
+            seq_ctr,
+            pend_first,
+            pend_cnt,
+            ovf_flag,
+            in_ovf,
+            cs_active,
+            cs_wait,
+            row_valid,
+            cs_dy,
+            cs_dx,
+            base,
+            masked,
+            best,
+            best_bytes,
+            bk1,
+            k_hi,
+            k_lo,
+            bestk,
+            scan,
+            prefix_rest,
+            prefix_last,
+            bidx,
+            planes_r,
+            crc,
+            crc_i,
+            nb,
+            nb8,
+            pk,
+            vlen,
+            room,
+            dec_ready,
+            ca_v,
+            ca_d,
+            cb_v,
+            cb_q,
+            cb_d,
+            cc_v,
+            cc_code,
             cc_len
         );
         self.prefix.clock.next = self.clock.val();
@@ -558,6 +633,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.acc[k].d.next = self.acc[k].q.val();
         }
         self.is_blink.next = self.r_kind.val() == 1;
+        self.planes_r.d.next = self.r_planes.val();
 
         // ---- Count streamer: one ROI row at a time from the counter bank.
         self.bank_base.x.next = bit_cast::<CAW, BW>(self.r_bank.val());
@@ -567,14 +643,14 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.in_sensor.next =
             (self.row_y.val() >= self.h.val()) & (self.row_y.val() < self.h_plus_rows.val());
         self.c_valid.next = self.row_valid.q.val();
-        self.c_val.next = 0.into();
-        for dx in 0..self._r {
-            if self.cs_dx.q.val() == self.ids[dx].val() {
-                self.c_val.next = self.row[dx].q.val();
-            }
-        }
+        // Each take shifts the row down a lane: the count of column cs_dx is
+        // always in lane 0 (a register, not a multiplexer by cs_dx).
+        self.c_val.next = self.row[0].q.val();
         // The code pipeline's room (see below: "The codes").
         self.bk.next = self.bestk.q.val() & self.k_mask.val();
+        self.bk1.d.next = self.bk.val() + 1;
+        self.k_hi.d.next = self.all64.val() << (self.bk.val() + 1);
+        self.k_lo.d.next = !(self.all64.val() << self.bk.val());
         self.in_codes.next = self.state.q.val() == PacketState::Codes;
         self.in_pass2.next = self.state.q.val() == PacketState::Pass2;
         self.free_c.next = !self.cc_v.q.val() | (self.in_codes.val() & (self.nb.q.val() < 8));
@@ -625,6 +701,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.cs_wait.d.next = false;
             }
             if self.row_valid.q.val() & self.take.val() {
+                for dx in 0..(self._r - 1) {
+                    self.row[dx].d.next = self.row[dx + 1].q.val();
+                }
                 self.cs_dx.d.next = self.cs_dx.q.val() + 1;
                 if self.cs_dx.q.val() == self.last_idx.val() {
                     self.cs_dx.d.next = 0.into();
@@ -643,17 +722,16 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.d32.next = bit_cast::<32, RCW>(self.ca_d.q.val());
         for k in 0..self._kn {
             self.q[k].next = self.d32.val() >> self.kc[k].val();
-            self.len[k].next = self.q[k].val() + self.kp1[k].val();
+            // A code's bits less its 1 + k, which `acc0` holds for all R²
+            // codes: one adder after the escape test, not two.
+            self.len[k].next = self.q[k].val();
             if (self.d32.val() >> self.k5c[k].val()).any() {
-                self.len[k].next = 64.into();
+                self.len[k].next = self.k63c[k].val();
             }
         }
-        self.acc_j.next = 0.into();
-        for k in 0..self._kn {
-            if self.scan.q.val() == self.kc[k].val() {
-                self.acc_j.next = self.acc[k].q.val();
-            }
-        }
+        // Choose shifts the accumulators down a lane a clock: the total of
+        // k = scan is always in lane 0 (a register, not a multiplexer).
+        self.acc_j.next = self.acc[0].q.val();
 
         // ---- The codes (Codes), in three registered steps so that none is
         // deeper than a barrel shifter or a thermometer: A the offset from
@@ -669,10 +747,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // thermometers.
         self.cd64.next = bit_cast::<64, RCW>(self.cb_d.q.val());
         self.cesc.next = (self.cb_q.q.val() >> 5).any();
-        self.clen.next = bit_cast::<8, 32>(self.cb_q.q.val() & 31) + self.bk.val() + 1;
-        self.code.next = (!(self.all64.val() << self.clen.val())
-            & (self.all64.val() << (self.bk.val() + 1)))
-            | (self.cd64.val() & !(self.all64.val() << self.bk.val()));
+        self.clen.next = bit_cast::<8, 32>(self.cb_q.q.val() & 31) + self.bk1.q.val();
+        self.code.next = (!(self.all64.val() << self.clen.val()) & self.k_hi.q.val())
+            | (self.cd64.val() & self.k_lo.q.val());
         if self.cesc.val() {
             self.code.next = (bit_cast::<64, 32>(0xFFFF_FFFF_u64.into()) << 32) | self.cd64.val();
             self.clen.next = 64.into();
@@ -759,23 +836,23 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
 
         // ---- Lengths and the assembled header + fixed payload of each kind.
         self.payload_len.next = 33.into();
-        self.rec_prefix_len.next = self.start_len.val();
+        self.rec_prefix_rest.next = self.start_len.val() - 1;
         self.type_code.next = 1.into();
         match self.r_kind.val().index() {
             1 => {
                 self.type_code.next = 2.into();
-                self.payload_len.next = self.vlen.q.val() + 36 + ((self.best.q.val() + 7) >> 3);
-                self.rec_prefix_len.next = self.vlen.q.val() + 46;
+                self.payload_len.next = self.vlen.q.val() + 36 + self.best_bytes.q.val();
+                self.rec_prefix_rest.next = self.vlen.q.val() + 45;
             }
             2 => {
                 self.type_code.next = 3.into();
                 self.payload_len.next = 14.into();
-                self.rec_prefix_len.next = 24.into();
+                self.rec_prefix_rest.next = 23.into();
             }
             3 => {
                 self.type_code.next = 4.into();
                 self.payload_len.next = 48.into();
-                self.rec_prefix_len.next = 58.into();
+                self.rec_prefix_rest.next = 57.into();
             }
             _ => {
                 self.payload_len.next = self.start_len.val() - 10;
@@ -828,7 +905,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                         self.rec_prefix[34 + b].next = self.r_te.val().get_bits::<8>(8 * b);
                     }
                     for b in 0..4 {
-                        self.rec_prefix[40 + b].next = self.r_planes.val().get_bits::<8>(8 * b);
+                        self.rec_prefix[40 + b].next = self.planes_r.q.val().get_bits::<8>(8 * b);
                     }
                     self.rec_prefix[44].next = self.roi_side.val();
                     self.rec_prefix[45].next = self.tb0.val();
@@ -904,12 +981,16 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
 
         // ---- The byte of this clock and the CRC.
         // (Verilog cannot slice an expression: shift into a signal first.)
-        self.pk_shift.next = self.pk.q.val() >> (self.nb.q.val() - 8);
+        // Read only when nb ≥ 8, when nb − 8 ≤ 63 (nb < 8 + 64 after an
+        // append): the mask changes no byte sent.
+        self.pk_shift.next = self.pk.q.val() >> (self.nb8.q.val() & 63);
         self.pk_byte.next = self.pk_shift.val().get_bits::<8>(0);
         // Only the low nb < 8 bits of pk are still to be sent when it is
         // padded or a code is appended (older bits have left as bytes).
         self.pk_low.next = self.pk.q.val() & self.low_byte.val();
-        self.pad_shift.next = self.pk_low.val() << ((8 - self.nb.q.val()) & 7);
+        // The nb bits to the top of the byte: `<< (8 − nb)` as `<< 8 >> nb`
+        // (no subtraction before the shifter; nb < 8 when padding).
+        self.pad_shift.next = (self.pk_low.val() << 8) >> (self.nb.q.val() & 7);
         self.pad_byte.next = self.pad_shift.val().get_bits::<8>(0);
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
         // Read only while bytes go out (Ovf, Emit, Codes), and computed only
@@ -1023,7 +1104,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
                 if !self.cs_active.q.val() {
                     for k in 0..self._kn {
-                        self.acc[k].d.next = 0.into();
+                        self.acc[k].d.next = self.acc0[k].val();
                     }
                     self.cs_active.d.next = true;
                     self.cs_dy.d.next = 0.into();
@@ -1042,14 +1123,19 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
                 if !self.cs_active.q.val() {
                     self.best.d.next = 0xFFFF.into();
+                    self.best_bytes.d.next = 0.into();
                     self.bestk.d.next = 0.into();
                     self.scan.d.next = 0.into();
                     self.state.d.next = PacketState::Choose;
                 }
             }
             PacketState::Choose => {
+                for k in 0..(self._kn - 1) {
+                    self.acc[k].d.next = self.acc[k + 1].q.val();
+                }
                 if self.acc_j.val() < self.best.q.val() {
                     self.best.d.next = self.acc_j.val();
+                    self.best_bytes.d.next = (self.acc_j.val() + 7) >> 3;
                     self.bestk.d.next = self.scan.q.val();
                 }
                 self.scan.d.next = self.scan.q.val() + 1;
@@ -1062,13 +1148,15 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.bidx.d.next = 0.into();
                     self.crc.d.next = 0xFFFF_FFFF_u64.into();
                     self.prefix_load.next = true;
+                    // Every prefix has 18 bytes or more: its first is not its last.
+                    self.prefix_last.d.next = false;
                     if self.pend_cnt.q.val() != 0 {
                         self.prefix_ovf.next = true;
-                        self.prefix_len.d.next = 18.into();
+                        self.prefix_rest.d.next = 17.into();
                         self.in_ovf.d.next = true;
                         self.state.d.next = PacketState::Ovf;
                     } else {
-                        self.prefix_len.d.next = self.rec_prefix_len.val();
+                        self.prefix_rest.d.next = self.rec_prefix_rest.val();
                         self.in_ovf.d.next = false;
                         self.state.d.next = PacketState::Emit;
                     }
@@ -1088,7 +1176,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.out_valid.next = true;
                 self.crc.d.next = self.crc_next.val();
                 self.bidx.d.next = self.bidx.q.val() + 1;
-                if self.bidx.q.val() + 1 == self.prefix_len.q.val() {
+                self.prefix_rest.d.next = self.prefix_rest.q.val() - 1;
+                self.prefix_last.d.next = self.prefix_rest.q.val() == 1;
+                if self.prefix_last.q.val() {
                     self.crc_i.d.next = 0.into();
                     self.state.d.next = PacketState::Crc;
                 }
@@ -1097,10 +1187,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.out_valid.next = true;
                 self.crc.d.next = self.crc_next.val();
                 self.bidx.d.next = self.bidx.q.val() + 1;
-                if self.bidx.q.val() + 1 == self.prefix_len.q.val() {
+                self.prefix_rest.d.next = self.prefix_rest.q.val() - 1;
+                self.prefix_last.d.next = self.prefix_rest.q.val() == 1;
+                if self.prefix_last.q.val() {
                     self.crc_i.d.next = 0.into();
                     if self.is_blink.val() {
                         self.nb.d.next = 0.into();
+                        self.nb8.d.next = 0xF8.into();
                         self.cs_active.d.next = true;
                         self.cs_dy.d.next = 0.into();
                         self.cs_dx.d.next = 0.into();
@@ -1115,15 +1208,18 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.out_valid.next = true;
                     self.crc.d.next = self.crc_next.val();
                     self.nb.d.next = self.nb.q.val() - 8;
+                    self.nb8.d.next = self.nb8.q.val() - 8;
                 } else if self.cc_v.q.val() {
                     self.pk.d.next = (self.pk_low.val() << self.cc_len.q.val())
                         | bit_cast::<72, 64>(self.cc_code.q.val());
                     self.nb.d.next = self.nb.q.val() + self.cc_len.q.val();
+                    self.nb8.d.next = self.nb8.q.val() + self.cc_len.q.val();
                 } else if !self.cs_active.q.val() & !self.ca_v.q.val() & !self.cb_v.q.val() {
                     if self.nb.q.val() != 0 {
                         self.out_valid.next = true;
                         self.crc.d.next = self.crc_next.val();
                         self.nb.d.next = 0.into();
+                        self.nb8.d.next = 0xF8.into();
                     } else {
                         self.state.d.next = PacketState::Crc;
                     }
@@ -1139,7 +1235,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                         self.pend_cnt.d.next = 0.into();
                         self.in_ovf.d.next = false;
                         self.prefix_load.next = true;
-                        self.prefix_len.d.next = self.rec_prefix_len.val();
+                        self.prefix_rest.d.next = self.rec_prefix_rest.val();
+                        self.prefix_last.d.next = false;
                         self.bidx.d.next = 0.into();
                         self.crc.d.next = 0xFFFF_FFFF_u64.into();
                         self.state.d.next = PacketState::Emit;
@@ -1402,7 +1499,10 @@ pub struct RecordFinisher<const NW: usize> {
     n48: Signal<Local, Bits<48>>,
     half: Signal<Local, Bits<48>>,
     cont: Signal<Local, Bit>,
-    first: Signal<Local, Bits<48>>,
+    /// `t_cross ≥ N`.
+    t0_ge_n: Signal<Local, Bit>,
+    /// The low 32 bits of t_drop − t_cross (all the planes count needs).
+    dt32: Signal<Local, Bits<32>>,
     at_edge: Signal<Local, Bit>,
     f_edge: Signal<Local, Bits<8>>,
     f_clip: Signal<Local, Bits<8>>,
@@ -1441,7 +1541,8 @@ impl<const NW: usize> RecordFinisher<NW> {
             n48: Default::default(),
             half: Default::default(),
             cont: Default::default(),
-            first: Default::default(),
+            t0_ge_n: Default::default(),
+            dt32: Default::default(),
             at_edge: Default::default(),
             f_edge: Default::default(),
             f_clip: Default::default(),
@@ -1471,14 +1572,18 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
         if self.flags.val().get_bit(2) | self.flags.val().get_bit(4) {
             self.o_te.next = self.t1.val();
         }
-        self.first.next = 0.into();
-        if self.t0.val() >= self.n48.val() {
-            self.first.next = self.t0.val() - self.n48.val();
+        // t_drop + 1 − first in 32 bits, one form per case of first (t_cross,
+        // t_cross − N or 0) computed beside the compare that picks one, so
+        // that the compare and the subtractions are not in series.
+        self.t0_ge_n.next = self.t0.val() >= self.n48.val();
+        self.dt32.next = bit_cast::<32, 48>(self.t1.val()) - bit_cast::<32, 48>(self.t0.val());
+        self.o_planes.next = bit_cast::<32, 48>(self.t1.val()) + 1;
+        if self.t0_ge_n.val() {
+            self.o_planes.next = self.dt32.val() + bit_cast::<32, NW>(self.n_window.val()) + 1;
         }
         if self.cont.val() {
-            self.first.next = self.t0.val();
+            self.o_planes.next = self.dt32.val() + 1;
         }
-        self.o_planes.next = bit_cast::<32, 48>(self.t1.val() + 1 - self.first.val());
         self.at_edge.next = (self.ax.val() < self.h.val())
             | (self.ay.val() < self.h.val())
             | (self.ax.val() > self.last_x.val())
@@ -1488,7 +1593,7 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
             self.f_edge.next = 1.into();
         }
         self.f_clip.next = 0.into();
-        if !self.cont.val() & (self.t0.val() < self.n48.val()) {
+        if !self.cont.val() & !self.t0_ge_n.val() {
             self.f_clip.next = 0x20.into();
         }
         self.o_flags.next = self.flags.val() | self.f_edge.val() | self.f_clip.val();
