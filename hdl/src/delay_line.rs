@@ -145,8 +145,8 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, n_reg, planes, slot, base, zero, wrap, next_base, v1, f1, x1, y1, i1, live1,
-            zero1, drain1, side1
+            self, clock, n_reg, planes, slot, base, zero, wrap, next_base, v1, f1, x1, y1, i1,
+            live1, zero1, drain1, side1
         );
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
@@ -172,6 +172,11 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             }
             self.slot.d.next = self.slot_now.val();
             self.base.d.next = self.base_now.val();
+            // The next stored plane wraps after slot N − 1 (the count is
+            // past 0 now, or stays 0 only with N = 0, which wraps too).
+            self.wrap.d.next = (self.slot_now.val() == self.n_reg.q.val() - 1)
+                | !(self.planes.q.val() < self.n_reg.q.val()) & (self.planes.q.val() == 0);
+            self.next_base.d.next = self.base_now.val() + self.words_per_plane.val();
             self.zero.d.next = self.zero_now.val();
         }
 
@@ -195,12 +200,9 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
         if self.restart.val() {
             self.n_reg.d.next = self.n_window.val();
             self.planes.d.next = 0.into();
+            self.wrap.d.next = true;
             self.v1.d.next = false;
         }
-        // (After every assignment of `planes`, `slot`, `base` and `n_reg`.)
-        self.wrap.d.next =
-            (self.planes.d.val() == 0) | (self.slot.d.val() == self.n_reg.d.val() - 1);
-        self.next_base.d.next = self.base.d.val() + self.words_per_plane.val();
 
         self.out_valid.next = self.v1.q.val();
         self.out_flush.next = self.f1.q.val() | self.drain1.q.val();

@@ -219,6 +219,12 @@ pub struct Packetiser<
     base: DFF<Bits<RCW>>,
     masked: DFF<Bit>,
     acc: Vec<DFF<Bits<16>>>,
+    /// Pass 2's stage L: the code lengths of the offset in stage A, for
+    /// every k, registered before the accumulators add them (the escape
+    /// tests and the adders are not in series: synthesis lets the logic on
+    /// either side of a carry chain take the whole depth).
+    lv: DFF<Bit>,
+    lq: Vec<DFF<Bits<16>>>,
     best: DFF<Bits<16>>,
     /// Bytes of the codes, ⌈best / 8⌉, set with best (for the length).
     best_bytes: DFF<Bits<16>>,
@@ -273,6 +279,9 @@ pub struct Packetiser<
     in_sensor: Signal<Local, Bit>,
     dd: Signal<Local, Bits<RCW>>,
     d32: Signal<Local, Bits<32>>,
+    /// Bit i: some bit ≥ i of the offset in `ca_d` is set (64 bits: the
+    /// escape test of k ≤ 31 reads bit k + 5).
+    d_sfx: Signal<Local, Bits<64>>,
     q: Vec<Signal<Local, Bits<32>>>,
     len: Vec<Signal<Local, Bits<32>>>,
     acc_j: Signal<Local, Bits<16>>,
@@ -323,7 +332,6 @@ pub struct Packetiser<
     code: Signal<Local, Bits<64>>,
     // Constants.
     kc: Vec<Constant<Bits<8>>>,
-    k5c: Vec<Constant<Bits<8>>>,
     /// 63 − k: an escaped code's 64 bits less the k + 1 in `acc0`.
     k63c: Vec<Constant<Bits<32>>>,
     /// R² (k + 1): the 1 + k bits of every code, where the totals start.
@@ -448,6 +456,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             base: Default::default(),
             masked: Default::default(),
             acc: lanes(kn),
+            lv: Default::default(),
+            lq: lanes(kn),
             best: Default::default(),
             best_bytes: Default::default(),
             bk1: Default::default(),
@@ -484,6 +494,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             in_sensor: Default::default(),
             dd: Default::default(),
             d32: Default::default(),
+            d_sfx: Default::default(),
             q: lanes(kn),
             len: lanes(kn),
             acc_j: Default::default(),
@@ -527,7 +538,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             free_c: Default::default(),
             code: Default::default(),
             kc: (0..kn).map(|k| c8(k as u64)).collect(),
-            k5c: (0..kn).map(|k| c8(k as u64 + 5)).collect(),
             k63c: (0..kn)
                 .map(|k| Constant::new((63 - k as u64).to_bits()))
                 .collect(),
@@ -614,6 +624,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             dec_ready,
             ca_v,
             ca_d,
+            lv,
             cb_v,
             cb_q,
             cb_d,
@@ -631,6 +642,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         for k in 0..self._kn {
             self.acc[k].clock.next = self.clock.val();
             self.acc[k].d.next = self.acc[k].q.val();
+            self.lq[k].clock.next = self.clock.val();
         }
         self.is_blink.next = self.r_kind.val() == 1;
         self.planes_r.d.next = self.r_planes.val();
@@ -720,15 +732,25 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.dd.next = self.c_val.val() - self.base.q.val();
         // Pass 2 reads the offsets from stage A of the code pipeline.
         self.d32.next = bit_cast::<32, RCW>(self.ca_d.q.val());
+        // The suffix OR as a parallel prefix (log depth).
+        self.d_sfx.next = bit_cast::<64, RCW>(self.ca_d.q.val());
+        self.d_sfx.next = self.d_sfx.val() | (self.d_sfx.val() >> 1);
+        self.d_sfx.next = self.d_sfx.val() | (self.d_sfx.val() >> 2);
+        self.d_sfx.next = self.d_sfx.val() | (self.d_sfx.val() >> 4);
+        self.d_sfx.next = self.d_sfx.val() | (self.d_sfx.val() >> 8);
+        self.d_sfx.next = self.d_sfx.val() | (self.d_sfx.val() >> 16);
         for k in 0..self._kn {
             self.q[k].next = self.d32.val() >> self.kc[k].val();
             // A code's bits less its 1 + k, which `acc0` holds for all R²
             // codes: one adder after the escape test, not two.
             self.len[k].next = self.q[k].val();
-            if (self.d32.val() >> self.k5c[k].val()).any() {
+            // An escape at k: q ≥ 32, some bit ≥ k + 5 of the offset set.
+            if self.d_sfx.val().get_bit(k + 5) {
                 self.len[k].next = self.k63c[k].val();
             }
+            self.lq[k].d.next = self.len[k].val().get_bits::<16>(0);
         }
+        self.lv.d.next = self.ca_v.q.val() & self.in_pass2.val();
         // Choose shifts the accumulators down a lane a clock: the total of
         // k = scan is always in lane 0 (a register, not a multiplexer).
         self.acc_j.next = self.acc[0].q.val();
@@ -1113,15 +1135,15 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
             }
             PacketState::Pass2 => {
-                // (The last offset reaches stage A on the clock the streamer
-                // stops, and is added on the clock that leaves Pass2.)
-                if self.ca_v.q.val() {
+                // (The last offset is in stage A on the clock the streamer
+                // stops, in stage L on the next, and is added on the clock
+                // that leaves Pass2.)
+                if self.lv.q.val() {
                     for k in 0..self._kn {
-                        self.acc[k].d.next =
-                            self.acc[k].q.val() + self.len[k].val().get_bits::<16>(0);
+                        self.acc[k].d.next = self.acc[k].q.val() + self.lq[k].q.val();
                     }
                 }
-                if !self.cs_active.q.val() {
+                if !self.cs_active.q.val() & !self.ca_v.q.val() {
                     self.best.d.next = 0xFFFF.into();
                     self.best_bytes.d.next = 0.into();
                     self.bestk.d.next = 0.into();
@@ -1262,6 +1284,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.cs_active.d.next = false;
             self.ca_v.d.next = false;
             self.cb_v.d.next = false;
+            self.lv.d.next = false;
             self.cc_v.d.next = false;
         }
         // The prefix registers hold between packets without a copy a clock

@@ -395,7 +395,8 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         dff_setup!(
             self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rlo, rhi, gs_w, pd,
             ra, need, a_valid, a_sel, a_view, a_row_hi, a_ra0, a_rbase, s1_valid, s1_live, s1_pre,
-            s1_fresh, s1_off, s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel, s1_sel, mflag
+            s1_fresh, s1_off, s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel, s1_sel,
+            mflag
         );
         self.slot_masked.next = self.mflag.q.val();
         for q in 0..6 {
