@@ -16,7 +16,9 @@
 //! shifts down a lane per count taken, and the scan shifts the accumulators
 //! down a lane per clock, so that the count and the total of the clock are
 //! registers (lane 0), not multiplexers. Passes 2 and 3
-//! read each offset from a register, and pass 3 builds a code in two more
+//! read each offset from a register; pass 2 registers its code lengths for
+//! every k (stage L, one clock more a Blink) before the accumulators add
+//! them, and pass 3 builds a code in two more
 //! registered steps (quotient, then code and length), so that no path is
 //! deeper than one barrel shifter or thermometer; the packer's fill less 8
 //! (its byte's shift) and "this prefix byte is the last" are registers too.
