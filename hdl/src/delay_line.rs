@@ -175,7 +175,7 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             // The next stored plane wraps after slot N − 1 (the count is
             // past 0 now, or stays 0 only with N = 0, which wraps too).
             self.wrap.d.next = (self.slot_now.val() == self.n_reg.q.val() - 1)
-                | !(self.planes.q.val() < self.n_reg.q.val()) & (self.planes.q.val() == 0);
+                | ((self.planes.q.val() >= self.n_reg.q.val()) & (self.planes.q.val() == 0));
             self.next_base.d.next = self.base_now.val() + self.words_per_plane.val();
             self.zero.d.next = self.zero_now.val();
         }
