@@ -67,12 +67,16 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     base: DFF<Bits<AW>>,
     zero: DFF<Bit>,
     /// The next stored plane starts the ring again (plane 0 of the stream,
-    /// or slot N − 1 now) and the base it takes otherwise, as registers of
-    /// this clock's `planes`, `slot` and `base`: the memory's address at a
-    /// plane's start is a multiplexer of registers, not behind N − 1's
+    /// or slot N − 1 now), and the base address it takes (0 then, else this
+    /// plane's base + W·H/P): registers, so that the memory's address at a
+    /// plane's start is one multiplexer of registers, not behind N − 1's
     /// compare and the base's adder.
     wrap: DFF<Bit>,
     next_base: DFF<Bits<AW>>,
+    /// N − 1 and N = 0, latched with N (the wrap's compare without a
+    /// subtractor in front of it).
+    n_last: DFF<Bits<NW>>,
+    n_zero: DFF<Bit>,
     slot_now: Signal<Local, Bits<NW>>,
     base_now: Signal<Local, Bits<AW>>,
     zero_now: Signal<Local, Bit>,
@@ -124,6 +128,8 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             zero: Default::default(),
             wrap: Default::default(),
             next_base: Default::default(),
+            n_last: Default::default(),
+            n_zero: Default::default(),
             slot_now: Default::default(),
             base_now: Default::default(),
             zero_now: Default::default(),
@@ -145,8 +151,8 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, n_reg, planes, slot, base, zero, wrap, next_base, v1, f1, x1, y1, i1,
-            live1, zero1, drain1, side1
+            self, clock, n_reg, planes, slot, base, zero, wrap, next_base, n_last, n_zero, v1, f1,
+            x1, y1, i1, live1, zero1, drain1, side1
         );
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
@@ -165,18 +171,21 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             // Plane 0 of the stream, or the wrap of the ring of N slots.
             if self.wrap.q.val() {
                 self.slot_now.next = 0.into();
-                self.base_now.next = 0.into();
             } else {
                 self.slot_now.next = self.slot.q.val() + 1;
-                self.base_now.next = self.next_base.q.val();
             }
+            self.base_now.next = self.next_base.q.val();
             self.slot.d.next = self.slot_now.val();
-            self.base.d.next = self.base_now.val();
-            // The next stored plane wraps after slot N − 1 (the count is
-            // past 0 now, or stays 0 only with N = 0, which wraps too).
-            self.wrap.d.next = (self.slot_now.val() == self.n_reg.q.val() - 1)
-                | ((self.planes.q.val() >= self.n_reg.q.val()) & (self.planes.q.val() == 0));
-            self.next_base.d.next = self.base_now.val() + self.words_per_plane.val();
+            self.base.d.next = self.next_base.q.val();
+            // The next stored plane wraps after slot N − 1 (and at every
+            // plane with N = 0, which keeps the address inside slot 0).
+            if (self.slot_now.val() == self.n_last.q.val()) | self.n_zero.q.val() {
+                self.wrap.d.next = true;
+                self.next_base.d.next = 0.into();
+            } else {
+                self.wrap.d.next = false;
+                self.next_base.d.next = self.next_base.q.val() + self.words_per_plane.val();
+            }
             self.zero.d.next = self.zero_now.val();
         }
 
@@ -199,8 +208,11 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
         }
         if self.restart.val() {
             self.n_reg.d.next = self.n_window.val();
+            self.n_last.d.next = self.n_window.val() - 1;
+            self.n_zero.d.next = self.n_window.val() == 0;
             self.planes.d.next = 0.into();
             self.wrap.d.next = true;
+            self.next_base.d.next = 0.into();
             self.v1.d.next = false;
         }
 

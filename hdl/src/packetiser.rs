@@ -220,6 +220,11 @@ pub struct Packetiser<
     row: Vec<DFF<Bits<RCW>>>,
     base: DFF<Bits<RCW>>,
     masked: DFF<Bit>,
+    /// The ROI row `cs_dy` lies on the sensor: a register of the clock that
+    /// requests the row (`cs_dy` and the record hold still until the row
+    /// arrives), so the row's add and compare stay out of the MASKED flag's
+    /// and the counts' paths.
+    in_sensor: DFF<Bit>,
     acc: Vec<DFF<Bits<16>>>,
     /// Pass 2's stage L: the code lengths of the offset in stage A, for
     /// every k, registered before the accumulators add them (the escape
@@ -278,7 +283,6 @@ pub struct Packetiser<
     c_valid: Signal<Local, Bit>,
     c_val: Signal<Local, Bits<RCW>>,
     row_y: Signal<Local, Bits<16>>,
-    in_sensor: Signal<Local, Bit>,
     dd: Signal<Local, Bits<RCW>>,
     d32: Signal<Local, Bits<32>>,
     /// Bit i: some bit ≥ i of the offset in `ca_d` is set (64 bits: the
@@ -605,6 +609,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             cs_dx,
             base,
             masked,
+            in_sensor,
             best,
             best_bytes,
             bk1,
@@ -654,7 +659,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.rd_addr.next = self.bank_base.y.val() + bit_cast::<CAW, 8>(self.cs_dy.q.val());
         self.rd_req.next = false;
         self.row_y.next = self.r_ay.val() + bit_cast::<16, 8>(self.cs_dy.q.val());
-        self.in_sensor.next =
+        self.in_sensor.d.next =
             (self.row_y.val() >= self.h.val()) & (self.row_y.val() < self.h_plus_rows.val());
         self.c_valid.next = self.row_valid.q.val();
         // Each take shifts the row down a lane: the count of column cs_dx is
@@ -701,12 +706,12 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             if self.cs_wait.q.val() {
                 for dx in 0..self._r {
                     self.row[dx].d.next = 0.into();
-                    if self.in_sensor.val() {
+                    if self.in_sensor.q.val() {
                         self.row[dx].d.next = self.rd_counts[dx].val();
                     }
                 }
                 if (self.state.q.val() == PacketState::Pass1)
-                    & self.in_sensor.val()
+                    & self.in_sensor.q.val()
                     & self.rd_masked.val()
                 {
                     self.masked.d.next = true;
