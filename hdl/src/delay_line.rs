@@ -10,7 +10,9 @@
 //! forces the output to zero for `t < N`, so whatever the memory held before
 //! (power-up garbage, an earlier stream) never leaks out.
 //!
-//! Memory: N_max slots of `W·H/P` words, slot `t mod N` for plane t.
+//! Memory: N_max slots of `W·H/P` words, slot `t mod N` for plane t. Planes
+//! arrive whole (`W·H/P` words from `sop`, as the stream control frames
+//! them), so the address runs on from word to word in a register.
 //! Latency: one clock (the registered read).
 
 use crate::bram::{Bram, RamStyle};
@@ -64,21 +66,24 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     n_reg: DFF<Bits<NW>>,
     planes: DFF<Bits<NW>>,
     slot: DFF<Bits<NW>>,
-    base: DFF<Bits<AW>>,
     zero: DFF<Bit>,
     /// The next stored plane starts the ring again (plane 0 of the stream,
     /// or slot N − 1 now), and the base address it takes (0 then, else this
-    /// plane's base + W·H/P): registers, so that the memory's address at a
-    /// plane's start is one multiplexer of registers, not behind N − 1's
-    /// compare and the base's adder.
+    /// plane's base + W·H/P).
     wrap: DFF<Bit>,
     next_base: DFF<Bits<AW>>,
+    /// The memory address of the next word: this plane's next word, or
+    /// after a plane's last word the next stored plane's base. A register
+    /// straight into the memory: no plane-start test, multiplexer or adder
+    /// in front of the address decode. (A flush plane runs through the
+    /// addresses of the plane after it; it neither writes nor reads out.)
+    addr: DFF<Bits<AW>>,
     /// N − 1 and N = 0, latched with N (the wrap's compare without a
     /// subtractor in front of it).
     n_last: DFF<Bits<NW>>,
     n_zero: DFF<Bit>,
     slot_now: Signal<Local, Bits<NW>>,
-    base_now: Signal<Local, Bits<AW>>,
+    next_base_now: Signal<Local, Bits<AW>>,
     zero_now: Signal<Local, Bit>,
     v1: DFF<Bit>,
     f1: DFF<Bit>,
@@ -90,6 +95,7 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     drain1: DFF<Bit>,
     side1: DFF<Bits<P>>,
     words_per_plane: Constant<Bits<AW>>,
+    last_idx: Constant<Bits<32>>,
 }
 
 impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
@@ -124,14 +130,14 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             n_reg: Default::default(),
             planes: Default::default(),
             slot: Default::default(),
-            base: Default::default(),
             zero: Default::default(),
             wrap: Default::default(),
             next_base: Default::default(),
+            addr: Default::default(),
             n_last: Default::default(),
             n_zero: Default::default(),
             slot_now: Default::default(),
-            base_now: Default::default(),
+            next_base_now: Default::default(),
             zero_now: Default::default(),
             v1: Default::default(),
             f1: Default::default(),
@@ -143,6 +149,7 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             drain1: Default::default(),
             side1: Default::default(),
             words_per_plane: Constant::new((wpp as u64).to_bits()),
+            last_idx: Constant::new((wpp as u64 - 1).to_bits()),
         })
     }
 }
@@ -151,7 +158,7 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, n_reg, planes, slot, base, zero, wrap, next_base, n_last, n_zero, v1, f1,
+            self, clock, n_reg, planes, slot, zero, wrap, next_base, addr, n_last, n_zero, v1, f1,
             x1, y1, i1, live1, zero1, drain1, side1
         );
         self.pos.clock.next = self.clock.val();
@@ -161,7 +168,7 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
 
         // Slot of the present plane: advanced at each stored plane's start.
         self.slot_now.next = self.slot.q.val();
-        self.base_now.next = self.base.q.val();
+        self.next_base_now.next = self.next_base.q.val();
         self.zero_now.next = self.zero.q.val();
         if self.valid.val() & self.sop.val() & !self.flush.val() {
             self.zero_now.next = self.planes.q.val() < self.n_reg.q.val();
@@ -174,24 +181,30 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             } else {
                 self.slot_now.next = self.slot.q.val() + 1;
             }
-            self.base_now.next = self.next_base.q.val();
             self.slot.d.next = self.slot_now.val();
-            self.base.d.next = self.next_base.q.val();
             // The next stored plane wraps after slot N − 1 (and at every
             // plane with N = 0, which keeps the address inside slot 0).
             if (self.slot_now.val() == self.n_last.q.val()) | self.n_zero.q.val() {
                 self.wrap.d.next = true;
-                self.next_base.d.next = 0.into();
+                self.next_base_now.next = 0.into();
             } else {
                 self.wrap.d.next = false;
-                self.next_base.d.next = self.next_base.q.val() + self.words_per_plane.val();
+                self.next_base_now.next = self.next_base.q.val() + self.words_per_plane.val();
             }
+            self.next_base.d.next = self.next_base_now.val();
             self.zero.d.next = self.zero_now.val();
+        }
+        if self.valid.val() {
+            if self.pos.idx.val() == self.last_idx.val() {
+                self.addr.d.next = self.next_base_now.val();
+            } else {
+                self.addr.d.next = self.addr.q.val() + 1;
+            }
         }
 
         // Read B_{t−N} from the word that B_t overwrites (read-first).
-        self.mem.read_address.next = self.base_now.val() + bit_cast::<AW, 32>(self.pos.idx.val());
-        self.mem.write_address.next = self.base_now.val() + bit_cast::<AW, 32>(self.pos.idx.val());
+        self.mem.read_address.next = self.addr.q.val();
+        self.mem.write_address.next = self.addr.q.val();
         self.mem.write_data.next = self.live.val();
         self.mem.write_enable.next = self.valid.val() & !self.flush.val();
 
@@ -213,6 +226,7 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             self.planes.d.next = 0.into();
             self.wrap.d.next = true;
             self.next_base.d.next = 0.into();
+            self.addr.d.next = 0.into();
             self.v1.d.next = false;
         }
 

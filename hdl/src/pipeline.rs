@@ -599,9 +599,9 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     synced: DFF<Bit>,
     stop_req: DFF<Bit>,
     widx: DFF<Bits<32>>,
-    /// `widx = 0` and `widx` = the plane's last word, as registers (of
-    /// `widx.d`): the source's gate (`accepting`, and so the replay FIFO's
-    /// pop) and the word's plane end do not wait on 32-bit compares.
+    /// `widx = 0` and `widx` = the plane's last word, as registers set
+    /// beside `widx`: the source's gate (`accepting`, and so the replay
+    /// FIFO's pop) and the word's plane end do not wait on 32-bit compares.
     w_zero: DFF<Bit>,
     w_last: DFF<Bit>,
     planes_in: DFF<Bits<48>>,
@@ -617,10 +617,16 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     rst: DFF<Bit>,
     regs_ok: Signal<Local, Bit>,
     plane_end: Signal<Local, Bit>,
+    /// A word enters the pipeline: `widx` steps (to 0 after the plane's
+    /// last word).
+    w_step: Signal<Local, Bit>,
     n_max: Constant<Bits<32>>,
     l_max_max: Constant<Bits<32>>,
     thr_max: Constant<Bits<32>>,
     last_widx: Constant<Bits<32>>,
+    /// The word before the last (wraps for one-word planes, where it is
+    /// never compared: every word is then the last).
+    before_last_widx: Constant<Bits<32>>,
 }
 
 impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> {
@@ -698,10 +704,12 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             rst: Default::default(),
             regs_ok: Default::default(),
             plane_end: Default::default(),
+            w_step: Default::default(),
             n_max: c32(f.n_max as u64),
             l_max_max: c32(cfg.l_max_max as u64),
             thr_max: c32((1u64 << HW) - 1),
             last_widx: c32(f.words_per_plane() as u64 - 1),
+            before_last_widx: c32((f.words_per_plane() as u64).wrapping_sub(2) & 0xFFFF_FFFF),
         })
     }
 }
@@ -732,6 +740,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         self.w_flush.next = false;
         self.w_drain.next = false;
         self.w_live.next = 0.into();
+        self.w_step.next = false;
 
         match self.state.q.val() {
             ControlState::Idle => {
@@ -767,6 +776,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 self.synced.d.next = false;
                 self.stop_req.d.next = false;
                 self.widx.d.next = 0.into();
+                self.w_zero.d.next = true;
+                self.w_last.d.next = self.last_widx.val() == 0;
                 self.planes_in.d.next = 0.into();
                 self.state.d.next = ControlState::Run;
             }
@@ -789,9 +800,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                     }
                     self.w_valid.next = true;
                     self.w_live.next = self.in_live.val();
-                    self.widx.d.next = self.widx.q.val() + 1;
+                    self.w_step.next = true;
                     if self.plane_end.val() {
-                        self.widx.d.next = 0.into();
                         self.planes_in.d.next = self.planes_in.q.val() + 1;
                     }
                 }
@@ -799,9 +809,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             ControlState::Drain => {
                 self.w_valid.next = true;
                 self.w_drain.next = true;
-                self.widx.d.next = self.widx.q.val() + 1;
+                self.w_step.next = true;
                 if self.plane_end.val() {
-                    self.widx.d.next = 0.into();
                     self.drains.d.next = self.drains.q.val() + 1;
                     if self.drains.q.val() == self.n_last.q.val() {
                         self.state.d.next = ControlState::Flush;
@@ -811,9 +820,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             ControlState::Flush => {
                 self.w_valid.next = true;
                 self.w_flush.next = true;
-                self.widx.d.next = self.widx.q.val() + 1;
+                self.w_step.next = true;
                 if self.plane_end.val() {
-                    self.widx.d.next = 0.into();
                     self.state.d.next = ControlState::Ending;
                 }
             }
@@ -824,6 +832,17 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 }
             }
             _ => {}
+        }
+        if self.w_step.val() {
+            if self.plane_end.val() {
+                self.widx.d.next = 0.into();
+                self.w_zero.d.next = true;
+                self.w_last.d.next = self.last_widx.val() == 0;
+            } else {
+                self.widx.d.next = self.widx.q.val() + 1;
+                self.w_zero.d.next = false;
+                self.w_last.d.next = self.widx.q.val() == self.before_last_widx.val();
+            }
         }
 
         self.n_window.next = self.n.q.val();
@@ -846,8 +865,6 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         // STOP waits for the plane in progress to complete.
         self.accepting.next = (self.state.q.val() == ControlState::Run)
             & !(self.stop_req.q.val() & self.w_zero.q.val());
-        self.w_zero.d.next = self.widx.d.val() == 0;
-        self.w_last.d.next = self.widx.d.val() == self.last_widx.val();
         self.ended.next = self.ended_q.q.val();
         self.config_error.next = self.cfg_err.q.val();
         self.framing_error.next = self.frm_err.q.val();
