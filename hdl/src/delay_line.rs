@@ -65,12 +65,13 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     mem: Bram<P, AW>,
     n_reg: DFF<Bits<NW>>,
     planes: DFF<Bits<NW>>,
-    slot: DFF<Bits<NW>>,
     zero: DFF<Bit>,
-    /// The next stored plane starts the ring again (plane 0 of the stream,
-    /// or slot N − 1 now), and the base address it takes (0 then, else this
-    /// plane's base + W·H/P).
-    wrap: DFF<Bit>,
+    /// The slot of the next stored plane, whether it is the ring's last
+    /// (N − 1, after which the ring starts again at slot 0), and that
+    /// plane's base address (slot · W·H/P): registers, decided a plane
+    /// ahead, so a plane's start needs no compare or adder before them.
+    next_slot: DFF<Bits<NW>>,
+    next_slot_last: DFF<Bit>,
     next_base: DFF<Bits<AW>>,
     /// The memory address of the next word: this plane's next word, or
     /// after a plane's last word the next stored plane's base. A register
@@ -78,11 +79,10 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     /// in front of the address decode. (A flush plane runs through the
     /// addresses of the plane after it; it neither writes nor reads out.)
     addr: DFF<Bits<AW>>,
-    /// N − 1 and N = 0, latched with N (the wrap's compare without a
-    /// subtractor in front of it).
-    n_last: DFF<Bits<NW>>,
-    n_zero: DFF<Bit>,
-    slot_now: Signal<Local, Bits<NW>>,
+    /// N − 2 and N ≤ 1, latched with N (slot N − 1 comes after slot N − 2;
+    /// with N ≤ 1 every plane takes slot 0).
+    n_before_last: DFF<Bits<NW>>,
+    n_le1: DFF<Bit>,
     next_base_now: Signal<Local, Bits<AW>>,
     zero_now: Signal<Local, Bit>,
     v1: DFF<Bit>,
@@ -129,14 +129,13 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             mem: Bram::new(cfg.n_max as usize * wpp, RamStyle::Block),
             n_reg: Default::default(),
             planes: Default::default(),
-            slot: Default::default(),
             zero: Default::default(),
-            wrap: Default::default(),
+            next_slot: Default::default(),
+            next_slot_last: Default::default(),
             next_base: Default::default(),
             addr: Default::default(),
-            n_last: Default::default(),
-            n_zero: Default::default(),
-            slot_now: Default::default(),
+            n_before_last: Default::default(),
+            n_le1: Default::default(),
             next_base_now: Default::default(),
             zero_now: Default::default(),
             v1: Default::default(),
@@ -158,16 +157,33 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, n_reg, planes, slot, zero, wrap, next_base, addr, n_last, n_zero, v1, f1,
-            x1, y1, i1, live1, zero1, drain1, side1
+            self,
+            clock,
+            n_reg,
+            planes,
+            zero,
+            next_slot,
+            next_slot_last,
+            next_base,
+            addr,
+            n_before_last,
+            n_le1,
+            v1,
+            f1,
+            x1,
+            y1,
+            i1,
+            live1,
+            zero1,
+            drain1,
+            side1
         );
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
         self.pos.sop.next = self.sop.val();
         self.mem.clock.next = self.clock.val();
 
-        // Slot of the present plane: advanced at each stored plane's start.
-        self.slot_now.next = self.slot.q.val();
+        // At each stored plane's start, the ring moves a slot on.
         self.next_base_now.next = self.next_base.q.val();
         self.zero_now.next = self.zero.q.val();
         if self.valid.val() & self.sop.val() & !self.flush.val() {
@@ -175,20 +191,15 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             if self.planes.q.val() < self.n_reg.q.val() {
                 self.planes.d.next = self.planes.q.val() + 1;
             }
-            // Plane 0 of the stream, or the wrap of the ring of N slots.
-            if self.wrap.q.val() {
-                self.slot_now.next = 0.into();
-            } else {
-                self.slot_now.next = self.slot.q.val() + 1;
-            }
-            self.slot.d.next = self.slot_now.val();
-            // The next stored plane wraps after slot N − 1 (and at every
-            // plane with N = 0, which keeps the address inside slot 0).
-            if (self.slot_now.val() == self.n_last.q.val()) | self.n_zero.q.val() {
-                self.wrap.d.next = true;
+            // This plane takes `next_slot`; the next one the slot after,
+            // or slot 0 after slot N − 1.
+            if self.next_slot_last.q.val() {
+                self.next_slot.d.next = 0.into();
+                self.next_slot_last.d.next = self.n_le1.q.val();
                 self.next_base_now.next = 0.into();
             } else {
-                self.wrap.d.next = false;
+                self.next_slot.d.next = self.next_slot.q.val() + 1;
+                self.next_slot_last.d.next = self.next_slot.q.val() == self.n_before_last.q.val();
                 self.next_base_now.next = self.next_base.q.val() + self.words_per_plane.val();
             }
             self.next_base.d.next = self.next_base_now.val();
@@ -221,10 +232,11 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
         }
         if self.restart.val() {
             self.n_reg.d.next = self.n_window.val();
-            self.n_last.d.next = self.n_window.val() - 1;
-            self.n_zero.d.next = self.n_window.val() == 0;
+            self.n_before_last.d.next = self.n_window.val() - 2;
+            self.n_le1.d.next = self.n_window.val() <= 1;
             self.planes.d.next = 0.into();
-            self.wrap.d.next = true;
+            self.next_slot.d.next = 0.into();
+            self.next_slot_last.d.next = self.n_window.val() <= 1;
             self.next_base.d.next = 0.into();
             self.addr.d.next = 0.into();
             self.v1.d.next = false;
