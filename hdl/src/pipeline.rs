@@ -7,9 +7,10 @@
 //! **Stream start** ([`StreamControl`]): START checks the registers as the
 //! model's `PipelineConfig::validate` does (1 ≤ N ≤ N_max, T_int ≥ 1,
 //! L_min ≥ 1, max(L_min, N) ≤ L_max ≤ L_max,max; otherwise `config_error`
-//! and nothing starts), latches N, T_int, L_min, L_max, the plane period,
-//! the masked-pixel count and MASK_ENABLE, restarts every block (the tracker
-//! then pushes StreamStart, sequence 0) and waits for the first `sop`.
+//! and nothing starts; the check is a register of the START clock's values
+//! and decides a clock later), latches N, T_int, L_min, L_max, the plane
+//! period, the masked-pixel count and MASK_ENABLE, restarts every block (the
+//! tracker then pushes StreamStart, sequence 0) and waits for the first `sop`.
 //! The front half compares H with `min(T_int, 2^HW − 1)`, which decides the
 //! same since `H ≤ N_max·2^(2a) < 2^HW − 1`.
 //!
@@ -498,6 +499,9 @@ impl<
 pub enum ControlState {
     /// No stream.
     Idle,
+    /// START taken, the registers latched: their check (`regs_ok`, a
+    /// register of the START clock's values) decides, a clock later.
+    Check,
     /// Registers latched: restart every block.
     Restart,
     /// Passing the source's planes.
@@ -615,7 +619,9 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     /// `restart` as a register (it reaches every block): set on the clock
     /// that enters Restart, or that takes a RESET in Idle.
     rst: DFF<Bit>,
-    regs_ok: Signal<Local, Bit>,
+    /// The registers pass the model's validation: a register (the compares
+    /// are 32-bit, and their result gates some fifty latching registers).
+    regs_ok: DFF<Bit>,
     plane_end: Signal<Local, Bit>,
     /// A word enters the pipeline: `widx` steps (to 0 after the plane's
     /// last word).
@@ -721,10 +727,10 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
     fn update(&mut self) {
         dff_setup!(
             self, clock, state, n, thr, lmin, lmax, period, masked, men, synced, stop_req, widx,
-            w_zero, w_last, planes_in, drains, n_last, ended_q, cfg_err, frm_err, rst
+            w_zero, w_last, planes_in, drains, n_last, ended_q, cfg_err, frm_err, rst, regs_ok
         );
         // The model's PipelineConfig::validate, for the runtime registers.
-        self.regs_ok.next = (self.reg_n.val() != 0)
+        self.regs_ok.d.next = (self.reg_n.val() != 0)
             & (self.reg_n.val() <= self.n_max.val())
             & (self.reg_threshold.val() != 0)
             & (self.reg_l_min.val() != 0)
@@ -745,31 +751,35 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         match self.state.q.val() {
             ControlState::Idle => {
                 if self.start.val() {
-                    if self.regs_ok.val() {
-                        self.n.d.next = bit_cast::<NW, 32>(self.reg_n.val());
-                        self.n_last.d.next = bit_cast::<NW, 32>(self.reg_n.val()) - 1;
-                        self.thr.d.next = self.reg_threshold.val();
-                        self.lmin.d.next = self.reg_l_min.val();
-                        self.lmax.d.next = self.reg_l_max.val();
-                        self.period.d.next = self.reg_period.val();
-                        self.masked.d.next = 0.into();
-                        if self.reg_mask_enable.val() {
-                            self.masked.d.next = self.reg_masked.val();
-                        }
-                        self.men.d.next = self.reg_mask_enable.val();
-                        self.cfg_err.d.next = false;
-                        self.frm_err.d.next = false;
-                        self.ended_q.d.next = false;
-                        self.state.d.next = ControlState::Restart;
-                        self.rst.d.next = true;
-                    } else {
-                        self.cfg_err.d.next = true;
+                    self.n.d.next = bit_cast::<NW, 32>(self.reg_n.val());
+                    self.n_last.d.next = bit_cast::<NW, 32>(self.reg_n.val()) - 1;
+                    self.thr.d.next = self.reg_threshold.val();
+                    self.lmin.d.next = self.reg_l_min.val();
+                    self.lmax.d.next = self.reg_l_max.val();
+                    self.period.d.next = self.reg_period.val();
+                    self.masked.d.next = 0.into();
+                    if self.reg_mask_enable.val() {
+                        self.masked.d.next = self.reg_masked.val();
                     }
+                    self.men.d.next = self.reg_mask_enable.val();
+                    self.state.d.next = ControlState::Check;
                 } else if self.reset.val() {
                     self.rst.d.next = true;
                     self.cfg_err.d.next = false;
                     self.frm_err.d.next = false;
                     self.ended_q.d.next = false;
+                }
+            }
+            ControlState::Check => {
+                if self.regs_ok.q.val() {
+                    self.cfg_err.d.next = false;
+                    self.frm_err.d.next = false;
+                    self.ended_q.d.next = false;
+                    self.state.d.next = ControlState::Restart;
+                    self.rst.d.next = true;
+                } else {
+                    self.cfg_err.d.next = true;
+                    self.state.d.next = ControlState::Idle;
                 }
             }
             ControlState::Restart => {
@@ -861,6 +871,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             | (self.state.q.val() == ControlState::Ending);
         self.planes_total.next = self.planes_in.q.val();
         self.running.next = (self.state.q.val() != ControlState::Idle)
+            & (self.state.q.val() != ControlState::Check)
             & (self.state.q.val() != ControlState::Restart);
         // STOP waits for the plane in progress to complete.
         self.accepting.next = (self.state.q.val() == ControlState::Run)

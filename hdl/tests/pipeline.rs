@@ -453,10 +453,13 @@ fn bad_registers_refuse_to_start() {
         };
         f(&mut s);
         start(&mut b, &s, 0);
+        // The check decides on the clock after START.
+        assert!(!b.uut.running.val());
         b.tick();
         assert!(b.uut.config_error.val() && !b.uut.running.val());
     }
     start(&mut b, &good, 0);
+    b.tick();
     b.tick();
     assert!(!b.uut.config_error.val() && b.uut.running.val());
 }

@@ -206,6 +206,8 @@ fn host_sees_the_model_stream_through_the_endpoints() {
         host.core.uut.wire_in[a as usize].next = (v as u64).to_bits();
     }
     host.trigger(registers::trigger::START);
+    // The registers' check decides on the clock after START.
+    host.clock();
     host.clock();
     assert!(host.wire_out(wire_out::STATUS) & status::RUNNING != 0);
     host.write_pipe(false, &pipe_words(&planes));
