@@ -25,7 +25,7 @@
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::front_half::verilog;
 use crate::pipeline::Pipeline;
-use crate::xem6310::Xem6310Top;
+use crate::xem6310::{Xem6310Top, Xem6310TopOnChip};
 use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};
 
@@ -92,16 +92,14 @@ pub enum DelayLineKind {
     Ddr2,
 }
 
-/// Which top module the generated Verilog holds.
+/// Which XEM6310 top the generated Verilog holds (both have the board's
+/// pins, placed by `constraints/xem6310.ucf`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TopKind {
-    /// The whole XEM6310 top ([`Xem6310Top`]): its ports are board pins,
-    /// placed by `constraints/xem6310.ucf`.
+    /// [`Xem6310Top`]: the delay line in the DDR2, through the MIG.
     Xem6310,
-    /// The pipeline core ([`Pipeline`]) with the block-RAM delay line: the
-    /// XEM6310 endpoints are only built around the DDR2 pipeline so far, so
-    /// its ports are not board pins and it has no UCF.
-    PipelineCore,
+    /// [`Xem6310TopOnChip`]: the delay line in block RAM, the DDR2 parked.
+    Xem6310OnChip,
 }
 
 /// The objectives the gateware is generated for.
@@ -179,7 +177,7 @@ impl Design {
         let n_bram = block_ram_n_max(det.n_window);
         let (delay_line, n_max, top) = if 2 * n_bram as u64 * plane_bits <= device.block_ram_bits()
         {
-            (DelayLineKind::BlockRam, n_bram, TopKind::PipelineCore)
+            (DelayLineKind::BlockRam, n_bram, TopKind::Xem6310OnChip)
         } else {
             (
                 DelayLineKind::Ddr2,
@@ -247,8 +245,8 @@ impl Design {
         Ok(match (self.delay_line, k) {
             (DelayLineKind::Ddr2, 9) => verilog(Spcimager150Xem::new(c)?),
             (DelayLineKind::Ddr2, 5) => verilog(Spcimager60Xem::new(c)?),
-            (DelayLineKind::BlockRam, 9) => verilog(Projected150Core::new(c)?),
-            (DelayLineKind::BlockRam, 5) => verilog(Projected60Core::new(c)?),
+            (DelayLineKind::BlockRam, 9) => verilog(Projected150Xem::new(c)?),
+            (DelayLineKind::BlockRam, 5) => verilog(Projected60Xem::new(c)?),
             _ => {
                 return Err(GatewareError::Invalid {
                     field: "kernel",
@@ -259,13 +257,9 @@ impl Design {
         })
     }
 
-    /// The constraints of the top: the XEM6310 UCF for the board top, none
-    /// for a pipeline core.
-    pub fn ucf(&self) -> Option<&'static str> {
-        match self.top {
-            TopKind::Xem6310 => Some(XEM6310_UCF),
-            TopKind::PipelineCore => None,
-        }
+    /// The constraints of the top: the XEM6310 UCF (both tops have its pins).
+    pub fn ucf(&self) -> &'static str {
+        XEM6310_UCF
     }
 
     /// The throughput arithmetic of the design at the sensor's 10,000
@@ -322,13 +316,15 @@ pub type Spcimager150Xem = crate::xem6310::Spcimager150Xem;
 /// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
 pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
 
-/// The pipeline core of the projected SPCImager at 150× (k = 9, N_max = 24,
-/// block RAM).
-pub type Projected150Core = crate::pipeline::Projected150Pipeline;
+/// The XEM6310 top of the projected SPCImager at 150× (k = 9, N_max = 24,
+/// block RAM; for the XEM6310-LX150).
+pub type Projected150Xem =
+    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
 
-/// The pipeline core of the projected SPCImager at 60× (k = 5, N_max = 24,
-/// block RAM).
-pub type Projected60Core = Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
+/// The XEM6310 top of the projected SPCImager at 60× (k = 5, N_max = 24,
+/// block RAM; for the XEM6310-LX150).
+pub type Projected60Xem =
+    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
 
 /// The core clock: FrontPanel's host-interface clock `okClk`, Hz.
 pub const CLOCK_HZ: f64 = 100.8e6;
@@ -393,7 +389,7 @@ mod tests {
         assert_eq!(d.delay_line, DelayLineKind::BlockRam);
         assert_eq!(d.device, XC6SLX150);
         assert_eq!(d.config.front.n_max, 24);
-        assert!(d.ucf().is_none());
+        assert_eq!(d.top, TopKind::Xem6310OnChip);
         assert!(Design::new(PresetName::Emccd, 150).is_err());
         assert!(Design::new(PresetName::Spcimager, 100).is_err());
     }

@@ -971,6 +971,36 @@ pub struct Pipeline<
     /// while it is low are ignored, so the mask a stream uses is the one
     /// loaded before its START.
     pub mask_loadable: Signal<Out, Bit>,
+    /// Always high: no DDR2 to wait for. This and the MCB port below are
+    /// [`PipelineDdr`]'s, idle here (inputs unread, outputs 0), so that one
+    /// XEM6310 core ([`crate::xem6310`]) serves both delay lines.
+    pub mem_ready: Signal<Out, Bit>,
+    /// MCB: calibration done.
+    pub calib_done: Signal<In, Bit>,
+    /// MCB port: command enable.
+    pub cmd_en: Signal<Out, Bit>,
+    /// MCB port: instruction.
+    pub cmd_instr: Signal<Out, Bits<3>>,
+    /// MCB port: burst length − 1.
+    pub cmd_bl: Signal<Out, Bits<6>>,
+    /// MCB port: byte address.
+    pub cmd_addr: Signal<Out, Bits<30>>,
+    /// MCB port: command FIFO full.
+    pub cmd_full: Signal<In, Bit>,
+    /// MCB port: write enable.
+    pub wr_en: Signal<Out, Bit>,
+    /// MCB port: write mask.
+    pub wr_mask: Signal<Out, Bits<4>>,
+    /// MCB port: write data.
+    pub wr_data: Signal<Out, Bits<32>>,
+    /// MCB port: write FIFO full.
+    pub wr_full: Signal<In, Bit>,
+    /// MCB port: read enable.
+    pub rd_en: Signal<Out, Bit>,
+    /// MCB port: read data.
+    pub rd_data: Signal<In, Bits<32>>,
+    /// MCB port: read FIFO empty.
+    pub rd_empty: Signal<In, Bit>,
     control: StreamControl<P, CW, HW>,
     mask: HotPixelMask<P, CAW>,
     delay: DelayLine<P, DAW, CW>,
@@ -1032,6 +1062,20 @@ impl<
             overflowed: Default::default(),
             fault: Default::default(),
             mask_loadable: Default::default(),
+            mem_ready: Default::default(),
+            calib_done: Default::default(),
+            cmd_en: Default::default(),
+            cmd_instr: Default::default(),
+            cmd_bl: Default::default(),
+            cmd_addr: Default::default(),
+            cmd_full: Default::default(),
+            wr_en: Default::default(),
+            wr_mask: Default::default(),
+            wr_data: Default::default(),
+            wr_full: Default::default(),
+            rd_en: Default::default(),
+            rd_data: Default::default(),
+            rd_empty: Default::default(),
             control: StreamControl::new(cfg)?,
             mask: HotPixelMask::new(f)?,
             delay: DelayLine::new(f)?,
@@ -1148,6 +1192,16 @@ impl<
         self.framing_error.next = self.control.framing_error.val();
         self.overflowed.next = self.back.overflowed.val();
         self.fault.next = self.back.fault.val();
+        // The idle MCB port.
+        self.mem_ready.next = true;
+        self.cmd_en.next = false;
+        self.cmd_instr.next = 0.into();
+        self.cmd_bl.next = 0.into();
+        self.cmd_addr.next = 0.into();
+        self.wr_en.next = false;
+        self.wr_mask.next = 0.into();
+        self.wr_data.next = 0.into();
+        self.rd_en.next = false;
     }
 }
 

@@ -43,7 +43,7 @@
 use crate::bram::RamStyle;
 use crate::config::{BackHalfConfig, GatewareError};
 use crate::fifo::Fifo;
-use crate::pipeline::PipelineDdr;
+use crate::pipeline::{Pipeline, PipelineDdr};
 use crate::registers;
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
@@ -296,10 +296,14 @@ impl Logic for OkEndpoint {
     }
 }
 
-/// The MIG DDR2 controller with one 32-bit user port (black box
-/// `smartagg_mig`); user side as [`crate::delay_line_ddr::DelayLineDdr`].
+/// Declares a block with the DDR2 pins and the MCB user port ([`MigDdr2`],
+/// [`ParkedDdr2`]) whose Verilog is `$code` (an instance) with the modules
+/// of `$cores`.
+macro_rules! ddr2_port {
+    ($(#[$attr:meta])* $name:ident, $code:expr, $cores:expr) => {
+$(#[$attr])*
 #[derive(LogicBlock, Default)]
-pub struct MigDdr2 {
+pub struct $name {
     /// 100 MHz system clock, LVDS positive.
     pub sys_clk_p: Signal<In, Bit>,
     /// 100 MHz system clock, LVDS negative.
@@ -372,7 +376,7 @@ pub struct MigDdr2 {
     pub zio: Signal<InOut, Bit>,
 }
 
-impl Logic for MigDdr2 {
+impl Logic for $name {
     fn update(&mut self) {}
     fn connect(&mut self) {
         self.calib_done.connect();
@@ -401,7 +405,17 @@ impl Logic for MigDdr2 {
     }
     fn hdl(&self) -> Verilog {
         Verilog::Wrapper(Wrapper {
-            code: r#"smartagg_mig mig(
+            code: $code.into(),
+            cores: $cores.into(),
+        })
+    }
+}
+
+    };
+}
+
+/// Instance of the MIG controller.
+const MIG_INSTANCE: &str = r#"smartagg_mig mig(
     .mcb3_dram_dq(dq), .mcb3_dram_a(a), .mcb3_dram_ba(ba), .mcb3_dram_ras_n(ras_n),
     .mcb3_dram_cas_n(cas_n), .mcb3_dram_we_n(we_n), .mcb3_dram_odt(odt), .mcb3_dram_cke(cke),
     .mcb3_dram_dm(dm), .mcb3_dram_udqs(udqs), .mcb3_dram_udqs_n(udqs_n), .mcb3_rzq(rzq),
@@ -415,19 +429,61 @@ impl Logic for MigDdr2 {
     .c3_p0_wr_mask(wr_mask), .c3_p0_wr_data(wr_data), .c3_p0_wr_full(wr_full),
     .c3_p0_wr_empty(), .c3_p0_wr_count(), .c3_p0_wr_underrun(), .c3_p0_wr_error(),
     .c3_p0_rd_clk(port_clk), .c3_p0_rd_en(rd_en), .c3_p0_rd_data(rd_data), .c3_p0_rd_full(),
-    .c3_p0_rd_empty(rd_empty), .c3_p0_rd_count(), .c3_p0_rd_overflow(), .c3_p0_rd_error());"#
-                .into(),
-            cores: MIG_DECLARATION.into(),
-        })
-    }
-}
+    .c3_p0_rd_empty(rd_empty), .c3_p0_rd_count(), .c3_p0_rd_overflow(), .c3_p0_rd_error());"#;
 
-/// Everything between the FrontPanel endpoints and the MCB user port, on
-/// `okClk`: register decoding, replay and mask pipes, the pipeline, the
-/// packet pipe-out and the status wire-outs. Type parameters: those of
-/// [`PipelineDdr`].
+ddr2_port!(
+    /// The MIG DDR2 controller with one 32-bit user port (black box
+    /// `smartagg_mig`); user side as [`crate::delay_line_ddr::DelayLineDdr`].
+    MigDdr2,
+    MIG_INSTANCE,
+    MIG_DECLARATION
+);
+
+/// The DDR2 pins parked, for the designs whose delay line is on chip: the
+/// memory is held in power-down (CKE low) with NOP commands (RAS#, CAS#,
+/// WE# high), its clock stopped, ODT off, the data and strobe pins and the
+/// MCB calibration pins left floating; the user port is never served
+/// (calibration done, FIFOs empty, nothing full).
+const PARKED_DDR2_MODULE: &str = r#"
+module smartagg_ddr2_parked(
+    inout wire [15:0] dq, output wire [12:0] a, output wire [2:0] ba,
+    output wire ras_n, output wire cas_n, output wire we_n, output wire odt, output wire cke,
+    output wire dm, output wire udm, inout wire dqs, inout wire dqs_n, inout wire udqs,
+    inout wire udqs_n, output wire ck, output wire ck_n, inout wire rzq, inout wire zio,
+    output wire calib_done, output wire cmd_full, output wire wr_full,
+    output wire [31:0] rd_data, output wire rd_empty);
+assign dq = 16'hzzzz;
+assign {dqs, dqs_n, udqs, udqs_n, rzq, zio} = 6'bzzzzzz;
+assign {a, ba} = 16'h0;
+assign {ras_n, cas_n, we_n} = 3'b111;
+assign {odt, cke, dm, udm, ck} = 5'b0;
+assign ck_n = 1'b1;
+assign {calib_done, cmd_full, wr_full, rd_data, rd_empty} = {1'b1, 1'b0, 1'b0, 32'h0, 1'b1};
+endmodule
+"#;
+
+/// Instance of the parked DDR2 pins.
+const PARKED_DDR2_INSTANCE: &str = r#"smartagg_ddr2_parked parked(
+    .dq(dq), .a(a), .ba(ba), .ras_n(ras_n), .cas_n(cas_n), .we_n(we_n), .odt(odt), .cke(cke),
+    .dm(dm), .udm(udm), .dqs(dqs), .dqs_n(dqs_n), .udqs(udqs), .udqs_n(udqs_n), .ck(ck),
+    .ck_n(ck_n), .rzq(rzq), .zio(zio), .calib_done(calib_done), .cmd_full(cmd_full),
+    .wr_full(wr_full), .rd_data(rd_data), .rd_empty(rd_empty));"#;
+
+ddr2_port!(
+    /// The XEM6310's DDR2 pins, parked ([`MigDdr2`]'s ports; no controller).
+    ParkedDdr2,
+    PARKED_DDR2_INSTANCE,
+    PARKED_DDR2_MODULE
+);
+
+/// Declares an XEM6310 core ([`XemCore`], [`XemCoreOnChip`]) around a
+/// pipeline type with [`PipelineDdr`]'s ports: one text for both delay
+/// lines, since rust-hdl's generated logic reads a sub-block's ports by name.
+macro_rules! xem_core {
+    ($(#[$attr:meta])* $core:ident, $pipe:ident) => {
+$(#[$attr])*
 #[derive(LogicBlock)]
-pub struct XemCore<
+pub struct $core<
     const P: usize,
     const PAW: usize,
     const CW: usize,
@@ -506,12 +562,16 @@ pub struct XemCore<
     pub rd_data: Signal<In, Bits<32>>,
     /// MCB: read FIFO empty.
     pub rd_empty: Signal<In, Bit>,
-    pipe: PipelineDdr<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
+    pipe: $pipe<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
     replay: Fifo<32, 9>,
     maskf: Fifo<32, 9>,
     owords: Fifo<32, 9>,
     src_replay: DFF<Bit>,
     stop_pend: DFF<Bit>,
+    /// START taken, waiting for the mask pipe to drain into the mask and
+    /// for the memory's calibration: a mask written just before START is
+    /// the stream's whole mask, and a START before calibration is not lost.
+    start_pend: DFF<Bit>,
     rphase: DFF<Bit>,
     rsub: DFF<Bits<8>>,
     rwidx: DFF<Bits<32>>,
@@ -555,7 +615,7 @@ impl<
         const TW: usize,
         const TAW: usize,
         const OAW: usize,
-    > XemCore<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
+    > $core<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
 {
     /// The core of a configuration; errors if the type's widths differ or a
     /// plane is not whole 32-bit pipe words.
@@ -587,7 +647,7 @@ impl<
             .map(c32)
             .collect();
         let block = (registers::PIPE_BLOCK_BYTES / 4) as u64;
-        Ok(XemCore {
+        Ok($core {
             clock: Default::default(),
             wire_in: lanes(registers::wire_in::COUNT),
             trigger: Default::default(),
@@ -618,12 +678,13 @@ impl<
             rd_en: Default::default(),
             rd_data: Default::default(),
             rd_empty: Default::default(),
-            pipe: PipelineDdr::new(cfg)?,
+            pipe: $pipe::new(cfg)?,
             replay: Fifo::new(RamStyle::Block),
             maskf: Fifo::new(RamStyle::Block),
             owords: Fifo::new(RamStyle::Block),
             src_replay: Default::default(),
             stop_pend: Default::default(),
+            start_pend: Default::default(),
             rphase: Default::default(),
             rsub: Default::default(),
             rwidx: Default::default(),
@@ -670,13 +731,13 @@ impl<
         const TAW: usize,
         const OAW: usize,
     > Logic
-    for XemCore<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
+    for $core<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
 {
     #[hdl_gen]
     fn update(&mut self) {
         clock!(self, clock, pipe, replay, maskf, owords);
         dff_setup!(
-            self, clock, src_replay, stop_pend, rphase, rsub, rwidx, msub, maddr, pack, pbytes,
+            self, clock, src_replay, stop_pend, start_pend, rphase, rsub, rwidx, msub, maddr, pack, pbytes,
             total, avail, odata
         );
         // ---- Registers and triggers.
@@ -688,7 +749,16 @@ impl<
         self.pipe.reg_period.next = self.wire_in[5].val();
         self.pipe.reg_masked.next = self.wire_in[6].val();
         self.pipe.reset.next = self.trigger.val().get_bit(0);
-        self.pipe.start.next = self.trigger.val().get_bit(1);
+        if self.trigger.val().get_bit(1) {
+            self.start_pend.d.next = true;
+        }
+        self.pipe.start.next = self.start_pend.q.val()
+            & !self.maskf.out_valid.val()
+            & (self.maskf.count.val() == 0)
+            & self.pipe.mem_ready.val();
+        if self.pipe.start.val() | self.trigger.val().get_bit(0) {
+            self.start_pend.d.next = false;
+        }
         // STOP with replay: once every word the host sent has gone in.
         if self.trigger.val().get_bit(2) {
             self.stop_pend.d.next = true;
@@ -851,18 +921,48 @@ impl<
     }
 }
 
+    };
+}
+
+xem_core!(
+    /// Everything between the FrontPanel endpoints and the MCB user port, on
+    /// `okClk`: register decoding, replay and mask pipes, the pipeline, the
+    /// packet pipe-out and the status wire-outs. Type parameters: those of
+    /// [`PipelineDdr`].
+    XemCore,
+    PipelineDdr
+);
+
+xem_core!(
+    /// [`XemCore`] around the pipeline with the block-RAM delay line
+    /// ([`Pipeline`]): the same endpoints, registers and pipes; its MCB user
+    /// port stays idle and `MEM_READY` is always set.
+    XemCoreOnChip,
+    Pipeline
+);
+
 /// [`XemCore`] of [`crate::pipeline::test_back_config`]`(4, 3, 1)` (the
 /// parameters of [`crate::pipeline::TestPipelineDdr`]).
 pub type TestXemCore = XemCore<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
 
+/// [`XemCoreOnChip`] of the same configuration (the parameters of
+/// [`crate::pipeline::TestPipeline`]).
+pub type TestXemCoreOnChip =
+    XemCoreOnChip<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+
 /// Depth (address bits) of the sensor port's clock-crossing FIFO.
 pub const SENSOR_FIFO_BITS: usize = 5;
 
-/// The XEM6310 top: pins, FrontPanel endpoints, MIG, sensor port, core.
-/// Port names are the pin names of `constraints/xem6310.ucf`.
+/// Declares an XEM6310 top ([`Xem6310Top`], [`Xem6310TopOnChip`]) around a
+/// core type ([`XemCore`], [`XemCoreOnChip`]) and a DDR2 block ([`MigDdr2`],
+/// [`ParkedDdr2`]): the same pins, endpoints and sensor port, so one
+/// `constraints/xem6310.ucf` places both.
+macro_rules! xem_top {
+    ($(#[$attr:meta])* $top:ident, $core:ident, $mem:ident) => {
+$(#[$attr])*
 #[allow(non_snake_case)]
 #[derive(LogicBlock)]
-pub struct Xem6310Top<
+pub struct $top<
     const P: usize,
     const PAW: usize,
     const CW: usize,
@@ -962,10 +1062,10 @@ pub struct Xem6310Top<
     pi80: OkEndpoint,
     pi81: OkEndpoint,
     poa0: OkEndpoint,
-    mig: MigDdr2,
+    mig: $mem,
     sensor_fifo: AsynchronousFIFO<Bits<32>, SENSOR_FIFO_BITS, 6, 1>,
     sensor_sync: BitSynchronizer,
-    core: XemCore<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
+    core: $core<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
     sop_shift: Constant<Bits<8>>,
 }
 
@@ -987,7 +1087,7 @@ impl<
         const TW: usize,
         const TAW: usize,
         const OAW: usize,
-    > Xem6310Top<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
+    > $top<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
 {
     /// The top of a configuration; errors if the type's widths differ.
     pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
@@ -995,7 +1095,7 @@ impl<
         use EndpointKind::*;
         let wi = |a: u8| OkEndpoint::new(WireIn, wire_in::CONTROL + a);
         let wo = |a: u8| OkEndpoint::new(WireOut, wire_out::STATUS + a);
-        Ok(Xem6310Top {
+        Ok($top {
             okUH: Default::default(),
             okHU: Default::default(),
             okUHU: Default::default(),
@@ -1050,7 +1150,7 @@ impl<
             mig: Default::default(),
             sensor_fifo: Default::default(),
             sensor_sync: Default::default(),
-            core: XemCore::new(cfg)?,
+            core: $core::new(cfg)?,
             sop_shift: Constant::new((P as u64).to_bits()),
         })
     }
@@ -1075,7 +1175,7 @@ impl<
         const TAW: usize,
         const OAW: usize,
     > Logic
-    for Xem6310Top<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
+    for $top<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
 {
     #[hdl_gen]
     fn update(&mut self) {
@@ -1246,6 +1346,27 @@ impl<
         self.led.next = !self.core.wire_out[0].val().get_bits::<8>(0);
     }
 }
+
+    };
+}
+
+xem_top!(
+    /// The XEM6310 top: pins, FrontPanel endpoints, MIG, sensor port, core.
+    /// Port names are the pin names of `constraints/xem6310.ucf`.
+    Xem6310Top,
+    XemCore,
+    MigDdr2
+);
+
+xem_top!(
+    /// The XEM6310 top of a design whose delay line is on chip (block RAM):
+    /// [`Xem6310Top`]'s pins and endpoints around [`XemCoreOnChip`], with
+    /// the DDR2 parked ([`ParkedDdr2`]). Port names are the pin names of
+    /// `constraints/xem6310.ucf`.
+    Xem6310TopOnChip,
+    XemCoreOnChip,
+    ParkedDdr2
+);
 
 /// The XEM6310 top for the SPCImager at 150×
 /// ([`crate::pipeline::spcimager150_back_config`]), DDR2 delay line.

@@ -34,12 +34,18 @@ fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
         );
         let v = d.verilog().unwrap_or_else(|e| panic!("{}: {e}", d.name()));
         assert!(v.contains("module top("), "{}", d.name());
+        // Both tops are the board's: FrontPanel endpoints, the UCF's pins.
+        assert!(v.contains("module okHost("), "{}", d.name());
+        assert!(d.ucf().contains("okUH"));
         match d.top {
             TopKind::Xem6310 => {
-                assert!(v.contains("module okHost("));
-                assert!(d.ucf().unwrap().contains("okUH"));
+                assert!(v.contains("smartagg_mig mig("), "{}", d.name());
+                assert!(!v.contains("smartagg_ddr2_parked"), "{}", d.name());
             }
-            TopKind::PipelineCore => assert!(d.ucf().is_none()),
+            TopKind::Xem6310OnChip => {
+                assert!(v.contains("smartagg_ddr2_parked parked("), "{}", d.name());
+                assert!(!v.contains("smartagg_mig mig("), "{}", d.name());
+            }
         }
         // Generation is deterministic: the hash names the file.
         assert_eq!(text_hash(&v), text_hash(&d.verilog().unwrap()));

@@ -64,16 +64,17 @@ fn top_port_bits(v: &str) -> Vec<String> {
     bits
 }
 
-#[test]
-fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
+/// Generates `preset` at 150× and checks the files: the hash, the UCF
+/// against the top's ports, the ISE script for `part`.
+fn check_generate(preset: &str, part: &str, delay_line: &str, mig: bool) {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("spc150");
+    let out = dir.path().join(preset);
     let o = out.to_str().unwrap();
     let stdout = ok(&[
         "hdl",
         "generate",
         "--preset",
-        "spcimager",
+        preset,
         "--objective",
         "150",
         "--out",
@@ -85,7 +86,7 @@ fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
     assert!(stdout.contains(&hash), "{stdout}");
     assert_eq!(read(&out, "top.v.hash").trim(), format!("{hash}  top.v"));
     assert!(
-        stdout.contains("XC6SLX45") && stdout.contains("DDR2"),
+        stdout.contains(part) && stdout.contains(delay_line),
         "{stdout}"
     );
     // The UCF places every bit of every top port, once, on distinct pins,
@@ -108,20 +109,30 @@ fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
     for p in &ports {
         assert!(placed.contains(p), "port bit {p} has no LOC");
     }
-    // The ISE script adds the generated files for the LX45 and asks for the
-    // vendor cores.
+    // The ISE script adds the generated files for the part and asks for the
+    // vendor cores (the MIG only where the DDR2 holds the delay line).
     let tcl = read(&out, "build.tcl");
     for needle in [
         "top.v",
         "xem6310.ucf",
-        "xc6slx45",
+        &part.to_ascii_lowercase(),
         "fgg484",
         &hash,
-        "mig_dir",
         "fp_dir",
     ] {
         assert!(tcl.contains(needle), "build.tcl lacks {needle}:\n{tcl}");
     }
+    assert_eq!(tcl.contains("mig_dir"), mig, "{tcl}");
+}
+
+#[test]
+fn generate_writes_the_verilog_its_hash_the_ucf_and_the_ise_script() {
+    check_generate("spcimager", "XC6SLX45", "DDR2", true);
+}
+
+#[test]
+fn generate_writes_the_on_chip_design_for_the_lx150_board() {
+    check_generate("spcimager-projected", "XC6SLX150", "block-RAM", false);
 }
 
 #[test]

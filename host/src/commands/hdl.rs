@@ -2,7 +2,7 @@
 //! (`smartagg_hdl::configs`).
 //!
 //! * `hdl generate` writes the design's Verilog (`top.v`, its hash in
-//!   `top.v.hash`), the XEM6310 constraints (`xem6310.ucf`, board tops only)
+//!   `top.v.hash`), the XEM6310 constraints (`xem6310.ucf`)
 //!   and an ISE 14.7 project script (`build.tcl`, run with `xtclsh`) that
 //!   adds them beside Opal Kelly's FrontPanel HDL and the MIG DDR2 core,
 //!   which are proprietary and supplied by the user.
@@ -81,7 +81,7 @@ fn write(path: &Path, text: &str) -> anyhow::Result<()> {
 }
 
 /// The ISE 14.7 project script of a design.
-fn build_tcl(d: &Design, hash: &str, ucf: bool) -> String {
+fn build_tcl(d: &Design, hash: &str) -> String {
     let device = d.device.name.to_ascii_lowercase();
     let name = format!("smartagg_{}", d.name().replace('-', "_"));
     let mut t = format!(
@@ -122,11 +122,9 @@ xfile add [file join $here top_ise.v]
         design = d.name(),
         part = d.device.name,
     );
-    if ucf {
-        t.push_str("xfile add [file join $here xem6310.ucf]\n");
-    }
     t.push_str(
-        r#"foreach v [glob -nocomplain -directory $fp_dir *.v] { xfile add $v }
+        r#"xfile add [file join $here xem6310.ucf]
+foreach v [glob -nocomplain -directory $fp_dir *.v] { xfile add $v }
 # The .ngc netlists are found by ngdbuild through the macro search path.
 project set "Macro Search Path" $fp_dir -process "Translate"
 "#,
@@ -159,20 +157,14 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
         .with_context(|| format!("creating the output directory {}", a.out.display()))?;
     write(&a.out.join("top.v"), &v)?;
     write(&a.out.join("top.v.hash"), &format!("{hash}  top.v\n"))?;
-    let ucf = d.ucf();
-    if let Some(u) = ucf {
-        write(&a.out.join("xem6310.ucf"), u)?;
-    }
-    write(
-        &a.out.join("build.tcl"),
-        &build_tcl(&d, &hash, ucf.is_some()),
-    )?;
+    write(&a.out.join("xem6310.ucf"), d.ucf())?;
+    write(&a.out.join("build.tcl"), &build_tcl(&d, &hash))?;
     println!(
         "{}: {} for the {} ({} delay line, N_max = {}, k = {}, M = {}, R = {})",
         d.name(),
         match d.top {
             TopKind::Xem6310 => "XEM6310 top",
-            TopKind::PipelineCore => "pipeline core (no board top yet, no UCF)",
+            TopKind::Xem6310OnChip => "XEM6310 top (DDR2 parked)",
         },
         d.device.name,
         delay_line_name(d.delay_line),
@@ -182,10 +174,9 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
         d.config.roi_size
     );
     println!(
-        "wrote {} ({} bytes), top.v.hash{}, build.tcl",
+        "wrote {} ({} bytes), top.v.hash, xem6310.ucf, build.tcl",
         a.out.join("top.v").display(),
-        v.len(),
-        if ucf.is_some() { ", xem6310.ucf" } else { "" }
+        v.len()
     );
     println!("Verilog CRC-64/XZ {hash}");
     Ok(())
