@@ -24,7 +24,6 @@
 
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::front_half::verilog;
-use crate::pipeline::Pipeline;
 use crate::xem6310::{Xem6310Top, Xem6310TopOnChip};
 use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};
