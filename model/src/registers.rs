@@ -146,7 +146,8 @@ pub mod status {
     pub const CONFIG_ERROR: u32 = 1 << 3;
     /// A buffer overflowed or the DDR2 delay line under-ran (the stream is not exact).
     pub const FAULT: u32 = 1 << 4;
-    /// The DDR2 memory has calibrated (START waits for it).
+    /// The DDR2 memory has calibrated (START waits for it); always set where
+    /// the delay line is in block RAM.
     pub const MEM_READY: u32 = 1 << 5;
     /// The source's start-of-plane came inside a plane.
     pub const FRAMING_ERROR: u32 = 1 << 6;
@@ -160,7 +161,9 @@ pub mod trigger {
     pub const CONTROL: u8 = 0x40;
     /// Bit: reset the pipeline (while stopped).
     pub const RESET: u8 = 0;
-    /// Bit: latch the wire-ins and start streaming.
+    /// Bit: latch the wire-ins and start streaming, once the mask pipe has
+    /// drained into the mask and the memory has calibrated (a START before
+    /// then waits; RESET cancels it).
     pub const START: u8 = 1;
     /// Bit: finish, emit StreamEnd and stop.
     pub const STOP: u8 = 2;
