@@ -552,6 +552,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub restart: Signal<Out, Bit>,
     /// The restart starts a stream (not a RESET).
     pub starting: Signal<Out, Bit>,
+    /// No stream is being checked, started or run: the mask may be loaded.
+    pub idle: Signal<Out, Bit>,
     /// Latched N.
     pub n_window: Signal<Out, Bits<NW>>,
     /// Latched T_int, clamped to HW bits (front half).
@@ -668,6 +670,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             in_live: Default::default(),
             restart: Default::default(),
             starting: Default::default(),
+            idle: Default::default(),
             n_window: Default::default(),
             threshold_hw: Default::default(),
             threshold: Default::default(),
@@ -741,6 +744,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         self.restart.next = self.rst.q.val();
         self.rst.d.next = false;
         self.starting.next = self.state.q.val() == ControlState::Restart;
+        self.idle.next = self.state.q.val() == ControlState::Idle;
         self.w_valid.next = false;
         self.w_sop.next = self.w_zero.q.val();
         self.w_flush.next = false;
@@ -1126,7 +1130,7 @@ impl<
         self.control.in_live.next = self.in_live.val();
         // Stage 0: hot-pixel mask.
         // The mask is latched with the registers: loads only while stopped.
-        self.mask_loadable.next = !self.control.running.val() & !self.control.starting.val();
+        self.mask_loadable.next = self.control.idle.val();
         self.mask.load.next = self.load.val() & self.mask_loadable.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
@@ -1446,7 +1450,7 @@ impl<
         self.control.in_live.next = self.in_live.val();
         // Stage 0: hot-pixel mask.
         // The mask is latched with the registers: loads only while stopped.
-        self.mask_loadable.next = !self.control.running.val() & !self.control.starting.val();
+        self.mask_loadable.next = self.control.idle.val();
         self.mask.load.next = self.load.val() & self.mask_loadable.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
