@@ -8,8 +8,23 @@ use smartagg_model::recording::{BitOrder, RecordingReader};
 use smartagg_model::stats::{self, Detection, DetectionInputs};
 use std::io::Read;
 
-/// How the pipeline is parametrised: a preset and objective give N, T_int and
-/// the kernel through the paper's statistics; any of them can be overridden.
+/// How tracks are opened and held on to.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum DetectionMode {
+    /// For the whole field: the open threshold keeps background-only false
+    /// blinks within --false-blinks-per-s over the sensor, a track is held
+    /// on at the paper's 3σ threshold, association within 2σ of the PSF,
+    /// L_min = 1 (model/src/field_design.rs).
+    #[default]
+    Field,
+    /// The paper's literal scheme: one per-pixel 3σ threshold, L_min = 1,
+    /// r_assoc = 1 (right for one molecule in a 32×32 ROI).
+    Paper,
+}
+
+/// How the pipeline is parametrised: a preset and objective give N, the
+/// thresholds and the kernel through the statistics; any of them can be
+/// overridden.
 #[derive(clap::Args, Debug, Clone)]
 pub struct PipelineArgs {
     /// Camera preset whose statistics set N, T and the kernel (spcimager, spcimager-projected).
@@ -24,12 +39,22 @@ pub struct PipelineArgs {
     /// Override the rolling window N (bit-planes).
     #[arg(long)]
     pub n_window: Option<u32>,
-    /// Override the integer threshold T_int.
+    /// Detection design: `field` (default) or the paper's literal `paper`.
+    #[arg(long, value_enum, default_value_t = DetectionMode::Field)]
+    pub detection: DetectionMode,
+    /// Budget of background-only false blinks per second over the whole
+    /// field, for `--detection field`.
+    #[arg(long, default_value_t = smartagg_model::field_design::DEFAULT_FALSE_BLINKS_PER_S)]
+    pub false_blinks_per_s: f64,
+    /// Override the integer threshold T_int that opens a track.
     #[arg(long)]
     pub threshold_int: Option<u32>,
-    /// Planes a track must stay on to be confirmed (1 reproduces the paper).
-    #[arg(long, default_value_t = 1)]
-    pub l_min: u32,
+    /// Override the integer threshold T_hold that holds a track on (≤ T_int).
+    #[arg(long)]
+    pub threshold_hold: Option<u32>,
+    /// Planes a track must stay on to be confirmed (default 1, both designs).
+    #[arg(long)]
+    pub l_min: Option<u32>,
     /// Planes after which a long blink is cut into a new segment.
     #[arg(long, default_value_t = smartagg_model::config::DEFAULT_L_MAX)]
     pub l_max: u32,
@@ -39,9 +64,10 @@ pub struct PipelineArgs {
     /// ROI side R (odd); default: the kernel size.
     #[arg(long)]
     pub roi: Option<usize>,
-    /// Association radius, pixels (Chebyshev).
-    #[arg(long, default_value_t = 1)]
-    pub r_assoc: u32,
+    /// Association radius, pixels (Chebyshev); default: round(2σ) of the
+    /// PSF with `--detection field`, 1 with `paper`.
+    #[arg(long)]
+    pub r_assoc: Option<u32>,
     /// Calibration folder (`smartagg calibrate`): its hot pixels, judged
     /// against this run's N and T_int, are masked (read as 0).
     #[arg(long)]
@@ -49,19 +75,22 @@ pub struct PipelineArgs {
 }
 
 impl Default for PipelineArgs {
-    /// The command-line defaults: SPCImager at 150x, the paper's L_min = 1.
+    /// The command-line defaults: SPCImager at 150x, the field design.
     fn default() -> PipelineArgs {
         PipelineArgs {
             preset: "spcimager".into(),
             objective: 150,
             flux: None,
             n_window: None,
+            detection: DetectionMode::Field,
+            false_blinks_per_s: smartagg_model::field_design::DEFAULT_FALSE_BLINKS_PER_S,
             threshold_int: None,
-            l_min: 1,
+            threshold_hold: None,
+            l_min: None,
             l_max: smartagg_model::config::DEFAULT_L_MAX,
             slots: smartagg_model::config::DEFAULT_SLOTS,
             roi: None,
-            r_assoc: 1,
+            r_assoc: None,
             calibration: None,
         }
     }
@@ -129,12 +158,45 @@ pub fn pipeline_config(
     plane_period_ns: u64,
 ) -> anyhow::Result<PipelineConfig> {
     let (_, det) = detection(&args.preset, args.objective, args.flux)?;
-    let n = args.n_window.unwrap_or(det.n_window);
-    let threshold = match args.threshold_int {
-        Some(t) => t,
-        None => u32::try_from(det.threshold_int)
-            .context("the derived threshold does not fit 32 bits")?,
+    // Another window moves the paper's Eq. 7 threshold (and so the design) with it.
+    let det = match args.n_window {
+        Some(n) => det.at_window(n),
+        None => det,
     };
+    let n = det.n_window;
+    let t32 = |t: u64| u32::try_from(t).context("the derived threshold does not fit 32 bits");
+    let (mut threshold, mut hold, mut r_assoc, mut l_min) = (
+        t32(det.threshold_int)?,
+        t32(det.threshold_int)?,
+        1,
+        1,
+    );
+    if args.detection == DetectionMode::Field {
+        if plane_period_ns == 0 {
+            bail!("the recording's plane period is 0 ns");
+        }
+        let d = smartagg_model::field_design::design(
+            &det,
+            width,
+            height,
+            1e9 / plane_period_ns as f64,
+            args.false_blinks_per_s,
+        )?;
+        eprintln!("{}", describe_design(&d));
+        threshold = t32(d.threshold_open)?;
+        hold = t32(d.threshold_hold)?;
+        r_assoc = d.r_assoc;
+        l_min = d.l_min;
+    }
+    if let Some(t) = args.threshold_int {
+        threshold = t;
+        // An open level given alone holds at the same level unless that
+        // would put the hold level above it.
+        hold = hold.min(t);
+    }
+    if let Some(t) = args.threshold_hold {
+        hold = t;
+    }
     let mut cfg = PipelineConfig::new(
         width as usize,
         height as usize,
@@ -143,10 +205,11 @@ pub fn pipeline_config(
         det.kernel_shift,
         threshold,
     );
-    cfg.l_min = args.l_min;
+    cfg.threshold_hold = hold;
+    cfg.l_min = args.l_min.unwrap_or(l_min);
     cfg.l_max = args.l_max.max(n);
     cfg.slots = args.slots;
-    cfg.r_assoc = args.r_assoc;
+    cfg.r_assoc = args.r_assoc.unwrap_or(r_assoc);
     if let Some(r) = args.roi {
         cfg.roi_size = r;
     }
@@ -162,10 +225,11 @@ pub fn pipeline_config(
             width,
             height
         );
-        let criterion = cal.hot_criterion.with_threshold(n, threshold as u64)?;
+        // A hot pixel at the hold level would keep a neighbouring track on.
+        let criterion = cal.hot_criterion.with_threshold(n, hold as u64)?;
         let mask = cal.hot_mask_for(&criterion);
         eprintln!(
-            "calibration {}: {} hot pixels masked (dark counts alone would reach T_int = {threshold} with N = {n})",
+            "calibration {}: {} hot pixels masked (dark counts alone would reach T_hold = {hold} with N = {n})",
             path.display(),
             mask.count()
         );
@@ -175,18 +239,42 @@ pub fn pipeline_config(
     Ok(cfg)
 }
 
+/// What a field design chose and predicts, in a microscopist's words.
+pub fn describe_design(d: &smartagg_model::field_design::FieldDesign) -> String {
+    let ms = |p: u32| p as f64 / d.plane_rate_hz * 1e3;
+    let shortest = match d.shortest_blink_planes {
+        Some(p) => format!(
+            "blinks of {:.1} ms or longer are detected with ≥ 90 % probability (predicted)",
+            ms(p)
+        ),
+        None => "warning: at this budget no blink reaches 90 % predicted detection: the light is too weak; raise --false-blinks-per-s or use a longer window".into(),
+    };
+    format!(
+        "detection: a track opens at T_int = {} ({:.1} sd above background: at most {:.3} false blinks/s over the {}x{} field from background alone, budget {}/s) and stays on down to T_hold = {} (the paper's 3-sigma level); {shortest}",
+        d.threshold_open,
+        d.open_sigmas,
+        d.predicted_false_blinks_per_s,
+        d.width,
+        d.height,
+        d.budget_per_s,
+        d.threshold_hold,
+    )
+}
+
 /// One line describing a configuration.
 pub fn describe(cfg: &PipelineConfig) -> String {
     format!(
-        "pipeline: {}x{} pixels, window N = {} planes, T_int = {}, kernel {:?} (sum 2^{}), L_min = {}, L_max = {}, {} slots, ROI {}x{}",
+        "pipeline: {}x{} pixels, window N = {} planes, T_int = {} (open), T_hold = {}, kernel {:?} (sum 2^{}), L_min = {}, L_max = {}, r_assoc = {}, {} slots, ROI {}x{}",
         cfg.width,
         cfg.height,
         cfg.n_window,
         cfg.threshold_int,
+        cfg.threshold_hold,
         cfg.kernel,
         cfg.kernel_shift,
         cfg.l_min,
         cfg.l_max,
+        cfg.r_assoc,
         cfg.slots,
         cfg.roi_size,
         cfg.roi_size

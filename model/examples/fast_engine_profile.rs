@@ -42,6 +42,7 @@ fn main() {
     let mean = n as f64 * p * 65536.0;
     let sd = (n as f64 * p * (1.0 - p) * 13380f64.powi(2)).sqrt();
     cfg.threshold_int = (mean + 4.0 * sd).ceil().max(1.0) as u32;
+    cfg.threshold_hold = cfg.threshold_int;
     let mut s = 0x1234_5678_9abc_def1u64;
     let mut rnd = move || {
         s ^= s << 13;

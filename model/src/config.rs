@@ -46,8 +46,14 @@ pub struct PipelineConfig {
     pub kernel: Vec<u32>,
     /// a: the 1-D kernel sums to 2^a, the 2-D kernel K = k1⊗k1 to 2^(2a).
     pub kernel_shift: u8,
-    /// Integer threshold on H = K ⊛ S (≥ 1).
+    /// Integer threshold on H = K ⊛ S (≥ 1) that **opens** a track: a
+    /// candidate is a 3×3 maximum with `H ≥ T_int`.
     pub threshold_int: u32,
+    /// Integer threshold that **holds** a track on (hysteresis): an open
+    /// track stays on while the 3×3 maximum of H around its anchor is
+    /// `≥ T_hold`. `1 ≤ T_hold ≤ T_int`; `T_hold = T_int` is the paper's
+    /// single-threshold rule.
+    pub threshold_hold: u32,
     /// Planes a track must stay on to be confirmed (≥ 1).
     pub l_min: u32,
     /// Planes after which an on track is cut into a new segment (≥ max(L_min, N)).
@@ -71,7 +77,8 @@ pub const DEFAULT_L_MAX: u32 = 10_000;
 
 impl PipelineConfig {
     /// A configuration with the defaults for everything but the essentials:
-    /// L_min 1 (the paper), L_max 10,000, r_assoc 1, 32 slots, ROI side = kernel size.
+    /// T_hold = T_int and L_min 1 (the paper's rule), L_max 10,000,
+    /// r_assoc 1, 32 slots, ROI side = kernel size.
     pub fn new(
         width: usize,
         height: usize,
@@ -88,6 +95,7 @@ impl PipelineConfig {
             kernel,
             kernel_shift,
             threshold_int,
+            threshold_hold: threshold_int,
             l_min: 1,
             l_max: DEFAULT_L_MAX.max(n_window),
             r_assoc: 1,
@@ -188,6 +196,16 @@ impl PipelineConfig {
                 "must be at least 1 (H ≥ 0 fires everywhere)",
             ));
         }
+        if self.threshold_hold == 0 || self.threshold_hold > self.threshold_int {
+            return Err(invalid(
+                "threshold_hold",
+                self.threshold_hold,
+                format!(
+                    "the hold level must be 1..=T_int = {} (a track is held at or below the level that opens it)",
+                    self.threshold_int
+                ),
+            ));
+        }
         if self.l_min == 0 {
             return Err(invalid(
                 "l_min",
@@ -240,6 +258,7 @@ impl PipelineConfig {
             height: self.height as u16,
             n_window: self.n_window,
             threshold_int: self.threshold_int,
+            threshold_hold: self.threshold_hold,
             l_min: self.l_min,
             l_max: self.l_max,
             r_assoc: self.r_assoc as u8,
@@ -276,6 +295,8 @@ mod tests {
             ("kernel", Box::new(|c| c.kernel = vec![1, 1, 1])),
             ("kernel", Box::new(|c| c.kernel = vec![2, 1, 1])),
             ("threshold_int", Box::new(|c| c.threshold_int = 0)),
+            ("threshold_hold", Box::new(|c| c.threshold_hold = 0)),
+            ("threshold_hold", Box::new(|c| c.threshold_hold = 21)),
             ("l_min", Box::new(|c| c.l_min = 0)),
             ("l_max", Box::new(|c| c.l_max = 5)),
             ("slots", Box::new(|c| c.slots = 0)),

@@ -53,6 +53,7 @@ pub struct FastFrontEnd {
     /// `−K` in wrapping arithmetic, for a pixel leaving it (no branch per add).
     kernel_minus: Vec<u32>,
     threshold_int: u32,
+    threshold_hold: u32,
     /// Rolling counts S, raster order (kept for dense recomputation).
     counts: Vec<u16>,
     /// H with a halo of `pad` cells on every side. Halo cells collect the
@@ -61,7 +62,7 @@ pub struct FastFrontEnd {
     filtered: Vec<u32>,
     /// Scratch of the dense horizontal pass.
     horiz: Vec<u32>,
-    /// Raster indices with H ≥ T_int, ascending.
+    /// Raster indices with H ≥ T_hold, ascending.
     above: Vec<u32>,
     candidates: Vec<Candidate>,
     /// AVX2 is available: the same code is compiled once more with it.
@@ -98,6 +99,7 @@ impl FastFrontEnd {
             kernel_plus,
             kernel_minus,
             threshold_int: cfg.threshold_int,
+            threshold_hold: cfg.threshold_hold,
             counts: vec![0; cfg.width * cfg.height],
             filtered: vec![0; stride * (cfg.height + 2 * pad)],
             horiz: vec![0; cfg.width * cfg.height],
@@ -327,18 +329,21 @@ impl FastFrontEnd {
         }
     }
 
-    /// Stages 3–4: the above-threshold pixels and the candidates among them,
-    /// in raster order, in one pass. Rows whose maximum is below the
-    /// threshold are skipped whole; in the others, eight pixels at a time are
-    /// compared with the threshold and with their eight neighbours (the
-    /// zeroed ring stands for the outside of the field: an above-threshold
-    /// pixel beats 0, which is the same as ignoring those neighbours).
+    /// Stages 3–4: the pixels at or above the hold level and the candidates
+    /// (at or above the open level) among them, in raster order, in one
+    /// pass. Rows whose maximum is below the hold level are skipped whole;
+    /// in the others, eight pixels at a time are compared with the hold level
+    /// and with their eight neighbours (the zeroed ring stands for the
+    /// outside of the field: an above-threshold pixel beats 0, which is the
+    /// same as ignoring those neighbours); the few maxima found are then
+    /// compared with the open level.
     #[inline(always)]
     fn scan<const AVX2: bool>(&mut self) {
         self.above.clear();
         self.candidates.clear();
         let (w, h, s, pad) = (self.width, self.height, self.stride, self.pad);
-        let thr = self.threshold_int;
+        let thr = self.threshold_hold;
+        let open = self.threshold_int;
         let f = &mut self.filtered[..];
         let top = (pad - 1) * s + pad - 1;
         f[top..top + w + 2].fill(0);
@@ -369,7 +374,7 @@ impl FastFrontEnd {
             let mut x0 = 0;
             while x0 + 8 <= w {
                 #[cfg(target_arch = "x86_64")]
-                let (above, cands) = if AVX2 {
+                let (above, mut cands) = if AVX2 {
                     // SAFETY: AVX2 is true only inside `push_words_avx2`,
                     // which runs only when the CPU reports AVX2.
                     unsafe { block8_avx2(f, c0 + x0, s, thr) }
@@ -377,7 +382,17 @@ impl FastFrontEnd {
                     block8(f, c0 + x0, s, thr)
                 };
                 #[cfg(not(target_arch = "x86_64"))]
-                let (above, cands) = block8(f, c0 + x0, s, thr);
+                let (above, mut cands) = block8(f, c0 + x0, s, thr);
+                if open > thr {
+                    let mut bits = cands;
+                    while bits != 0 {
+                        let l = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        if f[c0 + x0 + l] < open {
+                            cands &= !(1 << l);
+                        }
+                    }
+                }
                 push_bits(&mut self.above, above, y * w + x0, |i| i as u32);
                 push_bits(&mut self.candidates, cands, x0, |x| Candidate {
                     x: x as u16,
@@ -389,7 +404,7 @@ impl FastFrontEnd {
                 let c = c0 + x;
                 if f[c] >= thr {
                     self.above.push((y * w + x) as u32);
-                    if is_max(c) {
+                    if f[c] >= open && is_max(c) {
                         self.candidates.push(Candidate {
                             x: x as u16,
                             y: y as u16,

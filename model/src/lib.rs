@@ -22,6 +22,7 @@ pub mod candidates;
 pub mod config;
 pub mod delay_line;
 pub mod false_alarm;
+pub mod field_design;
 pub mod fast_engine;
 pub mod hot_pixel_mask;
 pub mod kernel;

@@ -1,4 +1,4 @@
-//! The blink-ROI packet stream, format version 1: the byte contract between
+//! The blink-ROI packet stream, format version 2: the byte contract between
 //! the golden model's encoder, the gateware's packetiser and the host's
 //! decoder. `model/PACKETS.md` is the full written definition (with the
 //! checked-in test vectors of `model/tests/vectors/`); this summary and that
@@ -11,7 +11,7 @@
 //! | bytes        | field                                                     |
 //! |--------------|-----------------------------------------------------------|
 //! | 0–1          | magic `0x53 0x41` ("SA"), [`MAGIC`]                       |
-//! | 2            | format version, [`VERSION`] = 1                           |
+//! | 2            | format version, [`VERSION`] = 2 (1 is still read)         |
 //! | 3            | record type, see [`record_type`]                          |
 //! | 4–7          | sequence number, u32                                      |
 //! | 8–9          | payload length `L`, u16, at most [`MAX_PAYLOAD`] = 4096   |
@@ -24,11 +24,14 @@
 //! # Payloads (offsets in bytes; u48/i48 are 6-byte little-endian, i48 in
 //! two's complement)
 //!
-//! * `0x01` StreamStart, `33 + 2n` bytes: width u16 @0, height u16 @2,
+//! * `0x01` StreamStart, `37 + 2n` bytes: width u16 @0, height u16 @2,
 //!   n_window u32 @4, threshold_int u32 @8, l_min u32 @12, l_max u32 @16,
 //!   r_assoc u8 @20, slots u8 @21, roi_size u8 @22, kernel_shift u8 @23,
 //!   kernel length `n` u8 @24, `n` kernel weights u16 @25, plane_period_ns
-//!   u32 @25+2n, masked_pixels u32 @29+2n.
+//!   u32 @25+2n, masked_pixels u32 @29+2n, threshold_hold u32 @33+2n. A
+//!   version-1 StreamStart has `33 + 2n` bytes, no threshold_hold, and is
+//!   read with `threshold_hold = threshold_int` (the one-threshold rule).
+//!   Every other payload is the same in both versions.
 //! * `0x02` Blink, `35 + block` bytes: slot u8 @0, flags u8 @1, anchor_x u16
 //!   @2, anchor_y u16 @4, t_cross u48 @6, t_drop u48 @12, t_s i48 @18, t_e i48
 //!   @24, planes_summed u32 @30, roi_size u8 @34 (odd, 1..=31), then the R×R
@@ -84,8 +87,11 @@ use thiserror::Error;
 
 /// First two bytes of every packet: "SA".
 pub const MAGIC: [u8; 2] = [0x53, 0x41];
-/// Format version this crate writes and reads.
-pub const VERSION: u8 = 1;
+/// Format version this crate writes (and the newest it reads).
+pub const VERSION: u8 = 2;
+/// Oldest format version this crate reads: version 1, whose StreamStart has
+/// no hold threshold.
+pub const OLDEST_VERSION: u8 = 1;
 /// Largest payload length a packet may declare, bytes.
 pub const MAX_PAYLOAD: usize = 4096;
 /// Header length, bytes.
@@ -363,6 +369,7 @@ fn write_payload(record: &Record, out: &mut Vec<u8>) {
             }
             out.extend_from_slice(&s.plane_period_ns.to_le_bytes());
             out.extend_from_slice(&s.masked_pixels.to_le_bytes());
+            out.extend_from_slice(&s.threshold_hold.to_le_bytes());
         }
         Record::Blink(b) => {
             out.extend_from_slice(&[b.slot, b.flags]);
@@ -518,20 +525,27 @@ fn exact_len(record: &'static str, payload: &[u8], expected: usize) -> Result<()
     Ok(())
 }
 
-/// Decodes the payload of a version-1 frame of type `kind` and header `seq`.
-pub fn decode_payload(kind: u8, seq: u32, payload: &[u8]) -> Result<Record, PayloadError> {
+/// Decodes the payload of a frame of format `version` (1 or 2), type `kind`
+/// and header `seq`.
+pub fn decode_payload(
+    version: u8,
+    kind: u8,
+    seq: u32,
+    payload: &[u8],
+) -> Result<Record, PayloadError> {
     match kind {
         record_type::STREAM_START => {
-            const FIXED: usize = 33;
-            if payload.len() < FIXED {
+            // Version 2 appends threshold_hold (u32) to version 1's fields.
+            let fixed: usize = if version >= 2 { 37 } else { 33 };
+            if payload.len() < fixed {
                 return Err(PayloadError::TooShort {
                     record: "stream-start",
-                    min: FIXED,
+                    min: fixed,
                     got: payload.len(),
                 });
             }
             let n = payload[24] as usize;
-            exact_len("stream-start", payload, FIXED + 2 * n)?;
+            exact_len("stream-start", payload, fixed + 2 * n)?;
             let mut f = Fields {
                 bytes: payload,
                 pos: 0,
@@ -550,6 +564,11 @@ pub fn decode_payload(kind: u8, seq: u32, payload: &[u8]) -> Result<Record, Payl
             let kernel = (0..n).map(|_| f.u16()).collect();
             let plane_period_ns = f.u32();
             let masked_pixels = f.u32();
+            let threshold_hold = if version >= 2 {
+                f.u32()
+            } else {
+                threshold_int
+            };
             if !roi_size_ok(roi_size) {
                 return Err(PayloadError::BadRoiSize(roi_size));
             }
@@ -558,6 +577,7 @@ pub fn decode_payload(kind: u8, seq: u32, payload: &[u8]) -> Result<Record, Payl
                 height,
                 n_window,
                 threshold_int,
+                threshold_hold,
                 l_min,
                 l_max,
                 r_assoc,
@@ -658,7 +678,8 @@ pub fn decode_payload(kind: u8, seq: u32, payload: &[u8]) -> Result<Record, Payl
     }
 }
 
-/// Decodes exactly one complete version-1 frame (no bytes before or after).
+/// Decodes exactly one complete frame of a version this crate reads (no
+/// bytes before or after).
 pub fn decode_frame(frame: &[u8]) -> Result<Packet, FrameError> {
     if frame.len() < HEADER_LEN + CRC_LEN {
         return Err(FrameError::TooShort(frame.len()));
@@ -686,7 +707,12 @@ pub fn decode_frame(frame: &[u8]) -> Result<Packet, FrameError> {
         return Err(FrameError::Crc { stored, computed });
     }
     let seq = u32::from_le_bytes(frame[4..8].try_into().expect("4 bytes"));
-    let record = decode_payload(frame[3], seq, &frame[HEADER_LEN..HEADER_LEN + declared])?;
+    let record = decode_payload(
+        frame[2],
+        frame[3],
+        seq,
+        &frame[HEADER_LEN..HEADER_LEN + declared],
+    )?;
     Ok(Packet { seq, record })
 }
 
@@ -1035,7 +1061,7 @@ impl Decoder {
                     let decoded = if version > VERSION {
                         Err(SkipReason::NewerVersion(version))
                     } else {
-                        decode_payload(kind, seq, &frame[HEADER_LEN..total - CRC_LEN])
+                        decode_payload(version, kind, seq, &frame[HEADER_LEN..total - CRC_LEN])
                             .map_err(SkipReason::Malformed)
                     };
                     self.start += total;

@@ -62,7 +62,7 @@ pub enum PipelineError {
 pub trait FrontEnd {
     /// Consumes plane t (`live`, already masked) and `B_{t−N}` (`delayed`).
     fn push(&mut self, live: &BitPlane, delayed: &BitPlane);
-    /// Whether max of `H_t` over the 3×3 around (x, y), clipped to the sensor, is ≥ T_int.
+    /// Whether max of `H_t` over the 3×3 around (x, y), clipped to the sensor, is ≥ T_hold.
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool;
     /// Candidates of plane t, raster order.
     fn candidates(&self) -> &[Candidate];
@@ -75,6 +75,7 @@ pub struct GoldenFrontEnd {
     width: usize,
     height: usize,
     threshold_int: u32,
+    threshold_hold: u32,
     rolling: RollingCount,
     filter: SpatialFilter,
     filtered: Vec<u32>,
@@ -88,6 +89,7 @@ impl GoldenFrontEnd {
             width: cfg.width,
             height: cfg.height,
             threshold_int: cfg.threshold_int,
+            threshold_hold: cfg.threshold_hold,
             rolling: RollingCount::new(cfg.width, cfg.height),
             filter: SpatialFilter::new(cfg.kernel.clone()),
             filtered: vec![0; cfg.width * cfg.height],
@@ -123,7 +125,7 @@ impl FrontEnd for GoldenFrontEnd {
             self.height,
             x,
             y,
-            self.threshold_int,
+            self.threshold_hold,
         )
     }
 

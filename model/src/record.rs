@@ -37,8 +37,12 @@ pub struct StreamStart {
     pub height: u16,
     /// Rolling window N, bit-planes.
     pub n_window: u32,
-    /// Integer threshold T_int on H (kernel units, see [`crate::kernel`]).
+    /// Integer threshold T_int on H (kernel units, see [`crate::kernel`])
+    /// that opens a track.
     pub threshold_int: u32,
+    /// Integer threshold T_hold that holds an open track on (≤ T_int; equal
+    /// to it for the one-threshold rule and in version-1 streams).
+    pub threshold_hold: u32,
     /// Planes a track must stay on to be confirmed (L_min).
     pub l_min: u32,
     /// Planes after which an on track is cut and restarted (L_max).

@@ -14,11 +14,12 @@
 //! |------|-------------------|------------------------------------------------------------|
 //! | 0x00 | `CONTROL`         | bit 0 `SOURCE_REPLAY`: bit-planes come from pipe-in 0x80 instead of the sensor; bit 1 `MASK_ENABLE`: apply the hot-pixel mask loaded through pipe-in 0x81 |
 //! | 0x01 | `N_WINDOW`        | rolling window N, bit-planes (1 ..= `MAX_N`)               |
-//! | 0x02 | `THRESHOLD_INT`   | integer threshold T_int on H (≥ 1)                         |
+//! | 0x02 | `THRESHOLD_INT`   | integer threshold T_int on H that opens a track (≥ 1)      |
 //! | 0x03 | `L_MIN`           | planes a track must stay on to be confirmed (≥ 1)          |
 //! | 0x04 | `L_MAX`           | planes after which an on track is cut (≥ max(L_min, N))    |
 //! | 0x05 | `PLANE_PERIOD_NS` | bit-plane period, ns, copied into the StreamStart record   |
 //! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record |
+//! | 0x07 | `THRESHOLD_HOLD`  | integer threshold T_hold that holds an open track on (1 ..= T_int) |
 //!
 //! # Wire-outs (device → host)
 //!
@@ -70,14 +71,15 @@
 //! 1. read the wire-outs 0x22–0x27 and compare them with the preset: any
 //!    difference is an error naming each field;
 //! 2. pulse `RESET`;
-//! 3. write wire-ins 0x00–0x06 and commit them (FrontPanel `UpdateWireIns`);
+//! 3. write wire-ins 0x00–0x07 and commit them (FrontPanel `UpdateWireIns`);
 //! 4. if a hot-pixel mask is set, write it to pipe-in 0x81;
 //! 5. `START` pulses trigger 0x40 bit 1; `STOP` bit 2.
 
 use crate::packet::{crc32c, VERSION as PACKET_VERSION};
 
 /// Version of this register map, reported in bits 15:8 of wire-out `VERSION`.
-pub const REGISTER_MAP_VERSION: u8 = 1;
+/// Version 2 added wire-in `THRESHOLD_HOLD` (0x07).
+pub const REGISTER_MAP_VERSION: u8 = 2;
 
 /// FrontPanel pipe transfers are whole multiples of this many bytes (the
 /// USB 3.0 granule of the XEM6310; block-throttled pipes use blocks of it).
@@ -99,8 +101,10 @@ pub mod wire_in {
     pub const PLANE_PERIOD_NS: u8 = 0x05;
     /// Number of masked pixels.
     pub const MASKED_PIXELS: u8 = 0x06;
-    /// How many wire-ins there are (0x00 ..= 0x06).
-    pub const COUNT: usize = 7;
+    /// Integer threshold T_hold (hysteresis: holds an open track on).
+    pub const THRESHOLD_HOLD: u8 = 0x07;
+    /// How many wire-ins there are (0x00 ..= 0x07).
+    pub const COUNT: usize = 8;
 }
 
 /// Bits of wire-in [`wire_in::CONTROL`].
@@ -197,7 +201,7 @@ mod tests {
 
     #[test]
     fn words_follow_the_table() {
-        assert_eq!(version_word(), 0x0101);
+        assert_eq!(version_word(), 0x0202);
         // CRC-32C of [1, 2, 1] as u16 LE, and it depends on every weight.
         assert_eq!(kernel_crc([1, 2, 1]), crc32c(&[1, 0, 2, 0, 1, 0]));
         assert_ne!(kernel_crc([1, 2, 1]), kernel_crc([1, 2, 2]));
@@ -205,7 +209,7 @@ mod tests {
             wire_out::MAX_N - wire_out::STATUS + 1,
             wire_out::COUNT as u8
         );
-        assert_eq!(wire_in::MASKED_PIXELS as usize + 1, wire_in::COUNT);
+        assert_eq!(wire_in::THRESHOLD_HOLD as usize + 1, wire_in::COUNT);
         // Every status bit is distinct.
         let bits = [
             status::RUNNING,

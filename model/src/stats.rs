@@ -264,6 +264,34 @@ pub struct Detection {
 }
 
 impl Detection {
+    /// The same statistics with window `n` (≥ 1) instead of Eq. 6's: Eq. 7's
+    /// threshold and the window moments follow it.
+    pub fn at_window(&self, n: u32) -> Detection {
+        let n = n.max(1);
+        let nf = n as f64;
+        let threshold = nf * self.e_f_off + 3.0 * (nf * self.var_f_off).sqrt();
+        let threshold_int = ((threshold / self.threshold_unit).ceil() as u64).max(1);
+        let t_q = threshold_int as f64 * self.threshold_unit;
+        let e_h_off = nf * self.e_f_off;
+        let sd_h_off = (nf * self.var_f_off).sqrt();
+        let e_h_on = nf * self.e_f_on;
+        let sd_h_on = (nf * self.var_f_on).sqrt();
+        Detection {
+            n_window: n,
+            threshold,
+            threshold_int,
+            threshold_quantisation_abs: t_q - threshold,
+            threshold_quantisation_rel: (threshold > 0.0).then(|| (t_q - threshold) / threshold),
+            e_h_off,
+            sd_h_off,
+            e_h_on,
+            sd_h_on,
+            gaussian_detection_probability: gaussian_at_least(t_q, e_h_on, sd_h_on),
+            gaussian_false_alarm_probability: gaussian_at_least(t_q, e_h_off, sd_h_off),
+            ..self.clone()
+        }
+    }
+
     /// The integer kernel these statistics used.
     pub fn kernel(&self) -> IntegerKernel {
         IntegerKernel {

@@ -1,4 +1,14 @@
-//! Stage 3 — threshold: a pixel is *above* when `H_t ≥ T_int`.
+//! Stage 3 — threshold, with hysteresis: two levels on the same `H_t`.
+//!
+//! * **Open.** A pixel can open a track only when `H_t ≥ T_int` (and it is a
+//!   3×3 maximum, stage 4): T_int is set for the whole field's false-blink
+//!   budget, so that background alone rarely opens a track anywhere.
+//! * **Hold.** An open track stays on while the maximum of `H_t` over the
+//!   3×3 around its anchor is `≥ T_hold` ([`neighbourhood_on`] with
+//!   `T_hold`), `T_hold ≤ T_int`. A lower hold level keeps a blink's track on
+//!   through the noise of its own signal, so that one blink gives one record
+//!   whose live range spans the blink; with `T_hold = T_int` this is the
+//!   paper's one-threshold rule.
 //!
 //! `T_int ≥ 1` always (with no background T = 0, and `H ≥ 0` would fire
 //! everywhere); see [`crate::stats`] for how T_int follows from the paper's Eq. 7.

@@ -81,6 +81,7 @@ fn spcimager_like(w: usize, h: usize, n: u32) -> PipelineConfig {
     let mean = n as f64 * p * 65536.0;
     let sd = (n as f64 * p * (1.0 - p) * 13380f64.powi(2)).sqrt();
     c.threshold_int = (mean + 3.0 * sd).ceil() as u32;
+    c.threshold_hold = c.threshold_int;
     c.roi_size = 9;
     c
 }
@@ -246,10 +247,13 @@ proptest! {
     fn fast_front_end_equals_golden_stage_outputs(
         seed in any::<u64>(), w in 1usize..90, h in 1usize..12, planes in 1usize..60,
         n in 1u32..12, kernel in 0usize..5, p_max in 0.0f64..0.6, thr in 1u32..200,
+        hold_pct in 1u32..=100,
     ) {
         let (k1, shift) = kernels()[kernel].clone();
         let thr = ((thr as u64 * (1u64 << (2 * shift))) / 16).max(1) as u32;
-        let cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
+        let mut cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
+        // Hysteresis: the hold level anywhere from 1 % of the open level to it.
+        cfg.threshold_hold = ((thr as u64 * hold_pct as u64) / 100).max(1) as u32;
         let stream = random_planes(seed, w, h, planes, p_max);
         let mut golden = GoldenFrontEnd::new(&cfg);
         let mut fast = FastFrontEnd::new(&cfg);
@@ -271,7 +275,8 @@ proptest! {
                     prop_assert_eq!(golden.neighbourhood_on(x, y), fast.neighbourhood_on(x, y));
                 }
             }
-            let above: Vec<u32> = (0..(w * h) as u32).filter(|&i| golden.filtered()[i as usize] >= thr).collect();
+            // `above` lists the pixels at the hold level (the tracker's on-test).
+            let above: Vec<u32> = (0..(w * h) as u32).filter(|&i| golden.filtered()[i as usize] >= cfg.threshold_hold).collect();
             prop_assert_eq!(fast.above(), &above[..]);
             prop_assert_eq!(fast.candidates(), golden.candidates());
         }
@@ -334,11 +339,14 @@ proptest! {
         seed in any::<u64>(), w in 3usize..72, h in 3usize..16, planes in 1usize..160, n in 1u32..20,
         spots in 0usize..8, p in 0.0f64..0.08, thr in 1u32..400, slots in 1usize..6, l_min in 1u32..8,
         threads in 1usize..4, chunk in 1usize..50, masked in 0usize..4, kernel in 0usize..5,
+        hold_pct in 1u32..=100, r_assoc in 0u32..4,
     ) {
         let (k1, shift) = kernels()[kernel].clone();
         // Thresholds scaled to the kernel's sum so that every kernel sees blinks.
         let thr = ((thr as u64 * (1u64 << (2 * shift))) / 16).max(1) as u32;
         let mut cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
+        cfg.threshold_hold = ((thr as u64 * hold_pct as u64) / 100).max(1) as u32;
+        cfg.r_assoc = r_assoc;
         cfg.slots = slots;
         cfg.l_min = l_min;
         cfg.l_max = n.max(l_min).max(25);

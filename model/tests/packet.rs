@@ -45,6 +45,8 @@ fn arb_start() -> impl Strategy<Value = StreamStart> {
                 height,
                 n_window,
                 threshold_int,
+                // Any value round-trips; the pipeline keeps it ≤ threshold_int.
+                threshold_hold: threshold_int.rotate_left(7),
                 l_min,
                 l_max,
                 r_assoc,
@@ -990,7 +992,7 @@ fn raw_frame(version: u8, kind: u8, seq: u32, payload: &[u8]) -> Vec<u8> {
 #[test]
 fn newer_version_is_visible() {
     let mut bytes = encode(&Record::Start(vector_start()), 0);
-    let v2 = raw_frame(2, 0x02, 1, &[1, 2, 3, 4, 5]);
+    let v2 = raw_frame(3, 0x02, 1, &[1, 2, 3, 4, 5]);
     bytes.extend_from_slice(&v2);
     // A bogus "version 9" header with a bad CRC is noise, not a newer version.
     let mut bogus = raw_frame(9, 0x01, 1, &[0; 8]);
@@ -1003,19 +1005,19 @@ fn newer_version_is_visible() {
     let events = d.finish();
     assert!(events.contains(&Event::Skipped {
         bytes: v2.len() as u64,
-        reason: SkipReason::NewerVersion(2)
+        reason: SkipReason::NewerVersion(3)
     }));
     assert_eq!(d.stats().newer_version, 1);
     assert_eq!(d.stats().crc_errors, 1);
-    assert_eq!(d.newer_version_seen(), Some(2));
+    assert_eq!(d.newer_version_seen(), Some(3));
     assert_eq!(
-        newer_version_message(2),
-        "stream format version 2 is newer than this smartagg supports (1)"
+        newer_version_message(3),
+        "stream format version 3 is newer than this smartagg supports (2)"
     );
-    assert_eq!(VERSION, 1);
+    assert_eq!(VERSION, 2);
     assert!(d.stats().any_loss());
     assert!(d.stats().to_string().contains("newer"));
-    assert_eq!(decode_frame(&v2), Err(FrameError::NewerVersion(2)));
+    assert_eq!(decode_frame(&v2), Err(FrameError::NewerVersion(3)));
 }
 
 #[test]
@@ -1099,12 +1101,12 @@ fn malformed_payloads_are_counted_not_delivered() {
                     .to_vec();
                 p.truncate(p.len() - 4);
                 p[24] = 3;
-                raw_frame(1, record_type::STREAM_START, 0, &p)
+                raw_frame(VERSION, record_type::STREAM_START, 0, &p)
             },
             PayloadError::Length {
                 record: "stream-start",
-                expected: 39,
-                got: 33,
+                expected: 43,
+                got: 37,
             },
         ),
     ];
@@ -1175,6 +1177,7 @@ fn vector_start() -> StreamStart {
         height: 240,
         n_window: 108,
         threshold_int: 1_234_567,
+        threshold_hold: 654_321,
         l_min: 3,
         l_max: 10_000,
         r_assoc: 1,
@@ -1399,6 +1402,9 @@ fn annotate(frame: &[u8]) -> String {
             }
             s.put(4, format!("plane_period_ns {}", r.plane_period_ns));
             s.put(4, format!("masked_pixels {}", r.masked_pixels));
+            if frame[2] >= 2 {
+                s.put(4, format!("threshold_hold {}", r.threshold_hold));
+            }
         }
         Record::Blink(b) => {
             s.put(1, format!("slot {}", b.slot));
@@ -1474,7 +1480,7 @@ fn annotate(frame: &[u8]) -> String {
 /// and shown when a frozen file no longer matches the encoder).
 fn vector_text(file: &str, description: &str, packets: &[(u32, Record)]) -> String {
     let mut text = format!(
-        "# {file}: {description}\n# smartagg packet format version 1, see model/PACKETS.md. \
+        "# {file}: {description}\n# smartagg packet format version 2, see model/PACKETS.md. \
          FROZEN: never regenerate.\n\n"
     );
     let frames: Vec<String> = packets
@@ -1522,6 +1528,59 @@ fn hex_vectors_are_frozen() {
             assert_eq!(decode_frame(&encode(r, *seq)).unwrap().record, *r);
         }
     }
+}
+
+/// The version-1 vectors (`tests/vectors/v1/`, frozen when version 1 was
+/// current) still decode, to the same records with `threshold_hold =
+/// threshold_int` (a version-1 stream has one threshold), and with the same
+/// loss accounting; re-encoded they become version-2 frames that differ only
+/// in the version byte, the StreamStart's appended threshold_hold, the
+/// payload length and the CRC.
+#[test]
+fn version_1_vectors_still_decode() {
+    for (file, packets) in vectors() {
+        let path = vector_dir().join("v1").join(file);
+        let text = std::fs::read_to_string(&path)
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let bytes = parse_hex(&text);
+        let want: Vec<(u32, Record)> = packets
+            .iter()
+            .map(|(seq, r)| {
+                let r = match r {
+                    Record::Start(s) => Record::Start(StreamStart {
+                        threshold_hold: s.threshold_int,
+                        ..s.clone()
+                    }),
+                    other => other.clone(),
+                };
+                (*seq, r)
+            })
+            .collect();
+        let d = decode_all(&bytes);
+        let got: Vec<(u32, Record)> = d.packets.into_iter().map(|p| (p.seq, p.record)).collect();
+        assert_eq!(got, want, "v1/{file}");
+        assert_eq!(d.stats.malformed + d.stats.newer_version, 0, "v1/{file}");
+        assert_eq!(d.stats.lost_in_transport, packets[0].0 as u64, "v1/{file}");
+        // Each v1 frame is a v2 frame with version byte 1 and (StreamStart
+        // only) no threshold_hold.
+        let v2: Vec<u8> = want.iter().flat_map(|(seq, r)| encode(r, *seq)).collect();
+        if !matches!(want[0].1, Record::Start(_)) && want.len() == 1 {
+            assert_eq!(bytes.len(), v2.len(), "v1/{file}");
+            assert_eq!(bytes[2], 1);
+            assert_eq!(v2[2], 2);
+            assert_eq!(bytes[3..10], v2[3..10], "v1/{file}");
+            assert_eq!(bytes[10..bytes.len() - 4], v2[10..v2.len() - 4], "v1/{file}");
+        }
+    }
+    // A v1 StreamStart of the v2 length (or a v2 one of the v1 length) is malformed.
+    let v2 = encode(&Record::Start(vector_start()), 0);
+    let mut as_v1 = v2.clone();
+    as_v1[2] = 1;
+    let crc = smartagg_model::packet::crc32c(&as_v1[..as_v1.len() - 4]);
+    let n = as_v1.len();
+    as_v1[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    assert!(decode_frame(&as_v1).is_err());
+    assert!(decode_frame(&v2).is_ok());
 }
 
 #[test]
@@ -1684,18 +1743,18 @@ fn layouts_match_the_written_definition() {
     });
     assert_eq!(
         encode(&o, 42),
-        raw_frame(1, 0x7F, 42, &[42, 0, 0, 0, 7, 0, 0, 0])
+        raw_frame(VERSION, 0x7F, 42, &[42, 0, 0, 0, 7, 0, 0, 0])
     );
     let d = Record::Dropped(vector_dropped());
     let mut p = vec![0xBC, 0x9A, 0x78, 0x56, 0x34, 0x12, 3, 0, 0, 0];
     p.extend_from_slice(&[0x2C, 0x01, 17, 0]);
-    assert_eq!(encode(&d, 4), raw_frame(1, 0x03, 4, &p));
+    assert_eq!(encode(&d, 4), raw_frame(VERSION, 0x03, 4, &p));
     let e = Record::End(vector_end());
     let p: Vec<u8> = [600_000u64, 1_234, 56_789, 12, 345, 6]
         .iter()
         .flat_map(|v| v.to_le_bytes())
         .collect();
-    assert_eq!(encode(&e, 5), raw_frame(1, 0x04, 5, &p));
+    assert_eq!(encode(&e, 5), raw_frame(VERSION, 0x04, 5, &p));
     let s = vector_start();
     let mut p = Vec::new();
     p.extend_from_slice(&320u16.to_le_bytes());
@@ -1709,7 +1768,9 @@ fn layouts_match_the_written_definition() {
     }
     p.extend_from_slice(&100_000u32.to_le_bytes());
     p.extend_from_slice(&5u32.to_le_bytes());
-    assert_eq!(encode(&Record::Start(s), 0), raw_frame(1, 0x01, 0, &p));
+    // Version 2: threshold_hold after masked_pixels.
+    p.extend_from_slice(&654_321u32.to_le_bytes());
+    assert_eq!(encode(&Record::Start(s), 0), raw_frame(VERSION, 0x01, 0, &p));
     // Blink: fixed fields, then the count block of a 1x1 ROI with count 5:
     // base 5, k = 0, the single code bit "0" padded to a byte: 05 00 00.
     let b = Record::Blink(BlinkRecord {
@@ -1732,5 +1793,5 @@ fn layouts_match_the_written_definition() {
     p.extend_from_slice(&[3, 0, 0, 0, 0, 0]);
     p.extend_from_slice(&[0x44, 0x33, 0x22, 0x11, 1]);
     p.extend_from_slice(&[5, 0, 0]);
-    assert_eq!(encode(&b, 9), raw_frame(1, 0x02, 9, &p));
+    assert_eq!(encode(&b, 9), raw_frame(VERSION, 0x02, 9, &p));
 }

@@ -98,6 +98,72 @@ fn one_plane_dip_is_bridged() {
     assert_eq!(end(&recs).bridged_dips, 1);
 }
 
+/// A blink whose H dips for two planes below the open level but not
+/// below the hold level: one record with hysteresis, two with the paper's
+/// one-threshold rule (the same planes).
+#[test]
+fn a_dip_between_the_hold_and_open_levels_keeps_one_track() {
+    // N = 2: H at (8,6) is 4·S with S ∈ {0, 1, 2}. On for planes 10..30
+    // except 21, so that S = 1 (H = 4) at planes 21 and 22.
+    let mut on = vec![(8, 6, 10..20), (8, 6, 23..30)];
+    on.extend([(8, 6, 20..21), (8, 6, 22..23)]);
+    let planes = spots(40, &on);
+    let mut paper = cfg(2, 8);
+    paper.threshold_hold = 8;
+    let one = run(paper.clone(), planes.clone()).unwrap();
+    assert_eq!(blinks(&one).len(), 2, "one threshold splits the blink: {one:?}");
+    let mut hyst = paper;
+    hyst.threshold_hold = 4;
+    let recs = run(hyst, planes).unwrap();
+    let b = blinks(&recs);
+    assert_eq!(b.len(), 1, "{recs:?}");
+    // Opened at plane 11 (S = 2); held through the dip; the last on plane
+    // is 29, S = 1 at 30 (H = 4 ≥ T_hold), 0 from 31: t_drop = 31.
+    assert_eq!((b[0].t_cross, b[0].t_drop), (11, 31));
+    // Every photon of the blink is summed: 10 + 2 + 7.
+    assert_eq!(roi_at(&b[0], 8, 6), 19);
+}
+
+/// Below the open level nothing opens, however long H stays at the hold level.
+#[test]
+fn the_hold_level_never_opens_a_track() {
+    // N = 2, every other plane: S = 1, H = 4 = T_hold < T_open = 8.
+    let on: Vec<(usize, usize, std::ops::Range<usize>)> =
+        (10..40).step_by(2).map(|t| (8, 6, t..t + 1)).collect();
+    let mut c = cfg(2, 8);
+    c.threshold_hold = 4;
+    let recs = run(c, spots(50, &on)).unwrap();
+    assert!(blinks(&recs).is_empty(), "{recs:?}");
+}
+
+/// Two blinks at once: 5 pixels apart they are two tracks; 3 pixels apart
+/// (within r_assoc = 3) the second is a candidate beside a live anchor and
+/// belongs to the first track, which r_assoc = 1 would not do.
+#[test]
+fn blinks_close_in_space_and_time_with_an_association_radius() {
+    let mut c = cfg(2, 8);
+    c.threshold_hold = 4;
+    c.r_assoc = 3;
+    let apart = run(c.clone(), spots(40, &[(4, 6, 10..20), (9, 6, 12..22)])).unwrap();
+    let b = blinks(&apart);
+    assert_eq!(b.len(), 2, "{apart:?}");
+    assert_eq!(
+        [(b[0].anchor_x, b[0].t_cross), (b[1].anchor_x, b[1].t_cross)],
+        [(4, 11), (9, 13)]
+    );
+    let near_spots = spots(40, &[(4, 6, 10..20), (7, 6, 12..22)]);
+    let near = run(c.clone(), near_spots.clone()).unwrap();
+    let b = blinks(&near);
+    assert_eq!(b.len(), 1, "{near:?}");
+    assert_eq!((b[0].anchor_x, b[0].t_cross), (4, 11));
+    c.r_assoc = 1;
+    let b = blinks(&run(c, near_spots).unwrap());
+    assert_eq!(
+        b.iter().map(|b| (b.anchor_x, b.t_cross)).collect::<Vec<_>>(),
+        [(4, 11), (7, 13)]
+    );
+}
+
 #[test]
 fn two_planes_below_split_two_blinks() {
     let recs = run(cfg(1, 4), spots(40, &[(8, 6, 10..21), (8, 6, 23..31)])).unwrap();

@@ -48,18 +48,14 @@ pub struct Args {
     /// Mean time a marker stays off between blinks, s.
     #[arg(long, default_value_t = 1.5)]
     pub mean_off_s: f64,
-    /// Confirmation length L_min, planes. Background alone makes about 0.2
-    /// false blinks/s of 150 planes or more on a 64x64 field at the paper's T
-    /// (measured: `smartagg bench false-blinks`); L_min = 1, the paper's
-    /// scheme, would report thousands.
-    #[arg(long, default_value_t = 150)]
-    pub l_min: u32,
+    /// Confirmation length L_min, planes (default: the field design's, 1).
+    #[arg(long)]
+    pub l_min: Option<u32>,
     /// Association radius (Chebyshev, pixels): a candidate this close to a
-    /// live track's anchor belongs to that track. 3 (about 2σ) keeps one
-    /// track per blink where the local maximum wanders; 1 gives ~1.8
-    /// localisations per blink on this scene.
-    #[arg(long, default_value_t = 3)]
-    pub r_assoc: u32,
+    /// live track's anchor belongs to that track (default: the field
+    /// design's, about 2σ of the PSF).
+    #[arg(long)]
+    pub r_assoc: Option<u32>,
     /// Skip the golden model (it is the slowest stage); the fast engine alone.
     #[arg(long)]
     pub skip_golden: bool,
@@ -711,8 +707,15 @@ fn report(
     );
     let _ = writeln!(
         s,
-        "Pipeline: window N = {} planes, T_int = {}, kernel {:?}, L_min = {}, ROI {}x{}.\n",
-        cfg.n_window, cfg.threshold_int, cfg.kernel, cfg.l_min, cfg.roi_size, cfg.roi_size
+        "Pipeline (the field design, `smartagg aggregate`'s defaults): window N = {} planes, a track opens at T_int = {} and holds down to T_hold = {}, r_assoc = {}, kernel {:?}, L_min = {}, ROI {}x{}.\n",
+        cfg.n_window,
+        cfg.threshold_int,
+        cfg.threshold_hold,
+        cfg.r_assoc,
+        cfg.kernel,
+        cfg.l_min,
+        cfg.roi_size,
+        cfg.roi_size
     );
     let _ = writeln!(s, "## Result\n");
     let _ = writeln!(s, "| quantity | value |\n|---|---|");
@@ -728,8 +731,10 @@ fn report(
     );
     let _ = writeln!(
         s,
-        "| true blinks found | {} of {} |",
-        a.blinks_found, a.blinks_true
+        "| recall: true blinks found | {} of {} ({:.1} %) |",
+        a.blinks_found,
+        a.blinks_true,
+        100.0 * a.blinks_found as f64 / a.blinks_true.max(1) as f64
     );
     let _ = writeln!(
         s,

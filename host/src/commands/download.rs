@@ -286,7 +286,7 @@ mod tests {
         let args = PipelineArgs {
             n_window: Some(40),
             threshold_int: None,
-            l_min: 2,
+            l_min: Some(2),
             l_max: 500,
             slots: 16,
             ..PipelineArgs::default()

@@ -767,6 +767,7 @@ mod tests {
             height: 48,
             n_window: 108,
             threshold_int: 100,
+            threshold_hold: 100,
             l_min: 1,
             l_max: 10_000,
             r_assoc: 1,

@@ -1,10 +1,13 @@
 //! `smartagg params`: the paper's statistics (Eq. 1–7) for a camera and a
 //! molecule — window N, threshold T and T_int, the integer kernel — with the
-//! predicted false alarms and the confirmation length they imply.
+//! predicted false alarms, and the field design that `smartagg aggregate`
+//! runs by default (open and hold thresholds for a false-blink budget over
+//! the field, with the recall it predicts against blink duration).
 
 use crate::setup;
 use serde::Serialize;
 use smartagg_model::false_alarm::{self, DetectionProbability, FalseAlarmReport};
+use smartagg_model::field_design::{self, FieldDesign};
 use smartagg_model::params::Camera;
 use smartagg_model::stats::Detection;
 
@@ -26,8 +29,9 @@ pub struct Args {
     /// Field height, pixels (default: the whole sensor).
     #[arg(long)]
     pub height: Option<u32>,
-    /// Tolerated false blinks per second over the field, for the suggested L_min.
-    #[arg(long, default_value_t = 1.0)]
+    /// Tolerated false blinks per second over the field: the field design's
+    /// budget (and the paper scheme's suggested L_min).
+    #[arg(long, default_value_t = smartagg_model::field_design::DEFAULT_FALSE_BLINKS_PER_S)]
     pub false_blinks_per_s: f64,
     /// Print JSON (all fields) instead of the summary.
     #[arg(long)]
@@ -44,8 +48,14 @@ struct Output<'a> {
     false_alarms: Option<FalseAlarmReport>,
     false_blinks_per_s_target: f64,
     l_min_suggested: Option<u32>,
+    field_design: Option<FieldDesign>,
+    /// (blink duration ms, predicted recall) of the field design.
+    recall_by_duration_ms: Vec<(f64, f64)>,
     notes: Vec<String>,
 }
+
+/// Blink durations at which the predicted recall is printed, ms.
+const RECALL_DURATIONS_MS: [f64; 8] = [5.0, 10.0, 15.0, 20.0, 30.0, 50.0, 70.0, 100.0];
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -76,6 +86,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )
     .map_err(|e| notes.push(format!("L_min not computed: {e}")))
     .ok();
+    let fd = field_design::design(&det, w, h, rate, args.false_blinks_per_s)
+        .map_err(|e| notes.push(format!("field design not made: {e}")))
+        .ok();
+    let recall: Vec<(f64, f64)> = fd.as_ref().map_or(Vec::new(), |d| {
+        RECALL_DURATIONS_MS
+            .iter()
+            .map(|&ms| (ms, d.recall((ms * 1e-3 * rate).round() as u32)))
+            .collect()
+    });
     if args.json {
         let out = Output {
             preset: &args.preset,
@@ -85,6 +104,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             false_alarms: fa,
             false_blinks_per_s_target: args.false_blinks_per_s,
             l_min_suggested: l_min,
+            field_design: fd,
+            recall_by_duration_ms: recall,
             notes,
         };
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -145,9 +166,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(l) = l_min {
         println!(
-            "suggested L_min = {l} planes for <= {} false blinks/s over the field (bound; L_min = 1 is the paper's scheme)",
-            args.false_blinks_per_s
+            "paper scheme (--detection paper): L_min = {l} planes would be needed for <= {} false blinks/s over the field (bound), losing every blink shorter than about {:.0} ms",
+            args.false_blinks_per_s,
+            l as f64 / rate * 1e3
         );
+    }
+    if let Some(d) = &fd {
+        println!("field design (the default of `smartagg aggregate`, --detection field):");
+        println!(
+            "  a track opens where H reaches T_int = {} ({:.2} sd above the background's mean): background alone then opens at most {:.3} tracks/s over the {}x{} field (budget {}/s; exact up-crossing bound)",
+            d.threshold_open, d.open_sigmas, d.predicted_false_blinks_per_s, w, h, d.budget_per_s
+        );
+        println!(
+            "  it stays on while H near its anchor is >= T_hold = {} (the paper's {:.2}-sd threshold), so one blink gives one record spanning the blink; candidates within r_assoc = {} px (2 sigma) of a live track belong to it; L_min = {}",
+            d.threshold_hold, d.hold_sigmas, d.r_assoc, d.l_min
+        );
+        let row: Vec<String> = recall
+            .iter()
+            .map(|(ms, r)| format!("{ms:.0} ms {r:.2}"))
+            .collect();
+        println!("  predicted recall by blink duration: {}", row.join(", "));
+        match d.shortest_blink_planes {
+            Some(p) => println!(
+                "  blinks of {:.1} ms or longer are detected with >= 90 % probability",
+                p as f64 / rate * 1e3
+            ),
+            None => println!(
+                "  warning: no blink reaches 90 % detection at this budget: the light is too weak for it; raise --false-blinks-per-s"
+            ),
+        }
     }
     for n in notes {
         println!("note: {n}");

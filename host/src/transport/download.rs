@@ -407,6 +407,7 @@ fn start_mismatch(want: &StreamStart, got: &StreamStart) -> String {
         height,
         n_window,
         threshold_int,
+        threshold_hold,
         l_min,
         l_max,
         r_assoc,

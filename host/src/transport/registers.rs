@@ -73,8 +73,10 @@ pub mod vendor {
 pub struct DeviceConfig {
     /// Runtime register: rolling window N.
     pub n_window: u32,
-    /// Runtime register: integer threshold T_int.
+    /// Runtime register: integer threshold T_int (opens a track).
     pub threshold_int: u32,
+    /// Runtime register: integer threshold T_hold (holds a track on).
+    pub threshold_hold: u32,
     /// Runtime register: L_min.
     pub l_min: u32,
     /// Runtime register: L_max.
@@ -123,6 +125,7 @@ impl DeviceConfig {
         Ok(DeviceConfig {
             n_window: start.n_window,
             threshold_int: start.threshold_int,
+            threshold_hold: start.threshold_hold,
             l_min: start.l_min,
             l_max: start.l_max,
             plane_period_ns: start.plane_period_ns,
@@ -145,6 +148,7 @@ impl DeviceConfig {
             height: self.height,
             n_window: self.n_window,
             threshold_int: self.threshold_int,
+            threshold_hold: self.threshold_hold,
             l_min: self.l_min,
             l_max: self.l_max,
             r_assoc: self.r_assoc,
@@ -158,7 +162,7 @@ impl DeviceConfig {
     }
 
     /// The wire-in values, in address order.
-    pub fn wire_ins(&self) -> [(u8, u32); 7] {
+    pub fn wire_ins(&self) -> [(u8, u32); 8] {
         let mut ctl = 0;
         if self.hot_mask.is_some() {
             ctl |= control::MASK_ENABLE;
@@ -171,6 +175,7 @@ impl DeviceConfig {
             (wire_in::L_MAX, self.l_max),
             (wire_in::PLANE_PERIOD_NS, self.plane_period_ns),
             (wire_in::MASKED_PIXELS, self.masked_pixels),
+            (wire_in::THRESHOLD_HOLD, self.threshold_hold),
         ]
     }
 }
@@ -424,6 +429,7 @@ pub(crate) mod tests {
 
     pub(crate) fn pipeline() -> PipelineConfig {
         let mut cfg = PipelineConfig::new(16, 12, 10, vec![1, 2, 1], 2, 20);
+        cfg.threshold_hold = 13;
         cfg.l_min = 3;
         cfg.l_max = 50;
         cfg.plane_period_ns = 100_000;
@@ -447,6 +453,7 @@ pub(crate) mod tests {
         let c = &bus.committed;
         assert_eq!(c[&wire_in::N_WINDOW], 10);
         assert_eq!(c[&wire_in::THRESHOLD_INT], 20);
+        assert_eq!(c[&wire_in::THRESHOLD_HOLD], p.threshold_hold);
         assert_eq!(c[&wire_in::L_MIN], 3);
         assert_eq!(c[&wire_in::L_MAX], 50);
         assert_eq!(c[&wire_in::PLANE_PERIOD_NS], 100_000);

@@ -8,6 +8,7 @@ pub mod blink_durations;
 pub mod common;
 pub mod detection;
 pub mod emccd_frames;
+pub mod field_detection;
 pub mod nanoruler;
 pub mod notes;
 
@@ -25,15 +26,18 @@ pub enum Experiment {
     BlinkDurations,
     /// Detection and false-alarm probabilities against N and T; error against N.
     Detection,
+    /// Detection on the whole sensor: false blinks, recall, records per blink.
+    FieldDetection,
 }
 
 impl Experiment {
     /// Every experiment study.
-    pub const ALL: [Experiment; 4] = [
+    pub const ALL: [Experiment; 5] = [
         Experiment::Nanoruler,
         Experiment::EmccdFrames,
         Experiment::BlinkDurations,
         Experiment::Detection,
+        Experiment::FieldDetection,
     ];
 
     /// Command-line name.
@@ -43,6 +47,7 @@ impl Experiment {
             Experiment::EmccdFrames => "emccd-frames",
             Experiment::BlinkDurations => "blink-durations",
             Experiment::Detection => "detection",
+            Experiment::FieldDetection => "field-detection",
         }
     }
 
@@ -86,6 +91,10 @@ pub fn run(
         Experiment::Detection => {
             let r = detection::compute(o.seed, o.quick, o.blinks_per_point)?;
             detection::write(out, &r)
+        }
+        Experiment::FieldDetection => {
+            let r = field_detection::compute(o.seed, o.quick, o.blinks_per_point)?;
+            field_detection::write(out, &r)
         }
     }
 }

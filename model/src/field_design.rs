@@ -1,0 +1,271 @@
+//! Detection designed for the whole field: two thresholds (open and hold),
+//! chosen for a false-blink budget over the sensor, instead of the paper's
+//! one per-pixel 3σ threshold.
+//!
+//! ## Why
+//!
+//! The paper's threshold (Eq. 7, `T = N·E(F_off) + 3√(N·Var F_off)`) is a
+//! per-pixel rule derived for one molecule in a 32×32 ROI. Over a 320×240
+//! sensor at 10 kHz, background alone crosses it in hundreds of thousands of
+//! places a second: every crossing opens a track, the slots fill with
+//! background and real blinks find none. Raising `L_min` (confirm only long
+//! tracks) removes the false blinks but also every blink shorter than about
+//! three windows.
+//!
+//! ## The design (Neyman–Pearson over the field)
+//!
+//! * **Open level** `T_open` (the pipeline's `T_int`): the smallest integer
+//!   threshold whose background-only track openings over the field stay
+//!   within the budget `β` false blinks per second:
+//!   `P(U; T_open) · W·H · f ≤ β`, with `P(U) = P(H_{t−1} < T ≤ H_t)` the
+//!   exact per-pixel up-crossing probability
+//!   ([`crate::false_alarm::BackgroundProcess::upcrossing`]) and f the plane
+//!   rate. A background track can only open where some pixel up-crosses
+//!   `T_open`, and one excursion usually up-crosses at several neighbouring
+//!   pixels, so this is an upper bound on the false-blink rate (measured
+//!   against simulation in `tests/field_design.rs` and by
+//!   `smartagg study field-detection`).
+//! * **Hold level** `T_hold`: the paper's Eq. 7 threshold (at most
+//!   `T_open`). An open track stays on while the 3×3 maximum of H around its
+//!   anchor is `≥ T_hold`: the molecule's own shot noise cannot split its
+//!   blink into several tracks, and the track's live range (and so its ROI)
+//!   spans the blink as the paper's rule does.
+//! * **Association radius** `r_assoc = max(1, round(2σ))` pixels (σ the PSF
+//!   width): the maxima of one blink's H wander by about the PSF's width,
+//!   and a candidate within 2σ of a live anchor belongs to that molecule.
+//! * **`L_min = 1`**: the open level already controls the false blinks, so
+//!   every open track is confirmed and short blinks are kept.
+//! * **N** stays the paper's Eq. 6 window.
+//!
+//! ## Predicted recall
+//!
+//! A blink of `D` planes is detected when H at its pixel reaches `T_open`.
+//! With `k = min(D, N)` on-planes in the window, H is approximately normal
+//! with mean `N·E(F_off) + k·(E F_on − E F_off)` and variance
+//! `(N−k)·Var F_off + k·Var F_on` (Eq. 3–4); [`FieldDesign::recall`] takes
+//! the chance that it reaches `T_open` at the window's peak, counting the
+//! plateau of a blink longer than N as one more independent look per N
+//! planes. A molecule between pixel centres gives a lower peak, so the
+//! prediction is optimistic by a little for short blinks; the study prints
+//! it beside the measured recall.
+
+use crate::false_alarm::{BackgroundProcess, FalseAlarmError};
+use crate::stats::{normal_sf, Detection};
+use serde::Serialize;
+use thiserror::Error;
+
+/// Default false-blink budget over the whole field, per second.
+pub const DEFAULT_FALSE_BLINKS_PER_S: f64 = 1.0;
+
+/// Recall that [`FieldDesign::shortest_blink_planes`] asks for.
+pub const SHORTEST_BLINK_RECALL: f64 = 0.9;
+
+/// Why a field design could not be made.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FieldDesignError {
+    /// An input out of range (the message names it).
+    #[error("field design: `{name}` = {value}: {why}")]
+    Invalid {
+        /// The input.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The rule it breaks.
+        why: &'static str,
+    },
+    /// The false-alarm statistics failed.
+    #[error(transparent)]
+    FalseAlarm(#[from] FalseAlarmError),
+    /// No threshold keeps background within the budget.
+    #[error("no open threshold keeps background-only false blinks within {budget_per_s}/s over {pixels} pixels: even H at its maximum is crossed {best_per_s:.3e} times/s")]
+    Unreachable {
+        /// The budget, per second.
+        budget_per_s: f64,
+        /// Pixels in the field.
+        pixels: u64,
+        /// The rate at the highest threshold.
+        best_per_s: f64,
+    },
+}
+
+/// The detection parameters of a field, with what they predict.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FieldDesign {
+    /// Field width, pixels.
+    pub width: u32,
+    /// Field height, pixels.
+    pub height: u32,
+    /// Plane rate, Hz.
+    pub plane_rate_hz: f64,
+    /// Budget of background-only false blinks over the field, per second.
+    pub budget_per_s: f64,
+    /// Window N, planes (the paper's Eq. 6).
+    pub n_window: u32,
+    /// `T_open`, integer units of H: the pipeline's `T_int`.
+    pub threshold_open: u64,
+    /// `T_hold`, integer units of H (the paper's Eq. 7 threshold, ≤ `T_open`).
+    pub threshold_hold: u64,
+    /// `T_open` in standard deviations of background H above its mean.
+    pub open_sigmas: f64,
+    /// `T_hold` in standard deviations of background H above its mean.
+    pub hold_sigmas: f64,
+    /// Association radius, pixels.
+    pub r_assoc: u32,
+    /// L_min, planes.
+    pub l_min: u32,
+    /// Exact per-pixel up-crossing probability of `T_open` per plane.
+    pub upcrossing_per_pixel_plane: f64,
+    /// Bound on background-only false blinks over the field, per second.
+    pub predicted_false_blinks_per_s: f64,
+    /// Shortest blink, planes, detected with at least
+    /// [`SHORTEST_BLINK_RECALL`] (predicted); `None` if no blink is.
+    pub shortest_blink_planes: Option<u32>,
+    /// The statistics' per-plane moments, normalised units:
+    /// `(E F_off, Var F_off, E F_on, Var F_on)`.
+    #[serde(skip)]
+    moments: (f64, f64, f64, f64),
+    /// One unit of H in normalised units.
+    #[serde(skip)]
+    unit: f64,
+}
+
+impl FieldDesign {
+    /// Predicted probability that a blink of `planes` bit-planes, centred on
+    /// a pixel, opens a track (module docs).
+    pub fn recall(&self, planes: u32) -> f64 {
+        if planes == 0 {
+            return 0.0;
+        }
+        let n = self.n_window as f64;
+        let k = (planes.min(self.n_window)) as f64;
+        let (e_off, v_off, e_on, v_on) = self.moments;
+        let mean = n * e_off + k * (e_on - e_off);
+        let var = (n - k) * v_off + k * v_on;
+        let t = self.threshold_open as f64 * self.unit;
+        let p = if var > 0.0 {
+            normal_sf((t - mean) / var.sqrt())
+        } else if mean >= t {
+            1.0
+        } else {
+            0.0
+        };
+        let looks = 1 + planes.saturating_sub(self.n_window) / self.n_window.max(1);
+        1.0 - (1.0 - p).powi(looks.min(1_000_000) as i32)
+    }
+
+    /// Shortest blink, planes, with predicted recall ≥ `recall` (searched up
+    /// to 100 windows); `None` if none.
+    pub fn shortest_blink(&self, recall: f64) -> Option<u32> {
+        let max = self.n_window.saturating_mul(100).max(1);
+        // recall() is non-decreasing in the duration: bisect.
+        if self.recall(max) < recall {
+            return None;
+        }
+        let (mut lo, mut hi) = (1u32, max);
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if self.recall(mid) >= recall {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        Some(lo)
+    }
+}
+
+/// Designs the open and hold thresholds, association radius and L_min of
+/// a `width × height` field at `plane_rate_hz` for at most `budget_per_s`
+/// background-only false blinks per second (module docs).
+pub fn design(
+    det: &Detection,
+    width: u32,
+    height: u32,
+    plane_rate_hz: f64,
+    budget_per_s: f64,
+) -> Result<FieldDesign, FieldDesignError> {
+    let bad = |name, value: f64, why| FieldDesignError::Invalid { name, value, why };
+    if width == 0 || height == 0 {
+        return Err(bad(
+            "field",
+            (width as u64 * height as u64) as f64,
+            "must have at least one pixel",
+        ));
+    }
+    if !plane_rate_hz.is_finite() || plane_rate_hz <= 0.0 {
+        return Err(bad("plane_rate_hz", plane_rate_hz, "must be finite and > 0"));
+    }
+    if !budget_per_s.is_finite() || budget_per_s <= 0.0 {
+        return Err(bad(
+            "false_blinks_per_s",
+            budget_per_s,
+            "must be finite and > 0",
+        ));
+    }
+    let kernel = det.kernel();
+    let pixels = width as u64 * height as u64;
+    let scale = pixels as f64 * plane_rate_hz;
+    let rate_at = |t: u64| -> Result<(f64, f64), FieldDesignError> {
+        let u = BackgroundProcess::new(&kernel, det.n_window, det.p_off, t)?.upcrossing();
+        Ok((u, u * scale))
+    };
+    let hold = det.threshold_int.max(1);
+    // H never exceeds N·2^(2a): a threshold above it never opens a track.
+    let top = det.n_window as u64 * (1u64 << (2 * det.kernel_shift as u32));
+    let (mut u_open, mut rate) = rate_at(hold)?;
+    let mut open = hold;
+    if rate > budget_per_s {
+        let (u_top, r_top) = rate_at(top)?;
+        if r_top > budget_per_s {
+            return Err(FieldDesignError::Unreachable {
+                budget_per_s,
+                pixels,
+                best_per_s: r_top,
+            });
+        }
+        // The up-crossing rate falls with T: bisect for the smallest T
+        // within the budget.
+        let (mut lo, mut hi) = (hold, top);
+        let mut best = (u_top, r_top);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            let r = rate_at(mid)?;
+            if r.1 <= budget_per_s {
+                hi = mid;
+                best = r;
+            } else {
+                lo = mid;
+            }
+        }
+        open = hi;
+        (u_open, rate) = best;
+    }
+    let unit = det.threshold_unit;
+    let sigmas = |t: u64| {
+        if det.sd_h_off > 0.0 {
+            (t as f64 * unit - det.e_h_off) / det.sd_h_off
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut d = FieldDesign {
+        width,
+        height,
+        plane_rate_hz,
+        budget_per_s,
+        n_window: det.n_window,
+        threshold_open: open,
+        threshold_hold: hold,
+        open_sigmas: sigmas(open),
+        hold_sigmas: sigmas(hold),
+        r_assoc: ((2.0 * det.sigma_px).round() as u32).max(1),
+        l_min: 1,
+        upcrossing_per_pixel_plane: u_open,
+        predicted_false_blinks_per_s: rate,
+        shortest_blink_planes: None,
+        moments: (det.e_f_off, det.var_f_off, det.e_f_on, det.var_f_on),
+        unit,
+    };
+    d.shortest_blink_planes = d.shortest_blink(SHORTEST_BLINK_RECALL);
+    Ok(d)
+}
