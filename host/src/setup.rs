@@ -165,12 +165,8 @@ pub fn pipeline_config(
     };
     let n = det.n_window;
     let t32 = |t: u64| u32::try_from(t).context("the derived threshold does not fit 32 bits");
-    let (mut threshold, mut hold, mut r_assoc, mut l_min) = (
-        t32(det.threshold_int)?,
-        t32(det.threshold_int)?,
-        1,
-        1,
-    );
+    let (mut threshold, mut hold, mut r_assoc, mut l_min) =
+        (t32(det.threshold_int)?, t32(det.threshold_int)?, 1, 1);
     if args.detection == DetectionMode::Field {
         if plane_period_ns == 0 {
             bail!("the recording's plane period is 0 ns");

@@ -14,8 +14,11 @@
 //!   anchor keeps that track on; with a larger radius a candidate can be
 //!   absorbed by a track that ends in the same plane — the next plane's
 //!   candidate then opens a new track.)
+//! * **Open.** Candidates are 3×3 maxima with H ≥ T_int (the *open* level,
+//!   stage 4); so only a candidate opens a track.
 //! * **On/off.** From the plane after `t_cross`, a track is *on* while the
-//!   maximum of H over the 3×3 around its anchor is ≥ T_int. A single plane
+//!   maximum of H over the 3×3 around its anchor is ≥ T_hold (the *hold*
+//!   level, ≤ T_int: hysteresis, see [`crate::threshold`]). A single plane
 //!   below is bridged (counted); `t_drop` is the first of two consecutive
 //!   planes below, detected at `t_drop + 1`.
 //! * **Confirmation.** A track is confirmed when its on-duration

@@ -193,7 +193,11 @@ pub fn design(
         ));
     }
     if !plane_rate_hz.is_finite() || plane_rate_hz <= 0.0 {
-        return Err(bad("plane_rate_hz", plane_rate_hz, "must be finite and > 0"));
+        return Err(bad(
+            "plane_rate_hz",
+            plane_rate_hz,
+            "must be finite and > 0",
+        ));
     }
     if !budget_per_s.is_finite() || budget_per_s <= 0.0 {
         return Err(bad(
@@ -268,4 +272,87 @@ pub fn design(
     };
     d.shortest_blink_planes = d.shortest_blink(SHORTEST_BLINK_RECALL);
     Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::{Preset, PresetName};
+    use crate::stats::{derive, DetectionInputs};
+
+    fn spcimager(objective: u32) -> Detection {
+        let p = Preset::new(PresetName::Spcimager, objective).unwrap();
+        derive(&DetectionInputs::from_preset(&p, None).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn the_open_level_is_the_smallest_within_the_budget() {
+        let det = spcimager(150);
+        let d = design(&det, 320, 240, 10_000.0, 1.0).unwrap();
+        assert_eq!(d.threshold_hold, det.threshold_int);
+        assert!(d.threshold_open > d.threshold_hold);
+        assert!(d.predicted_false_blinks_per_s <= 1.0);
+        // One unit lower is over the budget: the bisection found the edge.
+        let below =
+            BackgroundProcess::new(&det.kernel(), det.n_window, det.p_off, d.threshold_open - 1)
+                .unwrap()
+                .upcrossing()
+                * 320.0
+                * 240.0
+                * 10_000.0;
+        assert!(below > 1.0, "{below}");
+        assert!(
+            d.open_sigmas > 6.0 && d.open_sigmas < 8.0,
+            "{}",
+            d.open_sigmas
+        );
+        assert!((d.hold_sigmas - 3.0).abs() < 0.01, "{}", d.hold_sigmas);
+        assert_eq!((d.r_assoc, d.l_min), (3, 1));
+        // A smaller field affords a lower open level; a larger budget too.
+        let small = design(&det, 32, 32, 10_000.0, 1.0).unwrap();
+        assert!(small.threshold_open < d.threshold_open);
+        let loose = design(&det, 320, 240, 10_000.0, 100.0).unwrap();
+        assert!(loose.threshold_open < d.threshold_open);
+        // At 60× the PSF is 0.6 px: r_assoc 1.
+        assert_eq!(
+            design(&spcimager(60), 320, 240, 10_000.0, 1.0)
+                .unwrap()
+                .r_assoc,
+            1
+        );
+    }
+
+    #[test]
+    fn recall_rises_with_duration_and_names_the_shortest_blink() {
+        let d = design(&spcimager(150), 320, 240, 10_000.0, 1.0).unwrap();
+        assert_eq!(d.recall(0), 0.0);
+        let mut last = 0.0;
+        for planes in [1, 10, 50, 100, 109, 150, 200, 300, 1000] {
+            let r = d.recall(planes);
+            assert!(r.is_finite() && (0.0..=1.0).contains(&r));
+            assert!(r >= last, "{planes}: {r} < {last}");
+            last = r;
+        }
+        let s = d.shortest_blink_planes.unwrap();
+        assert!(d.recall(s) >= SHORTEST_BLINK_RECALL);
+        assert!(d.recall(s - 1) < SHORTEST_BLINK_RECALL);
+        // Blinks a window long or more are detected at this budget.
+        assert!(s > 50 && s < 1000, "{s}");
+    }
+
+    #[test]
+    fn bad_inputs_are_named() {
+        let det = spcimager(150);
+        for (w, h, rate, budget, name) in [
+            (0, 240, 1e4, 1.0, "field"),
+            (320, 240, 0.0, 1.0, "plane_rate_hz"),
+            (320, 240, f64::NAN, 1.0, "plane_rate_hz"),
+            (320, 240, 1e4, 0.0, "false_blinks_per_s"),
+            (320, 240, 1e4, -1.0, "false_blinks_per_s"),
+            (320, 240, 1e4, f64::INFINITY, "false_blinks_per_s"),
+        ] {
+            let e = design(&det, w, h, rate, budget).unwrap_err().to_string();
+            assert!(e.contains(&format!("`{name}`")), "{e}");
+        }
+    }
 }

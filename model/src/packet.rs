@@ -564,11 +564,7 @@ pub fn decode_payload(
             let kernel = (0..n).map(|_| f.u16()).collect();
             let plane_period_ns = f.u32();
             let masked_pixels = f.u32();
-            let threshold_hold = if version >= 2 {
-                f.u32()
-            } else {
-                threshold_int
-            };
+            let threshold_hold = if version >= 2 { f.u32() } else { threshold_int };
             if !roi_size_ok(roi_size) {
                 return Err(PayloadError::BadRoiSize(roi_size));
             }

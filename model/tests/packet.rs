@@ -1540,8 +1540,8 @@ fn hex_vectors_are_frozen() {
 fn version_1_vectors_still_decode() {
     for (file, packets) in vectors() {
         let path = vector_dir().join("v1").join(file);
-        let text = std::fs::read_to_string(&path)
-            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let text =
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let bytes = parse_hex(&text);
         let want: Vec<(u32, Record)> = packets
             .iter()
@@ -1569,7 +1569,11 @@ fn version_1_vectors_still_decode() {
             assert_eq!(bytes[2], 1);
             assert_eq!(v2[2], 2);
             assert_eq!(bytes[3..10], v2[3..10], "v1/{file}");
-            assert_eq!(bytes[10..bytes.len() - 4], v2[10..v2.len() - 4], "v1/{file}");
+            assert_eq!(
+                bytes[10..bytes.len() - 4],
+                v2[10..v2.len() - 4],
+                "v1/{file}"
+            );
         }
     }
     // A v1 StreamStart of the v2 length (or a v2 one of the v1 length) is malformed.
@@ -1770,7 +1774,10 @@ fn layouts_match_the_written_definition() {
     p.extend_from_slice(&5u32.to_le_bytes());
     // Version 2: threshold_hold after masked_pixels.
     p.extend_from_slice(&654_321u32.to_le_bytes());
-    assert_eq!(encode(&Record::Start(s), 0), raw_frame(VERSION, 0x01, 0, &p));
+    assert_eq!(
+        encode(&Record::Start(s), 0),
+        raw_frame(VERSION, 0x01, 0, &p)
+    );
     // Blink: fixed fields, then the count block of a 1x1 ROI with count 5:
     // base 5, k = 0, the single code bit "0" padded to a byte: 05 00 00.
     let b = Record::Blink(BlinkRecord {

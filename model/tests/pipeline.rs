@@ -111,7 +111,11 @@ fn a_dip_between_the_hold_and_open_levels_keeps_one_track() {
     let mut paper = cfg(2, 8);
     paper.threshold_hold = 8;
     let one = run(paper.clone(), planes.clone()).unwrap();
-    assert_eq!(blinks(&one).len(), 2, "one threshold splits the blink: {one:?}");
+    assert_eq!(
+        blinks(&one).len(),
+        2,
+        "one threshold splits the blink: {one:?}"
+    );
     let mut hyst = paper;
     hyst.threshold_hold = 4;
     let recs = run(hyst, planes).unwrap();
@@ -159,7 +163,9 @@ fn blinks_close_in_space_and_time_with_an_association_radius() {
     c.r_assoc = 1;
     let b = blinks(&run(c, near_spots).unwrap());
     assert_eq!(
-        b.iter().map(|b| (b.anchor_x, b.t_cross)).collect::<Vec<_>>(),
+        b.iter()
+            .map(|b| (b.anchor_x, b.t_cross))
+            .collect::<Vec<_>>(),
         [(4, 11), (7, 13)]
     );
 }

@@ -558,7 +558,8 @@ pub fn write(dir: &Path, r: &FieldResult) -> Result<(Vec<PathBuf>, Vec<String>),
                 p.blinks,
                 p.detected,
                 p.recall(),
-                p.predicted_recall.map_or(String::new(), |v| format!("{v:.4}")),
+                p.predicted_recall
+                    .map_or(String::new(), |v| format!("{v:.4}")),
                 p.matched,
                 p.records_per_blink()
                     .map_or(String::new(), |v| format!("{v:.4}")),
