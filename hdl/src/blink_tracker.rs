@@ -5,7 +5,7 @@
 //! single-plane dip bridging, `L_min` confirmation, cut at `L_max`,
 //! completion at `max(t_drop + 1, t_cross + N − 1)`, stream end).
 //!
-//! **Input.** The words of the front half's output (above-threshold bits and
+//! **Input.** The words of the front half's output (above bits, `H ≥ T_hold`, and
 //! candidate bits of P pixels, word column, row) through a FIFO, in raster
 //! order; the pipeline pushes only the words with an above bit and the last
 //! word of every row, which marks the row's end. Words of flush/drain planes

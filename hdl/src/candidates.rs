@@ -1,4 +1,6 @@
-//! Stages 3–4 — threshold and candidates: above-threshold pixels that are
+//! Stages 3–4 — threshold and candidates, with hysteresis: the *above*
+//! bits (the tracker's on/off test) are `H ≥ T_hold`, and candidates are
+//! pixels with `H ≥ T_int` (the open level, `T_int ≥ T_hold`) that are
 //! maxima of their 3×3 neighbourhood with the tie rule of
 //! [`smartagg_model::candidates`]: strictly greater than the four earlier
 //! neighbours in raster order, greater than or equal to the four later ones.
@@ -17,7 +19,7 @@
 //! top tests (negated) wait one row in a LUT RAM of 3 bits per pixel
 //! ([`LutRam`], read and written by this stage one row apart), instead of
 //! a second line buffer of H, a third window and 3P more comparators.
-//! Output per word: the above-threshold
+//! Output per word: the above-hold
 //! bits and the candidate bits of its P pixels with the word's column and
 //! row, in raster order — a candidate's position is `(x·P + lane, y)`.
 //! Latency: 2 clocks, one word (window), 1 clock.
@@ -36,8 +38,10 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     pub clock: Signal<In, Clock>,
     /// Stream start.
     pub restart: Signal<In, Bit>,
-    /// T_int (runtime register).
+    /// T_int (runtime register): the open level of candidates.
     pub threshold: Signal<In, Bits<HW>>,
+    /// T_hold (runtime register, ≤ T_int): the level of the `above` bits.
+    pub threshold_hold: Signal<In, Bits<HW>>,
     /// Input word present.
     pub valid: Signal<In, Bit>,
     /// Word of a flush plane.
@@ -56,7 +60,7 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     pub out_x: Signal<Out, Bits<16>>,
     /// Output row.
     pub out_y: Signal<Out, Bits<16>>,
-    /// `H ≥ T_int` per pixel.
+    /// `H ≥ T_hold` per pixel.
     pub above: Vec<Signal<Out, Bit>>,
     /// Candidate per pixel.
     pub candidate: Vec<Signal<Out, Bit>>,
@@ -67,7 +71,10 @@ pub struct Candidates<const HW: usize, const LAW: usize> {
     bot_ok: Signal<Local, Bit>,
     wmid: WordWindow<HW>,
     wbot: WordWindow<HW>,
+    /// `H ≥ T_int` (candidates).
     thr: Threshold<HW>,
+    /// `H ≥ T_hold` (the above bits).
+    thr_hold: Threshold<HW>,
     t3: TagReg,
     above_q: Vec<DFF<Bit>>,
     /// Middle row, `win[n + 1] > win[n]`: each horizontal neighbour pair is
@@ -103,6 +110,7 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
             clock: Default::default(),
             restart: Default::default(),
             threshold: Default::default(),
+            threshold_hold: Default::default(),
             valid: Default::default(),
             flush: Default::default(),
             x: Default::default(),
@@ -126,6 +134,7 @@ impl<const HW: usize, const LAW: usize> Candidates<HW, LAW> {
             wmid: WordWindow::new(p, 1, wpr),
             wbot: WordWindow::new(p, 1, wpr),
             thr: Threshold::new(p),
+            thr_hold: Threshold::new(p),
             t3: Default::default(),
             above_q: lanes(p),
             mid_gt: lanes(p + 1),
@@ -192,12 +201,13 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
             }
         }
 
-        // C2: compare with T_int and the 8 neighbours, register.
+        // C2: compare with T_int, T_hold and the 8 neighbours, register.
         self.t3.valid.next = self.wmid.out_valid.val();
         self.t3.flush.next = self.wmid.out_flush.val();
         self.t3.x.next = self.wmid.out_x.val();
         self.t3.y.next = self.wmid.out_y.val();
         self.thr.threshold.next = self.threshold.val();
+        self.thr_hold.threshold.next = self.threshold_hold.val();
         for n in 0..(self._p + 1) {
             self.mid_gt[n].next = self.wmid.win[n + 1].val() > self.wmid.win[n].val();
             self.ge_l[n].next = self.wmid.win[n].val() >= self.wbot.win[n + 1].val();
@@ -227,9 +237,10 @@ impl<const HW: usize, const LAW: usize> Logic for Candidates<HW, LAW> {
         }
         for i in 0..self._p {
             self.thr.filtered[i].next = self.wmid.win[i + 1].val();
+            self.thr_hold.filtered[i].next = self.wmid.win[i + 1].val();
             self.above_q[i].clock.next = self.clock.val();
             self.cand_q[i].clock.next = self.clock.val();
-            self.above_q[i].d.next = self.thr.above[i].val();
+            self.above_q[i].d.next = self.thr_hold.above[i].val();
             self.cand_q[i].d.next = self.thr.above[i].val()
                 & (!self.top_ok2.val() | (self.top_mem[i].read_data.val() == 7))
                 & self.mid_gt[i].val()

@@ -12,7 +12,7 @@
 //! * vertical-pass bits `VW = CW + a`: `V ≤ N_max·2^a` (k1 sums to `2^a`);
 //! * filtered bits `HW = CW + 2a`: `H ≤ N_max·2^(2a)`.
 //!
-//! N and T_int are runtime registers (latched by the top at stream start);
+//! N, T_int and T_hold are runtime registers (latched by the top at stream start);
 //! the kernel weights are constants of the generated circuit.
 
 use smartagg_model::config::{ConfigError, PipelineConfig};
@@ -489,9 +489,9 @@ impl BackHalfConfig {
 
     /// Bytes of the header and fixed payload the packetiser assembles before
     /// streaming a packet (`PW = 8 ×` this): the largest of StreamStart
-    /// (10 + 33 + 2k), StreamEnd (10 + 48) and Blink (10 + 35 + 5 + 1).
+    /// (10 + 37 + 2k), StreamEnd (10 + 48) and Blink (10 + 35 + 5 + 1).
     pub fn prefix_bytes(&self) -> usize {
-        (43 + 2 * self.front.kernel.len()).max(58)
+        (47 + 2 * self.front.kernel.len()).max(58)
     }
 }
 

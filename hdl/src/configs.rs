@@ -15,9 +15,15 @@
 //! * the device: the SPCImager on the XEM6310-LX45, the projected SPCImager
 //!   (whose delay line must stay on chip) on the XEM6310-LX150.
 //!
-//! M = 32 slots, r_assoc = 1 and L_max up to 65,535 planes are the model's
-//! defaults. N, T_int, L_min, L_max and the hot-pixel mask are runtime
-//! registers, latched at stream start ([`crate::pipeline::StreamControl`]).
+//! The detection follows the model's field design
+//! ([`smartagg_model::field_design::design`] for the whole sensor at the
+//! preset's plane rate and the default false-blink budget): the open level
+//! T_open (the T_int register's default), the hold level T_hold (the
+//! T_hold register's default) and the association radius r_assoc (a
+//! compile-time constant of the tracker). M = 32 slots and L_max up to
+//! 65,535 planes are the model's defaults. N, T_int, T_hold, L_min, L_max
+//! and the hot-pixel mask are runtime registers, latched at stream start
+//! ([`crate::pipeline::StreamControl`]).
 //!
 //! rust-hdl widths are const generics, so each design is one type alias
 //! here; its `new` checks the alias against the configuration.
@@ -25,6 +31,7 @@
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::front_half::verilog;
 use crate::xem6310::{Xem6310Top, Xem6310TopOnChip};
+use smartagg_model::field_design;
 use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};
 
@@ -126,8 +133,11 @@ pub struct Design {
     pub top: TopKind,
     /// The model's window N (the N register's default).
     pub n_window: u32,
-    /// The model's T_int (the threshold register's default).
+    /// The field design's open level T_open (the T_int register's default).
     pub threshold_int: u64,
+    /// The field design's hold level T_hold (the T_hold register's default,
+    /// ≤ `threshold_int`).
+    pub threshold_hold: u64,
     /// The generation parameters (sensor, P, N_max, kernel, M, R, …).
     pub config: BackHalfConfig,
 }
@@ -195,17 +205,27 @@ impl Design {
             // multiplies.
             dsp_multipliers: device.dsp48a1 as usize,
         };
+        let fd = field_design::design(
+            &det,
+            width,
+            height,
+            1.0 / p.period_s(),
+            field_design::DEFAULT_FALSE_BLINKS_PER_S,
+        )
+        .map_err(|e| unsupported(e.to_string()))?;
         let mut cfg = smartagg_model::config::PipelineConfig::new(
             front.width,
             front.height,
             det.n_window,
             front.kernel.clone(),
             front.kernel_shift,
-            u32::try_from(det.threshold_int).unwrap_or(u32::MAX),
+            u32::try_from(fd.threshold_open).unwrap_or(u32::MAX),
         );
+        cfg.threshold_hold = u32::try_from(fd.threshold_hold).unwrap_or(u32::MAX);
         cfg.slots = SLOTS;
         cfg.roi_size = front.kernel.len();
-        cfg.r_assoc = 1;
+        cfg.r_assoc = fd.r_assoc;
+        cfg.validate().map_err(|e| unsupported(e.to_string()))?;
         let config = BackHalfConfig::new(&cfg, front, L_MAX_MAX)?;
         Ok(Design {
             preset,
@@ -214,7 +234,8 @@ impl Design {
             delay_line,
             top,
             n_window: det.n_window,
-            threshold_int: det.threshold_int,
+            threshold_int: fd.threshold_open,
+            threshold_hold: fd.threshold_hold,
             config,
         })
     }
@@ -318,7 +339,7 @@ pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 23
 /// The XEM6310 top of the projected SPCImager at 150× (k = 9, N_max = 24,
 /// block RAM; for the XEM6310-LX150).
 pub type Projected150Xem =
-    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
+    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
 
 /// The XEM6310 top of the projected SPCImager at 60× (k = 5, N_max = 24,
 /// block RAM; for the XEM6310-LX150).

@@ -29,8 +29,10 @@ pub struct FrontHalf<
     pub clock: Signal<In, Clock>,
     /// Stream start.
     pub restart: Signal<In, Bit>,
-    /// T_int register.
+    /// T_int register (the open level of candidates).
     pub threshold: Signal<In, Bits<HW>>,
+    /// T_hold register (the level of the `above` bits, ≤ T_int).
+    pub threshold_hold: Signal<In, Bits<HW>>,
     /// Input word present.
     pub valid: Signal<In, Bit>,
     /// Word of a flush plane.
@@ -53,7 +55,7 @@ pub struct FrontHalf<
     pub out_x: Signal<Out, Bits<16>>,
     /// Output row.
     pub out_y: Signal<Out, Bits<16>>,
-    /// `H ≥ T_int` per pixel.
+    /// `H ≥ T_hold` per pixel.
     pub above: Vec<Signal<Out, Bit>>,
     /// Candidate per pixel.
     pub candidate: Vec<Signal<Out, Bit>>,
@@ -77,6 +79,7 @@ impl<
             clock: Default::default(),
             restart: Default::default(),
             threshold: Default::default(),
+            threshold_hold: Default::default(),
             valid: Default::default(),
             flush: Default::default(),
             x: Default::default(),
@@ -113,6 +116,7 @@ impl<
         self.filter.restart.next = self.restart.val();
         self.cands.restart.next = self.restart.val();
         self.cands.threshold.next = self.threshold.val();
+        self.cands.threshold_hold.next = self.threshold_hold.val();
         self.count.valid.next = self.valid.val();
         self.count.flush.next = self.flush.val();
         self.count.x.next = self.x.val();
@@ -168,8 +172,10 @@ pub struct FrontHalfBram<
     pub load_address: Signal<In, Bits<CAW>>,
     /// Mask word: bit i = pixel i is hot.
     pub load_data: Signal<In, Bits<P>>,
-    /// T_int register.
+    /// T_int register (the open level of candidates).
     pub threshold: Signal<In, Bits<HW>>,
+    /// T_hold register (the level of the `above` bits, ≤ T_int).
+    pub threshold_hold: Signal<In, Bits<HW>>,
     /// Input word present.
     pub valid: Signal<In, Bit>,
     /// First word of a plane.
@@ -186,7 +192,7 @@ pub struct FrontHalfBram<
     pub out_x: Signal<Out, Bits<16>>,
     /// Output row.
     pub out_y: Signal<Out, Bits<16>>,
-    /// `H ≥ T_int` per pixel.
+    /// `H ≥ T_hold` per pixel.
     pub above: Vec<Signal<Out, Bit>>,
     /// Candidate per pixel.
     pub candidate: Vec<Signal<Out, Bit>>,
@@ -215,6 +221,7 @@ impl<
             load_address: Default::default(),
             load_data: Default::default(),
             threshold: Default::default(),
+            threshold_hold: Default::default(),
             valid: Default::default(),
             sop: Default::default(),
             flush: Default::default(),
@@ -258,6 +265,7 @@ impl<
         self.front.restart.next = self.restart.val();
         self.delay.n_window.next = self.n_window.val();
         self.front.threshold.next = self.threshold.val();
+        self.front.threshold_hold.next = self.threshold_hold.val();
         self.delay.valid.next = self.mask.out_valid.val();
         self.delay.sop.next = self.mask.out_sop.val();
         self.delay.flush.next = self.mask.out_flush.val();

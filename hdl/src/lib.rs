@@ -28,8 +28,9 @@
 //!   buffers of counts), then horizontal; pre-added symmetric taps and
 //!   constant multipliers, shift-and-add over signed digits or, for the
 //!   costliest, the device's DSP48A1 slices; zero padding on all four edges;
-//! * [`threshold::Threshold`] and [`candidates::Candidates`]: `H ≥ T_int` and
-//!   the 3×3 maximum with the model's raster tie rule, two line buffers of H;
+//! * [`threshold::Threshold`] and [`candidates::Candidates`]: `H ≥ T_hold`
+//!   (the tracker's on/off bits), and `H ≥ T_int` with the 3×3 maximum and
+//!   the model's raster tie rule (candidates), two line buffers of H;
 //! * [`front_half`]: the chain, its configurations and its Verilog.
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].

@@ -50,6 +50,7 @@ use crate::fifo::Fifo;
 use crate::spatial_filter::ConstMul;
 use crate::stream::{lanes, EnableRegs};
 use rust_hdl::prelude::*;
+use smartagg_model::packet::VERSION as PACKET_VERSION;
 
 /// Packetiser states.
 #[derive(Copy, Clone, Debug, PartialEq, LogicState)]
@@ -127,6 +128,8 @@ pub struct Packetiser<
     pub n_window: Signal<In, Bits<NW>>,
     /// T_int register (StreamStart).
     pub threshold: Signal<In, Bits<32>>,
+    /// T_hold register (StreamStart).
+    pub threshold_hold: Signal<In, Bits<32>>,
     /// L_min register (StreamStart).
     pub l_min: Signal<In, Bits<32>>,
     /// L_max register (StreamStart).
@@ -345,6 +348,8 @@ pub struct Packetiser<
     crc_t: Vec<Constant<Bits<32>>>,
     start_bytes: Vec<Constant<Bits<8>>>,
     start_len: Constant<Bits<16>>,
+    /// The packet format version ([`PACKET_VERSION`]), every header's byte 2.
+    version: Constant<Bits<8>>,
     tree_bit: Vec<Constant<Bits<8>>>,
     roi_side: Constant<Bits<8>>,
     h: Constant<Bits<16>>,
@@ -365,9 +370,11 @@ pub struct Packetiser<
     _pb: usize,
     /// Leaves of the byte-select tree (the power of two at or above `_pb`).
     _leaves: usize,
-    /// Byte offsets in StreamStart of the plane period and masked pixels.
+    /// Byte offsets in StreamStart of the plane period, masked pixels and
+    /// T_hold.
     _o_period: usize,
     _o_masked: usize,
+    _o_hold: usize,
 }
 
 impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const PW: usize>
@@ -387,9 +394,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         let kn = rice_candidates(RCW);
         // The constant bytes of StreamStart: header (seq and the registers
         // are added at run time) and the generation parameters.
-        let start_payload = 33 + 2 * k;
+        let start_payload = 37 + 2 * k;
         let mut sb = vec![0u8; 10 + start_payload];
-        sb[..4].copy_from_slice(&[0x53, 0x41, 0x01, 0x01]);
+        sb[..4].copy_from_slice(&[0x53, 0x41, PACKET_VERSION, 0x01]);
         sb[8..10].copy_from_slice(&(start_payload as u16).to_le_bytes());
         sb[10..12].copy_from_slice(&(f.width as u16).to_le_bytes());
         sb[12..14].copy_from_slice(&(f.height as u16).to_le_bytes());
@@ -408,6 +415,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             seq_init: Default::default(),
             n_window: Default::default(),
             threshold: Default::default(),
+            threshold_hold: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             plane_period: Default::default(),
@@ -558,6 +566,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 .map(|j| c8(sb.get(j).copied().unwrap_or(0) as u64))
                 .collect(),
             start_len: Constant::new(((10 + start_payload) as u64).to_bits()),
+            version: c8(PACKET_VERSION as u64),
             // Node i (depth ⌊log2 i⌋ below the root) selects by bit
             // log2(leaves) − 1 − depth of the byte index (node 0 is unused).
             tree_bit: (0..(PW / 8).next_power_of_two())
@@ -582,6 +591,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             _leaves: (PW / 8).next_power_of_two(),
             _o_period: 35 + 2 * k,
             _o_masked: 39 + 2 * k,
+            _o_hold: 43 + 2 * k,
         })
     }
 }
@@ -864,7 +874,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         }
 
         // ---- Lengths and the assembled header + fixed payload of each kind.
-        self.payload_len.next = 33.into();
+        self.payload_len.next = 37.into();
         self.rec_prefix_rest.next = self.start_len.val() - 1;
         self.type_code.next = 1.into();
         match self.r_kind.val().index() {
@@ -907,10 +917,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // Read only when a packet starts (Decide, and Crc after an Overflow
         // packet), and computed only then.
         if (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc) {
-            // Header: magic "SA", version 1, type, sequence number, length.
+            // Header: magic "SA", version 2, type, sequence number, length.
             self.rec_prefix[0].next = 0x53.into();
             self.rec_prefix[1].next = 0x41.into();
-            self.rec_prefix[2].next = 1.into();
+            self.rec_prefix[2].next = self.version.val();
             self.rec_prefix[3].next = self.type_code.val();
             for b in 0..4 {
                 self.rec_prefix[4 + b].next = self.seq_ctr.q.val().get_bits::<8>(8 * b);
@@ -992,13 +1002,19 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                                 self.masked_pixels.val().get_bits::<8>(8 * b);
                         }
                     }
+                    for o in self._o_hold..(self._o_hold + 1) {
+                        for b in 0..4 {
+                            self.rec_prefix[o + b].next =
+                                self.threshold_hold.val().get_bits::<8>(8 * b);
+                        }
+                    }
                 }
             }
             // Overflow: header (type 0x7F, the first lost number), length 8,
             // first lost number and count.
             self.ovf_prefix[0].next = 0x53.into();
             self.ovf_prefix[1].next = 0x41.into();
-            self.ovf_prefix[2].next = 1.into();
+            self.ovf_prefix[2].next = self.version.val();
             self.ovf_prefix[3].next = 0x7F.into();
             self.ovf_prefix[8].next = 8.into();
             for b in 0..4 {

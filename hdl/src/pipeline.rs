@@ -6,13 +6,15 @@
 //!
 //! **Stream start** ([`StreamControl`]): START checks the registers as the
 //! model's `PipelineConfig::validate` does (1 ≤ N ≤ N_max, T_int ≥ 1,
-//! L_min ≥ 1, max(L_min, N) ≤ L_max ≤ L_max,max; otherwise `config_error`
-//! and nothing starts; the check is a register of the START clock's values
-//! and decides a clock later), latches N, T_int, L_min, L_max, the plane
-//! period, the masked-pixel count and MASK_ENABLE, restarts every block (the
-//! tracker then pushes StreamStart, sequence 0) and waits for the first `sop`.
-//! The front half compares H with `min(T_int, 2^HW − 1)`, which decides the
-//! same since `H ≤ N_max·2^(2a) < 2^HW − 1`.
+//! 1 ≤ T_hold ≤ T_int, L_min ≥ 1, max(L_min, N) ≤ L_max ≤ L_max,max;
+//! otherwise `config_error` and nothing starts; the check is a register of
+//! the START clock's values and decides a clock later), latches N, T_int,
+//! T_hold, L_min, L_max, the plane period, the masked-pixel count and
+//! MASK_ENABLE, restarts every block (the tracker then pushes StreamStart,
+//! sequence 0) and waits for the first `sop`. The front half compares H with
+//! `min(T_int, 2^HW − 1)` (candidates) and `min(T_hold, 2^HW − 1)` (the
+//! tracker's on/off bits), which decide the same since
+//! `H ≤ N_max·2^(2a) < 2^HW − 1`.
 //!
 //! **Stream end**: STOP takes effect at the next plane boundary (a partial
 //! plane is completed first). The control then sends N *drain planes* —
@@ -116,6 +118,8 @@ pub struct BackHalf<
     pub n_window: Signal<In, Bits<NW>>,
     /// T_int register (for StreamStart).
     pub threshold: Signal<In, Bits<32>>,
+    /// T_hold register (for StreamStart).
+    pub threshold_hold: Signal<In, Bits<32>>,
     /// L_min register.
     pub l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -246,6 +250,7 @@ impl<
             emit_start: Default::default(),
             n_window: Default::default(),
             threshold: Default::default(),
+            threshold_hold: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             plane_period: Default::default(),
@@ -427,6 +432,7 @@ impl<
         self.pkt.seq_init.next = 0.into();
         self.pkt.n_window.next = self.n_window.val();
         self.pkt.threshold.next = self.threshold.val();
+        self.pkt.threshold_hold.next = self.threshold_hold.val();
         self.pkt.l_min.next = self.l_min.val();
         self.pkt.l_max.next = self.l_max.val();
         self.pkt.plane_period.next = self.plane_period.val();
@@ -530,6 +536,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub reg_n: Signal<In, Bits<32>>,
     /// T_int register.
     pub reg_threshold: Signal<In, Bits<32>>,
+    /// T_hold register.
+    pub reg_threshold_hold: Signal<In, Bits<32>>,
     /// L_min register.
     pub reg_l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -560,6 +568,10 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub threshold_hw: Signal<Out, Bits<HW>>,
     /// Latched T_int (StreamStart).
     pub threshold: Signal<Out, Bits<32>>,
+    /// Latched T_hold, clamped to HW bits (front half).
+    pub threshold_hold_hw: Signal<Out, Bits<HW>>,
+    /// Latched T_hold (StreamStart).
+    pub threshold_hold: Signal<Out, Bits<32>>,
     /// Latched L_min.
     pub l_min: Signal<Out, Bits<32>>,
     /// Latched L_max.
@@ -597,6 +609,7 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     state: DFF<ControlState>,
     n: DFF<Bits<NW>>,
     thr: DFF<Bits<32>>,
+    thr_hold: DFF<Bits<32>>,
     lmin: DFF<Bits<32>>,
     lmax: DFF<Bits<32>>,
     period: DFF<Bits<32>>,
@@ -659,6 +672,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             reset: Default::default(),
             reg_n: Default::default(),
             reg_threshold: Default::default(),
+            reg_threshold_hold: Default::default(),
             reg_l_min: Default::default(),
             reg_l_max: Default::default(),
             reg_period: Default::default(),
@@ -674,6 +688,8 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             n_window: Default::default(),
             threshold_hw: Default::default(),
             threshold: Default::default(),
+            threshold_hold_hw: Default::default(),
+            threshold_hold: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             plane_period: Default::default(),
@@ -694,6 +710,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             state: Default::default(),
             n: Default::default(),
             thr: Default::default(),
+            thr_hold: Default::default(),
             lmin: Default::default(),
             lmax: Default::default(),
             period: Default::default(),
@@ -729,13 +746,16 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, n, thr, lmin, lmax, period, masked, men, synced, stop_req, widx,
-            w_zero, w_last, planes_in, drains, n_last, ended_q, cfg_err, frm_err, rst, regs_ok
+            self, clock, state, n, thr, thr_hold, lmin, lmax, period, masked, men, synced,
+            stop_req, widx, w_zero, w_last, planes_in, drains, n_last, ended_q, cfg_err, frm_err,
+            rst, regs_ok
         );
         // The model's PipelineConfig::validate, for the runtime registers.
         self.regs_ok.d.next = (self.reg_n.val() != 0)
             & (self.reg_n.val() <= self.n_max.val())
             & (self.reg_threshold.val() != 0)
+            & (self.reg_threshold_hold.val() != 0)
+            & (self.reg_threshold_hold.val() <= self.reg_threshold.val())
             & (self.reg_l_min.val() != 0)
             & (self.reg_l_max.val() >= self.reg_l_min.val())
             & (self.reg_l_max.val() >= self.reg_n.val())
@@ -758,6 +778,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                     self.n.d.next = bit_cast::<NW, 32>(self.reg_n.val());
                     self.n_last.d.next = bit_cast::<NW, 32>(self.reg_n.val()) - 1;
                     self.thr.d.next = self.reg_threshold.val();
+                    self.thr_hold.d.next = self.reg_threshold_hold.val();
                     self.lmin.d.next = self.reg_l_min.val();
                     self.lmax.d.next = self.reg_l_max.val();
                     self.period.d.next = self.reg_period.val();
@@ -865,6 +886,11 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         if self.thr.q.val() > self.thr_max.val() {
             self.threshold_hw.next = bit_cast::<HW, 32>(self.thr_max.val());
         }
+        self.threshold_hold.next = self.thr_hold.q.val();
+        self.threshold_hold_hw.next = bit_cast::<HW, 32>(self.thr_hold.q.val());
+        if self.thr_hold.q.val() > self.thr_max.val() {
+            self.threshold_hold_hw.next = bit_cast::<HW, 32>(self.thr_max.val());
+        }
         self.l_min.next = self.lmin.q.val();
         self.l_max.next = self.lmax.q.val();
         self.plane_period.next = self.period.q.val();
@@ -923,6 +949,8 @@ pub struct Pipeline<
     pub reg_n: Signal<In, Bits<32>>,
     /// T_int register.
     pub reg_threshold: Signal<In, Bits<32>>,
+    /// T_hold register.
+    pub reg_threshold_hold: Signal<In, Bits<32>>,
     /// L_min register.
     pub reg_l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -1042,6 +1070,7 @@ impl<
             reset: Default::default(),
             reg_n: Default::default(),
             reg_threshold: Default::default(),
+            reg_threshold_hold: Default::default(),
             reg_l_min: Default::default(),
             reg_l_max: Default::default(),
             reg_period: Default::default(),
@@ -1119,6 +1148,7 @@ impl<
         self.control.reset.next = self.reset.val();
         self.control.reg_n.next = self.reg_n.val();
         self.control.reg_threshold.next = self.reg_threshold.val();
+        self.control.reg_threshold_hold.next = self.reg_threshold_hold.val();
         self.control.reg_l_min.next = self.reg_l_min.val();
         self.control.reg_l_max.next = self.reg_l_max.val();
         self.control.reg_period.next = self.reg_period.val();
@@ -1152,6 +1182,7 @@ impl<
         // Stages 1-4.
         self.front.restart.next = self.control.restart.val();
         self.front.threshold.next = self.control.threshold_hw.val();
+        self.front.threshold_hold.next = self.control.threshold_hold_hw.val();
         self.front.valid.next = self.delay.out_valid.val();
         self.front.flush.next = self.delay.out_flush.val();
         self.front.x.next = self.delay.out_x.val();
@@ -1164,6 +1195,7 @@ impl<
         self.back.emit_start.next = self.control.starting.val();
         self.back.n_window.next = self.control.n_window.val();
         self.back.threshold.next = self.control.threshold.val();
+        self.back.threshold_hold.next = self.control.threshold_hold.val();
         self.back.l_min.next = self.control.l_min.val();
         self.back.l_max.next = self.control.l_max.val();
         self.back.plane_period.next = self.control.plane_period.val();
@@ -1245,6 +1277,8 @@ pub struct PipelineDdr<
     pub reg_n: Signal<In, Bits<32>>,
     /// T_int register.
     pub reg_threshold: Signal<In, Bits<32>>,
+    /// T_hold register.
+    pub reg_threshold_hold: Signal<In, Bits<32>>,
     /// L_min register.
     pub reg_l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -1362,6 +1396,7 @@ impl<
             reset: Default::default(),
             reg_n: Default::default(),
             reg_threshold: Default::default(),
+            reg_threshold_hold: Default::default(),
             reg_l_min: Default::default(),
             reg_l_max: Default::default(),
             reg_period: Default::default(),
@@ -1439,6 +1474,7 @@ impl<
         self.control.reset.next = self.reset.val();
         self.control.reg_n.next = self.reg_n.val();
         self.control.reg_threshold.next = self.reg_threshold.val();
+        self.control.reg_threshold_hold.next = self.reg_threshold_hold.val();
         self.control.reg_l_min.next = self.reg_l_min.val();
         self.control.reg_l_max.next = self.reg_l_max.val();
         self.control.reg_period.next = self.reg_period.val();
@@ -1486,6 +1522,7 @@ impl<
         // Stages 1-4.
         self.front.restart.next = self.control.restart.val();
         self.front.threshold.next = self.control.threshold_hw.val();
+        self.front.threshold_hold.next = self.control.threshold_hold_hw.val();
         self.front.valid.next = self.delay.out_valid.val();
         self.front.flush.next = self.delay.out_flush.val();
         self.front.x.next = self.delay.out_x.val();
@@ -1498,6 +1535,7 @@ impl<
         self.back.emit_start.next = self.control.starting.val();
         self.back.n_window.next = self.control.n_window.val();
         self.back.threshold.next = self.control.threshold.val();
+        self.back.threshold_hold.next = self.control.threshold_hold.val();
         self.back.l_min.next = self.control.l_min.val();
         self.back.l_max.next = self.control.l_max.val();
         self.back.plane_period.next = self.control.plane_period.val();
@@ -1615,8 +1653,8 @@ fn back_config_for(front: GatewareConfig, n: u32) -> Result<BackHalfConfig, Gate
 
 /// [`Pipeline`] of [`projected150_back_config`] (block-RAM delay line).
 pub type Projected150Pipeline =
-    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
+    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
 
 /// [`PipelineDdr`] of [`spcimager150_back_config`].
 pub type Spcimager150PipelineDdr =
-    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 488, 53, 9, 12>;
+    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;

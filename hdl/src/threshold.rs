@@ -1,18 +1,22 @@
-//! Stage 3 — threshold: a pixel is *above* when `H ≥ T_int`, as in
-//! [`smartagg_model::threshold::above`]. P comparators against the runtime
-//! T_int register (HW bits; see [`crate::config::GatewareConfig::threshold_register`]).
+//! Stage 3 — threshold: a pixel is *above* a level `T` when `H ≥ T`, as in
+//! [`smartagg_model::threshold::above`]. P comparators against a runtime
+//! threshold register (HW bits; see
+//! [`crate::config::GatewareConfig::threshold_register`]). The candidate
+//! finder ([`crate::candidates`]) uses two: one against the open level T_int
+//! (candidates) and one against the hold level T_hold (the tracker's on/off
+//! bits).
 
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
-/// P comparators `H ≥ T_int` (combinational).
+/// P comparators `H ≥ T` (combinational).
 #[derive(LogicBlock)]
 pub struct Threshold<const HW: usize> {
     /// H of P pixels.
     pub filtered: Vec<Signal<In, Bits<HW>>>,
-    /// T_int.
+    /// The level T (T_int or T_hold).
     pub threshold: Signal<In, Bits<HW>>,
-    /// `H ≥ T_int` per pixel.
+    /// `H ≥ T` per pixel.
     pub above: Vec<Signal<Out, Bit>>,
     _p: usize,
 }

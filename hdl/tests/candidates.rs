@@ -1,7 +1,8 @@
 //! Threshold and candidates against the model's `threshold::above` and
 //! `candidates::find`: H planes with many ties (small values, plateaus) and
 //! some peaks, peaks on the edges and corners, random stalls, a flush plane,
-//! and a restart between two streams with another T_int.
+//! and restarts between streams with other thresholds — hysteresis
+//! included: the above bits follow T_hold, the candidates T_int.
 
 mod common;
 
@@ -46,12 +47,19 @@ fn candidates_equal_model_with_ties_stalls_and_restart() {
     let g = GatewareConfig::new(&cfg, P, 7).unwrap();
     let mut bench = Bench::new(Dut::new(&g).unwrap(), |u| &mut u.clock);
     let mut rng = common::rng(51);
-    for (stream, thr, planes) in [(0u64, 2u32, 6usize), (1, 3, 4)] {
+    for (stream, thr, hold, planes) in [
+        (0u64, 2u32, 2u32, 6usize),
+        (1, 3, 3, 4),
+        // Hysteresis: T_hold well below T_int.
+        (2, 40, 2, 6),
+        (3, 90, 1, 4),
+    ] {
         let inputs: Vec<Vec<u32>> = (0..planes).map(|_| random_h(&mut rng)).collect();
         let (wpr, wpp) = (W / P, W / P * H);
         bench.uut.restart.next = true;
         bench.uut.valid.next = false;
         bench.uut.threshold.next = (thr as u64).to_bits();
+        bench.uut.threshold_hold.next = (hold as u64).to_bits();
         bench.tick();
         bench.uut.restart.next = false;
         let mut stalls = Stalls::new(60 + stream, 30);
@@ -108,8 +116,13 @@ fn candidates_equal_model_with_ties_stalls_and_restart() {
         }
         assert_eq!(got_above.len(), planes);
         for t in 0..planes {
-            let want: Vec<bool> = above(&inputs[t], thr).iter().by_vals().collect();
-            assert_eq!(got_above[t], want, "above-threshold bits, plane {t}");
+            let want: Vec<bool> = above(&inputs[t], hold).iter().by_vals().collect();
+            assert_eq!(got_above[t], want, "above bits (T_hold {hold}), plane {t}");
+            if hold < thr {
+                // The two levels differ on this plane's pixels.
+                let open: Vec<bool> = above(&inputs[t], thr).iter().by_vals().collect();
+                assert_ne!(got_above[t], open, "T_hold {hold} < T_int {thr}, plane {t}");
+            }
             let want = find(&inputs[t], W, H, thr);
             assert!(!want.is_empty());
             assert_eq!(

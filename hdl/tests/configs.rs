@@ -6,6 +6,7 @@
 
 use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind, XC6SLX150, XC6SLX45};
 use smartagg_hdl::synth::verilator_lint;
+use smartagg_model::field_design;
 use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};
 
@@ -24,6 +25,26 @@ fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
         assert_eq!(d.config.front.kernel_shift, det.kernel_shift);
         assert_eq!(d.config.roi_size, det.kernel_size);
         assert!(det.n_window <= d.config.front.n_max, "{}", d.name());
+        // The detection follows the field design: open and hold levels
+        // (register defaults) and the association radius (generated).
+        let preset = Preset::new(d.preset, d.objective).unwrap();
+        let (w, h) = preset.camera.size();
+        let fd = field_design::design(
+            &det,
+            w,
+            h,
+            1.0 / preset.period_s(),
+            field_design::DEFAULT_FALSE_BLINKS_PER_S,
+        )
+        .unwrap();
+        assert_eq!(d.threshold_int, fd.threshold_open, "{}", d.name());
+        assert_eq!(d.threshold_hold, fd.threshold_hold, "{}", d.name());
+        assert_eq!(d.config.r_assoc, fd.r_assoc, "{}", d.name());
+        assert!(
+            1 <= d.threshold_hold && d.threshold_hold <= d.threshold_int,
+            "{}",
+            d.name()
+        );
         // The delay line stays on chip exactly when it takes at most half the block RAM.
         let on_chip = 2 * d.delay_line_bits() <= d.device.block_ram_bits();
         assert_eq!(

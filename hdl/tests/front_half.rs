@@ -1,7 +1,9 @@
 //! The whole phase-1 pipeline (hot-pixel mask → block-RAM delay line → rolling count →
 //! filter → threshold and candidates) against the model's stages run in the
 //! order of `model/src/pipeline.rs`: random bit-planes with a blinking blob,
-//! random stalls, runtime N below N_max, a flush plane at the end.
+//! random stalls, runtime N below N_max, a flush plane at the end, and
+//! hysteresis: the above bits at T_hold (the 70th percentile of H), the
+//! candidates at T_int (the 90th).
 
 mod common;
 
@@ -48,11 +50,13 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     let mut all: Vec<u32> = filtered.iter().flatten().copied().collect();
     all.sort_unstable();
     let thr = all[all.len() * 9 / 10].max(1);
+    let hold = all[all.len() * 7 / 10].clamp(1, thr);
 
     let mut bench = Bench::new(TestFrontHalf::new(&g).unwrap(), |u| &mut u.clock);
     bench.uut.restart.next = true;
     bench.uut.n_window.next = (n as u64).to_bits();
     bench.uut.threshold.next = g.threshold_register(thr).to_bits();
+    bench.uut.threshold_hold.next = g.threshold_register(hold).to_bits();
     bench.tick();
     bench.uut.restart.next = false;
     let wpp = w * h / p;
@@ -114,8 +118,8 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     assert_eq!(got_above.len(), planes);
     let mut candidates_seen = 0;
     for t in 0..planes {
-        let want: Vec<bool> = above(&filtered[t], thr).iter().by_vals().collect();
-        assert_eq!(got_above[t], want, "above-threshold bits, plane {t}");
+        let want: Vec<bool> = above(&filtered[t], hold).iter().by_vals().collect();
+        assert_eq!(got_above[t], want, "above-hold bits, plane {t}");
         let want = find(&filtered[t], w, h, thr);
         candidates_seen += want.len();
         assert_eq!(got_cand[t], want, "candidates, plane {t}");

@@ -2,7 +2,8 @@
 //! `model::pipeline::run` + `model::packetiser::encode_stream` on a small
 //! field (16×6, P = 4, k = 5, M = 4, 3×3 ROIs), with hot pixels, random
 //! source stalls within the design's duty cycle, and the stream end with its
-//! drain planes; also the register check at START and an empty stream.
+//! drain planes; hysteresis (T_hold below T_int); also the register check
+//! at START (T_hold = 0 or above T_int included) and an empty stream.
 
 mod common;
 
@@ -26,6 +27,8 @@ const P: usize = 4;
 struct Stream {
     n: u32,
     threshold: u32,
+    /// T_hold; `None`: T_int.
+    threshold_hold: Option<u32>,
     l_min: u32,
     l_max: u32,
     planes: Vec<BitPlane>,
@@ -35,6 +38,7 @@ struct Stream {
 
 fn model_config(s: &Stream) -> PipelineConfig {
     let mut cfg = PipelineConfig::new(W, H, s.n, vec![1, 4, 6, 4, 1], 4, s.threshold);
+    cfg.threshold_hold = hold(s);
     cfg.slots = 4;
     cfg.roi_size = 3;
     cfg.r_assoc = 1;
@@ -47,10 +51,21 @@ fn model_config(s: &Stream) -> PipelineConfig {
     cfg
 }
 
+/// The T_hold register of a stream.
+fn hold(s: &Stream) -> u32 {
+    s.threshold_hold.unwrap_or(s.threshold)
+}
+
+/// T_hold at `pct` percent of the way from 1 to T_int (at most T_int).
+fn hold_at(s: &Stream, pct: u32) -> Option<u32> {
+    Some(1 + (s.threshold - 1) * pct.min(100) / 100)
+}
+
 fn start(b: &mut Bench<TestPipeline>, s: &Stream, mask_count: u64) {
     let u = &mut b.uut;
     u.reg_n.next = (s.n as u64).to_bits();
     u.reg_threshold.next = (s.threshold as u64).to_bits();
+    u.reg_threshold_hold.next = (hold(s) as u64).to_bits();
     u.reg_l_min.next = (s.l_min as u64).to_bits();
     u.reg_l_max.next = (s.l_max as u64).to_bits();
     u.reg_period.next = 100_000u64.to_bits();
@@ -132,6 +147,7 @@ fn gateware_paced(
             let c = b.cycles;
             u.reg_n.next = (c % 9).to_bits();
             u.reg_threshold.next = (c % 5).to_bits();
+            u.reg_threshold_hold.next = (c % 7).to_bits();
             u.reg_l_min.next = (1 + c % 3).to_bits();
             u.reg_l_max.next = (c % 70).to_bits();
             u.reg_mask_enable.next = c % 2 == 0;
@@ -205,6 +221,7 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
     let u = &mut b.uut;
     u.reg_n.next = (s.n as u64).to_bits();
     u.reg_threshold.next = (s.threshold as u64).to_bits();
+    u.reg_threshold_hold.next = (hold(s) as u64).to_bits();
     u.reg_l_min.next = (s.l_min as u64).to_bits();
     u.reg_l_max.next = (s.l_max as u64).to_bits();
     u.reg_period.next = 100_000u64.to_bits();
@@ -292,6 +309,7 @@ fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable:
     let mut s = Stream {
         n,
         threshold: 1,
+        threshold_hold: None,
         l_min,
         l_max: n.max(l_min) + extra,
         planes,
@@ -381,6 +399,28 @@ fn pipeline_bytes_equal_the_model() {
     assert!(blinks >= 2, "the stream exercises blinks: {recs:?}");
 }
 
+/// Hysteresis: T_hold well below T_int keeps tracks on longer than the
+/// one-threshold rule; the gateware follows the model byte for byte.
+#[test]
+fn pipeline_with_hysteresis_bytes_equal_the_model() {
+    let one = stream(5, 24, 4, 2, 4, true);
+    let mut two = stream(5, 24, 4, 2, 4, true);
+    two.threshold_hold = Some(percentile_threshold(&two, 50).min(two.threshold));
+    assert!(hold(&two) < two.threshold);
+    let recs = check(&two, 30, 1);
+    assert!(
+        recs.iter().any(|r| matches!(r, Record::Blink(_))),
+        "{recs:?}"
+    );
+    let one_recs = model_run(model_config(&one), one.planes.clone()).unwrap();
+    assert_ne!(recs, one_recs, "T_hold changes the records");
+    // The StreamStart carries T_hold.
+    match &recs[0] {
+        Record::Start(st) => assert_eq!(st.threshold_hold, hold(&two)),
+        r => panic!("{r:?}"),
+    }
+}
+
 #[test]
 fn pipeline_with_ddr2_delay_line_bytes_equal_the_model() {
     let s = stream(6, 20, 3, 2, 3, true);
@@ -389,6 +429,9 @@ fn pipeline_with_ddr2_delay_line_bytes_equal_the_model() {
         recs.iter().any(|r| matches!(r, Record::Blink(_))),
         "{recs:?}"
     );
+    let mut s = stream(6, 20, 3, 2, 3, true);
+    s.threshold_hold = hold_at(&s, 30);
+    check_with(&s, 30, 3, true, false);
     let s = stream(7, 14, 7, 1, 2, false);
     check_with(&s, 40, 4, true, false);
 }
@@ -413,6 +456,7 @@ fn empty_stream_is_start_and_end() {
     let s = Stream {
         n: 3,
         threshold: 5,
+        threshold_hold: None,
         l_min: 1,
         l_max: 10,
         planes: Vec::new(),
@@ -430,6 +474,7 @@ fn bad_registers_refuse_to_start() {
     let good = Stream {
         n: 3,
         threshold: 5,
+        threshold_hold: Some(2),
         l_min: 2,
         l_max: 10,
         planes: Vec::new(),
@@ -437,10 +482,13 @@ fn bad_registers_refuse_to_start() {
         mask_enable: false,
     };
     type Bad = fn(&mut Stream);
-    let bad: [Bad; 6] = [
+    let bad: [Bad; 9] = [
         |s| s.n = 0,
         |s| s.n = 8, // above N_max = 7
         |s| s.threshold = 0,
+        |s| s.threshold_hold = Some(0),
+        |s| s.threshold_hold = Some(6), // above T_int = 5
+        |s| s.threshold_hold = Some(u32::MAX),
         |s| s.l_min = 0,
         |s| s.l_max = 2,  // below N
         |s| s.l_max = 65, // above the generated L_max,max = 64
@@ -462,6 +510,23 @@ fn bad_registers_refuse_to_start() {
     b.tick();
     b.tick();
     assert!(!b.uut.config_error.val() && b.uut.running.val());
+    // T_hold = T_int (the one-threshold rule) and T_hold = 1 are accepted too.
+    for t_hold in [5, 1] {
+        let mut b = Bench::new(TestPipeline::new(&cfg).unwrap(), |u| &mut u.clock);
+        let s = Stream {
+            planes: Vec::new(),
+            hot: Vec::new(),
+            threshold_hold: Some(t_hold),
+            ..good
+        };
+        start(&mut b, &s, 0);
+        b.tick();
+        b.tick();
+        assert!(
+            !b.uut.config_error.val() && b.uut.running.val(),
+            "T_hold {t_hold}"
+        );
+    }
 }
 
 proptest! {
@@ -475,8 +540,11 @@ proptest! {
         extra in 0u32..6,
         mask_enable in any::<bool>(),
         stall in 25u64..60,
+        // T_hold from 1 to T_int (about one case in six at T_int).
+        hold_pct in 0u32..=120,
     ) {
-        let s = stream(seed, planes, n, l_min, extra, mask_enable);
+        let mut s = stream(seed, planes, n, l_min, extra, mask_enable);
+        s.threshold_hold = hold_at(&s, hold_pct);
         check_with(&s, stall, seed, false, true);
     }
 }

@@ -43,10 +43,11 @@
 //! With `k = min(D, N)` on-planes in the window, H is approximately normal
 //! with mean `N·E(F_off) + k·(E F_on − E F_off)` and variance
 //! `(N−k)·Var F_off + k·Var F_on` (Eq. 3–4); [`FieldDesign::recall`] takes
-//! the chance that it reaches `T_open` at the window's peak, counting the
-//! plateau of a blink longer than N as one more independent look per N
-//! planes. A molecule between pixel centres gives a lower peak, so the
-//! prediction is optimistic by a little for short blinks; the study prints
+//! the chance `p` that it reaches `T_open` at the window's peak, and counts
+//! the plateau of a blink longer than N as `(D − N)/N` more independent
+//! looks: `1 − (1 − p)^(1 + (D − N)/N)`. It ignores that a molecule between
+//! pixel centres gives a lower peak and that the candidate is the maximum of
+//! several noisy pixels; the study (`smartagg study field-detection`) prints
 //! it beside the measured recall.
 
 use crate::false_alarm::{BackgroundProcess, FalseAlarmError};
@@ -149,8 +150,11 @@ impl FieldDesign {
         } else {
             0.0
         };
-        let looks = 1 + planes.saturating_sub(self.n_window) / self.n_window.max(1);
-        1.0 - (1.0 - p).powi(looks.min(1_000_000) as i32)
+        // A plateau of D − N planes beyond the first full window: one more
+        // independent look per N planes (fractional, so that the prediction
+        // is continuous in D).
+        let looks = 1.0 + planes.saturating_sub(self.n_window) as f64 / n;
+        1.0 - (1.0 - p).powf(looks)
     }
 
     /// Shortest blink, planes, with predicted recall ≥ `recall` (searched up

@@ -50,8 +50,12 @@ pub enum Source {
 pub struct Case {
     /// Rolling window N.
     pub n: u32,
-    /// Threshold T_int.
+    /// Threshold T_int (the open level of candidates).
     pub threshold: u32,
+    /// Threshold T_hold (the hold level of live tracks, 1 ..= T_int);
+    /// `None`: T_hold = T_int (the one-threshold rule), whatever T_int is
+    /// set to later.
+    pub threshold_hold: Option<u32>,
     /// L_min.
     pub l_min: u32,
     /// L_max.
@@ -82,6 +86,7 @@ impl Case {
         Case {
             n,
             threshold,
+            threshold_hold: None,
             l_min,
             l_max,
             planes,
@@ -93,6 +98,30 @@ impl Case {
             hold_reads: false,
             seed: 1,
         }
+    }
+
+    /// The bit-planes replayed with a shipped design's register defaults,
+    /// the field design's ([`smartagg_hdl::configs::Design`]): its N, the
+    /// open level T_open as T_int, the hold level T_hold, L_min = 1 and
+    /// L_max = 10,000 (the model's default). The design's r_assoc is a
+    /// generation parameter: pass it to [`crate::designs::DesignSpec::with_r_assoc`].
+    pub fn design_defaults(design: &smartagg_hdl::configs::Design, planes: Vec<BitPlane>) -> Case {
+        let t = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
+        Case {
+            threshold_hold: Some(t(design.threshold_hold)),
+            ..Case::replay(
+                design.n_window,
+                t(design.threshold_int),
+                1,
+                smartagg_model::config::DEFAULT_L_MAX.max(design.n_window),
+                planes,
+            )
+        }
+    }
+
+    /// The T_hold register: [`Case::threshold_hold`], or T_int.
+    pub fn hold(&self) -> u32 {
+        self.threshold_hold.unwrap_or(self.threshold)
     }
 }
 
@@ -139,7 +168,7 @@ pub enum Stage {
     RollingCount,
     /// Stage 2: spatial filter H.
     SpatialFilter,
-    /// Stage 3: threshold `H ≥ T_int`.
+    /// Stage 3: threshold `H ≥ T_hold` (the tracker's on/off bits).
     Threshold,
     /// Stage 4: candidates (3×3 local maxima).
     Candidates,
@@ -456,6 +485,7 @@ impl Cosim {
             f.kernel_shift,
             case.threshold,
         );
+        cfg.threshold_hold = case.hold();
         cfg.slots = back.slots;
         cfg.roi_size = back.roi_size;
         cfg.r_assoc = back.r_assoc;
@@ -890,7 +920,7 @@ impl Probes {
                 masked: VecDeque::new(),
                 next: 0,
             },
-            threshold: case.threshold,
+            threshold: case.hold(),
             wpp: f.words_per_plane(),
             width: f.width,
             cw: f.count_bits(),
@@ -1060,7 +1090,7 @@ impl XemHost {
         let b = m.build().clone();
         let port = |n: &str| b.port(n).map_err(|e| HarnessError::Design(e.into()));
         let p = XemPorts {
-            wire_in: (0..7)
+            wire_in: (0..wire_in::COUNT)
                 .map(|i| port(&format!("wire_in_{i}")))
                 .collect::<Result<_, _>>()?,
             trigger: port("trigger")?,
@@ -1231,6 +1261,7 @@ impl XemHost {
             (wire_in::L_MAX, case.l_max),
             (wire_in::PLANE_PERIOD_NS, PLANE_PERIOD_NS),
             (wire_in::MASKED_PIXELS, mask.count() as u32),
+            (wire_in::THRESHOLD_HOLD, case.hold()),
         ];
         for (a, v) in regs {
             let i = self.p.wire_in[a as usize];
@@ -1478,6 +1509,7 @@ impl BramHost {
         for (n, v) in [
             ("reg_n", case.n as u64),
             ("reg_threshold", case.threshold as u64),
+            ("reg_threshold_hold", case.hold() as u64),
             ("reg_l_min", case.l_min as u64),
             ("reg_l_max", case.l_max as u64),
             ("reg_period", PLANE_PERIOD_NS as u64),

@@ -30,6 +30,8 @@ struct Params {
     background: f64,
     quantile: f64,
     edge: f64,
+    /// T_hold as a fraction of T_int (1 or more: T_hold = T_int).
+    hold: f64,
 }
 
 fn params(n_max: u32) -> impl Strategy<Value = Params> {
@@ -45,6 +47,9 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
         0.0005f64..0.01,
         0.985f64..0.999,
         0.0f64..0.5,
+        // T_hold from about a third of T_int to T_int (a quarter of the
+        // cases at T_int: the one-threshold rule).
+        0.3f64..1.25,
     )
         .prop_map(
             |(
@@ -59,6 +64,7 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
                 background,
                 quantile,
                 edge,
+                hold,
             )| Params {
                 seed,
                 n,
@@ -71,6 +77,7 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
                 background,
                 quantile,
                 edge,
+                hold,
             },
         )
 }
@@ -118,6 +125,7 @@ fn case_of(
     let mut case = Case {
         n: p.n,
         threshold: 1,
+        threshold_hold: None,
         l_min: p.l_min,
         l_max: p.n.max(p.l_min) + p.extra,
         planes,
@@ -131,7 +139,13 @@ fn case_of(
     };
     let cfg = c.model_config(&case).expect("model configuration");
     case.threshold = threshold_at_quantile(&cfg, &case.planes, p.quantile);
+    case.threshold_hold = Some(hold_of(case.threshold, p.hold));
     case
+}
+
+/// T_hold at `fraction` of T_int, within 1 ..= T_int.
+fn hold_of(threshold: u32, fraction: f64) -> u32 {
+    ((threshold as f64 * fraction.min(1.0)).round() as u32).clamp(1, threshold)
 }
 
 /// Runs one case; panics with the named mismatch.
@@ -139,12 +153,23 @@ fn check(c: &mut Cosim, case: &Case) -> Result<Coverage, String> {
     match c.check(case) {
         Ok(Ok(cov)) => Ok(cov),
         Ok(Err(m)) => Err(format!(
-            "{} (case: n {} T {} L_min {} L_max {} seed {})",
-            m, case.n, case.threshold, case.l_min, case.l_max, case.seed
+            "{} (case: n {} T {} T_hold {} L_min {} L_max {} seed {})",
+            m,
+            case.n,
+            case.threshold,
+            case.hold(),
+            case.l_min,
+            case.l_max,
+            case.seed
         )),
         Err(e) => Err(format!(
-            "{e} (case: n {} T {} L_min {} L_max {} seed {})",
-            case.n, case.threshold, case.l_min, case.l_max, case.seed
+            "{e} (case: n {} T {} T_hold {} L_min {} L_max {} seed {})",
+            case.n,
+            case.threshold,
+            case.hold(),
+            case.l_min,
+            case.l_max,
+            case.seed
         )),
     }
 }
@@ -168,6 +193,7 @@ fn directed(c: &mut Cosim, seed: u64, hold_reads: bool) -> Coverage {
         background: 0.002,
         quantile: 0.98,
         edge: 0.3,
+        hold: 1.0,
     };
     let spec = SceneSpec {
         width: w,
@@ -210,6 +236,7 @@ fn burst(c: &mut Cosim, seed: u64) -> Coverage {
         background: 0.001,
         quantile: 0.99,
         edge: 0.0,
+        hold: 1.0,
     };
     let (mut planes, hot) = scene(w, h, 160, &p);
     for plane in planes.iter_mut().skip(80).take(4) {
@@ -221,6 +248,7 @@ fn burst(c: &mut Cosim, seed: u64) -> Coverage {
     }
     let mut case = case_of(c, planes, hot, &p, Source::Replay);
     // A threshold the spots cross and the background does not.
+    case.threshold_hold = None;
     case.threshold = threshold_at_quantile(&c.model_config(&case).unwrap(), &case.planes, 0.999);
     check(c, &case).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -308,6 +336,8 @@ fn sensor_port_equals_the_model() {
         background: 0.003,
         quantile: 0.99,
         edge: 0.3,
+        // Hysteresis through the sensor port too.
+        hold: 0.6,
     };
     let (planes, hot) = scene(REDUCED.0, REDUCED.1, 600, &p);
     let case = case_of(&c, planes, hot, &p, Source::Sensor);
@@ -328,15 +358,24 @@ fn full_planes() -> usize {
         .max(1)
 }
 
+/// The full field with the shipped design's defaults (the field design:
+/// N, T_open, T_hold < T_open, r_assoc, L_min = 1): hysteresis on the
+/// whole sensor.
 #[test]
 fn spcimager150_full_field_equals_the_model() {
-    let spec = DesignSpec::new(Config::Spcimager150, FULL.0, FULL.1).unwrap();
+    let design =
+        smartagg_hdl::configs::Design::new(smartagg_model::params::PresetName::Spcimager, 150)
+            .unwrap();
+    assert!(design.threshold_hold < design.threshold_int);
+    let spec = DesignSpec::new(Config::Spcimager150, FULL.0, FULL.1)
+        .and_then(|s| s.with_r_assoc(design.config.r_assoc))
+        .unwrap();
     let mut c = Cosim::new(spec).unwrap();
     let p = Params {
         seed: 2026,
-        n: 108,
-        l_min: 3,
-        extra: 200,
+        n: design.n_window,
+        l_min: 1,
+        extra: 0,
         mask_enable: true,
         input_stall: 5,
         read_stall: 20,
@@ -344,13 +383,24 @@ fn spcimager150_full_field_equals_the_model() {
         background: 0.0008,
         quantile: 0.999,
         edge: 0.1,
+        hold: 1.0,
     };
     let (planes, hot) = scene(FULL.0, FULL.1, full_planes(), &p);
-    let case = case_of(&c, planes, hot, &p, Source::Replay);
+    let case = Case {
+        hot,
+        mask_enable: p.mask_enable,
+        input_stall: p.input_stall,
+        read_stall: p.read_stall,
+        seed: p.seed,
+        ..Case::design_defaults(&design, planes)
+    };
     let cov = check(&mut c, &case).unwrap_or_else(|e| panic!("{e}"));
     let wpp = (FULL.0 * FULL.1 / smartagg_sim::designs::P) as f64;
     println!(
-        "full field: {cov}; {:.0} clocks per plane ({} words per plane)",
+        "full field (T_open {}, T_hold {}, r_assoc {}): {cov}; {:.0} clocks per plane ({} words per plane)",
+        case.threshold,
+        case.hold(),
+        design.config.r_assoc,
         cov.cycles as f64 / cov.planes as f64,
         wpp
     );

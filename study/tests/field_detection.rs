@@ -30,6 +30,8 @@ fn field_design_holds_on_the_whole_sensor() {
     assert_eq!(c.density.1[field].dropped, 0, "{summary}");
     for p in c.points.iter().filter(|p| p.scheme == "field") {
         assert_eq!(p.dropped, 0, "{summary}");
+        // A blink localised is a blink tracked.
+        assert!(p.tracked >= p.detected, "{summary}");
         if p.duration_ms >= 30.0 {
             // Expected ≈ 0.97–1.0: 17 of 20 has probability < 1e-2 at 0.97.
             assert!(p.detected >= 17, "{} ms: {summary}", p.duration_ms);

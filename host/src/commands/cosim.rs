@@ -106,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut case = Case {
         n,
         threshold: 1,
+        threshold_hold: None,
         l_min: 3,
         l_max: n + 100,
         planes,
@@ -122,6 +123,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
     };
     case.threshold = threshold_at_quantile(&c.model_config(&case)?, &case.planes, 0.995);
+    // Hysteresis: tracks open at the 99.5th percentile of H and hold down to the 98th.
+    case.threshold_hold = Some(
+        threshold_at_quantile(&c.model_config(&case)?, &case.planes, 0.98).min(case.threshold),
+    );
     c.set_sensor_interval(args.sensor_interval);
     if let Some(path) = &args.vcd {
         c.trace_whole_run(path.clone());

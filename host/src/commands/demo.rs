@@ -177,6 +177,7 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
     let mut sim = SpadSimulator::new(&cam, &scene, seed)?;
     let case = Case {
         seed,
+        threshold_hold: Some(cfg.threshold_hold),
         ..Case::replay(
             cfg.n_window,
             cfg.threshold_int,
