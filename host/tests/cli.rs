@@ -161,6 +161,91 @@ fn bad_recordings_give_clear_errors() {
     .contains("missing.spad"));
 }
 
+/// The detection design: `params` explains it, `aggregate` announces it, and
+/// bad detection options are refused before any output is written.
+#[test]
+fn detection_design_is_explained_and_bad_levels_are_refused() {
+    let out = ok(&["params"]);
+    assert!(
+        out.contains("field design") && out.contains("T_hold"),
+        "{out}"
+    );
+    assert!(out.contains("predicted recall by blink duration"), "{out}");
+    let v: serde_json::Value = serde_json::from_str(&ok(&["params", "--json"])).unwrap();
+    let fd = &v["field_design"];
+    let (open, hold) = (
+        fd["threshold_open"].as_u64().unwrap(),
+        fd["threshold_hold"].as_u64().unwrap(),
+    );
+    assert_eq!(hold, v["threshold_int"].as_u64().unwrap());
+    assert!(open > hold);
+    assert!(fd["predicted_false_blinks_per_s"].as_f64().unwrap() <= 1.0);
+    // A tighter budget asks for a higher open level.
+    let tight: serde_json::Value =
+        serde_json::from_str(&ok(&["params", "--json", "--false-blinks-per-s", "0.01"])).unwrap();
+    assert!(tight["field_design"]["threshold_open"].as_u64().unwrap() > open);
+
+    let dir = tempfile::tempdir().unwrap();
+    let rec = p(dir.path(), "bg.spad");
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--scene",
+        "random",
+        "--density",
+        "0",
+        "--field",
+        "64x48",
+        "--planes",
+        "300",
+        "--out",
+        &rec,
+    ]);
+    let rois = p(dir.path(), "x.rois");
+    let e = err(&[
+        "aggregate",
+        &rec,
+        "--out",
+        &rois,
+        "--threshold-int",
+        "1000",
+        "--threshold-hold",
+        "2000",
+    ]);
+    assert!(e.contains("threshold_hold"), "{e}");
+    for bad in ["0", "-1", "nan"] {
+        let opt = format!("--false-blinks-per-s={bad}");
+        let e = err(&["aggregate", &rec, "--out", &rois, &opt]);
+        assert!(e.contains("`false_blinks_per_s`"), "{bad}: {e}");
+    }
+    assert!(!dir.path().join("x.rois").exists());
+    // The default run says what it chose, in the field's own terms.
+    let o = smartagg(&["aggregate", &rec, "--out", &rois, "--quiet"]);
+    assert!(o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("a track opens at T_int") && e.contains("64x48 field"),
+        "{e}"
+    );
+    // The paper's scheme is still there: one threshold, r_assoc 1.
+    let o = smartagg(&[
+        "aggregate",
+        &rec,
+        "--out",
+        &rois,
+        "--quiet",
+        "--detection",
+        "paper",
+    ]);
+    assert!(o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("r_assoc = 1") && !e.contains("a track opens at"),
+        "{e}"
+    );
+}
+
 #[test]
 fn calibration_masks_hot_pixels_in_aggregate() {
     let dir = tempfile::tempdir().unwrap();

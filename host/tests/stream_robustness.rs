@@ -141,27 +141,27 @@ fn as_version(bytes: &[u8], version: u8) -> Vec<u8> {
 #[test]
 fn a_stream_of_a_newer_format_version_says_so() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("v2.rois");
-    let v2 = as_version(&stream(), 2);
-    std::fs::write(&input, &v2).unwrap();
+    let input = dir.path().join("v3.rois");
+    let newer = as_version(&stream(), 3);
+    std::fs::write(&input, &newer).unwrap();
     let out = dir.path().join("out.rois");
     for extra in [&[][..], &["--allow-loss"][..]] {
         let o = download(&input, &out, extra);
         let t = text(&o);
         assert_eq!(o.status.code(), Some(2), "{t}");
-        assert!(t.contains(&newer_version_message(2)), "{t}");
+        assert!(t.contains(&newer_version_message(3)), "{t}");
         assert!(
             t.contains("8 packets could not be read; update smartagg"),
             "{t}"
         );
         assert!(
-            t.contains(&format!("no valid packet in {} bytes", v2.len())),
+            t.contains(&format!("no valid packet in {} bytes", newer.len())),
             "{t}"
         );
-        assert_eq!(std::fs::read(&out).unwrap(), v2, "the raw bytes are kept");
+        assert_eq!(std::fs::read(&out).unwrap(), newer, "the raw bytes are kept");
     }
 
-    // One newer packet inside a version-1 stream, before its stream-end
+    // One newer packet inside a version-2 stream, before its stream-end
     // record: skipped and named.
     let mut mixed = stream();
     let v3 = as_version(&stream(), 3);
@@ -174,7 +174,7 @@ fn a_stream_of_a_newer_format_version_says_so() {
     assert_eq!(o.status.code(), Some(2), "{t}");
     assert!(t.contains(&newer_version_message(3)), "{t}");
     assert!(
-        t.contains("1 packets of a format version newer than 1 skipped"),
+        t.contains("1 packets of a format version newer than 2 skipped"),
         "{t}"
     );
     let o = download(&input, &out, &["--allow-loss"]);

@@ -61,11 +61,16 @@ pub fn open(spec: &str) -> Result<Box<dyn PacketSource>, TransportError> {
     let name = PresetName::parse(preset)
         .map_err(|e| TransportError::BadSource(format!("--source cosim:{spec}: {e}")))?;
     let config = Config::for_preset(name, 150).map_err(|e| sim_err("preset", e))?;
-    let design = DesignSpec::new(config, FULL.0, FULL.1).map_err(|e| {
-        TransportError::Unavailable(format!(
-            "--source cosim:{spec}: {e}; `smartagg cosim` co-simulates the other configurations on reduced fields"
-        ))
-    })?;
+    // The association radius is a generation constant: the shipped design's.
+    let shipped = smartagg_hdl::configs::Design::new(name, 150)
+        .map_err(|e| sim_err("the shipped design", e))?;
+    let design = DesignSpec::new(config, FULL.0, FULL.1)
+        .and_then(|d| d.with_r_assoc(shipped.config.r_assoc))
+        .map_err(|e| {
+            TransportError::Unavailable(format!(
+                "--source cosim:{spec}: {e}; `smartagg cosim` co-simulates the other configurations on reduced fields"
+            ))
+        })?;
     let dev = Device::open(design).map_err(|e| sim_err("building the design", e))?;
     Ok(Box::new(CosimSource {
         dev,
