@@ -158,7 +158,11 @@ fn a_stream_of_a_newer_format_version_says_so() {
             t.contains(&format!("no valid packet in {} bytes", newer.len())),
             "{t}"
         );
-        assert_eq!(std::fs::read(&out).unwrap(), newer, "the raw bytes are kept");
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            newer,
+            "the raw bytes are kept"
+        );
     }
 
     // One newer packet inside a version-2 stream, before its stream-end
