@@ -265,7 +265,9 @@ pub struct Detection {
 
 impl Detection {
     /// The same statistics with window `n` (≥ 1) instead of Eq. 6's: Eq. 7's
-    /// threshold and the window moments follow it.
+    /// threshold `T = N·E(F_off) + 3√(N·Var F_off)`, `T_int = max(1,
+    /// ⌈T·2^(2a)⌉)` and the window's moments follow it ([`derive`] ends here
+    /// with Eq. 6's N).
     pub fn at_window(&self, n: u32) -> Detection {
         let n = n.max(1);
         let nf = n as f64;
@@ -426,18 +428,12 @@ pub fn derive(inputs: &DetectionInputs) -> Result<Detection, StatsError> {
     }
     let n_real_ideal = window_real(&st_ideal).unwrap_or(f64::MAX);
     let n = (n_real.ceil() as u32).max(1);
-    let nf = n as f64;
-    let threshold = nf * st.e_f_off + 3.0 * (nf * st.var_f_off).sqrt();
-    let scale = kernel.sum_2d() as f64;
-    let threshold_int = ((threshold * scale).ceil() as u64).max(1);
-    let threshold_unit = 1.0 / scale;
-    let t_q = threshold_int as f64 * threshold_unit;
+    // H is in units of 2^−(2a), the 2-D kernel's sum (a power of two, so
+    // that dividing by the unit is exact).
+    let threshold_unit = 1.0 / kernel.sum_2d() as f64;
     let e_f_on = st.e_f_off + st.delta_e_f;
-    let e_h_off = nf * st.e_f_off;
-    let sd_h_off = (nf * st.var_f_off).sqrt();
-    let e_h_on = nf * e_f_on;
-    let sd_h_on = (nf * st.var_f_on).sqrt();
-    Ok(Detection {
+    // Eq. 7 and the window's moments at the integer N: `at_window`.
+    let per_plane = Detection {
         eta: inputs.eta,
         background_rate_hz: inputs.background_rate_hz,
         flux_hz: inputs.flux_hz,
@@ -459,18 +455,19 @@ pub fn derive(inputs: &DetectionInputs) -> Result<Detection, StatsError> {
         n_window_real: n_real,
         n_window_real_ideal_kernel: n_real_ideal,
         n_window: n,
-        threshold,
-        threshold_int,
+        threshold: 0.0,
+        threshold_int: 0,
         threshold_unit,
-        threshold_quantisation_abs: t_q - threshold,
-        threshold_quantisation_rel: (threshold > 0.0).then(|| (t_q - threshold) / threshold),
-        e_h_off,
-        sd_h_off,
-        e_h_on,
-        sd_h_on,
-        gaussian_detection_probability: gaussian_at_least(t_q, e_h_on, sd_h_on),
-        gaussian_false_alarm_probability: gaussian_at_least(t_q, e_h_off, sd_h_off),
-    })
+        threshold_quantisation_abs: 0.0,
+        threshold_quantisation_rel: None,
+        e_h_off: 0.0,
+        sd_h_off: 0.0,
+        e_h_on: 0.0,
+        sd_h_on: 0.0,
+        gaussian_detection_probability: 0.0,
+        gaussian_false_alarm_probability: 0.0,
+    };
+    Ok(per_plane.at_window(n))
 }
 
 #[cfg(test)]

@@ -293,16 +293,7 @@ pub fn compute(
                     t_off_s: x.t_off_s,
                 })
                 .collect();
-            let lv: Vec<Loc> = locs
-                .iter()
-                .map(|l| Loc {
-                    x_nm: l.x_nm,
-                    y_nm: l.y_nm,
-                    t0_s: l.t0_s,
-                    t1_s: l.t1_s,
-                    photons: l.photons,
-                })
-                .collect();
+            let lv: Vec<Loc> = locs.iter().map(TLoc::loc).collect();
             let a = crate::matching::assign(&truth, &lv, 53.3);
             let _ = outcome(
                 &truth,

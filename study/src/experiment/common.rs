@@ -5,6 +5,7 @@
 use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
 use crate::item::{record_maps, roi_view};
+use crate::matching::Loc;
 use crate::sim::through_packets;
 use crate::spec::ROI_SIDE;
 use plotters::prelude::*;
@@ -39,6 +40,19 @@ pub struct TLoc {
     pub photons: f64,
     /// Frames merged into it (1 for a record or an unmerged frame).
     pub frames: u32,
+}
+
+impl TLoc {
+    /// The localisation as the matcher sees it.
+    pub fn loc(&self) -> Loc {
+        Loc {
+            x_nm: self.x_nm,
+            y_nm: self.y_nm,
+            t0_s: self.t0_s,
+            t1_s: self.t1_s,
+            photons: self.photons,
+        }
+    }
 }
 
 /// A scene of exactly `blinks` for `preset` on a `w × h` field, with the

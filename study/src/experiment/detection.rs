@@ -402,16 +402,7 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
                 setup.sigma_px,
                 cam.plane_period_s,
             );
-            let lv: Vec<Loc> = locs
-                .iter()
-                .map(|l| Loc {
-                    x_nm: l.x_nm,
-                    y_nm: l.y_nm,
-                    t0_s: l.t0_s,
-                    t1_s: l.t1_s,
-                    photons: l.photons,
-                })
-                .collect();
+            let lv: Vec<Loc> = locs.iter().map(TLoc::loc).collect();
             let o = outcome(&truth, &lv, 53.3, recs.len() as u32, failed as u32);
             let idx = resample_indices(seed, truth.len(), crate::spec::DEFAULT_BOOTSTRAP as usize);
             Ok(PrecisionPoint {

@@ -132,16 +132,7 @@ pub fn compute(
                     cam.exposure_s,
                     merge,
                 )?;
-                let loc: Vec<Loc> = locs
-                    .iter()
-                    .map(|l| Loc {
-                        x_nm: l.x_nm,
-                        y_nm: l.y_nm,
-                        t0_s: l.t0_s,
-                        t1_s: l.t1_s,
-                        photons: l.photons,
-                    })
-                    .collect();
+                let loc: Vec<Loc> = locs.iter().map(TLoc::loc).collect();
                 // Merged: a chain is one detection; failed fits stay as they are.
                 let detections = if merge {
                     locs.len() + failed

@@ -380,16 +380,7 @@ pub fn compute_camera(
             let mut pts = Vec::new();
             for ((recs, tally), spec) in runs.iter().zip(&specs) {
                 let (tl, _, failed) = fit_records(recs, w, pixel_nm, sigma_px, period);
-                let locs: Vec<Loc> = tl
-                    .iter()
-                    .map(|l| Loc {
-                        x_nm: l.x_nm,
-                        y_nm: l.y_nm,
-                        t0_s: l.t0_s,
-                        t1_s: l.t1_s,
-                        photons: l.photons,
-                    })
-                    .collect();
+                let locs: Vec<Loc> = tl.iter().map(TLoc::loc).collect();
                 let o = outcome(
                     &truth,
                     &locs,

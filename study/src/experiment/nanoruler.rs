@@ -475,16 +475,7 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
     let mut markers = Vec::new();
     let mut per_blink = Vec::new();
     for (s, (locs, detections, failed, seconds)) in inputs.into_iter().enumerate() {
-        let as_loc: Vec<Loc> = locs
-            .iter()
-            .map(|l| Loc {
-                x_nm: l.x_nm,
-                y_nm: l.y_nm,
-                t0_s: l.t0_s,
-                t1_s: l.t1_s,
-                photons: l.photons,
-            })
-            .collect();
+        let as_loc: Vec<Loc> = locs.iter().map(TLoc::loc).collect();
         let o = outcome(&truth, &as_loc, MATCH_NM, detections as u32, failed as u32);
         per_blink.push(o.blinks.clone());
         let detected = o.blinks.iter().filter(|b| b.matches > 0).count();
