@@ -8,6 +8,9 @@
 //! * [`kernel`], [`stats`], [`false_alarm`]: the paper's Eq. 1–7 with the
 //!   integer kernel actually used, the window N, the threshold T and T_int,
 //!   and the predicted false-alarm rate and confirmation length L_min;
+//! * [`field_design`]: the detection design for a whole sensor (open and
+//!   hold thresholds for a false-blink budget, association radius) and the
+//!   recall it predicts;
 //! * the streaming pipeline, one stage per file with the same names as in
 //!   `hdl/`: [`hot_pixel_mask`], [`delay_line`], [`rolling_count`],
 //!   [`spatial_filter`], [`threshold`], [`candidates`], [`blink_tracker`],
