@@ -69,7 +69,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub r_assoc: Option<u32>,
     /// Calibration folder (`smartagg calibrate`): its hot pixels, judged
-    /// against this run's N and T_int, are masked (read as 0).
+    /// against this run's N and T_hold (a hot pixel at the hold level would keep a track on), are masked (read as 0).
     #[arg(long)]
     pub calibration: Option<std::path::PathBuf>,
 }
