@@ -1,4 +1,4 @@
-//! The generated designs, one per (preset, objective) (DESIGN.md §7): the
+//! The generated designs, one per (preset, objective) (docs/DESIGN.md §7): the
 //! single place that maps a scene to its Verilog, its constraints and its
 //! device.
 //!

@@ -2,7 +2,7 @@
 //! as [`smartagg_model::hot_pixel_mask::HotPixelMask::apply`].
 //!
 //! The mask is a memory of W·H bits (P per word) written through a load port
-//! before the stream starts (the register "mask" of DESIGN.md §3, taken at
+//! before the stream starts (the register "mask" of docs/DESIGN.md §3, taken at
 //! stream start). The block sits in front of the delay line, so the delay
 //! line, the counts and (later) the ROI sums all see the masked plane. It
 //! numbers the words itself from `sop` and adds one clock of latency.

@@ -4,7 +4,7 @@
 //! a pixel over `n` planes is binomial, not Poisson: with a detection rate λ
 //! per plane, `p = 1 − e^{−λ}` per plane. Of the planes summed into a blink
 //! record, about `n_on = t_e − t_s` carry the molecule and the remaining
-//! `n_off` only background (DESIGN.md §5), so a pixel count is
+//! `n_off` only background (docs/DESIGN.md §5), so a pixel count is
 //!
 //! `c_k = Bin(n_on, p_on,k) + Bin(n_off, p_off,k)`,
 //! `λ_on,k = g_k (S · psf_k(x, y, σ) + B) + d_k`, `λ_off,k = g_k B + d_k`,

@@ -1,6 +1,6 @@
 //! Stage 5 — blink tracking in M slots: when is each molecule on?
 //!
-//! Rules (DESIGN.md §3, with the choices this model makes and the gateware copies):
+//! Rules (docs/DESIGN.md §3, with the choices this model makes and the gateware copies):
 //!
 //! * **Association.** A candidate within Chebyshev distance `r_assoc` of the
 //!   anchor of a track that was active at the end of the previous plane — or

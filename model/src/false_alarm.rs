@@ -1,5 +1,5 @@
 //! Exact false-alarm statistics of the threshold, and the confirmation
-//! length `L_min` (DESIGN.md §4–5).
+//! length `L_min` (docs/DESIGN.md §4–5).
 //!
 //! The paper's 3σ rule treats H as Gaussian. With background only, H at a
 //! pixel is `H = Σ_{mn} K_mn·S_mn` over the k×k neighbourhood, with

@@ -1,4 +1,4 @@
-//! The integer Gaussian kernel of the spatial filter (paper §3, DESIGN.md §4).
+//! The integer Gaussian kernel of the spatial filter (paper §3, docs/DESIGN.md §4).
 //!
 //! The paper filters every bit-plane with a k×k Gaussian of the same width σ
 //! as the PSF. The gateware multiplies by constants, so the kernel is stored

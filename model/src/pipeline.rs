@@ -1,4 +1,4 @@
-//! The golden streaming pipeline: stages 0–7 of DESIGN.md §3, one bit-plane
+//! The golden streaming pipeline: stages 0–7 of docs/DESIGN.md §3, one bit-plane
 //! at a time, integer-exact. Clear beats fast: this is the reference that the
 //! fast software engine and the gateware must equal byte for byte.
 //!

@@ -153,7 +153,7 @@ pub const REDUCED: (usize, usize) = (64, 32);
 /// The SPCImager's full field.
 pub const FULL: (usize, usize) = (320, 240);
 /// The field of `smartagg demo` (SPCImager 150×, 2.6 µm square). Its
-/// design is sized for it (DESIGN.md §7): 112 planes of 48×48 bits fit
+/// design is sized for it (docs/DESIGN.md §7): 112 planes of 48×48 bits fit
 /// block RAM, so the delay line is on chip ([`DEMO_N_MAX`]) and the
 /// pipeline core is simulated, paced by its `ready` (a word every clock
 /// while the back half has room); and the field's blinks need

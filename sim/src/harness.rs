@@ -13,7 +13,7 @@
 //! **Comparison.** With no loss the bytes equal the model's exactly. With
 //! output-FIFO overflow they must be the model's records with exactly the
 //! records the Overflow records account for missing, every delivered record
-//! equal to the model's record of the same sequence number (DESIGN.md §3).
+//! equal to the model's record of the same sequence number (docs/DESIGN.md §3).
 //!
 //! **Diagnosis.** On a mismatch the same case runs again on a debug build
 //! whose wrapper exposes every stage's output words (delay line, rolling

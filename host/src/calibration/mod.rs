@@ -25,7 +25,7 @@
 //!   planes (p at the median DCR). A shorter recording is an error
 //!   ([`CalibrationError::TooShort`]) unless accepted (`--allow-short`),
 //!   and the report always states the planes needed.
-//! * **Hot pixels**: [`HotCriterion`] (DESIGN.md §3 stage 0, §4): a pixel is
+//! * **Hot pixels**: [`HotCriterion`] (docs/DESIGN.md §3 stage 0, §4): a pixel is
 //!   hot when its own dark counts alone would make the expected H at its
 //!   position reach T_int, the other pixels at the median background.
 //! * **PRNU** (with a uniformly lit flat recording): each pixel's photon

@@ -323,7 +323,7 @@ pub fn write_spad_report(c: &Calibration, dir: &Path) -> Result<ReportFiles, Cal
     let _ = writeln!(md, "\n## Hot pixels\n");
     let _ = writeln!(
         md,
-        "Criterion (DESIGN.md §3 stage 0): a pixel is hot when its own dark counts alone make the expected filtered sum reach the threshold, `N·(K_c·p_pix + (ΣK − K_c)·p_bg) ≥ T_int`, the other pixels at the median DCR plus the imaging background light.\n"
+        "Criterion (docs/DESIGN.md §3 stage 0): a pixel is hot when its own dark counts alone make the expected filtered sum reach the threshold, `N·(K_c·p_pix + (ΣK − K_c)·p_bg) ≥ T_int`, the other pixels at the median DCR plus the imaging background light.\n"
     );
     let _ = writeln!(md, "| | |\n|---|---|");
     let _ = writeln!(md, "| source | {} |", hc.source);

@@ -11,7 +11,7 @@ use super::estimate::{
 };
 use super::{flags, Calibration, CalibrationError, Provenance};
 
-/// Stage 0's criterion (DESIGN.md §3, §4): which dark-count rates make a pixel hot.
+/// Stage 0's criterion (docs/DESIGN.md §3, §4): which dark-count rates make a pixel hot.
 ///
 /// A pixel is hot when its own dark counts alone would make the filtered
 /// rolling sum H at its position reach the threshold, the other pixels of
