@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs the system packages smartagg needs on a Debian/Ubuntu machine
+# (skipped when they are all present). Run by scripts/demo.sh and
+# scripts/test.sh, so that the README's two commands work on a fresh machine.
+#   pkg-config, libfontconfig1-dev, libfreetype-dev, fonts-dejavu-core: PNG plots
+#   verilator, g++, make: the co-simulation of the generated Verilog
+#   yosys: synthesis figures (`smartagg hdl resources`) and its tests
+#   libusb-1.0-0-dev: the USB bulk transport
+set -euo pipefail
+PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make yosys libusb-1.0-0-dev)
+missing=()
+for p in "${PKGS[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "== installing: ${missing[*]}"
+    SUDO=""
+    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+    export DEBIAN_FRONTEND=noninteractive
+    $SUDO apt-get update -qq
+    $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+command -v cargo >/dev/null || { echo "smartagg needs Rust (cargo): https://rustup.rs" >&2; exit 1; }
