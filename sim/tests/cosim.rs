@@ -150,27 +150,21 @@ fn hold_of(threshold: u32, fraction: f64) -> u32 {
 
 /// Runs one case; panics with the named mismatch.
 fn check(c: &mut Cosim, case: &Case) -> Result<Coverage, String> {
+    let named = |m: String| {
+        format!(
+            "{m} (case: n {} T {} T_hold {} L_min {} L_max {} seed {})",
+            case.n,
+            case.threshold,
+            case.hold(),
+            case.l_min,
+            case.l_max,
+            case.seed
+        )
+    };
     match c.check(case) {
         Ok(Ok(cov)) => Ok(cov),
-        Ok(Err(m)) => Err(format!(
-            "{} (case: n {} T {} T_hold {} L_min {} L_max {} seed {})",
-            m,
-            case.n,
-            case.threshold,
-            case.hold(),
-            case.l_min,
-            case.l_max,
-            case.seed
-        )),
-        Err(e) => Err(format!(
-            "{e} (case: n {} T {} T_hold {} L_min {} L_max {} seed {})",
-            case.n,
-            case.threshold,
-            case.hold(),
-            case.l_min,
-            case.l_max,
-            case.seed
-        )),
+        Ok(Err(m)) => Err(named(m.to_string())),
+        Err(e) => Err(named(e.to_string())),
     }
 }
 
