@@ -5,7 +5,9 @@ use clap::{Parser, Subcommand};
 
 mod calibration;
 mod commands;
+mod output;
 mod setup;
+mod stream_info;
 mod transport;
 
 /// Smart aggregation of binary SPAD bit-planes for single-molecule localisation.

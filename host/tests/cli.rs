@@ -401,3 +401,103 @@ fn demo_writes_every_output_and_engines_agree() {
         .count();
     assert_eq!(blinks, csv.lines().count() - 1);
 }
+
+#[test]
+fn a_stream_says_its_camera_and_no_output_destroys_an_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = p(dir.path(), "rulers.spad");
+    ok(&[
+        "simulate",
+        "--preset",
+        "spcimager",
+        "--objective",
+        "60",
+        "--scene",
+        "nanoruler",
+        "--field",
+        "48x40",
+        "--planes",
+        "3000",
+        "--mean-off-s",
+        "0.3",
+        "--seed",
+        "5",
+        "--out",
+        &rec,
+    ]);
+    let recording = std::fs::read(&rec).unwrap();
+    let rois = p(dir.path(), "blinks.rois");
+    let out = ok(&[
+        "aggregate",
+        &rec,
+        "--out",
+        &rois,
+        "--objective",
+        "60",
+        "--quiet",
+    ]);
+    assert!(out.contains("blinks.rois.json"), "{out}");
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(format!("{rois}.json")).unwrap()).unwrap();
+    assert_eq!(side["camera"], "spcimager");
+    assert_eq!(side["objective"], 60);
+    assert_eq!(
+        (side["width"].as_u64(), side["height"].as_u64()),
+        (Some(48), Some(40))
+    );
+
+    // No camera flags: the sidecar gives the 60x pixel (133.3 nm).
+    let locs = p(dir.path(), "locs.csv");
+    let o = smartagg(&["localize", &rois, "--out", &locs]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("camera from") && stderr.contains("60x"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("133.33 nm"), "{stderr}");
+    let table = std::fs::read_to_string(&locs).unwrap();
+    assert!(table.lines().count() > 3, "{table}");
+    // A flag wins over the sidecar.
+    let o = smartagg(&["localize", &rois, "--out", &locs, "--pixel-nm", "100"]);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("camera from"));
+    // A sidecar for another sensor is refused.
+    let mut wrong = side.clone();
+    wrong["width"] = 320.into();
+    std::fs::write(format!("{rois}.json"), wrong.to_string()).unwrap();
+    let e = err(&["localize", &rois, "--out", &locs]);
+    assert!(e.contains("48x40") && e.contains("--preset"), "{e}");
+    // Without the sidecar the error says where the camera would be.
+    std::fs::remove_file(format!("{rois}.json")).unwrap();
+    let e = err(&["localize", &rois, "--out", &locs]);
+    assert!(e.contains("blinks.rois.json"), "{e}");
+
+    // Outputs onto an input are refused and leave it as it was: the same
+    // path, a hard link, the stream as the table.
+    let link = p(dir.path(), "link.spad");
+    std::fs::hard_link(&rec, &link).unwrap();
+    for target in [&rec, &link] {
+        let e = err(&["aggregate", &rec, "--out", target, "--quiet"]);
+        assert!(e.contains("destroy the input"), "{e}");
+    }
+    let e = err(&["localize", &rois, "--out", &rois, "--pixel-nm", "100"]);
+    assert!(e.contains("destroy the input"), "{e}");
+    assert_eq!(std::fs::read(&rec).unwrap(), recording);
+
+    // A failed aggregate leaves no partial stream, and an old one intact.
+    let cut = p(dir.path(), "cut.spad");
+    std::fs::write(&cut, &recording[..recording.len() / 2]).unwrap();
+    let before = std::fs::read(&rois).unwrap();
+    let e = err(&["aggregate", &cut, "--out", &rois, "--quiet"]);
+    assert!(e.contains("truncated"), "{e}");
+    assert_eq!(std::fs::read(&rois).unwrap(), before);
+    let fresh = p(dir.path(), "fresh.rois");
+    err(&["aggregate", &cut, "--out", &fresh, "--quiet"]);
+    assert!(!Path::new(&fresh).exists());
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
+}

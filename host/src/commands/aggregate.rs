@@ -1,6 +1,8 @@
 //! `smartagg aggregate`: a bit-plane recording in, blink-ROI packets out.
 
+use crate::output::AtomicFile;
 use crate::setup::{self, PipelineArgs};
+use crate::stream_info::StreamInfo;
 use anyhow::Context;
 use smartagg_model::fast_engine::{fast_pipeline, run_parallel};
 use smartagg_model::packet::Encoder;
@@ -56,9 +58,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         header.height,
         header.plane_period_ns,
     )?;
-    let out_file = std::fs::File::create(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let mut out = BufWriter::new(out_file);
+    let preset = setup::detection(
+        &args.pipeline.preset,
+        args.pipeline.objective,
+        args.pipeline.flux,
+    )?
+    .0;
+    crate::output::refuse_overwriting(&args.out, &[&args.recording])?;
+    let info = StreamInfo::new(&preset, header.width, header.height, "aggregate");
+    crate::output::refuse_overwriting(&StreamInfo::path_for(&args.out), &[&args.recording])?;
+    // Written beside the target and renamed into place only when complete:
+    // a failure leaves no partial stream (and never touches the recording).
+    let mut out = BufWriter::new(AtomicFile::create(&args.out)?);
     eprintln!("{}", setup::describe(&cfg));
 
     let planes_total =
@@ -106,7 +117,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
-    out.flush()?;
+    let out = out
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    out.commit()?;
+    let sidecar = info.write_beside(&args.out)?;
     progress.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     let raw_bytes =
@@ -128,6 +144,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.out.display(),
         raw_bytes,
         raw_bytes as f64 / summary.bytes_out.max(1) as f64
+    );
+    println!(
+        "camera {} {}x ({:.1} nm pixels) recorded in {} for localize",
+        info.camera,
+        info.objective,
+        info.pixel_nm,
+        sidecar.display()
     );
     Ok(())
 }

@@ -10,6 +10,7 @@
 //! format version), a stalled or failing source are errors either way.
 
 use crate::setup::{self, PipelineArgs};
+use crate::stream_info::StreamInfo;
 use crate::transport::download::{
     download, DownloadObserver, DownloadOptions, DownloadReport, Progress,
 };
@@ -18,6 +19,7 @@ use crate::transport::frontpanel::{FrontPanelOptions, FrontPanelSource};
 use crate::transport::usb::{self, UsbOptions, UsbSource};
 use crate::transport::{cosim, DeviceConfig, PacketSource, SourceSpec};
 use anyhow::{bail, Context};
+use smartagg_model::params::{Preset, PresetName};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -143,11 +145,21 @@ fn device_config(args: &PipelineArgs) -> anyhow::Result<DeviceConfig> {
     Ok(DeviceConfig::from_pipeline(&cfg)?)
 }
 
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
+/// Writes the stream's sidecar (camera, objective, pixel size) when bytes
+/// arrived: the sensor is the stream's own, else the preset camera's.
+fn write_sidecar(args: &Args, preset: &Preset, r: &DownloadReport) -> anyhow::Result<()> {
+    if r.bytes == 0 {
+        return Ok(());
     }
+    let (w, h) = r.sensor.unwrap_or_else(|| preset.camera.size());
+    let path = StreamInfo::new(preset, w, h, "download").write_beside(&args.out)?;
+    println!(
+        "camera {} {}x recorded in {} for localize",
+        preset.name,
+        args.pipeline.objective,
+        path.display()
+    );
+    Ok(())
 }
 
 fn print_summary(r: &DownloadReport, out: &Path) {
@@ -184,12 +196,18 @@ fn print_summary(r: &DownloadReport, out: &Path) {
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec: SourceSpec = args.source.parse()?;
+    let preset = Preset::new(
+        PresetName::parse(&args.pipeline.preset)?,
+        args.pipeline.objective,
+    )?;
     if let SourceSpec::File(input) = &spec {
-        if same_file(input, &args.out) {
-            bail!(
-                "--out {} is the input file itself: writing it would destroy the recording",
-                args.out.display()
-            );
+        for out in [args.out.clone(), StreamInfo::path_for(&args.out)] {
+            if crate::output::same_file(input, &out) {
+                bail!(
+                    "--out {} is the input file itself: writing it would destroy the recording",
+                    out.display()
+                );
+            }
         }
     }
     let mut source = open_source(&args, &spec)?;
@@ -223,13 +241,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     // The bytes are in the OS already (written per chunk); make them durable.
     let synced = out.sync_all();
+    // What localize needs to know about the stream, beside every byte kept.
     let report = match result {
         Ok(r) => r,
         Err(failure) => {
             print_summary(&failure.report, &args.out);
+            write_sidecar(&args, &preset, &failure.report)?;
             return Err(failure.error.into());
         }
     };
+    write_sidecar(&args, &preset, &report)?;
     synced.with_context(|| format!("syncing {}", args.out.display()))?;
     print_summary(&report, &args.out);
     if report.complete() {

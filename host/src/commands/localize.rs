@@ -10,7 +10,9 @@
 //!   calibration directory) the fit uses the DCR map (as dark counts per
 //!   plane), the PRNU map, and the hot pixels (ignored or interpolated).
 //!   `--estimator spad-mle` uses the binomial likelihood with the record's
-//!   on/off split, exact under pile-up.
+//!   on/off split, exact under pile-up. The camera (pixel size, PSF σ)
+//!   comes from the stream's sidecar `FILE.rois.json`, which `aggregate` and
+//!   `download` write beside it; `--preset` or `--pixel-nm` override it.
 //! * **TIFF frames** (EMCCD, sCMOS, fixed-aggregation SPAD frames): B-spline
 //!   wavelet filter, threshold 1.5 × noise, 8-neighbour maxima, fits,
 //!   optional merging of consecutive frames within `--merge-nm` (the paper's
@@ -22,6 +24,8 @@
 //! `--drop-failed`; either way the failures are counted and printed.
 
 use crate::calibration::{flags, AnyCalibration};
+use crate::output::AtomicFile;
+use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
 use smartagg_localize::frames::{localize_frame, Conversion, FramePipeline};
@@ -104,7 +108,7 @@ pub struct Args {
     /// Estimator.
     #[arg(long, value_enum, default_value_t = EstimatorArg::Mle)]
     pub estimator: EstimatorArg,
-    /// Sample-plane pixel size, nm [default: from --preset].
+    /// Sample-plane pixel size, nm [default: from --preset, else from the stream's sidecar FILE.rois.json].
     #[arg(long)]
     pub pixel_nm: Option<f64>,
     /// Camera preset (spcimager, spcimager-projected, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
@@ -113,7 +117,7 @@ pub struct Args {
     /// Objective magnification of the preset (150 or 60).
     #[arg(long, default_value_t = 150)]
     pub objective: u32,
-    /// PSF σ in camera pixels (initial value when fitted) [default: the preset's, else 1.6 as ThunderSTORM].
+    /// PSF σ in camera pixels (initial value when fitted) [default: the preset's, else the stream sidecar's, else 1.6 as ThunderSTORM].
     #[arg(long)]
     pub sigma: Option<f64>,
     /// Keep σ fixed instead of fitting it.
@@ -175,24 +179,49 @@ struct Setup {
     sigma_px: f64,
     opts: FitOptions,
     preset: Option<Preset>,
+    /// The stream's sidecar, when it gave the camera.
+    sidecar: Option<StreamInfo>,
 }
 
 fn setup(args: &Args) -> anyhow::Result<Setup> {
-    let preset = match &args.preset {
+    let mut preset = match &args.preset {
         Some(name) => Some(Preset::new(PresetName::parse(name)?, args.objective)?),
         None => None,
     };
-    let pixel_nm = match (args.pixel_nm, &preset) {
-        (Some(p), _) => p,
-        (None, Some(p)) => p.pixel_nm(),
-        (None, None) => bail!("give the pixel size with --pixel-nm, or a camera with --preset"),
+    // A stream from `aggregate` or `download` says its camera in a sidecar;
+    // the command line wins over it.
+    let mut sidecar = None;
+    if args.preset.is_none() && args.pixel_nm.is_none() && !is_tiff(&args.input)? {
+        if let Some((info, path)) = StreamInfo::read_beside(&args.input)? {
+            eprintln!(
+                "camera from {}: {} {}x, {:.2} nm pixels, PSF sigma {:.3} px",
+                path.display(),
+                info.camera,
+                info.objective,
+                info.pixel_nm,
+                info.psf_sigma_px
+            );
+            preset = info.preset();
+            sidecar = Some(info);
+        }
+    }
+    let pixel_nm = match (args.pixel_nm, &preset, &sidecar) {
+        (Some(p), _, _) => p,
+        (None, _, Some(info)) => info.pixel_nm,
+        (None, Some(p), None) => p.pixel_nm(),
+        (None, None, None) => bail!(
+            "give the pixel size with --pixel-nm, or a camera with --preset (a stream written by `smartagg aggregate` or `download` says its camera in {}, which is missing)",
+            StreamInfo::path_for(&args.input).display()
+        ),
     };
     if !(pixel_nm.is_finite() && pixel_nm > 0.0) {
         bail!("--pixel-nm must be a positive number of nanometres, got {pixel_nm}");
     }
-    let sigma_px = args
-        .sigma
-        .unwrap_or_else(|| preset.as_ref().map_or(1.6, |p| p.sigma_px()));
+    let sigma_px = args.sigma.unwrap_or_else(|| match (&sidecar, &preset) {
+        (Some(info), _) => info.psf_sigma_px,
+        (None, Some(p)) => p.sigma_px(),
+        (None, None) => 1.6,
+    });
     let noise = match args.noise {
         Some(NoiseArg::Poisson) => NoiseModel::Poisson,
         Some(NoiseArg::Emccd) => NoiseModel::Emccd,
@@ -215,6 +244,7 @@ fn setup(args: &Args) -> anyhow::Result<Setup> {
         sigma_px,
         opts,
         preset,
+        sidecar,
     })
 }
 
@@ -228,6 +258,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .build_global();
     }
     let s = setup(&args)?;
+    crate::output::refuse_overwriting(&args.out, &[&args.input])?;
+    if let Some(tiff) = &args.export_tiff {
+        crate::output::refuse_overwriting(tiff, &[&args.input])?;
+        if tiff == &args.out {
+            bail!(
+                "--export-tiff and --out are the same file, {}",
+                tiff.display()
+            );
+        }
+    }
     let started = Instant::now();
     let (mut table, fits) = if is_tiff(&args.input)? {
         localize_tiff(&args, &s)?
@@ -243,13 +283,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.drop_failed {
         table.rows.retain(|r| r.status.is_ok());
     }
-    let file = std::fs::File::create(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let mut w = std::io::BufWriter::new(file);
+    let mut w = std::io::BufWriter::new(AtomicFile::create(&args.out)?);
     table
         .write_csv(&mut w)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    w.flush()?;
+    w.into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", args.out.display()))?
+        .commit()?;
     let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
         "{} localisations written to {} ({}); {} failed fits {}; {} fits in {:.2} s ({:.0} fits/s)",
@@ -316,6 +357,18 @@ struct SpadMaps {
 
 fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
     let (start, rois) = read_stream(&args.input)?;
+    if let (Some(st), Some(info)) = (&start, &s.sidecar) {
+        if (u32::from(st.width), u32::from(st.height)) != (info.width, info.height) {
+            bail!(
+                "the stream's sensor is {}x{} but its sidecar {} says {}x{}: give the camera with --preset or --pixel-nm",
+                st.width,
+                st.height,
+                StreamInfo::path_for(&args.input).display(),
+                info.width,
+                info.height
+            );
+        }
+    }
     let est = args.estimator.estimator();
     let maps = match &args.calibration {
         None => None,

@@ -126,6 +126,8 @@ pub struct DownloadReport {
     pub streams: u64,
     /// The last StreamEnd record delivered.
     pub stream_end: Option<StreamEnd>,
+    /// The sensor (width, height) of the first StreamStart delivered.
+    pub sensor: Option<(u32, u32)>,
     /// The decoder's exact loss accounting.
     pub stats: LossStats,
     /// Highest newer format version met, if any.
@@ -340,6 +342,9 @@ impl State<'_> {
                     Record::Blink(_) => self.report.blinks += 1,
                     Record::Start(s) => {
                         self.report.streams += 1;
+                        self.report
+                            .sensor
+                            .get_or_insert((s.width.into(), s.height.into()));
                         if let Some(want) = self.expected_start {
                             if s != want && self.report.start_mismatch.is_none() {
                                 self.report.start_mismatch = Some(start_mismatch(want, s));

@@ -1,0 +1,144 @@
+//! Writing outputs without losing anything: a file appears at its target
+//! only once it is complete (written beside it, then renamed into place),
+//! and never over one of the command's inputs.
+
+use anyhow::{bail, Context};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Whether `a` and `b` name the same existing file (symbolic and hard links
+/// included).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        #[cfg(unix)]
+        (Ok(x), Ok(y)) => {
+            use std::os::unix::fs::MetadataExt;
+            x.dev() == y.dev() && x.ino() == y.ino()
+        }
+        #[cfg(not(unix))]
+        (Ok(_), Ok(_)) => matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y),
+        _ => false,
+    }
+}
+
+/// Refuses an output that is one of the inputs.
+pub fn refuse_overwriting(output: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
+    for input in inputs {
+        if same_file(input, output) {
+            bail!(
+                "the output {} is the input {} itself: writing it would destroy the input",
+                output.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A file being written beside its target; [`AtomicFile::commit`] renames it
+/// into place, dropping it uncommitted removes it and leaves the target as
+/// it was.
+pub struct AtomicFile {
+    tmp: tempfile::NamedTempFile,
+    target: PathBuf,
+}
+
+impl AtomicFile {
+    /// Starts a file that will become `target`.
+    pub fn create(target: &Path) -> anyhow::Result<AtomicFile> {
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if target.is_dir() {
+            bail!("{} is a directory", target.display());
+        }
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tmp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".partial")
+            .tempfile_in(dir)
+            .with_context(|| format!("creating {} (a file beside it)", target.display()))?;
+        Ok(AtomicFile {
+            tmp,
+            target: target.to_path_buf(),
+        })
+    }
+
+    /// Makes the file durable and renames it onto the target.
+    pub fn commit(self) -> anyhow::Result<()> {
+        let target = self.target;
+        self.tmp
+            .as_file()
+            .sync_all()
+            .with_context(|| format!("writing {}", target.display()))?;
+        self.tmp
+            .persist(&target)
+            .map_err(|e| e.error)
+            .with_context(|| format!("moving the finished output to {}", target.display()))?;
+        Ok(())
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.tmp.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.tmp.flush()
+    }
+}
+
+/// Writes `bytes` to `target` atomically.
+pub fn write_atomic(target: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let mut f = AtomicFile::create(target)?;
+    f.write_all(bytes)
+        .with_context(|| format!("writing {}", target.display()))?;
+    f.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_uncommitted_file_leaves_the_target_as_it_was() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.rois");
+        std::fs::write(&target, b"before").unwrap();
+        {
+            let mut f = AtomicFile::create(&target).unwrap();
+            f.write_all(b"half").unwrap();
+        }
+        assert_eq!(std::fs::read(&target).unwrap(), b"before");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        let mut f = AtomicFile::create(&target).unwrap();
+        f.write_all(b"after").unwrap();
+        f.commit().unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"after");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn links_to_an_input_are_the_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("in.spad");
+        std::fs::write(&input, b"x").unwrap();
+        let hard = dir.path().join("hard");
+        std::fs::hard_link(&input, &hard).unwrap();
+        #[cfg(unix)]
+        {
+            let soft = dir.path().join("soft");
+            std::os::unix::fs::symlink(&input, &soft).unwrap();
+            assert!(refuse_overwriting(&soft, &[&input]).is_err());
+        }
+        let e = refuse_overwriting(&hard, &[&input])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("destroy the input"), "{e}");
+        assert!(refuse_overwriting(&dir.path().join("new"), &[&input]).is_ok());
+    }
+}
