@@ -2,6 +2,8 @@
 # Installs the system packages smartagg needs on a Debian/Ubuntu machine
 # (skipped when they are all present). Run by scripts/demo.sh and
 # scripts/test.sh, so that the README's two commands work on a fresh machine.
+# As root (or with password-less sudo) it installs them with apt-get; otherwise
+# it prints the exact command to run and stops.
 #   pkg-config, libfontconfig1-dev, libfreetype-dev, fonts-dejavu-core: PNG plots
 #   verilator, g++, make: the co-simulation of the generated Verilog
 #   yosys: synthesis figures (`smartagg hdl resources`) and its tests
@@ -13,9 +15,21 @@ for p in "${PKGS[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ]; then
-    echo "== installing: ${missing[*]}"
+    if ! command -v apt-get >/dev/null; then
+        echo "smartagg needs these packages (Debian names): ${missing[*]}" >&2
+        echo "this machine has no apt-get: install their equivalents, then run this command again" >&2
+        exit 1
+    fi
     SUDO=""
-    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+    if [ "$(id -u)" -ne 0 ]; then
+        if ! sudo -n true 2>/dev/null; then
+            echo "smartagg needs packages that are not installed; as root, run:" >&2
+            echo "  apt-get update && apt-get install -y --no-install-recommends ${missing[*]}" >&2
+            exit 1
+        fi
+        SUDO="sudo"
+    fi
+    echo "== installing: ${missing[*]}"
     export DEBIAN_FRONTEND=noninteractive
     $SUDO apt-get update -qq
     $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

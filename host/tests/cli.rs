@@ -367,6 +367,7 @@ fn demo_writes_every_output_and_engines_agree() {
     );
     for f in [
         "blinks.rois",
+        "blinks.rois.json",
         "localisations.csv",
         "render.png",
         "report.md",

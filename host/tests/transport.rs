@@ -83,6 +83,22 @@ fn a_whole_recording_is_copied_byte_for_byte_and_summarised() {
     assert!(t.contains("27 packets decoded"), "{t}");
     assert!(t.contains("nothing lost"), "{t}");
     assert!(!t.contains("WARNING"), "{t}");
+    // The sidecar gives localize the camera, with the stream's own sensor.
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out.rois.json")).unwrap())
+            .unwrap();
+    assert_eq!(side["camera"], "spcimager");
+    assert_eq!(side["objective"], 150);
+    let start = smartagg_model::packet::decode_all(&bytes)
+        .packets
+        .iter()
+        .find_map(|p| match &p.record {
+            smartagg_model::record::Record::Start(s) => Some((s.width, s.height)),
+            _ => None,
+        })
+        .unwrap();
+    assert_eq!(side["width"].as_u64(), Some(start.0 as u64));
+    assert_eq!(side["height"].as_u64(), Some(start.1 as u64));
 }
 
 #[test]
@@ -91,6 +107,11 @@ fn the_output_may_not_overwrite_the_input() {
     let bytes = stream(3);
     let input = dir.path().join("in.rois");
     std::fs::write(&input, &bytes).unwrap();
+    let link = dir.path().join("link.rois");
+    std::fs::hard_link(&input, &link).unwrap();
+    let o = download_file(&input, &link, &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("is the input file itself"));
     let o = download_file(&input, &input, &[]);
     let t = text(&o);
     assert_eq!(o.status.code(), Some(2), "{t}");

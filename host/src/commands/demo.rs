@@ -406,8 +406,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for ev in decoder.finish() {
         take(ev, &mut records, &mut end);
     }
-    std::fs::write(&rois_path, &received)
-        .with_context(|| format!("writing {}", rois_path.display()))?;
+    crate::output::write_atomic(&rois_path, &received)?;
+    // `smartagg localize demo-out/blinks.rois` needs no camera flags.
+    crate::stream_info::StreamInfo::new(&preset, args.field, args.field, "demo")
+        .write_beside(&rois_path)?;
     let losses: LossStats = decoder.stats().clone();
     timing.add(
         "host decoder",
