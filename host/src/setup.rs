@@ -203,13 +203,26 @@ pub fn pipeline_config(
     );
     cfg.threshold_hold = hold;
     cfg.l_min = args.l_min.unwrap_or(l_min);
-    cfg.l_max = args.l_max.max(n);
+    if args.l_max < n.max(cfg.l_min) {
+        bail!(
+            "--l-max {} planes is shorter than the window N = {n} (and L_min = {}): a blink is cut into segments of L_max planes, give at least {}",
+            args.l_max,
+            cfg.l_min,
+            n.max(cfg.l_min)
+        );
+    }
+    cfg.l_max = args.l_max;
     cfg.slots = args.slots;
     cfg.r_assoc = args.r_assoc.unwrap_or(r_assoc);
     if let Some(r) = args.roi {
         cfg.roi_size = r;
     }
-    cfg.plane_period_ns = u32::try_from(plane_period_ns).context("plane period above 4.29 s")?;
+    cfg.plane_period_ns = u32::try_from(plane_period_ns).map_err(|_| {
+        anyhow::anyhow!(
+            "the plane period is {plane_period_ns} ns; the stream records at most {} ns (4.29 s)",
+            u32::MAX
+        )
+    })?;
     if let Some(path) = &args.calibration {
         let cal = crate::calibration::Calibration::load(path)?;
         anyhow::ensure!(
@@ -294,4 +307,56 @@ pub fn progress(total: Option<u64>, quiet: bool) -> indicatif::ProgressBar {
         .progress_chars("=> "),
     );
     pb
+}
+
+/// A number within `lo..=hi` (finite), for clap's `value_parser`; the error
+/// names the range and the unit.
+pub fn ranged(s: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number ({unit})"))?;
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{s} is outside {}..={} {unit}", num(lo), num(hi)))
+    }
+}
+
+/// A number as a person writes it: plain in 0.001..1e7, else in e-notation.
+pub fn num(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e7).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Most worker threads an option may ask for.
+pub const MAX_THREADS: usize = 1024;
+
+/// A worker-thread count for clap's `value_parser`: 1..=[`MAX_THREADS`].
+pub fn thread_count(s: &str) -> Result<usize, String> {
+    let v: usize = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a whole number of threads"))?;
+    if (1..=MAX_THREADS).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{s} threads: give 1 to {MAX_THREADS}"))
+    }
+}
+
+/// `threads` capped at the machine's cores, with a note when it was more.
+pub fn cap_threads(threads: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if threads > cores {
+        eprintln!(
+            "note: {threads} threads asked for, this machine has {cores} cores: using {cores}"
+        );
+        cores
+    } else {
+        threads
+    }
 }

@@ -502,3 +502,55 @@ fn a_stream_says_its_camera_and_no_output_destroys_an_input() {
         .collect();
     assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
 }
+
+#[test]
+fn options_are_checked_where_they_are_parsed() {
+    let dir = tempfile::tempdir().unwrap();
+    let rois = p(dir.path(), "x.rois");
+    std::fs::write(&rois, b"anything").unwrap();
+    let out = p(dir.path(), "x.csv");
+    for (opt, value, want) in [
+        ("--pixel-nm", "1e-320", "outside 0.1..=1000000 nm"),
+        ("--pixel-nm", "1e308", "outside 0.1..=1000000 nm"),
+        ("--read-noise-e", "nan", "outside 0..=10000 e- rms"),
+        ("--read-noise-e", "-5", "outside 0..=10000 e- rms"),
+        ("--sigma", "inf", "camera pixels"),
+        ("--threads", "4294967296", "give 1 to 1024"),
+        ("--threads", "0", "give 1 to 1024"),
+        ("--planes", "0", "1..="),
+    ] {
+        let e = err(&["localize", &rois, "--out", &out, opt, value]);
+        assert!(e.contains(want), "{opt} {value}: {e}");
+    }
+    for (opt, value, want) in [
+        ("--threads", "18446744073709551615", "give 1 to 1024"),
+        ("--threads", "0", "give 1 to 1024"),
+        ("--l-max", "0", "shorter than the window N"),
+    ] {
+        let rec = p(dir.path(), "r.spad");
+        ok(&[
+            "simulate",
+            "--preset",
+            "spcimager",
+            "--scene",
+            "single",
+            "--field",
+            "16x16",
+            "--planes",
+            "200",
+            "--out",
+            &rec,
+        ]);
+        let e = err(&[
+            "aggregate",
+            &rec,
+            "--out",
+            &p(dir.path(), "o.rois"),
+            opt,
+            value,
+        ]);
+        assert!(e.contains(want), "{opt} {value}: {e}");
+        assert!(!dir.path().join("o.rois").exists());
+    }
+    assert!(!Path::new(&out).exists());
+}

@@ -85,8 +85,7 @@ fn a_whole_recording_is_copied_byte_for_byte_and_summarised() {
     assert!(!t.contains("WARNING"), "{t}");
     // The sidecar gives localize the camera, with the stream's own sensor.
     let side: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("out.rois.json")).unwrap())
-            .unwrap();
+        serde_json::from_slice(&std::fs::read(dir.path().join("out.rois.json")).unwrap()).unwrap();
     assert_eq!(side["camera"], "spcimager");
     assert_eq!(side["objective"], 150);
     let start = smartagg_model::packet::decode_all(&bytes)

@@ -35,6 +35,7 @@ pub mod params;
 pub mod pipeline;
 pub mod plane;
 pub mod record;
+pub mod record_check;
 pub mod recording;
 pub mod registers;
 pub mod rice;

@@ -7,6 +7,7 @@ use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd, PipelineError};
 use smartagg_model::plane::BitPlane;
 use smartagg_model::record::Record;
+use smartagg_model::record_check::check_blink;
 
 struct Rng(u64);
 impl Rng {
@@ -357,6 +358,16 @@ proptest! {
         }
         let stream = scene(seed, w, h, planes, spots, p, 0.6);
         let golden = run(cfg.clone(), stream.clone()).unwrap();
+        // Every record the pipeline writes passes the consumer's plausibility
+        // check (continuations, cuts, truncation, masks, pre-roll clipping).
+        let start = cfg.stream_start();
+        let total = golden.iter().find_map(|r| match r { Record::End(e) => Some(e.planes), _ => None });
+        prop_assert_eq!(total, Some(planes as u64));
+        for r in &golden {
+            if let Record::Blink(b) = r {
+                prop_assert_eq!(check_blink(b, &start, total), Ok(()), "{:?}", b);
+            }
+        }
         let fast = run_with(fast_pipeline(cfg.clone()).unwrap(), stream.clone()).unwrap();
         prop_assert_eq!(&fast, &golden);
         prop_assert_eq!(&parallel(cfg, stream, threads, chunk), &golden);

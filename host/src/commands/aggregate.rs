@@ -33,8 +33,8 @@ pub struct Args {
     /// Engine; both give byte-identical output.
     #[arg(long, value_enum, default_value_t = Engine::Fast)]
     pub engine: Engine,
-    /// Worker threads of the fast engine (default: all cores).
-    #[arg(long)]
+    /// Worker threads of the fast engine (default: all cores; more than the cores are capped, with a note).
+    #[arg(long, value_parser = setup::thread_count)]
     pub threads: Option<usize>,
     #[command(flatten)]
     pub pipeline: PipelineArgs,
@@ -98,9 +98,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             stream_through(p, reader, &progress, &mut summary, &mut write_record)?;
         }
         Engine::Fast => {
-            let threads = args
-                .threads
-                .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            let threads = args.threads.map_or_else(
+                || std::thread::available_parallelism().map_or(1, |n| n.get()),
+                setup::cap_threads,
+            );
             let pb = progress.clone();
             let planes = reader.inspect(move |_| pb.inc(1));
             let mut failed: Option<anyhow::Error> = None;

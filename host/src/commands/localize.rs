@@ -25,6 +25,7 @@
 
 use crate::calibration::{flags, AnyCalibration};
 use crate::output::AtomicFile;
+use crate::setup;
 use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
@@ -39,6 +40,7 @@ use smartagg_localize::{
 };
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::record::{flags as rflags, BlinkRecord, Record, StreamStart};
+use smartagg_model::record_check::{check_blink, is_empty_segment};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -109,7 +111,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = EstimatorArg::Mle)]
     pub estimator: EstimatorArg,
     /// Sample-plane pixel size, nm [default: from --preset, else from the stream's sidecar FILE.rois.json].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.1, 1e6, "nm"))]
     pub pixel_nm: Option<f64>,
     /// Camera preset (spcimager, spcimager-projected, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
     #[arg(long)]
@@ -118,7 +120,7 @@ pub struct Args {
     #[arg(long, default_value_t = 150)]
     pub objective: u32,
     /// PSF σ in camera pixels (initial value when fitted) [default: the preset's, else the stream sidecar's, else 1.6 as ThunderSTORM].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.05, 100.0, "camera pixels"))]
     pub sigma: Option<f64>,
     /// Keep σ fixed instead of fitting it.
     #[arg(long)]
@@ -135,36 +137,41 @@ pub struct Args {
     /// Leave failed fits out of the table (they are counted either way).
     #[arg(long)]
     pub drop_failed: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; more than the cores are capped, with a note).
+    #[arg(long, value_parser = setup::thread_count)]
     pub threads: Option<usize>,
     /// Frames: camera bias, ADU [default: from the preset, else 0].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, -1e9, 1e9, "ADU"))]
     pub offset_adu: Option<f64>,
     /// Frames: electrons per ADU [default: from the preset, else 1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 1e-6, 1e6, "e-/ADU"))]
     pub e_per_adu: Option<f64>,
     /// Frames: EM gain [default: from the preset, else 1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 1.0, 1e5, "(EM gain)"))]
     pub em_gain: Option<f64>,
     /// Frames: sCMOS read noise, e⁻ rms [default: from the preset].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.0, 1e4, "e- rms"))]
     pub read_noise_e: Option<f64>,
     /// Frames: fitting ROI side, odd [default: 2⌈3σ⌉+1, at least 7].
     #[arg(long)]
     pub roi: Option<usize>,
     /// Frames: detection threshold in units of the wavelet noise std.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, value_parser = |s: &str| setup::ranged(s, 1e-3, 1e3, "noise std"))]
     pub threshold: f64,
     /// Frames: bit-planes per SPAD frame (for --estimator spad-mle on frames).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub planes: Option<u32>,
     /// Frames: merge localisations of consecutive frames within this distance, nm (the paper: 40).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 1e-3, 1e6, "nm"))]
     pub merge_nm: Option<f64>,
     /// Frames: frames a merged track may skip.
     #[arg(long, default_value_t = 0)]
     pub merge_gap: u64,
+    /// ROI packets: localise what arrived of a stream that is not whole
+    /// (losses, no StreamEnd, repeated or impossible records), with warnings,
+    /// instead of stopping.
+    #[arg(long)]
+    pub allow_loss: bool,
     /// ROI packets: also write the ROIs as a TIFF stack (for ThunderSTORM).
     #[arg(long)]
     pub export_tiff: Option<PathBuf>,
@@ -250,13 +257,15 @@ fn setup(args: &Args) -> anyhow::Result<Setup> {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if let Some(n) = args.threads {
-        // Only the first call configures the global pool; later ones (tests
-        // in one process) keep it.
-        let _ = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
-            .build_global();
-    }
+    let threads = args.threads.map(setup::cap_threads);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .context("starting the worker threads")?;
+    pool.install(|| run_in_pool(args))
+}
+
+fn run_in_pool(args: Args) -> anyhow::Result<()> {
     let s = setup(&args)?;
     crate::output::refuse_overwriting(&args.out, &[&args.input])?;
     if let Some(tiff) = &args.export_tiff {
@@ -320,29 +329,133 @@ fn is_tiff(path: &Path) -> anyhow::Result<bool> {
         && (magic == *b"II*\0" || magic == *b"MM\0*" || magic == *b"II+\0" || magic == *b"MM\0+"))
 }
 
-/// Reads the blink records of a packet stream, printing what the decoder
-/// lost; also returns the stream-start record when present.
-pub fn read_stream(path: &Path) -> anyhow::Result<(Option<StreamStart>, Vec<BlinkRecord>)> {
+/// What a packet stream delivered, checked: its first StreamStart, the
+/// blink records worth fitting, and every reason the stream is not whole.
+pub struct StreamContent {
+    /// The first StreamStart (it describes the stream).
+    pub start: Option<StreamStart>,
+    /// Blink records, in stream order, without duplicates, implausible
+    /// records or empty segments.
+    pub rois: Vec<BlinkRecord>,
+    /// Sentences, one per problem (empty: the stream arrived whole).
+    pub problems: Vec<String>,
+    /// Empty segments (continuations cut on their last plane): nothing to fit.
+    pub empty_segments: usize,
+}
+
+/// Reads and checks a packet stream: prints the decoder's loss accounting,
+/// drops repeated packets (same sequence number, same record), rejects
+/// records the stream's configuration cannot produce
+/// (`smartagg_model::record_check`), and cross-checks the StreamEnd totals.
+pub fn read_stream(path: &Path) -> anyhow::Result<StreamContent> {
+    let meta = std::fs::metadata(path).with_context(|| format!("reading {}", path.display()))?;
+    if !meta.is_file() {
+        bail!(
+            "{} is not a regular file: localize reads a recorded stream (`smartagg download` records a live one)",
+            path.display()
+        );
+    }
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let decoded = smartagg_model::packet::decode_all(&bytes);
     eprintln!("{}: {}", path.display(), decoded.stats);
-    let mut start = None;
-    let mut rois = Vec::new();
+    let mut problems = Vec::new();
+    if decoded.stats.any_loss() {
+        problems.push(format!("the decoder lost data: {}", decoded.stats));
+    }
+    let mut start: Option<StreamStart> = None;
+    let mut ends: Vec<smartagg_model::record::StreamEnd> = Vec::new();
+    let mut seen: std::collections::HashMap<u32, Vec<Record>> = Default::default();
+    let (mut duplicates, mut received, mut empty_segments) = (0usize, 0u64, 0usize);
+    let (mut rejected, mut examples) = (0usize, Vec::new());
+    let mut blinks = Vec::new();
     for p in decoded.packets {
+        // A packet repeated by the transport (or a capture concatenated with
+        // itself) has the same sequence number and the same record.
+        let same_seq = seen.entry(p.seq).or_default();
+        if same_seq.contains(&p.record) {
+            duplicates += 1;
+            continue;
+        }
+        same_seq.push(p.record.clone());
         match p.record {
-            // The first stream start describes the stream.
             Record::Start(s) if start.is_none() => start = Some(s),
-            Record::Blink(b) => rois.push(b),
+            Record::Blink(b) => {
+                received += 1;
+                blinks.push(b);
+            }
+            Record::End(e) => ends.push(e),
             _ => {}
         }
     }
-    if rois.is_empty() && decoded.stats.packets_ok == 0 {
+    if blinks.is_empty() && decoded.stats.packets_ok == 0 {
         bail!(
             "{} holds no packets: it is neither a blink-ROI packet stream nor a TIFF",
             path.display()
         );
     }
-    Ok((start, rois))
+    if duplicates > 0 {
+        problems.push(format!(
+            "{duplicates} repeated packets (same sequence number and content) dropped"
+        ));
+    }
+    let planes = ends.last().map(|e| e.planes);
+    let mut rois = Vec::with_capacity(blinks.len());
+    match &start {
+        None => {
+            problems.push(
+                "no StreamStart record: the records cannot be checked against the stream's configuration"
+                    .into(),
+            );
+            for b in blinks {
+                if is_empty_segment(&b) {
+                    empty_segments += 1;
+                } else {
+                    rois.push(b);
+                }
+            }
+        }
+        Some(st) => {
+            for b in blinks {
+                // Only a single stream's plane count bounds its records.
+                let bound = if ends.len() == 1 { planes } else { None };
+                match check_blink(&b, st, bound) {
+                    Err(e) => {
+                        rejected += 1;
+                        if examples.len() < 3 {
+                            examples.push(format!(
+                                "slot {} at ({}, {}), t_cross {}: {e}",
+                                b.slot, b.anchor_x, b.anchor_y, b.t_cross
+                            ));
+                        }
+                    }
+                    Ok(()) if is_empty_segment(&b) => empty_segments += 1,
+                    Ok(()) => rois.push(b),
+                }
+            }
+        }
+    }
+    if rejected > 0 {
+        problems.push(format!(
+            "{rejected} blink records that the stream's configuration cannot produce were rejected, not fitted (e.g. {})",
+            examples.join("; ")
+        ));
+    }
+    if ends.is_empty() {
+        problems.push("no StreamEnd record: the stream was cut short".into());
+    } else if !decoded.stats.any_loss() && duplicates == 0 {
+        let claimed: u64 = ends.iter().map(|e| e.blinks).fold(0, u64::saturating_add);
+        if claimed != received {
+            problems.push(format!(
+                "the StreamEnd records count {claimed} blinks but {received} arrived"
+            ));
+        }
+    }
+    Ok(StreamContent {
+        start,
+        rois,
+        problems,
+        empty_segments,
+    })
 }
 
 /// Sensor-sized SPAD maps from a calibration: dark counts per plane, PRNU,
@@ -356,7 +469,33 @@ struct SpadMaps {
 }
 
 fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
-    let (start, rois) = read_stream(&args.input)?;
+    let StreamContent {
+        start,
+        rois,
+        problems,
+        empty_segments,
+    } = read_stream(&args.input)?;
+    if !problems.is_empty() {
+        if !args.allow_loss || rois.is_empty() {
+            let mut msg = format!(
+                "{} is not a whole stream:\n  - {}",
+                args.input.display(),
+                problems.join("\n  - ")
+            );
+            msg += if rois.is_empty() {
+                "\nnothing left to localise"
+            } else {
+                "\n(--allow-loss localises the records that arrived)"
+            };
+            bail!(msg);
+        }
+        for p in &problems {
+            eprintln!("smartagg: WARNING: {p}");
+        }
+    }
+    if empty_segments > 0 {
+        eprintln!("{empty_segments} empty segments (a continuation cut on its last plane sums no plane): nothing to fit");
+    }
     if let (Some(st), Some(info)) = (&start, &s.sidecar) {
         if (u32::from(st.width), u32::from(st.height)) != (info.width, info.height) {
             bail!(
@@ -875,6 +1014,7 @@ mod tests {
             merge_gap: 0,
             export_tiff: None,
             export_layout: LayoutArg::Compact,
+            allow_loss: false,
         }
     }
 
@@ -892,11 +1032,13 @@ mod tests {
         enc.push(&Record::Blink(edge), &mut bytes).unwrap();
         enc.push(&Record::Blink(record(2, 40, 20, vec![0; 81])), &mut bytes)
             .unwrap();
+        enc.push(&Record::End(end(3)), &mut bytes).unwrap();
         std::fs::write(&input, &bytes).unwrap();
 
-        let (st, rois) = read_stream(&input).unwrap();
-        assert_eq!(st.unwrap().width, 64);
-        assert_eq!(rois.len(), 3);
+        let content = read_stream(&input).unwrap();
+        assert_eq!(content.start.unwrap().width, 64);
+        assert_eq!(content.rois.len(), 3);
+        assert!(content.problems.is_empty(), "{:?}", content.problems);
 
         let out = dir.path().join("locs.csv");
         let mut a = args(&input, &out);
@@ -946,6 +1088,112 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(t.rows.len(), 2);
+    }
+
+    fn end(blinks: u64) -> smartagg_model::record::StreamEnd {
+        smartagg_model::record::StreamEnd {
+            planes: 4000,
+            blinks,
+            unconfirmed: 0,
+            dropped_candidates: 0,
+            bridged_dips: 0,
+            cut_segments: 0,
+        }
+    }
+
+    fn encode(records: &[Record]) -> Vec<u8> {
+        let mut enc = Encoder::new();
+        let mut bytes = Vec::new();
+        for r in records {
+            enc.push(r, &mut bytes).unwrap();
+        }
+        bytes
+    }
+
+    #[test]
+    fn a_stream_that_is_not_whole_is_refused_unless_losses_are_allowed() {
+        let dir = tempfile::tempdir().unwrap();
+        let good = |i: u16| Record::Blink(record(i, 20 + i, 30, blink(0.1)));
+        let whole = encode(&[
+            Record::Start(start()),
+            good(0),
+            good(1),
+            Record::End(end(2)),
+        ]);
+        let mut impossible = record(2, 20, 30, blink(0.1));
+        impossible.planes_summed = 0;
+        let mut off_sensor = record(3, 20, 30, blink(0.1));
+        off_sensor.anchor_x = 64;
+        let cases: Vec<(&str, Vec<u8>, &str, usize)> = vec![
+            (
+                "no end",
+                encode(&[Record::Start(start()), good(0), good(1)]),
+                "no StreamEnd record",
+                2,
+            ),
+            (
+                "twice",
+                [whole.clone(), whole.clone()].concat(),
+                "4 repeated packets",
+                2,
+            ),
+            (
+                "lying end",
+                encode(&[
+                    Record::Start(start()),
+                    good(0),
+                    good(1),
+                    Record::End(end(u64::MAX)),
+                ]),
+                "count 18446744073709551615 blinks but 2 arrived",
+                2,
+            ),
+            (
+                "impossible",
+                encode(&[
+                    Record::Start(start()),
+                    good(0),
+                    Record::Blink(impossible),
+                    Record::Blink(off_sensor),
+                    good(1),
+                    Record::End(end(4)),
+                ]),
+                "2 blink records that the stream's configuration cannot produce were rejected",
+                2,
+            ),
+            (
+                "no start",
+                encode(&[good(0), good(1), Record::End(end(2))]),
+                "no StreamStart",
+                2,
+            ),
+        ];
+        for (name, bytes, want, kept) in cases {
+            let input = dir.path().join(format!("{name}.rois"));
+            std::fs::write(&input, &bytes).unwrap();
+            let out = dir.path().join(format!("{name}.csv"));
+            let e = format!("{:#}", run(args(&input, &out)).unwrap_err());
+            assert!(e.contains(want), "{name}: {e}");
+            assert!(e.contains("--allow-loss"), "{name}: {e}");
+            assert!(!out.exists(), "{name}: no table from a refused stream");
+            let mut a = args(&input, &out);
+            a.allow_loss = true;
+            run(a).unwrap();
+            let t = smartagg_localize::table::CsvTable::read(std::io::BufReader::new(
+                std::fs::File::open(&out).unwrap(),
+            ))
+            .unwrap();
+            assert_eq!(t.rows.len(), kept, "{name}");
+        }
+        // A whole stream goes through without --allow-loss.
+        let input = dir.path().join("whole.rois");
+        std::fs::write(&input, &whole).unwrap();
+        run(args(&input, &dir.path().join("whole.csv"))).unwrap();
+        // A device is not a recorded stream.
+        let e = run(args(Path::new("/dev/zero"), &dir.path().join("z.csv")))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a regular file"), "{e}");
     }
 
     #[test]
