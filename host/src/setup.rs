@@ -37,7 +37,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub flux: Option<f64>,
     /// Override the rolling window N (bit-planes).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub n_window: Option<u32>,
     /// Detection design: `field` (default) or the paper's literal `paper`.
     #[arg(long, value_enum, default_value_t = DetectionMode::Field)]
@@ -72,6 +72,36 @@ pub struct PipelineArgs {
     /// against this run's N and T_hold (a hot pixel at the hold level would keep a track on), are masked (read as 0).
     #[arg(long)]
     pub calibration: Option<std::path::PathBuf>,
+}
+
+impl PipelineArgs {
+    /// The options given that change the pipeline's configuration (all but
+    /// the camera), by their command-line names.
+    pub fn configuration_options(&self) -> Vec<&'static str> {
+        let d = PipelineArgs::default();
+        let mut given = Vec::new();
+        let mut note = |set: bool, name: &'static str| {
+            if set {
+                given.push(name);
+            }
+        };
+        note(self.flux.is_some(), "--flux");
+        note(self.n_window.is_some(), "--n-window");
+        note(self.detection != d.detection, "--detection");
+        note(
+            self.false_blinks_per_s != d.false_blinks_per_s,
+            "--false-blinks-per-s",
+        );
+        note(self.threshold_int.is_some(), "--threshold-int");
+        note(self.threshold_hold.is_some(), "--threshold-hold");
+        note(self.l_min.is_some(), "--l-min");
+        note(self.l_max != d.l_max, "--l-max");
+        note(self.slots != d.slots, "--slots");
+        note(self.roi.is_some(), "--roi");
+        note(self.r_assoc.is_some(), "--r-assoc");
+        note(self.calibration.is_some(), "--calibration");
+        given
+    }
 }
 
 impl Default for PipelineArgs {

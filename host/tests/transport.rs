@@ -172,6 +172,19 @@ fn bad_source_values_and_misplaced_options_are_explained() {
         "{}",
         text(&o)
     );
+    let rec = dir.path().join("in.rois");
+    std::fs::write(&rec, stream(2)).unwrap();
+    let file = format!("file:{}", rec.display());
+    let o = run(&["--source", &file, "--n-window", "50", "--calibration", "/x"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o).contains("--n-window, --calibration configure a device; a file source replays"),
+        "{}",
+        text(&o)
+    );
+    assert!(!out.exists(), "nothing written for refused options");
+    let o = run(&["--source", "usb", "--n-window", "0"]);
+    assert!(text(&o).contains("0 is not in 1.."), "{}", text(&o));
     let o = run(&["--source", "usb", "--vid", "zz"]);
     assert!(
         text(&o).contains("`zz` is not a hexadecimal 16-bit id"),

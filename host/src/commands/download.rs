@@ -201,6 +201,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.pipeline.objective,
     )?;
     if let SourceSpec::File(input) = &spec {
+        let ignored = args.pipeline.configuration_options();
+        if !ignored.is_empty() {
+            bail!(
+                "{} configure a device; a file source replays a recorded stream as it is (only --preset and --objective, which name the camera for localize, apply)",
+                ignored.join(", ")
+            );
+        }
         for out in [args.out.clone(), StreamInfo::path_for(&args.out)] {
             if crate::output::same_file(input, &out) {
                 bail!(
