@@ -18,7 +18,7 @@
 //! | 0x03 | `L_MIN`           | planes a track must stay on to be confirmed (≥ 1)          |
 //! | 0x04 | `L_MAX`           | planes after which an on track is cut (≥ max(L_min, N))    |
 //! | 0x05 | `PLANE_PERIOD_NS` | bit-plane period, ns, copied into the StreamStart record   |
-//! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record |
+//! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record (0 is sent there without `MASK_ENABLE`, whatever this register holds) |
 //! | 0x07 | `THRESHOLD_HOLD`  | integer threshold T_hold that holds an open track on (1 ..= T_int) |
 //!
 //! # Wire-outs (device → host)
@@ -189,7 +189,8 @@ pub fn version_word() -> u32 {
 }
 
 /// Wire-out `KERNEL_CRC`: CRC-32C of the kernel weights, each as u16
-/// little-endian (weights are at most 2^a ≤ 2^15).
+/// little-endian (weights are at most 2^a ≤ 2^12, the configuration's limit
+/// `a ≤ 12`, so each fits its u16).
 pub fn kernel_crc(weights: impl IntoIterator<Item = u16>) -> u32 {
     let bytes: Vec<u8> = weights.into_iter().flat_map(u16::to_le_bytes).collect();
     crc32c(&bytes)
