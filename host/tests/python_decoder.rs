@@ -405,7 +405,7 @@ fn python_decoder_equals_the_host_decoder() {
     // The frozen vectors, each alone and all of a version in one stream.
     let vs = vectors();
     for (name, bytes) in &vs {
-        note(&same_output(name, bytes, &dir.path()));
+        note(&same_output(name, bytes, dir.path()));
         cases += 1;
     }
     let all_v2: Vec<u8> = vs
