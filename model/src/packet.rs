@@ -732,7 +732,8 @@ pub struct LossStats {
     pub bytes_skipped: u64,
     /// Records missing from the sequence, not announced by an Overflow record.
     pub lost_in_transport: u64,
-    /// Records the device announced lost in its output FIFO (Overflow records).
+    /// Records the device announced lost (Overflow records: its record queue
+    /// or its output FIFO was full).
     pub lost_on_device: u64,
     /// CRC-valid frames of a format version newer than [`VERSION`] (skipped).
     pub newer_version: u64,
@@ -777,7 +778,7 @@ impl fmt::Display for LossStats {
         }
         if self.lost_on_device > 0 {
             parts.push(format!(
-                "{} records lost on the device (output FIFO overflow)",
+                "{} records lost on the device (announced by Overflow records)",
                 self.lost_on_device
             ));
         }

@@ -25,7 +25,7 @@
 //!
 //! | addr | name         | meaning                                                          |
 //! |------|--------------|------------------------------------------------------------------|
-//! | 0x20 | `STATUS`     | bit 0 `RUNNING`; bit 1 `ENDED`: the StreamEnd record is in the output FIFO (or already read); bit 2 `OVERFLOWED`: the output FIFO dropped records since START (sticky; Overflow records carry the counts); bits 3–7 gateware diagnostics, see [`status`] |
+//! | 0x20 | `STATUS`     | bit 0 `RUNNING`; bit 1 `ENDED`: the StreamEnd record is in the output FIFO (or already read); bit 2 `OVERFLOWED`: the device lost records since START, its output FIFO or its record queue being full (sticky; Overflow records carry the counts); bits 3–7 gateware diagnostics, see [`status`] |
 //! | 0x21 | `FIFO_BYTES` | bytes of the packet stream waiting in the output FIFO            |
 //! | 0x22 | `VERSION`    | bits 7:0 packet format version ([`crate::packet::VERSION`]), bits 15:8 register-map version ([`REGISTER_MAP_VERSION`]) |
 //! | 0x23 | `GEOMETRY`   | sensor width (bits 15:0) and height (bits 31:16), pixels         |
@@ -144,7 +144,8 @@ pub mod status {
     pub const RUNNING: u32 = 1 << 0;
     /// The StreamEnd record is in the output FIFO (or already read).
     pub const ENDED: u32 = 1 << 1;
-    /// The output FIFO dropped records since START (sticky; Overflow records carry the counts).
+    /// The device lost records since START, its output FIFO or its record
+    /// queue being full (sticky; Overflow records carry the counts).
     pub const OVERFLOWED: u32 = 1 << 2;
     /// START was refused: a register is out of range.
     pub const CONFIG_ERROR: u32 = 1 << 3;

@@ -239,6 +239,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         writeln!(out, "{}", summary_json(&stats))?;
         out.flush()?;
+        if let Some(v) = dec.newer_version_seen() {
+            eprintln!("{}", newer_version_message(v));
+        }
         return Ok(());
     }
     writeln!(out, "{}: {} bytes", args.input.display(), stats.bytes_in)?;
