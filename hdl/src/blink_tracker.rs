@@ -1,9 +1,12 @@
 //! Stage 5 — blink tracking in M slots, exactly the rules of
-//! [`smartagg_model::blink_tracker`] (association against the slot states at
-//! the end of the previous plane plus tracks opened earlier in this plane,
-//! lowest free slot, Chebyshev `r_assoc`, 3×3 on/off around the anchor,
-//! single-plane dip bridging, `L_min` confirmation, cut at `L_max`,
-//! completion at `max(t_drop + 1, t_cross + N − 1)`, stream end).
+//! [`smartagg_model::blink_tracker`] and of `model/PACKETS.md` §8
+//! (association against the slot states at the end of the previous plane
+//! plus tracks opened earlier in this plane, lowest free slot, Chebyshev
+//! `r_assoc`, 3×3 on/off around the anchor, single-plane dip bridging,
+//! `L_min` confirmation of a first segment — a continuation is always
+//! confirmed —, cut at `L_max`, completion of a dropped first segment at
+//! `max(t_drop + 1, t_cross + N − 1)`, of a dropped continuation at
+//! `t_drop + 1`, of a cut segment at the cut plane, stream end).
 //!
 //! **Input.** The words of the front half's output (above bits, `H ≥ T_hold`, and
 //! candidate bits of P pixels, word column, row) through a FIFO, in raster
@@ -73,7 +76,8 @@
 //!
 //! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
 //! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
-//! the tracker is generated): confirmation `t_drop − t_cross ≥ L_min` is `age ≥ L_min + 1`
+//! the tracker is generated): confirmation `t_drop − t_cross ≥ L_min` (of a
+//! first segment; a continuation is always confirmed) is `age ≥ L_min + 1`
 //! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`, the
 //! completion `t + 1 ≥ t_cross + N` is `age ≥ N − 1`, the pre-roll
 //! `t < t_cross + N` is `age < N`. The record's planes are not stored
@@ -549,7 +553,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     do_fin: Signal<Local, Bit>,
     can_push: Signal<Local, Bit>,
     need_bank: Signal<Local, Bit>,
-    bank_wait: Signal<Local, Bit>,
+    /// The walk holds a Blink this clock: the record queue has room but the
+    /// free list shows no bank yet (observed by the tests).
+    pub bank_wait: Signal<Local, Bit>,
     // The walked slot (`w_`: its state; then what the walk makes of it).
     w_busy: Signal<Local, Bit>,
     w_live: Signal<Local, Bit>,

@@ -2,7 +2,7 @@
 //! candidates, fed by a delay line, and its Verilog.
 //!
 //! [`FrontHalf`] takes the live and the delayed stream side by side (the
-//! interface the DDR2 delay line of phase 2 will feed); [`FrontHalfBram`]
+//! interface the DDR2 delay line, [`crate::delay_line_ddr`], feeds); [`FrontHalfBram`]
 //! puts the block-RAM [`DelayLine`] in front of it (configurations whose N_max
 //! planes fit block RAM). Type aliases name the generated configurations.
 
@@ -148,8 +148,8 @@ impl<
 }
 
 /// The front half behind the hot-pixel mask and a block-RAM delay line: the
-/// whole phase-1 pipeline from the raw bit-plane stream to above-threshold
-/// bits and candidates.
+/// whole front half (stages 0–4) from the raw bit-plane stream to
+/// above-threshold bits and candidates.
 #[derive(LogicBlock)]
 pub struct FrontHalfBram<
     const P: usize,

@@ -1,10 +1,16 @@
 //! # smartagg-hdl — gateware of the smart-aggregation pipeline (rust-hdl 0.46)
 //!
-//! Phase 1 of the gateware: the streaming front half — hot-pixel mask, delay
-//! line, rolling count, spatial filter, threshold and candidates — as rust-hdl blocks, each
-//! in the file named like its twin in `model/src/`, each simulated against
-//! that model stage bit for bit (`hdl/tests/`), plus Verilog generation,
-//! Verilator lint and a yosys Spartan-6 resource report ([`synth`]).
+//! The whole smart-aggregation pipeline as rust-hdl blocks, each in the file
+//! named like its twin in `model/src/` and simulated against that model stage
+//! bit for bit (`hdl/tests/`): the streaming front half — hot-pixel mask,
+//! delay line (block RAM, or DDR2 for large N: [`delay_line_ddr`]), rolling
+//! count, spatial filter, threshold and candidates ([`front_half`]) — and the
+//! back half — blink tracker, ROI aggregator and packetiser, which writes the
+//! packet stream of `model/PACKETS.md` ([`pipeline`]); the XEM6310 top with
+//! its register map ([`xem6310`], [`registers`]); Verilog generation,
+//! Verilator lint and a yosys Spartan-6 resource report ([`synth`]). The whole
+//! pipeline is co-simulated byte for byte against the golden model in
+//! Verilator (`sim/`).
 //!
 //! ## Stream and throughput
 //! Pixels arrive in raster order, P per clock, with `valid` (stalls allowed at
@@ -16,7 +22,7 @@
 //! leave 5 %). The pipeline itself never inserts a bubble: one word in per
 //! clock sustained, so the figure above is also its cycles per plane.
 //!
-//! ## Blocks (order of work of `model/src/pipeline.rs`, stages 0–4)
+//! ## Front-half blocks (order of work of `model/src/pipeline.rs`, stages 0–4)
 //! * [`hot_pixel_mask::HotPixelMask`]: `B AND NOT mask`, the mask a W·H-bit
 //!   memory loaded before the stream;
 //! * [`delay_line::DelayLine`]: block-RAM ring of N_max planes, runtime N,

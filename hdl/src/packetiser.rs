@@ -7,8 +7,9 @@
 //! **Blink count block.** The counts are read from the record's counter bank
 //! ([`crate::roi_aggregator`]) three times, one count per clock: pass 1 finds
 //! the minimum `base` (and ORs the rows' mask flags into MASKED), pass 2 feeds
-//! RCW + 1 length accumulators, one per Rice parameter k ≤ RCW (each code is
-//! `min(q + 1 + k, 64)` bits with `q = (c − base) >> k`: an accumulator
+//! RCW + 1 length accumulators, one per Rice parameter k ≤ RCW (with
+//! `q = (c − base) >> k`, a code is `q + 1 + k` bits when `q < 32` and 64
+//! bits, an escape, when `q ≥ 32`: an accumulator
 //! starts at R² (k + 1) and adds q, or 63 − k for an escape; 16 bits suffice
 //! for R ≤ 31; no larger k can win: [`rice_candidates`]), an (RCW + 1)-clock
 //! scan takes the smallest total (ties: smallest k), and
@@ -29,7 +30,8 @@
 //!
 //! **Sequence numbers and overflow.** Every record but Overflow takes the
 //! next number (from `seq_init` at stream start). A record the tracker could
-//! not queue arrives as `r_lost` on the next one. Before emitting a record
+//! not queue (its record queue full) arrives as `r_lost` on the next one and
+//! is numbered and announced like a record the output FIFO dropped. Before emitting a record
 //! the packetiser checks that the output FIFO has room for the whole packet
 //! (and for an Overflow packet if records were lost); if not, the record is
 //! dropped whole and counted. The next record that fits is preceded by one

@@ -42,6 +42,8 @@ enum Command {
     Cosim(commands::cosim::Args),
     /// Receive the blink-ROI packet stream from a board, a file or the co-simulation into a .rois file.
     Download(commands::download::Args),
+    /// What a blink-ROI packet stream (.rois) holds: a summary, or every record as JSON lines (--json).
+    Inspect(commands::inspect::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
     Render(commands::render::Args),
     /// Calibrate a camera from its own recordings: DCR map, hot pixels, PRNU (SPAD); offset, gain, read noise (EMCCD, sCMOS).
@@ -80,6 +82,7 @@ fn main() {
         Command::Render(a) => commands::render::run(a),
         Command::Calibrate(a) => commands::calibrate::run(a),
         Command::Download(a) => commands::download::run(a),
+        Command::Inspect(a) => commands::inspect::run(a),
         Command::Cosim(a) => commands::cosim::run(a),
         Command::Study(a) => commands::study::run(a),
         Command::Hdl(c) => commands::hdl::run(c),

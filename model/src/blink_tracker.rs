@@ -1,6 +1,7 @@
 //! Stage 5 — blink tracking in M slots: when is each molecule on?
 //!
-//! Rules (docs/DESIGN.md §3, with the choices this model makes and the gateware copies):
+//! Rules (docs/DESIGN.md §3, with the choices this model makes and the gateware
+//! copies; `model/PACKETS.md` §8 is the same list as the stream's contract):
 //!
 //! * **Association.** A candidate within Chebyshev distance `r_assoc` of the
 //!   anchor of a track that was active at the end of the previous plane — or
@@ -16,14 +17,18 @@
 //!   candidate then opens a new track.)
 //! * **Open.** Candidates are 3×3 maxima with H ≥ T_int (the *open* level,
 //!   stage 4); so only a candidate opens a track.
-//! * **On/off.** From the plane after `t_cross`, a track is *on* while the
-//!   maximum of H over the 3×3 around its anchor is ≥ T_hold (the *hold*
-//!   level, ≤ T_int: hysteresis, see [`crate::threshold`]). A single plane
-//!   below is bridged (counted); `t_drop` is the first of two consecutive
-//!   planes below, detected at `t_drop + 1`.
-//! * **Confirmation.** A track is confirmed when its on-duration
-//!   `t_drop − t_cross` reaches `L_min`; otherwise its slot is freed at the end
-//!   of the plane that detected the drop and nothing is emitted (counted).
+//! * **On/off.** A track is *on* while the maximum of H over the 3×3 around
+//!   its anchor is ≥ T_hold (the *hold* level, ≤ T_int: hysteresis, see
+//!   [`crate::threshold`]). A first segment is on at its `t_cross` by
+//!   definition and evaluated from the plane after it; a continuation
+//!   segment is evaluated from its own `t_cross` (the plane after the cut).
+//!   A single plane below is bridged (counted); `t_drop` is the first of two
+//!   consecutive planes below, detected at `t_drop + 1`.
+//! * **Confirmation.** A first segment is confirmed when its on-duration
+//!   `t_drop − t_cross` reaches `L_min` (always `≥ 1`, since it is evaluated
+//!   from `t_cross + 1`); otherwise its slot is freed at the end of the plane
+//!   that detected the drop and nothing is emitted (counted). A continuation
+//!   segment is always confirmed.
 //! * **Cut.** A track still on (not in a dip) at a plane `t ≥ t_cross + L_max − 1`
 //!   ends its segment there (`t_drop = t`, flag CUT) and continues in the same
 //!   slot from `t + 1` as a CONTINUATION segment, so no slot or counter is held
@@ -34,11 +39,20 @@
 //!   from the delay line as `B_{t−N}` during planes `t_cross … t_cross + N − 1`.
 //! * **Completion.** A confirmed segment completes at the end of the first plane
 //!   at which its live range has ended and its pre-roll is complete:
-//!   `max(t_drop + 1, t_cross + N − 1)` for a dropped track, the cut plane for
-//!   a cut one. Records are emitted in order of completion plane, then slot;
-//!   the slot is free again from the next plane.
-//! * **Stream end.** Live tracks end with `t_drop` = last plane (flag
-//!   TRUNCATED); confirmed ones complete their pre-roll from the delay line.
+//!   `max(t_drop + 1, t_cross + N − 1)` for a dropped first segment,
+//!   `t_drop + 1` for a dropped continuation, the cut plane for a cut one
+//!   (`L_max ≥ N`, so its pre-roll is complete). Records are emitted in order
+//!   of completion plane, then slot; the slot is free again from the next plane.
+//! * **Stream end.** Live segments end with `t_drop` = last plane (flag
+//!   TRUNCATED). A continuation is confirmed; a first segment is confirmed
+//!   when `e − t_cross ≥ L_min` with `e` = the last plane if it is in a dip,
+//!   the plane after the stream otherwise (so a TRUNCATED record may have
+//!   `t_drop − t_cross = L_min − 1`). Confirmed segments complete their
+//!   pre-roll from the delay line. A cut at the last plane leaves an *empty*
+//!   continuation: CONTINUATION | TRUNCATED, `t_drop = t_cross − 1`,
+//!   `planes_summed = 0`.
+//!
+//! `model/PACKETS.md` §8 states these rules as the contract of the stream.
 
 use crate::candidates::Candidate;
 use crate::record::flags;

@@ -1,12 +1,19 @@
 //! Stage 4 — candidates: above-threshold pixels that are maxima of their 3×3
 //! neighbourhood.
 //!
-//! Tie rule (so that a plateau yields exactly one candidate, decided as pixels
-//! stream in raster order): a pixel must be strictly greater than its four
+//! Tie rule (decided as pixels stream in raster order, so that two candidates
+//! are never 3×3 neighbours): a pixel must be strictly greater than its four
 //! *earlier* neighbours in raster order — (x−1,y−1), (x,y−1), (x+1,y−1),
 //! (x−1,y) — and greater than or equal to its four *later* ones — (x+1,y),
 //! (x−1,y+1), (x,y+1), (x+1,y+1). Neighbours outside the sensor are ignored
 //! (equivalently H = 0 there, which an above-threshold pixel always beats).
+//!
+//! A connected plateau of equal values can yield more than one candidate
+//! (never two neighbours): on a 3×2 sensor with rows `0 0 5` and `5 5 0`,
+//! (2,0) and (0,1) each beat their earlier neighbours (all 0) and tie their
+//! later neighbour (1,1) = 5, which loses to its earlier neighbour (2,0); so
+//! both are candidates although the three 5s are connected. A 2×2 plateau
+//! yields its first pixel in raster order.
 
 /// A candidate pixel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -73,11 +80,28 @@ mod tests {
         assert!(find(&p, 3, 3, 4).is_empty());
     }
 
+    /// The tie rule does not make a plateau yield one candidate: this
+    /// connected plateau of three 5s yields two, (2,0) and (0,1), which are
+    /// not neighbours (the claim the module docs make instead).
+    #[test]
+    fn a_connected_plateau_can_yield_two_candidates() {
+        #[rustfmt::skip]
+        let h = [
+            0, 0, 5,
+            5, 5, 0,
+        ];
+        assert_eq!(
+            find(&h, 3, 2, 1),
+            vec![Candidate { x: 2, y: 0 }, Candidate { x: 0, y: 1 }]
+        );
+    }
+
     proptest! {
-        /// Every connected plateau of equal maximal values yields at most one
-        /// candidate, and every candidate is a 3x3 maximum above threshold.
+        /// Every candidate is a 3x3 maximum above threshold, and no two
+        /// candidates are 3x3 neighbours (a plateau may still yield several,
+        /// see `a_connected_plateau_can_yield_two_candidates`).
         #[test]
-        fn candidates_are_maxima_and_unique_within_3x3(w in 1usize..9, h in 1usize..9, vals in proptest::collection::vec(0u32..4, 81)) {
+        fn candidates_are_maxima_and_never_neighbours(w in 1usize..9, h in 1usize..9, vals in proptest::collection::vec(0u32..4, 81)) {
             let img: Vec<u32> = vals[..w * h].to_vec();
             let c = find(&img, w, h, 1);
             for a in &c {

@@ -50,8 +50,8 @@
 //!
 //! The [`Encoder`] gives every record but Overflow the next sequence number
 //! (wrapping u32), starting at 0 with StreamStart. An Overflow record, emitted
-//! only by the gateware when its output FIFO dropped records, carries in its
-//! header the sequence number of the first record lost (equal to its
+//! only by the gateware when it lost records (its record queue or its output
+//! FIFO was full), carries in its header the sequence number of the first record lost (equal to its
 //! `first_seq`) and consumes none. The [`Decoder`] expects sequence 0 first
 //! and then reports every discontinuity as an [`Event::Gap`]: the records
 //! announced by an Overflow record are lost on the device, every other missing
@@ -197,7 +197,8 @@ pub enum PacketError {
     OverflowEmpty,
 }
 
-/// A CRC-valid version-1 frame whose payload is not a valid record.
+/// A CRC-valid frame of a version this crate reads whose payload is not a
+/// valid record.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum PayloadError {
     /// A record type this version does not define.
@@ -723,14 +724,16 @@ pub struct LossStats {
     pub bytes_in: u64,
     /// Plausible headers whose CRC did not match (each skipped by one byte).
     pub crc_errors: u64,
-    /// CRC-valid version-1 frames whose payload is invalid (skipped whole).
+    /// CRC-valid frames of a version this crate reads (1 or 2) whose payload
+    /// is invalid (skipped whole).
     pub malformed: u64,
     /// Bytes not delivered: noise, corrupted frames, malformed and
     /// newer-version frames (the truncated tail is counted apart).
     pub bytes_skipped: u64,
     /// Records missing from the sequence, not announced by an Overflow record.
     pub lost_in_transport: u64,
-    /// Records the device announced lost in its output FIFO (Overflow records).
+    /// Records the device announced lost (Overflow records: its record queue
+    /// or its output FIFO was full).
     pub lost_on_device: u64,
     /// CRC-valid frames of a format version newer than [`VERSION`] (skipped).
     pub newer_version: u64,
@@ -775,7 +778,7 @@ impl fmt::Display for LossStats {
         }
         if self.lost_on_device > 0 {
             parts.push(format!(
-                "{} records lost on the device (output FIFO overflow)",
+                "{} records lost on the device (announced by Overflow records)",
                 self.lost_on_device
             ));
         }

@@ -12,6 +12,10 @@
 //! 6. cuts, completions and slot frees; records out in slot order, then one
 //!    dropped-candidates record if any candidate found no slot (stage 7).
 //!
+//! At stream end ([`Pipeline::finish`]): the segments still held, in slot
+//! order (live ones TRUNCATED), then the StreamEnd record. `model/PACKETS.md`
+//! §8 states this order and the tracking rules as the stream's contract.
+//!
 //! Every stage's output of the last plane is observable (for co-simulation).
 
 use crate::blink_tracker::{BlinkTracker, Completed};

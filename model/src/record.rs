@@ -1,7 +1,8 @@
 //! The records the pipeline emits: what a packet carries once decoded.
 //!
-//! The byte layout of each record is defined in [`crate::packet`]; this module
-//! only says what the fields mean. Plane indices count bit-planes from 0 at
+//! The byte layout and the meaning of every field are defined in
+//! `model/PACKETS.md` (§3, and §8 for which records exist and when); the
+//! docs here summarise them. Plane indices count bit-planes from 0 at
 //! stream start and are carried in 48 bits on the wire (890 years at 10 kHz).
 
 use serde::{Deserialize, Serialize};
@@ -21,7 +22,9 @@ pub mod flags {
     /// This segment continues a cut one: it has no pre-roll (the previous
     /// segment already summed the planes before `t_cross`).
     pub const CONTINUATION: u8 = 1 << 3;
-    /// The stream ended while the blink was on; `t_drop` is the end of stream.
+    /// The stream ended while the segment was live; `t_drop` is the last
+    /// plane of the stream (with CONTINUATION, possibly `t_cross − 1`: an
+    /// empty segment).
     pub const TRUNCATED: u8 = 1 << 4;
     /// `t_cross < N`: the pre-roll was clipped at plane 0.
     pub const PREROLL_CLIPPED: u8 = 1 << 5;
@@ -74,17 +77,23 @@ pub struct BlinkRecord {
     pub anchor_x: u16,
     /// Anchor row.
     pub anchor_y: u16,
-    /// Plane at which the track opened (threshold crossed).
+    /// First live plane: the plane at which the track opened (threshold
+    /// crossed), or the plane after the cut for a continuation.
     pub t_cross: u64,
-    /// First of the two consecutive planes below threshold (last plane summed).
+    /// Last live plane summed: the first of the two consecutive planes below
+    /// T_hold, the cut plane (CUT), or the last plane of the stream
+    /// (TRUNCATED). `t_cross − 1` for an empty continuation (a cut at the
+    /// last plane: CONTINUATION | TRUNCATED, `planes_summed = 0`).
     pub t_drop: u64,
     /// Estimated start of the blink: `t_cross − ⌊N/2⌋` (mid-window), or
     /// `t_cross` for a continuation segment. May be negative near stream start.
     pub t_s: i64,
     /// Estimated end of the blink: `t_drop − ⌊N/2⌋`, or `t_drop` for a cut or
-    /// truncated segment.
+    /// truncated segment. May be below `t_s`: a continuation that ends within
+    /// ⌊N/2⌋ planes of its `t_cross`, and an empty segment.
     pub t_e: i64,
-    /// Number of bit-planes summed into the ROI.
+    /// Number of bit-planes summed into the ROI: `t_drop + 1 − max(0, t_cross − N)`,
+    /// or `t_drop + 1 − t_cross` for a continuation (0 for an empty one).
     pub planes_summed: u32,
     /// ROI side R; `counts` has R×R entries.
     pub roi_size: u8,
@@ -128,9 +137,11 @@ pub struct DroppedRecord {
 pub struct StreamEnd {
     /// Bit-planes processed.
     pub planes: u64,
-    /// Blink records emitted (segments included).
+    /// Blink records produced (segments included; records the device then
+    /// lost included).
     pub blinks: u64,
-    /// Tracks that went off before L_min planes and emitted nothing.
+    /// First segments that ended unconfirmed (before L_min planes) and
+    /// emitted nothing.
     pub unconfirmed: u64,
     /// Candidates dropped for want of a free slot.
     pub dropped_candidates: u64,
@@ -140,8 +151,9 @@ pub struct StreamEnd {
     pub cut_segments: u64,
 }
 
-/// Emitted by the gateware only: records lost because the output FIFO was
-/// full. It carries no sequence number of its own (see [`crate::packet`]).
+/// Emitted by the gateware only: records it numbered but lost, because its
+/// record queue or its output FIFO was full. It carries no sequence number of
+/// its own (see [`crate::packet`] and `model/PACKETS.md` §5).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct OverflowRecord {
     /// Sequence number of the first record lost.
@@ -161,6 +173,6 @@ pub enum Record {
     Dropped(DroppedRecord),
     /// Totals at stream end.
     End(StreamEnd),
-    /// Records lost in the device's output FIFO.
+    /// Records lost on the device (record queue or output FIFO).
     Overflow(OverflowRecord),
 }

@@ -18,14 +18,14 @@
 //! | 0x03 | `L_MIN`           | planes a track must stay on to be confirmed (≥ 1)          |
 //! | 0x04 | `L_MAX`           | planes after which an on track is cut (≥ max(L_min, N))    |
 //! | 0x05 | `PLANE_PERIOD_NS` | bit-plane period, ns, copied into the StreamStart record   |
-//! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record |
+//! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record (0 is sent there without `MASK_ENABLE`, whatever this register holds) |
 //! | 0x07 | `THRESHOLD_HOLD`  | integer threshold T_hold that holds an open track on (1 ..= T_int) |
 //!
 //! # Wire-outs (device → host)
 //!
 //! | addr | name         | meaning                                                          |
 //! |------|--------------|------------------------------------------------------------------|
-//! | 0x20 | `STATUS`     | bit 0 `RUNNING`; bit 1 `ENDED`: the StreamEnd record is in the output FIFO (or already read); bit 2 `OVERFLOWED`: the output FIFO dropped records since START (sticky; Overflow records carry the counts); bits 3–7 gateware diagnostics, see [`status`] |
+//! | 0x20 | `STATUS`     | bit 0 `RUNNING`; bit 1 `ENDED`: the StreamEnd record is in the output FIFO (or already read); bit 2 `OVERFLOWED`: the device lost records since START, its output FIFO or its record queue being full (sticky; Overflow records carry the counts); bits 3–7 gateware diagnostics, see [`status`] |
 //! | 0x21 | `FIFO_BYTES` | bytes of the packet stream waiting in the output FIFO            |
 //! | 0x22 | `VERSION`    | bits 7:0 packet format version ([`crate::packet::VERSION`]), bits 15:8 register-map version ([`REGISTER_MAP_VERSION`]) |
 //! | 0x23 | `GEOMETRY`   | sensor width (bits 15:0) and height (bits 31:16), pixels         |
@@ -144,7 +144,8 @@ pub mod status {
     pub const RUNNING: u32 = 1 << 0;
     /// The StreamEnd record is in the output FIFO (or already read).
     pub const ENDED: u32 = 1 << 1;
-    /// The output FIFO dropped records since START (sticky; Overflow records carry the counts).
+    /// The device lost records since START, its output FIFO or its record
+    /// queue being full (sticky; Overflow records carry the counts).
     pub const OVERFLOWED: u32 = 1 << 2;
     /// START was refused: a register is out of range.
     pub const CONFIG_ERROR: u32 = 1 << 3;
@@ -189,7 +190,8 @@ pub fn version_word() -> u32 {
 }
 
 /// Wire-out `KERNEL_CRC`: CRC-32C of the kernel weights, each as u16
-/// little-endian (weights are at most 2^a ≤ 2^15).
+/// little-endian (weights are at most 2^a ≤ 2^12, the configuration's limit
+/// `a ≤ 12`, so each fits its u16).
 pub fn kernel_crc(weights: impl IntoIterator<Item = u16>) -> u32 {
     let bytes: Vec<u8> = weights.into_iter().flat_map(u16::to_le_bytes).collect();
     crc32c(&bytes)

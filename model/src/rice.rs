@@ -10,8 +10,9 @@
 //!
 //! 1. `base`: the minimum count of the ROI, as an unsigned LEB128 varint
 //!    (7 value bits per byte, least significant group first, bit 7 set on
-//!    every byte but the last; 1 to 5 bytes, no redundant trailing `0x80`
-//!    groups, value < 2³²).
+//!    every byte but the last; 1 to 5 bytes, the 5th byte ≤ `0x0F` so that
+//!    the value is < 2³², and the last byte of a multi-byte varint is not
+//!    `0x00`, a redundant trailing group).
 //! 2. `k`: one byte, the Rice parameter, `0..=31`.
 //! 3. Every count `c`, in row-major order, as the Rice code of `d = c − base`:
 //!    * `q = d >> k`. If `q < 32`: `q` one-bits, one zero-bit, then the `k`

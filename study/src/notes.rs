@@ -1,7 +1,9 @@
 //! What each study's summary says about its differences from the paper:
 //! the findings of the investigation, written once and printed with every
-//! run. Figures quoted are from the default runs (500 blinks per point,
-//! seed 1); the tables above them are this run's.
+//! run. The figures they quote are earlier results — the default run of each
+//! study (500 blinks per point, seed 1), committed in `study/results/` — and
+//! every summary says so, with that run's command, so that no summary
+//! presents them as its own: a summary's own figures are its tables.
 
 use crate::spec::StudyName;
 
@@ -22,5 +24,18 @@ pub fn notes(study: StudyName) -> String {
         StudyName::HotPixels => "**Here.** Both claims hold. Hot pixels (10 kHz dark count times the DRNU spread, a known map from calibration, interpolated for detection) change the error by at most 5 % (150x) and 14 % (60x) up to 10 % of the pixels, and by 24-30 % at 20 %. Leaving them out of the likelihood beats interpolating them at 60x (sigma = 0.6 px: a hot pixel under the PSF carries much of the signal, and its neighbours' mean underestimates it) by 7-31 %; at 150x (sigma = 1.5 px) the 4-neighbour mean is a good estimate of the missing pixel and the two strategies are within 3 % of each other (interpolating 1-3 % worse from 15 % hot pixels on), so 'ignoring beats interpolating' holds clearly at 60x and only marginally at 150x.",
         StudyName::Localizers => "**Here (beyond the paper).** On the same smart-aggregated ROIs the Poisson MLE, the SPAD binomial MLE and least squares all come within 1.2-1.35x of the Cramér–Rao bound of an ideal aggregation (the rest is mechanism 2, shared by all); fixing sigma gains about 3 %; the centroid, pulled to the ROI centre by the background, is 2.1-2.4x the bound. In the default run (one core each, loaded machine) the centroid fits about 190,000 ROIs/s, the fixed-sigma MLE 110,000, the MLE and least squares about 53,000, the SPAD binomial MLE 8,600 (12,000 with sigma fixed). The binomial MLE equals the Poisson MLE at the SPCIMAGER's rates (no pile-up) at six times the cost; it matters for brighter molecules or longer planes, where pixels saturate.",
     };
-    format!("{COMMON}\n{specific}\n")
+    format!(
+        "{}\n\n{COMMON}\n{specific}\n",
+        earlier_results(study.as_str())
+    )
+}
+
+/// The sentence that names the figures of the notes as earlier results,
+/// with their command.
+pub fn earlier_results(study: &str) -> String {
+    format!(
+        "*The figures quoted below are earlier results, not this run's: they come from the default run \
+         `smartagg study {study} --out DIR` (its defaults: 500 blinks per point, seed 1), committed in \
+         `study/results/{study}/summary.md`. This run's own figures are the tables above.*"
+    )
 }

@@ -201,6 +201,14 @@ fn run_writes_every_output_of_a_study() {
         assert!(files.iter().any(|p| p.ends_with(f)), "{f}");
         assert!(std::fs::metadata(dir.path().join(f)).unwrap().len() > 100);
     }
+    // A quick run with another seed: the notes' figures are named as the
+    // default run's, with its command, not as this run's.
+    let md = std::fs::read_to_string(dir.path().join("summary.md")).unwrap();
+    assert!(
+        md.contains("earlier results, not this run's")
+            && md.contains("`smartagg study emccd-frames --out DIR`"),
+        "{md}"
+    );
     assert_eq!(
         Experiment::parse("blink-durations"),
         Some(Experiment::BlinkDurations)

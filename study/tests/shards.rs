@@ -51,6 +51,12 @@ fn shards_merge_bit_identically_and_outputs_are_written() {
     assert!(png.len() > 10_000, "a real plot, not an empty image");
     let md = String::from_utf8(read(&whole.join("summary.md"))).unwrap();
     assert!(md.contains("53.3 nm") && md.contains("detection") && md.contains("time s"));
+    // The notes' figures are named as the default run's, with its command.
+    assert!(
+        md.contains("earlier results, not this run's")
+            && md.contains("`smartagg study smart-vs-fixed --out DIR`"),
+        "{md}"
+    );
     let points = String::from_utf8(read(&whole.join("points.csv"))).unwrap();
     // Header plus 2 points x 5 schemes, every one with the matching rule.
     assert_eq!(points.lines().count(), 1 + 2 * 5);

@@ -10,6 +10,7 @@ pub mod cosim;
 pub mod demo;
 pub mod download;
 pub mod hdl;
+pub mod inspect;
 pub mod localize;
 pub mod params;
 pub mod presets;

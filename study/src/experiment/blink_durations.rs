@@ -553,7 +553,7 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
     let _ = writeln!(
         m,
         "## Where this differs from the paper, and why\n\n{}",
-        super::notes::BLINK_DURATIONS
+        super::notes::with_source("blink-durations", super::notes::BLINK_DURATIONS)
     );
     for w in warnings {
         let _ = writeln!(m, "\n**Warning**: {w}");

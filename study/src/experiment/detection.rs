@@ -544,7 +544,7 @@ pub fn write(dir: &Path, r: &DetectionResult) -> Result<(Vec<PathBuf>, Vec<Strin
             p.seconds
         );
     }
-    let _ = writeln!(m, "\nTime: wall seconds of the pipeline, packet path and fits for that N (the simulation is shared).\n\n## Where this differs from the paper, and why\n\n{}", super::notes::DETECTION);
+    let _ = writeln!(m, "\nTime: wall seconds of the pipeline, packet path and fits for that N (the simulation is shared).\n\n## Where this differs from the paper, and why\n\n{}", super::notes::with_source("detection", super::notes::DETECTION));
     for w in &warnings {
         let _ = writeln!(m, "\n**Warning**: {w}");
     }

@@ -224,7 +224,7 @@ pub fn write(dir: &Path, r: &EmccdFramesResult) -> Result<(Vec<PathBuf>, Vec<Str
             p.seconds
         );
     }
-    let _ = writeln!(m, "\nTime: wall seconds for the point (simulation, both schemes' fits; points run in parallel).\n\n## Where this differs from the paper, and why\n\n{}", super::notes::EMCCD_FRAMES);
+    let _ = writeln!(m, "\nTime: wall seconds for the point (simulation, both schemes' fits; points run in parallel).\n\n## Where this differs from the paper, and why\n\n{}", super::notes::with_source("emccd-frames", super::notes::EMCCD_FRAMES));
     for w in &warnings {
         let _ = writeln!(m, "\n**Warning**: {w}");
     }

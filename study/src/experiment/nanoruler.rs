@@ -740,7 +740,11 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
         fmt(dd[3])
     );
     let _ = writeln!(m, "\n## Where this differs from the paper, and why\n");
-    let _ = writeln!(m, "{}", super::notes::NANORULER);
+    let _ = writeln!(
+        m,
+        "{}",
+        super::notes::with_source("nanoruler", super::notes::NANORULER)
+    );
     for w in warnings {
         let _ = writeln!(m, "\n**Warning**: {w}");
     }

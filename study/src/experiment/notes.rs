@@ -1,6 +1,7 @@
 //! Where the experiment studies differ from the paper, and why. Written
-//! from measured runs (the default runs under `study/results/`); each
-//! summary prints its own numbers above these notes.
+//! from earlier measured runs (the default runs under `study/results/`);
+//! each summary prints its own numbers above these notes, and [`with_source`]
+//! names the notes' figures as those earlier results, with their command.
 
 /// Notes of the `nanoruler` study.
 pub const NANORULER: &str = "\
@@ -80,3 +81,13 @@ the false-alarm rate of a shorter window) and by blinks shorter than the window.
 (70 % against 60 % of the blinks) but with a noisier H, so tracks split (≈ 3.3 records per blink, which inflates the \
 localisations per second) and each localisation is poorer (RMS ≈ 27 nm against 19 nm); twice N gives the best error per localisation but detects under half of the \
 blinks. The paper's N sits where the detection per window reaches 99 %.";
+
+/// `notes` of the study `study`, preceded by the sentence that names their
+/// figures as earlier results of the default run, with its command.
+pub fn with_source(study: &str, notes: &str) -> String {
+    format!(
+        "*The figures quoted below are earlier results, not this run's: they come from the default run \
+         `smartagg study {study} --out DIR` (its defaults, seed 1), committed in \
+         `study/results/{study}/summary.md`. This run's own figures are the tables above.*\n\n{notes}"
+    )
+}
