@@ -55,20 +55,18 @@ pub fn fmt_num(v: f64) -> String {
         return format!("{v}");
     }
     let plain = format!("{v}");
-    if plain.len() <= 12 {
+    let a = v.abs();
+    if !(1e-4..1e7).contains(&a) {
+        format!("{v:e}")
+    } else if plain.len() <= 12 {
         plain
     } else {
-        let a = v.abs();
-        if (1e-4..1e9).contains(&a) {
-            // Long only because of the binary fraction: 6 significant digits.
-            let s = format!("{v:.*}", (5 - a.log10().floor() as i32).max(0) as usize);
-            if s.contains('.') {
-                s.trim_end_matches('0').trim_end_matches('.').to_string()
-            } else {
-                s
-            }
+        // Long only because of the binary fraction: 6 significant digits.
+        let s = format!("{v:.*}", (5 - a.log10().floor() as i32).max(0) as usize);
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
         } else {
-            format!("{v:e}")
+            s
         }
     }
 }
@@ -76,7 +74,12 @@ pub fn fmt_num(v: f64) -> String {
 /// Checks `value` is finite and within `[lo, hi]`; the error gives the range.
 pub fn check_range(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f64, ParamError> {
     if !value.is_finite() || value < lo || value > hi {
-        return Err(ParamError::OutOfRange { name, value, lo, hi });
+        return Err(ParamError::OutOfRange {
+            name,
+            value,
+            lo,
+            hi,
+        });
     }
     Ok(value)
 }
@@ -660,6 +663,9 @@ mod tests {
     fn numbers_in_messages_stay_short() {
         assert_eq!(fmt_num(0.5), "0.5");
         assert_eq!(fmt_num(1500.0), "1500");
+        assert_eq!(fmt_num(65535.0), "65535");
+        assert_eq!(fmt_num(1e9), "1e9");
+        assert_eq!(fmt_num(2.5e10), "2.5e10");
         assert_eq!(fmt_num(1e300), "1e300");
         assert_eq!(fmt_num(-1e12), "-1e12");
         assert_eq!(fmt_num(1e-320), "1e-320");
@@ -670,9 +676,11 @@ mod tests {
             .to_string();
         assert_eq!(
             e,
-            "invalid parameter `--flux (photons/s)` = 1e300: must be a finite number in 0 ..= 1000000000"
+            "invalid parameter `--flux (photons/s)` = 1e300: must be a finite number in 0 ..= 1e9"
         );
-        let e = check_positive("x", 1e-300).map(|_| ()).and(check_positive("x", -1e300));
+        let e = check_positive("x", 1e-300)
+            .map(|_| ())
+            .and(check_positive("x", -1e300));
         assert!(e.unwrap_err().to_string().contains("= -1e300:"));
     }
 

@@ -886,7 +886,9 @@ mod tests {
     #[test]
     fn a_short_file_claiming_huge_planes_fails_at_open() {
         // 4 KB claiming 65535x32768 pixels (268 MB per plane).
-        let mut b = header(65535, 32768, 10, BitOrder::LsbFirst).to_bytes().to_vec();
+        let mut b = header(65535, 32768, 10, BitOrder::LsbFirst)
+            .to_bytes()
+            .to_vec();
         b.resize(4096, 0x5a);
         let e = RecordingReader::open(&b[..]).unwrap_err();
         assert!(
@@ -905,11 +907,21 @@ mod tests {
         b[40..48].copy_from_slice(&PLANES_UNKNOWN.to_le_bytes());
         assert!(RecordingReader::open(&b[..]).is_err());
         let e = RecordingReader::open(&b[..48]).map(|r| r.header().planes);
-        assert_eq!(e.unwrap(), PLANES_UNKNOWN, "a live capture with no plane yet");
+        assert_eq!(
+            e.unwrap(),
+            PLANES_UNKNOWN,
+            "a live capture with no plane yet"
+        );
         let h = header(65535, 32768, 10, BitOrder::LsbFirst).to_bytes();
         let e = RecordingReader::open(&h[..]).unwrap_err();
         assert!(
-            matches!(e, RecordingError::MissingPlanes { declared: 10, found: 0 }),
+            matches!(
+                e,
+                RecordingError::MissingPlanes {
+                    declared: 10,
+                    found: 0
+                }
+            ),
             "{e}"
         );
         // Zero planes of a huge size: the trailing-byte check reads little.
@@ -921,11 +933,17 @@ mod tests {
     #[test]
     fn raw_input_without_a_plane_is_an_error() {
         let e = RecordingReader::open_raw(&[][..], 64, 64, BitOrder::LsbFirst, 10_000).unwrap_err();
-        assert!(matches!(e, RecordingError::NoPlanes { bytes: 512, .. }), "{e}");
+        assert!(
+            matches!(e, RecordingError::NoPlanes { bytes: 512, .. }),
+            "{e}"
+        );
         assert!(e.to_string().contains("empty"), "{e}");
         let e = RecordingReader::open_raw(&[1u8; 100][..], 64, 64, BitOrder::LsbFirst, 10_000)
             .unwrap_err();
-        assert!(matches!(e, RecordingError::Truncated { plane: 0, .. }), "{e}");
+        assert!(
+            matches!(e, RecordingError::Truncated { plane: 0, .. }),
+            "{e}"
+        );
     }
 
     #[test]
@@ -935,7 +953,10 @@ mod tests {
         assert!(h.validate().is_ok());
         h.plane_period_ns = MAX_PLANE_PERIOD_NS + 1;
         let e = h.validate().unwrap_err().to_string();
-        assert!(e.contains("plane_period_ns") && e.contains("4294967295 ns"), "{e}");
+        assert!(
+            e.contains("plane_period_ns") && e.contains("4294967295 ns"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -122,11 +122,17 @@ fn read_spad(bytes: &[u8], raw: Option<(u32, u32)>) -> u64 {
             Ok(Some(p)) => {
                 assert_eq!((p.width() as u32, p.height() as u32), (hd.width, hd.height));
                 n += 1;
-                assert!(n * plane_bytes <= bytes.len() as u64, "more planes than bytes");
+                assert!(
+                    n * plane_bytes <= bytes.len() as u64,
+                    "more planes than bytes"
+                );
             }
             Ok(None) => break,
             Err(_) => {
-                assert!(rd.read_plane().unwrap().is_none(), "reads go on after an error");
+                assert!(
+                    rd.read_plane().unwrap().is_none(),
+                    "reads go on after an error"
+                );
                 break;
             }
         }
@@ -143,7 +149,11 @@ fn read_spad(bytes: &[u8], raw: Option<(u32, u32)>) -> u64 {
 fn check_spad(bytes: &[u8], raw: Option<(u32, u32)>) {
     let (_, peak) = peak_alloc(|| read_spad(bytes, raw));
     let bound = 4 * bytes.len() + (1 << 20);
-    assert!(peak <= bound, "{peak} bytes allocated for {} input bytes", bytes.len());
+    assert!(
+        peak <= bound,
+        "{peak} bytes allocated for {} input bytes",
+        bytes.len()
+    );
 }
 
 /// A header field to overwrite: (offset, width in bytes).
@@ -186,7 +196,8 @@ enum Mutation {
 fn mutation() -> impl Strategy<Value = Mutation> {
     prop_oneof![
         (any::<usize>(), 0u8..8).prop_map(|(at, bit)| Mutation::Flip { at, bit }),
-        (0..SPAD_FIELDS.len(), field_value()).prop_map(|(field, value)| Mutation::Field { field, value }),
+        (0..SPAD_FIELDS.len(), field_value())
+            .prop_map(|(field, value)| Mutation::Field { field, value }),
         any::<usize>().prop_map(|at| Mutation::Cut { at }),
         (any::<usize>(), prop::collection::vec(any::<u8>(), 1..32))
             .prop_map(|(at, bytes)| Mutation::Insert { at, bytes }),
@@ -276,7 +287,12 @@ proptest! {
 
 #[test]
 fn spad_headers_claiming_the_largest_planes_allocate_little() {
-    for (w, h) in [(65535u32, 32768u32), (u32::MAX, 1), (1, u32::MAX), (46341, 46341)] {
+    for (w, h) in [
+        (65535u32, 32768u32),
+        (u32::MAX, 1),
+        (1, u32::MAX),
+        (46341, 46341),
+    ] {
         for declared in [0, 1, 7, PLANES_UNKNOWN] {
             let mut b = valid_recording(4, 4, 0, 0, 1);
             b[12..16].copy_from_slice(&w.to_le_bytes());
@@ -335,7 +351,8 @@ fn decode_chunked(bytes: &[u8], chunks: &[usize]) -> (Vec<Event>, LossStats) {
 /// truncated tail; the events agree with the counters.
 fn check_accounting(bytes: &[u8], events: &[Event], st: &LossStats) {
     assert_eq!(st.bytes_in, bytes.len() as u64);
-    let (mut packets, mut skipped, mut tail, mut lost_t, mut lost_d) = (0u64, 0u64, 0u64, 0u64, 0u64);
+    let (mut packets, mut skipped, mut tail, mut lost_t, mut lost_d) =
+        (0u64, 0u64, 0u64, 0u64, 0u64);
     let mut back = 0u64;
     for e in events {
         match e {
@@ -348,7 +365,9 @@ fn check_accounting(bytes: &[u8], events: &[Event], st: &LossStats) {
                     skipped += bytes
                 }
             }
-            Event::Gap { lost, on_device, .. } => {
+            Event::Gap {
+                lost, on_device, ..
+            } => {
                 if *lost == 0 {
                     back += 1;
                 } else if *on_device {
@@ -367,10 +386,19 @@ fn check_accounting(bytes: &[u8], events: &[Event], st: &LossStats) {
     assert_eq!(back, st.out_of_order, "{st:?}");
     // What is neither skipped nor tail was delivered in whole packets.
     let in_packets = st.bytes_in - st.bytes_skipped - st.truncated_tail_bytes;
-    assert!(st.bytes_skipped + st.truncated_tail_bytes <= st.bytes_in, "{st:?}");
-    assert!(in_packets >= st.packets_ok * (HEADER_LEN + CRC_LEN) as u64, "{st:?}");
+    assert!(
+        st.bytes_skipped + st.truncated_tail_bytes <= st.bytes_in,
+        "{st:?}"
+    );
+    assert!(
+        in_packets >= st.packets_ok * (HEADER_LEN + CRC_LEN) as u64,
+        "{st:?}"
+    );
     assert!(in_packets <= st.packets_ok * MAX_PACKET as u64, "{st:?}");
-    assert!(st.crc_errors <= st.bytes_skipped + st.truncated_tail_bytes, "{st:?}");
+    assert!(
+        st.crc_errors <= st.bytes_skipped + st.truncated_tail_bytes,
+        "{st:?}"
+    );
     if in_packets == 0 {
         assert_eq!(st.packets_ok, 0);
     }
@@ -383,7 +411,11 @@ fn check_stream(bytes: &[u8], chunks: &[usize]) {
     // Decoded records may be larger than their compressed payloads (a
     // 31x31 ROI of counts, a 255-tap kernel): a fixed multiple of the input.
     let bound = 64 * bytes.len() + (256 << 10);
-    assert!(peak <= bound, "decode_all held {peak} bytes for {} input bytes", bytes.len());
+    assert!(
+        peak <= bound,
+        "decode_all held {peak} bytes for {} input bytes",
+        bytes.len()
+    );
     let (events, stats) = decode_chunked(bytes, chunks);
     check_accounting(bytes, &events, &stats);
     assert_eq!(whole.stats, stats, "the chunking changed the counters");

@@ -71,7 +71,7 @@ pub(crate) fn exponential<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
 /// subnormal cv): the normal limit `1 + cv·Z` is used, which differs from
 /// the Gamma by far less than f64 resolves.
 pub(crate) fn unit_gamma<R: Rng + ?Sized>(rng: &mut R, cv: f64) -> f64 {
-    if !(cv > 0.0) {
+    if cv.is_nan() || cv <= 0.0 {
         return 1.0;
     }
     if cv < 1e-6 {

@@ -58,10 +58,17 @@ fn the_brightest_molecule_in_the_longest_frame_takes_no_longer_than_a_dim_one() 
     assert!(t.elapsed() < Duration::from_secs(5), "{:?}", t.elapsed());
     let b = &sim.truth()[0];
     let expected = MAX_FLUX_HZ * 3.0 * MAX_FRAME_PERIOD_S;
-    assert!(b.photons_emitted as f64 > 0.999 * expected && (b.photons_emitted as f64) < 1.001 * expected);
+    assert!(
+        b.photons_emitted as f64 > 0.999 * expected
+            && (b.photons_emitted as f64) < 1.001 * expected
+    );
     // The whole PSF is in the field: detected ≈ QE × emitted.
     let ratio = b.photons_detected as f64 / b.photons_emitted as f64;
-    assert!((ratio - cam.qe).abs() < 0.01 * cam.qe, "{ratio} vs QE {}", cam.qe);
+    assert!(
+        (ratio - cam.qe).abs() < 0.01 * cam.qe,
+        "{ratio} vs QE {}",
+        cam.qe
+    );
 }
 
 #[test]
@@ -80,7 +87,11 @@ fn per_pixel_sampling_keeps_the_photon_statistics() {
         let b = &sim.truth()[0];
         let mean = flux * frames as f64 * cam.exposure_s * cam.qe;
         let z = (b.photons_detected as f64 - mean) / mean.sqrt();
-        assert!(z.abs() < 6.0, "flux {flux}: {} vs {mean}", b.photons_detected);
+        assert!(
+            z.abs() < 6.0,
+            "flux {flux}: {} vs {mean}",
+            b.photons_detected
+        );
     }
 }
 
@@ -104,7 +115,10 @@ fn absurd_light_and_frame_periods_are_refused_with_the_limit() {
     let e = EmccdSimulator::new(&cam, &one_blink(&p, &cam, 1e300, 1.0), 1)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("flux_hz") && e.contains("1e300") && e.contains("1000000000"), "{e}");
+    assert!(
+        e.contains("flux_hz") && e.contains("1e300") && e.contains("..= 1e9"),
+        "{e}"
+    );
     cam.frame_period_s = 1e305;
     cam.exposure_s = 1e305;
     let e = EmccdSimulator::new(&cam, &one_blink(&p, &cam, 1e4, 1.0), 1)
