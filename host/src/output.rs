@@ -3,7 +3,7 @@
 //! and never over one of the command's inputs.
 
 use anyhow::{bail, Context};
-use std::io::Write;
+use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 /// Whether `a` and `b` name the same existing file (symbolic and hard links
@@ -89,6 +89,12 @@ impl Write for AtomicFile {
     }
     fn flush(&mut self) -> std::io::Result<()> {
         self.tmp.flush()
+    }
+}
+
+impl Seek for AtomicFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.tmp.seek(pos)
     }
 }
 

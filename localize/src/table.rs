@@ -16,7 +16,7 @@
 
 use crate::error::LocalizeError;
 use crate::fit::{Fit, FitStatus};
-use std::io::{BufRead, Write};
+use std::io::{BufRead, Read, Write};
 
 /// ThunderSTORM's column names, in order.
 pub const THUNDERSTORM_COLUMNS: [&str; 9] = [
@@ -163,6 +163,10 @@ fn num(v: f64, digits: usize) -> String {
     }
 }
 
+/// Longest line [`CsvTable::read`] accepts, bytes (a localisation row is
+/// about 100 bytes).
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
 /// A numeric table read from CSV: column names and rows of numbers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CsvTable {
@@ -181,13 +185,52 @@ impl CsvTable {
     }
 
     /// Reads a numeric CSV table (comma separated, header first, quoted or
-    /// plain names). Blank lines are skipped; a wrong field count or a value
-    /// that is not a number is an error naming the line.
+    /// plain names). Blank lines are skipped; a wrong field count, a value
+    /// that is not a number or a line longer than [`MAX_LINE_BYTES`] (not a
+    /// table: `/dev/zero`, a binary file) is an error naming the line.
     pub fn read<R: BufRead>(reader: R) -> Result<CsvTable, LocalizeError> {
+        Self::read_inner(reader, None)
+    }
+
+    /// Reads a table like [`CsvTable::read`], but skips the rows with a
+    /// wrong field count or a value that is not a number instead of failing:
+    /// returns the table and the skipped rows (line number, why). A line too
+    /// long or not text is still an error (the file is not a table).
+    pub fn read_skipping_bad_rows<R: BufRead>(
+        reader: R,
+    ) -> Result<(CsvTable, Vec<(usize, String)>), LocalizeError> {
+        let mut skipped = Vec::new();
+        let t = Self::read_inner(reader, Some(&mut skipped))?;
+        Ok((t, skipped))
+    }
+
+    fn read_inner<R: BufRead>(
+        mut reader: R,
+        mut skipped: Option<&mut Vec<(usize, String)>>,
+    ) -> Result<CsvTable, LocalizeError> {
         let mut columns: Option<Vec<String>> = None;
         let mut rows = Vec::new();
-        for (i, line) in reader.lines().enumerate() {
-            let line = line?;
+        let mut raw = Vec::new();
+        for i in 0.. {
+            raw.clear();
+            let got = (&mut reader)
+                .take(MAX_LINE_BYTES as u64 + 1)
+                .read_until(b'\n', &mut raw)?;
+            if got == 0 {
+                break;
+            }
+            if raw.len() > MAX_LINE_BYTES {
+                return Err(LocalizeError::Table {
+                    line: i + 1,
+                    why: format!(
+                        "longer than {MAX_LINE_BYTES} bytes without a line break: not a CSV table"
+                    ),
+                });
+            }
+            let line = std::str::from_utf8(&raw).map_err(|_| LocalizeError::Table {
+                line: i + 1,
+                why: "not UTF-8 text: not a CSV table".into(),
+            })?;
             let line = line.trim_start_matches('\u{feff}').trim();
             if line.is_empty() {
                 continue;
@@ -199,21 +242,27 @@ impl CsvTable {
             match &columns {
                 None => columns = Some(fields.iter().map(|f| f.to_string()).collect()),
                 Some(cols) => {
-                    if fields.len() != cols.len() {
-                        return Err(LocalizeError::Table {
-                            line: i + 1,
-                            why: format!("{} fields, the header has {}", fields.len(), cols.len()),
-                        });
+                    let parsed = if fields.len() != cols.len() {
+                        Err(format!(
+                            "{} fields, the header has {}",
+                            fields.len(),
+                            cols.len()
+                        ))
+                    } else {
+                        fields
+                            .iter()
+                            .zip(cols)
+                            .map(|(f, c)| {
+                                f.parse::<f64>()
+                                    .map_err(|_| format!("column \"{c}\": `{f}` is not a number"))
+                            })
+                            .collect::<Result<Vec<f64>, String>>()
+                    };
+                    match (parsed, skipped.as_deref_mut()) {
+                        (Ok(row), _) => rows.push(row),
+                        (Err(why), Some(list)) => list.push((i + 1, why)),
+                        (Err(why), None) => return Err(LocalizeError::Table { line: i + 1, why }),
                     }
-                    let mut row = Vec::with_capacity(fields.len());
-                    for (f, c) in fields.iter().zip(cols) {
-                        let v: f64 = f.parse().map_err(|_| LocalizeError::Table {
-                            line: i + 1,
-                            why: format!("column \"{c}\": `{f}` is not a number"),
-                        })?;
-                        row.push(v);
-                    }
-                    rows.push(row);
                 }
             }
         }
@@ -228,6 +277,18 @@ impl CsvTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lines_are_bounded_and_bad_rows_can_be_skipped() {
+        let zeros = std::io::Read::take(std::io::repeat(0), 64 << 20);
+        let e = CsvTable::read(std::io::BufReader::new(zeros)).unwrap_err();
+        assert!(e.to_string().contains("not a CSV table"), "{e}");
+        let text = "\"a\",\"b\"\n1,2\nx,3\n4\n5,6\n";
+        assert!(CsvTable::read(text.as_bytes()).is_err());
+        let (t, bad) = CsvTable::read_skipping_bad_rows(text.as_bytes()).unwrap();
+        assert_eq!(t.rows, vec![vec![1.0, 2.0], vec![5.0, 6.0]]);
+        assert_eq!(bad.iter().map(|b| b.0).collect::<Vec<_>>(), [3, 4]);
+    }
 
     #[test]
     fn number_format_is_finite_and_trimmed() {

@@ -13,7 +13,7 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ParamError {
     /// A value outside its physical range; the message names the parameter.
-    #[error("invalid parameter `{name}` = {value}: {why}")]
+    #[error("invalid parameter `{name}` = {}: {why}", fmt_num(*value))]
     Invalid {
         /// Name of the parameter as the user knows it.
         name: &'static str,
@@ -21,6 +21,23 @@ pub enum ParamError {
         value: f64,
         /// What the value must satisfy.
         why: &'static str,
+    },
+    /// A value outside `lo ..= hi`; the message names the parameter and the range.
+    #[error(
+        "invalid parameter `{name}` = {}: must be a finite number in {} ..= {}",
+        fmt_num(*value),
+        fmt_num(*lo),
+        fmt_num(*hi)
+    )]
+    OutOfRange {
+        /// Name of the parameter as the user knows it (with its unit).
+        name: &'static str,
+        /// The offending value.
+        value: f64,
+        /// Smallest valid value.
+        lo: f64,
+        /// Largest valid value.
+        hi: f64,
     },
     /// A preset name that does not exist.
     #[error("unknown preset `{0}` (known: spcimager, spcimager-projected, emccd, scmos)")]
@@ -30,20 +47,38 @@ pub enum ParamError {
     UnknownObjective(u32),
 }
 
-/// Checks `value` is finite and within `[lo, hi]`.
-pub fn check_range(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f64, ParamError> {
-    if !value.is_finite() {
-        return Err(ParamError::Invalid {
-            name,
-            value,
-            why: "must be a finite number",
-        });
+/// A number for a message: plain when it is short (`0.5`, `1500`), in
+/// scientific notation when plain would be long (`1e300`, `1e-320`), so no
+/// error shows a 300-digit number.
+pub fn fmt_num(v: f64) -> String {
+    if !v.is_finite() || v == 0.0 {
+        return format!("{v}");
     }
-    if value < lo || value > hi {
-        return Err(ParamError::Invalid {
+    let plain = format!("{v}");
+    let a = v.abs();
+    if !(1e-4..1e7).contains(&a) {
+        format!("{v:e}")
+    } else if plain.len() <= 12 {
+        plain
+    } else {
+        // Long only because of the binary fraction: 6 significant digits.
+        let s = format!("{v:.*}", (5 - a.log10().floor() as i32).max(0) as usize);
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    }
+}
+
+/// Checks `value` is finite and within `[lo, hi]`; the error gives the range.
+pub fn check_range(name: &'static str, value: f64, lo: f64, hi: f64) -> Result<f64, ParamError> {
+    if !value.is_finite() || value < lo || value > hi {
+        return Err(ParamError::OutOfRange {
             name,
             value,
-            why: "out of its physical range",
+            lo,
+            hi,
         });
     }
     Ok(value)
@@ -60,6 +95,16 @@ pub fn check_positive(name: &'static str, value: f64) -> Result<f64, ParamError>
     }
     Ok(value)
 }
+
+/// Largest molecule flux, photons/s: a fluorophore's excited state lives
+/// about a nanosecond, so one molecule cannot emit 10⁹ photons per second
+/// (the study's is 5·10⁴).
+pub const MAX_FLUX_HZ: f64 = 1e9;
+/// Largest background, photons per µm² per second (the study's is 7·10⁴;
+/// 10¹⁰ saturates every camera modelled here many times over).
+pub const MAX_BACKGROUND_PER_UM2_HZ: f64 = 1e10;
+/// Longest frame period of a frame camera, s.
+pub const MAX_FRAME_PERIOD_S: f64 = 100.0;
 
 /// Checks `value` is finite and not negative.
 pub fn check_non_negative(name: &'static str, value: f64) -> Result<f64, ParamError> {
@@ -84,6 +129,7 @@ fn check_sensor_size(width: u32, height: u32) -> Result<(), ParamError> {
 /// exposure no longer than the period.
 fn check_frame_timing(frame_period_s: f64, exposure_s: f64) -> Result<(), ParamError> {
     check_positive("frame_period_s", frame_period_s)?;
+    check_range("frame_period_s", frame_period_s, 0.0, MAX_FRAME_PERIOD_S)?;
     check_positive("exposure_s", exposure_s)?;
     if exposure_s > frame_period_s * (1.0 + 1e-12) {
         return Err(ParamError::Invalid {
@@ -377,9 +423,16 @@ impl SceneLight {
     };
 
     /// Validates the light levels; the error names the first bad parameter.
+    /// The molecule flux is at most [`MAX_FLUX_HZ`], the background at most
+    /// [`MAX_BACKGROUND_PER_UM2_HZ`].
     pub fn validate(&self) -> Result<(), ParamError> {
-        check_non_negative("flux_hz", self.flux_hz)?;
-        check_non_negative("background_per_um2_hz", self.background_per_um2_hz)?;
+        check_range("flux_hz", self.flux_hz, 0.0, MAX_FLUX_HZ)?;
+        check_range(
+            "background_per_um2_hz",
+            self.background_per_um2_hz,
+            0.0,
+            MAX_BACKGROUND_PER_UM2_HZ,
+        )?;
         Ok(())
     }
 
@@ -605,6 +658,43 @@ impl Preset {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbers_in_messages_stay_short() {
+        assert_eq!(fmt_num(0.5), "0.5");
+        assert_eq!(fmt_num(1500.0), "1500");
+        assert_eq!(fmt_num(65535.0), "65535");
+        assert_eq!(fmt_num(1e9), "1e9");
+        assert_eq!(fmt_num(2.5e10), "2.5e10");
+        assert_eq!(fmt_num(1e300), "1e300");
+        assert_eq!(fmt_num(-1e12), "-1e12");
+        assert_eq!(fmt_num(1e-320), "1e-320");
+        assert_eq!(fmt_num(0.1 + 0.2), "0.3");
+        assert_eq!(fmt_num(f64::NAN), "NaN");
+        let e = check_range("--flux (photons/s)", 1e300, 0.0, MAX_FLUX_HZ)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "invalid parameter `--flux (photons/s)` = 1e300: must be a finite number in 0 ..= 1e9"
+        );
+        let e = check_positive("x", 1e-300)
+            .map(|_| ())
+            .and(check_positive("x", -1e300));
+        assert!(e.unwrap_err().to_string().contains("= -1e300:"));
+    }
+
+    #[test]
+    fn light_and_frame_timing_have_physical_limits() {
+        let mut l = SceneLight::STUDY;
+        l.flux_hz = 1e300;
+        assert!(l.validate().unwrap_err().to_string().contains("flux_hz"));
+        l.flux_hz = MAX_FLUX_HZ;
+        l.background_per_um2_hz = 1e11;
+        assert!(l.validate().is_err());
+        assert!(check_frame_timing(1e306, 1e306).is_err());
+        assert!(check_frame_timing(MAX_FRAME_PERIOD_S, 1.0).is_ok());
+    }
 
     #[test]
     fn spcimager_150x_sigma_and_background() {

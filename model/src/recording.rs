@@ -27,11 +27,18 @@
 //! |     10 |    2 | header length     | `u16`, bytes from offset 0 to the first plane: 48 in version 1. A version-1 reader accepts a larger value and skips the extra bytes, so fields can be appended without breaking old readers |
 //! |     12 |    4 | width             | `u32`, pixels, ≥ 1 |
 //! |     16 |    4 | height            | `u32`, pixels, ≥ 1; `width·height` ≤ 2³¹ |
-//! |     20 |    8 | plane period      | `u64`, ns from the start of one plane to the next, ≥ 1 |
+//! |     20 |    8 | plane period      | `u64`, ns from the start of one plane to the next, 1 ..= [`MAX_PLANE_PERIOD_NS`] (2³² − 1 ns, 4.29 s: the pipeline's 32-bit register) |
 //! |     28 |    8 | exposure          | `u64`, ns of exposure within a plane, 1 ..= plane period |
 //! |     36 |    1 | bit order         | `u8`: 0 = [`BitOrder::LsbFirst`], 1 = [`BitOrder::MsbFirst`] |
 //! |     37 |    3 | reserved          | zero |
 //! |     40 |    8 | planes            | `u64`, number of planes that follow; `u64::MAX` ([`PLANES_UNKNOWN`]) = "until end of file" (a live capture whose length was not known when the header was written) |
+//!
+//! A reader reads the first plane (when the header declares any) before
+//! [`RecordingReader::open`] returns, into a buffer that grows only with the
+//! bytes actually present: a short file whose header claims huge planes is
+//! [`RecordingError::Truncated`] at once, before the caller allocates
+//! anything sized by the header. Raw planes ([`RecordingReader::open_raw`])
+//! must hold at least one whole plane ([`RecordingError::NoPlanes`]).
 //!
 //! A reader checks that the file holds exactly `planes` whole planes: a
 //! partial last plane is [`RecordingError::Truncated`] (naming the plane and
@@ -62,6 +69,9 @@ pub const HEADER_LEN_V1: u16 = 48;
 pub const MAX_PIXELS: u64 = 1 << 31;
 /// `planes` value meaning "as many planes as the file holds".
 pub const PLANES_UNKNOWN: u64 = u64::MAX;
+/// Longest plane period, ns (2³² − 1, 4.29 s): the pipeline's period register
+/// is 32 bits wide, and a SPAD bit-plane lasts microseconds.
+pub const MAX_PLANE_PERIOD_NS: u64 = u32::MAX as u64;
 
 /// Where pixel `i` sits within its byte of a packed plane.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -127,8 +137,14 @@ impl RecordingHeader {
                 ),
             ));
         }
-        if self.plane_period_ns == 0 {
-            return Err(bad("plane_period_ns", "must be at least 1 ns".into()));
+        if self.plane_period_ns == 0 || self.plane_period_ns > MAX_PLANE_PERIOD_NS {
+            return Err(bad(
+                "plane_period_ns",
+                format!(
+                    "{} ns is outside 1 ..= {MAX_PLANE_PERIOD_NS} ns (4.29 s, the pipeline's 32-bit period register)",
+                    self.plane_period_ns
+                ),
+            ));
         }
         if self.exposure_ns == 0 {
             return Err(bad("exposure_ns", "must be at least 1 ns".into()));
@@ -188,6 +204,16 @@ pub enum RecordingError {
         /// Bytes the file holds.
         found: usize,
     },
+    /// Raw packed planes (no header) with not a single byte.
+    #[error("the raw recording is empty (0 bytes): it holds no plane of {width}x{height} pixels ({bytes} bytes each)")]
+    NoPlanes {
+        /// Plane width given.
+        width: u32,
+        /// Plane height given.
+        height: u32,
+        /// Bytes of one packed plane.
+        bytes: usize,
+    },
     /// The file does not start with `SPADBITS`.
     #[error("not a .spad recording: the file starts with {found:02x?}, expected \"SPADBITS\"")]
     BadMagic {
@@ -212,7 +238,7 @@ pub enum RecordingError {
     },
     /// The file ends inside a plane.
     #[error(
-        "recording truncated inside plane {plane}: {bytes_found} of {bytes_expected} bytes present"
+        "recording truncated inside plane {plane}: {bytes_found} of the {bytes_expected} bytes of a plane present (the header's width x height may be wrong)"
     )]
     Truncated {
         /// Index of the incomplete plane (from 0).
@@ -458,6 +484,8 @@ pub struct RecordingReader<R: Read> {
     header: RecordingHeader,
     read: u64,
     buf: Vec<u8>,
+    /// `buf` holds the first plane, read by `open` and not yet returned.
+    first_pending: bool,
     /// Set after the end or an error: further reads return `Ok(None)`.
     done: bool,
 }
@@ -535,13 +563,16 @@ impl<R: Read> RecordingReader<R> {
                 });
             }
         }
-        Ok(Self::with_header(r, header))
+        let mut rd = Self::with_header(r, header);
+        rd.read_first_plane(false)?;
+        Ok(rd)
     }
 
     /// Reads headerless packed planes of the given size and order; the
     /// exposure is taken equal to the period and the number of planes is
     /// [`PLANES_UNKNOWN`] (read until end of file; a partial last plane is
-    /// [`RecordingError::Truncated`]).
+    /// [`RecordingError::Truncated`], an empty input
+    /// [`RecordingError::NoPlanes`]).
     pub fn open_raw(
         r: R,
         width: u32,
@@ -558,7 +589,9 @@ impl<R: Read> RecordingReader<R> {
             planes: PLANES_UNKNOWN,
         };
         header.validate()?;
-        Ok(Self::with_header(r, header))
+        let mut rd = Self::with_header(r, header);
+        rd.read_first_plane(true)?;
+        Ok(rd)
     }
 
     fn with_header(r: R, header: RecordingHeader) -> Self {
@@ -566,9 +599,55 @@ impl<R: Read> RecordingReader<R> {
             r,
             header,
             read: 0,
-            buf: vec![0u8; header.plane_bytes()],
+            buf: Vec::new(),
+            first_pending: false,
             done: false,
         }
+    }
+
+    /// Reads the first plane into `buf` with a buffer that grows only with
+    /// the bytes present, so that a header claiming planes far larger than
+    /// the input fails here, before anything sized by the header is
+    /// allocated. `raw`: an empty input is an error.
+    fn read_first_plane(&mut self, raw: bool) -> Result<(), RecordingError> {
+        let declared = self.header.planes;
+        if declared == 0 {
+            return Ok(());
+        }
+        let need = self.header.plane_bytes();
+        let mut first = Vec::new();
+        loop {
+            match (&mut self.r).take(need as u64).read_to_end(&mut first) {
+                Ok(_) => break,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        if first.is_empty() {
+            if raw {
+                return Err(RecordingError::NoPlanes {
+                    width: self.header.width,
+                    height: self.header.height,
+                    bytes: need,
+                });
+            }
+            if declared != PLANES_UNKNOWN {
+                return Err(RecordingError::MissingPlanes { declared, found: 0 });
+            }
+            // A live capture that ended before its first plane: no planes.
+            self.done = true;
+            return Ok(());
+        }
+        if first.len() < need {
+            return Err(RecordingError::Truncated {
+                plane: 0,
+                bytes_expected: need,
+                bytes_found: first.len(),
+            });
+        }
+        self.buf = first;
+        self.first_pending = true;
+        Ok(())
     }
 
     /// The header (for raw planes: the one given to [`Self::open_raw`]).
@@ -595,10 +674,22 @@ impl<R: Read> RecordingReader<R> {
     }
 
     fn read_plane_inner(&mut self) -> Result<Option<BitPlane>, RecordingError> {
+        if std::mem::take(&mut self.first_pending) {
+            self.read += 1;
+            return Ok(Some(unpack_plane(
+                &self.buf,
+                self.header.width,
+                self.header.height,
+                self.header.bit_order,
+            )));
+        }
         let declared = self.header.planes;
         if declared != PLANES_UNKNOWN && self.read == declared {
-            // All declared planes read: the file must end here.
-            let got = read_fully(&mut self.r, &mut self.buf)?;
+            // All declared planes read: the file must end here (a small
+            // buffer: a header declaring 0 planes of a huge size allocates
+            // nothing sized by it).
+            let mut probe = vec![0u8; self.header.plane_bytes().min(1 << 16)];
+            let got = read_fully(&mut self.r, &mut probe)?;
             if got > 0 {
                 return Err(RecordingError::TrailingBytes {
                     declared,
@@ -606,6 +697,10 @@ impl<R: Read> RecordingReader<R> {
                 });
             }
             return Ok(None);
+        }
+        if self.buf.len() != self.header.plane_bytes() {
+            // Only after a first whole plane was found (see `open`).
+            self.buf = vec![0u8; self.header.plane_bytes()];
         }
         let got = read_fully(&mut self.r, &mut self.buf)?;
         if got == 0 {
@@ -786,6 +881,82 @@ mod tests {
         );
         assert!(RecordingReader::open_raw(&raw[..], 0, 3, BitOrder::LsbFirst, 1).is_err());
         assert!(RecordingReader::open_raw(&raw[..], 3, 3, BitOrder::LsbFirst, 0).is_err());
+    }
+
+    #[test]
+    fn a_short_file_claiming_huge_planes_fails_at_open() {
+        // 4 KB claiming 65535x32768 pixels (268 MB per plane).
+        let mut b = header(65535, 32768, 10, BitOrder::LsbFirst)
+            .to_bytes()
+            .to_vec();
+        b.resize(4096, 0x5a);
+        let e = RecordingReader::open(&b[..]).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                RecordingError::Truncated {
+                    plane: 0,
+                    bytes_expected: 268_431_360,
+                    bytes_found: 4048
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("width x height"), "{e}");
+        // Unknown length too; a header alone declaring planes is missing them.
+        b[40..48].copy_from_slice(&PLANES_UNKNOWN.to_le_bytes());
+        assert!(RecordingReader::open(&b[..]).is_err());
+        let e = RecordingReader::open(&b[..48]).map(|r| r.header().planes);
+        assert_eq!(
+            e.unwrap(),
+            PLANES_UNKNOWN,
+            "a live capture with no plane yet"
+        );
+        let h = header(65535, 32768, 10, BitOrder::LsbFirst).to_bytes();
+        let e = RecordingReader::open(&h[..]).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                RecordingError::MissingPlanes {
+                    declared: 10,
+                    found: 0
+                }
+            ),
+            "{e}"
+        );
+        // Zero planes of a huge size: the trailing-byte check reads little.
+        let h = header(65535, 32768, 0, BitOrder::LsbFirst).to_bytes();
+        let mut rd = RecordingReader::open(&h[..]).unwrap();
+        assert!(rd.read_plane().unwrap().is_none());
+    }
+
+    #[test]
+    fn raw_input_without_a_plane_is_an_error() {
+        let e = RecordingReader::open_raw(&[][..], 64, 64, BitOrder::LsbFirst, 10_000).unwrap_err();
+        assert!(
+            matches!(e, RecordingError::NoPlanes { bytes: 512, .. }),
+            "{e}"
+        );
+        assert!(e.to_string().contains("empty"), "{e}");
+        let e = RecordingReader::open_raw(&[1u8; 100][..], 64, 64, BitOrder::LsbFirst, 10_000)
+            .unwrap_err();
+        assert!(
+            matches!(e, RecordingError::Truncated { plane: 0, .. }),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn plane_periods_beyond_the_32_bit_register_are_refused() {
+        let mut h = header(8, 8, 0, BitOrder::LsbFirst);
+        h.plane_period_ns = MAX_PLANE_PERIOD_NS;
+        assert!(h.validate().is_ok());
+        h.plane_period_ns = MAX_PLANE_PERIOD_NS + 1;
+        let e = h.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("plane_period_ns") && e.contains("4294967295 ns"),
+            "{e}"
+        );
     }
 
     #[test]

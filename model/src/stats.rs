@@ -79,7 +79,14 @@ pub enum StatsError {
     #[error(transparent)]
     Kernel(#[from] KernelError),
     /// The molecule cannot be told apart from the background.
-    #[error("the molecule is undetectable: {why} (flux_hz = {flux_hz}, background_rate_hz = {background_rate_hz}, eta = {eta}, tau_s = {tau_s}, sigma_px = {sigma_px})")]
+    #[error(
+        "the molecule is undetectable: {why} (flux_hz = {}, background_rate_hz = {}, eta = {}, tau_s = {}, sigma_px = {})",
+        crate::params::fmt_num(*flux_hz),
+        crate::params::fmt_num(*background_rate_hz),
+        crate::params::fmt_num(*eta),
+        crate::params::fmt_num(*tau_s),
+        crate::params::fmt_num(*sigma_px)
+    )]
     Undetectable {
         /// What failed.
         why: String,
@@ -417,8 +424,13 @@ pub fn derive(inputs: &DetectionInputs) -> Result<Detection, StatsError> {
     let st_ideal = plane_stats(&k_ideal, p_off, var_b_off, &dp, &var_b_on);
     let n_real = window_real(&st).ok_or_else(|| {
         undetectable(format!(
-            "the mean filtered value when on does not exceed the one when off (E(F_on) − E(F_off) = {:e}); the background saturates the pixels",
-            st.delta_e_f
+            "the mean filtered value when on does not exceed the one when off (E(F_on) − E(F_off) = {:e}); {}",
+            st.delta_e_f,
+            if p_off > 0.5 {
+                "the background saturates the pixels"
+            } else {
+                "the molecule gives too few photons per bit-plane (flux_hz × eta × tau_s) to tell apart"
+            }
         ))
     })?;
     if n_real > MAX_WINDOW_PLANES {
@@ -474,6 +486,20 @@ pub fn derive(inputs: &DetectionInputs) -> Result<Detection, StatsError> {
 mod tests {
     use super::*;
     use crate::params::PresetName;
+
+    #[test]
+    fn a_vanishing_flux_is_too_dim_not_a_saturating_background() {
+        let p = Preset::new(PresetName::Spcimager, 150).unwrap();
+        let e = DetectionInputs::from_preset(&p, Some(1e-300))
+            .and_then(|i| derive(&i))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("too few photons") && !e.contains("saturates"),
+            "{e}"
+        );
+        assert!(e.contains("flux_hz = 1e-300") && e.len() < 400, "{e}");
+    }
 
     #[test]
     fn presets_give_the_papers_windows() {

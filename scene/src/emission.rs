@@ -11,12 +11,24 @@
 //! `Poisson(flux · t · (1 − η_max Σgx Σgy))`, added to the emitted count only.
 //! Cost is proportional to the photons, not to the pixels, and no PSF
 //! truncation is involved (the profiles reach 40 σ, beyond which f64 holds 0).
+//!
+//! Above [`PER_PIXEL_ABOVE`] expected candidate photons (a very bright
+//! molecule or a very long exposure) the cost would grow without bound, so
+//! the detections are sampled per pixel instead: by the same splitting
+//! property, the counts of pixel (i, j) are independent
+//! `Poisson(flux · t · gx[i]·gy[j]·η(i, j))`, and the undetected photons an
+//! independent `Poisson(flux · t · (1 − Σ gx gy η))`. Cost is then
+//! proportional to the pixels under the PSF, whatever the photon count.
 
 use rand::Rng;
 
 use crate::psf::AxisProfile;
 use crate::sampling::poisson;
 use crate::timeline::Timeline;
+
+/// Expected candidate photons of one blink in one exposure above which the
+/// detections are sampled per pixel rather than photon by photon.
+pub(crate) const PER_PIXEL_ABOVE: f64 = 1e5;
 
 #[derive(Debug)]
 struct Footprint {
@@ -61,8 +73,8 @@ impl Emission {
     }
 
     /// Samples the molecule detections of the exposure window `[t0, t1)`:
-    /// calls `hit(pixel)` once per detected photon (raster index; a pixel may
-    /// be hit more than once) and updates the ground truth. `eff` is the
+    /// calls `hit(pixel, n)` with `n ≥ 1` detected photons (raster index; a
+    /// pixel may be hit more than once) and updates the ground truth. `eff` is the
     /// per-pixel detection efficiency, `eff_min` and `eff_max` its extremes.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn deposit<R: Rng>(
@@ -73,7 +85,7 @@ impl Emission {
         eff_min: f64,
         eff_max: f64,
         rng: &mut R,
-        mut hit: impl FnMut(usize),
+        mut hit: impl FnMut(usize, u64),
     ) {
         self.open.clear();
         self.open
@@ -113,6 +125,29 @@ impl Emission {
             b.on_exposed_s += overlap;
             let photons = b.flux_hz * overlap;
             let p_cand = eff_max * fp.frac;
+            if photons * p_cand > PER_PIXEL_ABOVE {
+                let mut detected = 0u64;
+                let mut mean_detected = 0.0;
+                for y in fp.y.support() {
+                    let gy = fp.y.mass(y);
+                    for x in fp.x.support() {
+                        let i = y * self.width + x;
+                        let m = photons * gy * fp.x.mass(x) * eff[i];
+                        mean_detected += m;
+                        let c = poisson(rng, m);
+                        if c > 0 {
+                            hit(i, c);
+                            detected = detected.saturating_add(c);
+                        }
+                    }
+                }
+                let rest = poisson(rng, (photons - mean_detected).max(0.0));
+                b.photons_emitted = b
+                    .photons_emitted
+                    .saturating_add(detected.saturating_add(rest));
+                b.photons_detected = b.photons_detected.saturating_add(detected);
+                continue;
+            }
             let k = poisson(rng, photons * p_cand);
             let rest = poisson(rng, photons * (1.0 - p_cand));
             b.photons_emitted += k + rest;
@@ -126,7 +161,7 @@ impl Emission {
                 // only read for the rest.
                 let u = rng.gen::<f64>() * eff_max;
                 if u < eff_min || u < eff[i] {
-                    hit(i);
+                    hit(i, 1);
                     detected += 1;
                 }
             }

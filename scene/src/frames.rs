@@ -139,8 +139,8 @@ impl EmccdSimulator {
         let t0 = self.frames as f64 * c.frame_period_s;
         let t1 = t0 + c.exposure_s;
         self.emission
-            .deposit(t0, t1, &self.qe_map, c.qe, c.qe, &mut self.rng, |i| {
-                e_in[i] = e_in[i].saturating_add(1)
+            .deposit(t0, t1, &self.qe_map, c.qe, c.qe, &mut self.rng, |i, c| {
+                e_in[i] = e_in[i].saturating_add(u32::try_from(c).unwrap_or(u32::MAX))
             });
         let g = c.em_gain;
         let read_sd_e = c.read_noise_e * g;
@@ -430,7 +430,7 @@ impl ScmosSimulator {
             self.qe_min,
             self.qe_max,
             &mut self.rng,
-            |i| e[i] += 1,
+            |i, c| e[i] = e[i].saturating_add(c),
         );
         let mut electrons = Vec::with_capacity(n);
         let mut adu = Vec::with_capacity(n);

@@ -71,6 +71,11 @@ impl AxisProfile {
         self.cum.last().copied().unwrap_or(0.0)
     }
 
+    /// The pixels that may hold mass (the rest hold none).
+    pub fn support(&self) -> std::ops::Range<usize> {
+        self.start..self.start + self.cum.len()
+    }
+
     /// Mass in pixel `k`.
     pub fn mass(&self, k: usize) -> f64 {
         if k < self.start || k >= self.start + self.cum.len() {

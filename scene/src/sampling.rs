@@ -66,9 +66,16 @@ pub(crate) fn exponential<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
 /// A factor of mean 1 and relative spread `cv`: Gamma(1/cv², cv²), exactly 1
 /// for `cv = 0`. Gamma keeps it positive and right-skewed like blink
 /// intensities.
+///
+/// Below `cv = 1e-6` the shape would be over 10¹² (infinite for a
+/// subnormal cv): the normal limit `1 + cv·Z` is used, which differs from
+/// the Gamma by far less than f64 resolves.
 pub(crate) fn unit_gamma<R: Rng + ?Sized>(rng: &mut R, cv: f64) -> f64 {
-    if cv <= 0.0 {
+    if cv.is_nan() || cv <= 0.0 {
         return 1.0;
+    }
+    if cv < 1e-6 {
+        return (1.0 + cv * std_normal(rng)).max(0.0);
     }
     let shape = 1.0 / (cv * cv);
     // Valid for any positive finite cv.
@@ -128,6 +135,17 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn unit_gamma_of_a_vanishing_spread_is_one() {
+        let mut r = rng_stream(3, 0);
+        for cv in [1e-320, f64::MIN_POSITIVE, 1e-200, 1e-7, 0.0, -1.0, f64::NAN] {
+            let v = unit_gamma(&mut r, cv);
+            assert!(v.is_finite() && (v - 1.0).abs() < 1e-5, "cv {cv}: {v}");
+        }
+        let v = unit_gamma(&mut r, 0.5);
+        assert!(v.is_finite() && v >= 0.0);
     }
 
     #[test]

@@ -431,7 +431,7 @@ impl SpadSimulator {
             self.eta_min,
             self.eta_max,
             &mut self.rng,
-            |i| words[i >> 6] |= 1u64 << (i & 63),
+            |i, _| words[i >> 6] |= 1u64 << (i & 63),
         );
         self.planes += 1;
     }

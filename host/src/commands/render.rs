@@ -9,12 +9,41 @@
 //! itself (localisations per pixel) as 32-bit float, for ImageJ/Fiji.
 //! Failed fits (`fit_status` ≠ 0) are left out unless `--include-failed`;
 //! rows without a usable position are counted and reported.
+//!
+//! A hostile table does not sink the rest (issue 36): rows that do not
+//! parse are skipped and counted, and so are outliers far from the others
+//! (a position or uncertainty that would make the image larger than
+//! [`MAX_PIXELS`]); only a table with no usable row is an error. The image
+//! is written beside its target and renamed into place when complete, and
+//! never over the table itself.
 
 use anyhow::{bail, Context};
-use smartagg_localize::render::{render, to_png, Point, RenderOptions};
+use smartagg_localize::render::{render, to_png, Point, RenderOptions, MAX_PIXELS};
 use smartagg_localize::table::CsvTable;
-use smartagg_localize::tiffio;
+use smartagg_localize::{tiffio, LocalizeError};
+use std::io::{BufWriter, Write};
 use std::path::PathBuf;
+
+use crate::output::{refuse_overwriting, AtomicFile};
+
+/// Leaves out the points too far from the median position (or too blurred)
+/// for one image of at most [`MAX_PIXELS`] pixels at `pixel_nm`; returns
+/// how many were left out.
+fn drop_outliers(points: &mut Vec<Point>, pixel_nm: f64) -> usize {
+    let median = |f: fn(&Point) -> f64| {
+        let mut v: Vec<f64> = points.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (mx, my) = (median(|p| p.x_nm), median(|p| p.y_nm));
+    // A square image of MAX_PIXELS, with room for the margins.
+    let half = 0.35 * (MAX_PIXELS as f64).sqrt() * pixel_nm;
+    let before = points.len();
+    points.retain(|p| {
+        (p.x_nm - mx).abs() <= half && (p.y_nm - my).abs() <= half && p.sigma_nm <= half / 8.0
+    });
+    before - points.len()
+}
 
 /// Arguments of `smartagg render`.
 #[derive(clap::Args, Debug)]
@@ -40,10 +69,18 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    refuse_overwriting(&args.out, &[&args.table])?;
     let file = std::fs::File::open(&args.table)
         .with_context(|| format!("opening {}", args.table.display()))?;
-    let t = CsvTable::read(std::io::BufReader::new(file))
+    let (t, bad_rows) = CsvTable::read_skipping_bad_rows(std::io::BufReader::new(file))
         .with_context(|| format!("reading {}", args.table.display()))?;
+    if let Some((line, why)) = bad_rows.first() {
+        eprintln!(
+            "smartagg: warning: {}: {} rows skipped that are not rows of numbers (first: line {line}: {why})",
+            args.table.display(),
+            bad_rows.len()
+        );
+    }
     let col = |names: &[&str]| -> anyhow::Result<usize> {
         t.column(names).with_context(|| {
             format!(
@@ -88,12 +125,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if points.is_empty() {
         bail!(
-            "{}: no localisation to render ({} failed fits left out)",
+            "{}: no localisation to render ({} failed fits left out, {} rows without a position, {} rows that are not numbers)",
             args.table.display(),
-            failed
+            failed,
+            unusable,
+            bad_rows.len()
         );
     }
-    let opts = RenderOptions::covering(&points, args.pixel_nm, args.min_sigma_nm)?;
+    let mut outliers = 0;
+    let opts = match RenderOptions::covering(&points, args.pixel_nm, args.min_sigma_nm) {
+        Ok(o) => o,
+        Err(LocalizeError::ImageTooLarge { .. }) => {
+            outliers = drop_outliers(&mut points, args.pixel_nm);
+            if points.is_empty() {
+                bail!(
+                    "{}: no localisation to render: the {outliers} positions are spread wider than one image of {MAX_PIXELS} pixels at --pixel-nm {} nm",
+                    args.table.display(),
+                    args.pixel_nm
+                );
+            }
+            eprintln!(
+                "smartagg: warning: {}: {outliers} localisations far from the others (or with a huge uncertainty) left out: with them the image would exceed {MAX_PIXELS} pixels",
+                args.table.display()
+            );
+            RenderOptions::covering(&points, args.pixel_nm, args.min_sigma_nm)?
+        }
+        Err(e) => return Err(e.into()),
+    };
     let (img, skipped) = render(&points, &opts)?;
     let ext = args
         .out
@@ -101,13 +159,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
+    let mut out = BufWriter::new(AtomicFile::create(&args.out)?);
     let what = if ext == "tif" || ext == "tiff" {
-        tiffio::write_f32(tiffio::create(&args.out)?, img.width, img.height, &img.data)
+        tiffio::write_f32(&mut out, img.width, img.height, &img.data)
             .with_context(|| format!("writing {}", args.out.display()))?;
         "32-bit float density".to_string()
     } else {
         let (bytes, bar) = to_png(&img, args.saturate)?;
-        std::fs::write(&args.out, bytes)
+        out.write_all(&bytes)
             .with_context(|| format!("writing {}", args.out.display()))?;
         format!(
             "8-bit PNG, scale bar {}{}",
@@ -119,8 +178,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         )
     };
+    out.into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", args.out.display()))?
+        .commit()?;
     println!(
-        "{} localisations rendered to {} ({}x{} px at {} nm, origin ({:.0}, {:.0}) nm, {}); {} failed fits left out, {} rows without a position, {} outside",
+        "{} localisations rendered to {} ({}x{} px at {} nm, origin ({:.0}, {:.0}) nm, {}); {} failed fits left out, {} rows without a position, {} outside, {} outliers left out, {} rows not numbers",
         points.len() - skipped,
         args.out.display(),
         img.width,
@@ -131,7 +194,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         what,
         failed,
         unusable,
-        skipped
+        skipped,
+        outliers,
+        bad_rows.len()
     );
     Ok(())
 }

@@ -4,22 +4,40 @@
 //! `--raw`), EMCCD/sCMOS presets a 16-bit multi-page TIFF stack; the ground
 //! truth goes to `PATH.truth.csv` beside it. Everything is reproducible from
 //! `--seed`.
+//!
+//! Every option is checked before anything touches the disk; both outputs
+//! are written beside their targets and renamed into place only once both
+//! are complete, so a failed run leaves any existing file as it was. The
+//! output's extension must match what is written (`.spad` for a SPAD
+//! recording, `.tif`/`.tiff` for a frame camera; raw planes may not be
+//! named `.spad` or `.tif`), and a run that would write more than
+//! `--max-out-gib` GiB (default [`DEFAULT_MAX_OUT_GIB`]) is refused before it
+//! starts.
 
-use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
 use smartagg_model::params::{
-    check_non_negative, check_positive, check_range, Camera, Preset, PresetName,
+    check_non_negative, check_positive, check_range, fmt_num, Camera, Preset, PresetName,
+    MAX_BACKGROUND_PER_UM2_HZ, MAX_FLUX_HZ, MAX_FRAME_PERIOD_S,
 };
 use smartagg_model::plane::BitPlane;
-use smartagg_model::recording::{pack_plane, BitOrder, RecordingWriter};
+use smartagg_model::recording::{pack_plane, plane_bytes, BitOrder, RecordingWriter};
 use smartagg_scene::tiff::TiffStackWriter;
 use smartagg_scene::{
     truth, Blinking, EmccdSimulator, Frame, Layout, OnTime, Scene, ScmosSimulator, SpadSimulator,
 };
+
+use crate::output::AtomicFile;
+
+/// Largest output `simulate` writes unless `--max-out-gib` says otherwise, GiB.
+pub const DEFAULT_MAX_OUT_GIB: f64 = 64.0;
+/// Shortest and longest blink durations and mean on-times, ms.
+const ON_MS_RANGE: (f64, f64) = (0.01, 1e6);
+/// Shortest and longest mean off-times, s.
+const OFF_S_RANGE: (f64, f64) = (1e-3, 1e6);
 
 /// Which molecules to simulate.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -68,6 +86,9 @@ pub struct Args {
     /// Field (ROI) size WxH in pixels [default: the study field for `single`, the whole sensor otherwise].
     #[arg(long, value_parser = parse_field)]
     pub field: Option<(u32, u32)>,
+    /// Largest output to write, GiB (2^30 bytes); a longer run is refused before it starts.
+    #[arg(long, default_value_t = DEFAULT_MAX_OUT_GIB, allow_negative_numbers = true)]
+    pub max_out_gib: f64,
     /// Scene and camera adjustments.
     #[command(flatten)]
     pub tuning: Box<Tuning>,
@@ -137,7 +158,12 @@ fn parse_field(s: &str) -> Result<(u32, u32), String> {
 fn build_scene(a: &Args, p: &Preset) -> anyhow::Result<Scene> {
     let mut sc = match a.scene {
         SceneKind::Single => {
-            check_positive("--blink-ms", a.tuning.blink_ms)?;
+            check_range(
+                "--blink-ms (ms)",
+                a.tuning.blink_ms,
+                ON_MS_RANGE.0,
+                ON_MS_RANGE.1,
+            )?;
             Scene::study(p, a.tuning.blink_ms * 1e-3)
         }
         SceneKind::Random => Scene::smlm(p),
@@ -152,17 +178,17 @@ fn build_scene(a: &Args, p: &Preset) -> anyhow::Result<Scene> {
     if let Blinking::Independent { on, mean_off_s } = &mut sc.blinking {
         if let Some(m) = a.tuning.mean_on_ms {
             *on = OnTime::Exponential {
-                mean_s: check_positive("--mean-on-ms", m)? * 1e-3,
+                mean_s: check_range("--mean-on-ms (ms)", m, ON_MS_RANGE.0, ON_MS_RANGE.1)? * 1e-3,
             };
         }
         if let Some(m) = a.tuning.mean_off_s {
-            *mean_off_s = check_positive("--mean-off-s", m)?;
+            *mean_off_s = check_range("--mean-off-s (s)", m, OFF_S_RANGE.0, OFF_S_RANGE.1)?;
         }
     } else if a.tuning.mean_on_ms.is_some() || a.tuning.mean_off_s.is_some() {
         bail!("--mean-on-ms/--mean-off-s apply to the random and nanoruler scenes; the single scene uses --blink-ms");
     }
     if let Some(d) = a.tuning.density {
-        check_non_negative("--density", d)?;
+        check_non_negative("--density (per µm²)", d)?;
         match &mut sc.layout {
             Layout::Random { density_per_um2 } if a.scene == SceneKind::Random => {
                 *density_per_um2 = d
@@ -172,12 +198,17 @@ fn build_scene(a: &Args, p: &Preset) -> anyhow::Result<Scene> {
         }
     }
     if let Some(f) = a.tuning.flux {
-        sc.light.flux_hz = check_non_negative("--flux", f)?;
+        sc.light.flux_hz = check_range("--flux (photons/s)", f, 0.0, MAX_FLUX_HZ)?;
     }
     if let Some(b) = a.tuning.background {
-        sc.light.background_per_um2_hz = check_non_negative("--background", b)?;
+        sc.light.background_per_um2_hz = check_range(
+            "--background (photons/µm²/s)",
+            b,
+            0.0,
+            MAX_BACKGROUND_PER_UM2_HZ,
+        )?;
     }
-    sc.intensity_cv = check_non_negative("--intensity-cv", a.tuning.intensity_cv)?;
+    sc.intensity_cv = check_range("--intensity-cv", a.tuning.intensity_cv, 0.0, 10.0)?;
     Ok(sc)
 }
 
@@ -203,7 +234,7 @@ fn build_camera(a: &Args, p: &Preset) -> anyhow::Result<Camera> {
             let (period, exposure) = match &mut cam {
                 Camera::Emccd(c) => {
                     if let Some(g) = a.tuning.em_gain {
-                        c.em_gain = check_range("--em-gain", g, 1.0, 10000.0)?;
+                        c.em_gain = check_range("--em-gain (×)", g, 1.0, 10000.0)?;
                     }
                     (&mut c.frame_period_s, &mut c.exposure_s)
                 }
@@ -216,16 +247,17 @@ fn build_camera(a: &Args, p: &Preset) -> anyhow::Result<Camera> {
                 Camera::Spad(_) => unreachable!(),
             };
             if let Some(f) = a.tuning.frame_ms {
-                *period = check_positive("--frame-ms", f)? * 1e-3;
+                check_positive("--frame-ms (ms)", f)?;
+                *period = check_range("--frame-ms (ms)", f, 0.0, MAX_FRAME_PERIOD_S * 1e3)? * 1e-3;
                 *exposure = *period;
             }
             if let Some(d) = a.tuning.dead_time_ms {
-                let d = check_non_negative("--dead-time-ms", d)? * 1e-3;
+                let d = check_non_negative("--dead-time-ms (ms)", d)? * 1e-3;
                 if d >= *period {
                     bail!(
-                        "invalid parameter `--dead-time-ms` = {}: the dead time must be shorter than the frame period ({} ms)",
-                        d * 1e3,
-                        *period * 1e3
+                        "invalid parameter `--dead-time-ms` = {} ms: the dead time must be shorter than the frame period ({} ms)",
+                        fmt_num(d * 1e3),
+                        fmt_num(*period * 1e3)
                     );
                 }
                 *exposure = *period - d;
@@ -236,19 +268,79 @@ fn build_camera(a: &Args, p: &Preset) -> anyhow::Result<Camera> {
     Ok(cam)
 }
 
-fn count(a: &Args, period_s: f64) -> anyhow::Result<u64> {
+/// The number of planes or frames, checked against the output limit:
+/// `bytes_each` is what one plane or frame adds to the output, `what` names
+/// it ("bit-plane", "frame").
+fn count(a: &Args, period_s: f64, bytes_each: u64, what: &str) -> anyhow::Result<u64> {
+    let max_gib = check_range("--max-out-gib (GiB)", a.max_out_gib, 1e-6, 1e6)?;
+    let max_bytes = max_gib * (1u64 << 30) as f64;
+    let most = (max_bytes / bytes_each.max(1) as f64).floor().max(0.0);
     if let Some(n) = a.planes {
         if n == 0 {
-            bail!("invalid parameter `--planes` = 0: simulate at least one plane or frame");
+            bail!("invalid parameter `--planes` = 0: simulate at least one {what} (1 ..= {} {what}s fit in --max-out-gib {} GiB)", fmt_num(most), fmt_num(max_gib));
+        }
+        if n as f64 > most {
+            bail!(
+                "invalid parameter `--planes` = {n}: {n} {what}s of {bytes_each} bytes would write {} GiB, more than --max-out-gib {} GiB (at most {} {what}s; raise --max-out-gib to write more)",
+                fmt_num(n as f64 * bytes_each as f64 / (1u64 << 30) as f64),
+                fmt_num(max_gib),
+                fmt_num(most)
+            );
         }
         return Ok(n);
     }
-    let s = check_positive("--seconds", a.seconds.unwrap_or(1.0))?;
+    let s = check_positive("--seconds (s)", a.seconds.unwrap_or(1.0))?;
     let n = (s / period_s).ceil();
-    if n > 1e15 {
-        bail!("invalid parameter `--seconds` = {s}: too long");
+    if n > most {
+        bail!(
+            "invalid parameter `--seconds` = {} s: {} {what}s of {} s and {bytes_each} bytes each would write {} GiB, more than --max-out-gib {} GiB (at most {} s; raise --max-out-gib to write more)",
+            fmt_num(s),
+            fmt_num(n),
+            fmt_num(period_s),
+            fmt_num(n * bytes_each as f64 / (1u64 << 30) as f64),
+            fmt_num(max_gib),
+            fmt_num(most * period_s)
+        );
     }
-    Ok(n as u64)
+    Ok((n as u64).max(1))
+}
+
+/// Refuses an output name whose extension says another format than the one
+/// written.
+fn check_extension(out: &Path, cam: &Camera, raw: bool) -> anyhow::Result<()> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let is_tif = ext == "tif" || ext == "tiff";
+    match cam {
+        Camera::Spad(_) if raw => {
+            if ext == "spad" || is_tif {
+                bail!(
+                    "--out {}: --raw writes headerless packed bit-planes, not a .{ext} file; name it e.g. .bin or .raw",
+                    out.display()
+                );
+            }
+        }
+        Camera::Spad(_) => {
+            if ext != "spad" {
+                bail!(
+                    "--out {}: a SPAD preset writes a .spad bit-plane recording; name the output .spad (or add --raw for headerless planes)",
+                    out.display()
+                );
+            }
+        }
+        Camera::Emccd(_) | Camera::Scmos(_) => {
+            if !is_tif {
+                bail!(
+                    "--out {}: the emccd and scmos presets write a 16-bit TIFF stack; name the output .tif or .tiff",
+                    out.display()
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 fn truth_path(out: &std::path::Path) -> PathBuf {
@@ -264,8 +356,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let cam = build_camera(&a, &preset)?;
     let scene = build_scene(&a, &preset)?;
     scene.validate(&cam)?;
-    let out = File::create(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
-    let out = BufWriter::with_capacity(1 << 20, out);
+    check_extension(&a.out, &cam, a.tuning.raw)?;
+    let frame_bytes = scene.width as u64 * scene.height as u64 * 2;
+    let n = match &cam {
+        Camera::Spad(c) => count(
+            &a,
+            c.plane_period_s,
+            plane_bytes(scene.width, scene.height) as u64,
+            "bit-plane",
+        )?,
+        Camera::Emccd(c) => count(&a, c.frame_period_s, frame_bytes, "frame")?,
+        Camera::Scmos(c) => count(&a, c.frame_period_s, frame_bytes, "frame")?,
+    };
+    let tp = truth_path(&a.out);
+    // Nothing is written to the targets until both files are complete.
+    let out_file = AtomicFile::create(&a.out)?;
+    let truth_file = AtomicFile::create(&tp)?;
+    let out = BufWriter::with_capacity(1 << 20, out_file);
     let t = Instant::now();
     println!(
         "preset {name} ({}x), field {}x{} px of {:.2} nm, PSF sigma {:.3} px, seed {}",
@@ -279,9 +386,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(on) = scene.expected_on(&cam) {
         println!("expected molecules on at a time: {on:.2}");
     }
-    let truth_rows = match &cam {
+    let (truth_rows, out) = match &cam {
         Camera::Spad(c) => {
-            let n = count(&a, c.plane_period_s)?;
             let mut sim = SpadSimulator::new(c, &scene, a.seed)?;
             let order = match a.tuning.bit_order {
                 Order::Lsb => BitOrder::LsbFirst,
@@ -293,22 +399,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 ones += p.count_ones() as u64;
                 p
             };
-            if a.tuning.raw {
+            let out = if a.tuning.raw {
                 let mut w = out;
                 let mut buf = Vec::new();
                 for _ in 0..n {
                     buf.clear();
                     pack_plane(&next(&mut sim), order, &mut buf);
-                    w.write_all(&buf)?;
+                    w.write_all(&buf)
+                        .with_context(|| format!("writing {}", a.out.display()))?;
                 }
-                w.flush()?;
+                w
             } else {
                 let mut w = RecordingWriter::new(out, sim.recording_header(n, order))?;
                 for _ in 0..n {
-                    w.write_plane(&next(&mut sim))?;
+                    w.write_plane(&next(&mut sim))
+                        .with_context(|| format!("writing {}", a.out.display()))?;
                 }
-                w.finish()?.flush()?;
-            }
+                w.finish()
+                    .with_context(|| format!("writing {}", a.out.display()))?
+            };
             let el = t.elapsed().as_secs_f64();
             println!(
                 "{n} bit-planes ({:.3} s of camera time) in {el:.2} s ({:.0} planes/s); {:.4} % of pixel-planes read 1; {} hot pixels",
@@ -317,26 +426,35 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 100.0 * ones as f64 / (n as f64 * sim.width() as f64 * sim.height() as f64),
                 sim.maps().hot_pixels()
             );
-            sim.truth().to_vec()
+            (sim.truth().to_vec(), out)
         }
         Camera::Emccd(c) => {
-            let n = count(&a, c.frame_period_s)?;
             let mut sim = EmccdSimulator::new(c, &scene, a.seed)?;
-            let clipped = write_frames(out, &scene, n, || sim.next_frame())?;
+            let (clipped, out) = write_frames(out, &scene, n, || sim.next_frame())
+                .with_context(|| format!("writing {}", a.out.display()))?;
             report_frames(n, c.frame_period_s, c.exposure_s, clipped, t);
-            sim.truth().to_vec()
+            (sim.truth().to_vec(), out)
         }
         Camera::Scmos(c) => {
-            let n = count(&a, c.frame_period_s)?;
             let mut sim = ScmosSimulator::new(c, &scene, a.seed)?;
-            let clipped = write_frames(out, &scene, n, || sim.next_frame())?;
+            let (clipped, out) = write_frames(out, &scene, n, || sim.next_frame())
+                .with_context(|| format!("writing {}", a.out.display()))?;
             report_frames(n, c.frame_period_s, c.exposure_s, clipped, t);
-            sim.truth().to_vec()
+            (sim.truth().to_vec(), out)
         }
     };
-    let tp = truth_path(&a.out);
-    let f = File::create(&tp).with_context(|| format!("cannot create {}", tp.display()))?;
-    truth::write_csv(BufWriter::new(f), &truth_rows)?;
+    let out = out
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    let mut tw = BufWriter::new(truth_file);
+    truth::write_csv(&mut tw, &truth_rows).with_context(|| format!("writing {}", tp.display()))?;
+    let truth_file = tw
+        .into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", tp.display()))?;
+    out.commit()?;
+    truth_file.commit()?;
     let detected: u64 = truth_rows.iter().map(|b| b.photons_detected).sum();
     println!(
         "{} blinks, {detected} molecule photons detected; wrote {} and {}",
@@ -347,13 +465,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes `n` frames as a TIFF stack; returns the number of clipped pixel values.
-fn write_frames(
-    mut out: BufWriter<File>,
+/// Writes `n` frames as a TIFF stack; returns the number of clipped pixel
+/// values and the writer.
+fn write_frames<W: Write + std::io::Seek>(
+    mut out: W,
     scene: &Scene,
     n: u64,
     mut next: impl FnMut() -> Frame,
-) -> anyhow::Result<u64> {
+) -> anyhow::Result<(u64, W)> {
     let mut clipped = 0u64;
     {
         // Borrow the buffer so that it can be flushed (and errors seen) afterwards.
@@ -365,7 +484,7 @@ fn write_frames(
         }
     }
     out.flush()?;
-    Ok(clipped)
+    Ok((clipped, out))
 }
 
 fn report_frames(n: u64, period: f64, exposure: f64, clipped: u64, t: Instant) {

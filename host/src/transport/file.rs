@@ -6,8 +6,16 @@
 //! underlying `read` blocks (a named pipe whose writer went quiet): that is
 //! how a stalled source is detected. `--rate-mbps` paces the delivery to
 //! simulate a device.
+//!
+//! Hostile inputs (issue 36): a named pipe or device is opened by the
+//! reader thread, not by [`FileSource::open`], so a FIFO nobody writes to
+//! cannot block the command in `open()` past its `--timeout`; a directory
+//! is refused at once; and a source whose first [`NOT_A_STREAM_AFTER`]
+//! bytes hold no valid packet (`/dev/zero`, a disk image) ends with an error
+//! instead of being copied for ever.
 
 use super::{Chunk, DeviceConfig, PacketSource, TransportError};
+use smartagg_model::packet::{Decoder, Event};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -15,6 +23,14 @@ use std::time::{Duration, Instant};
 
 /// Bytes per chunk the reader thread reads.
 const READ_CHUNK: usize = 1 << 16;
+
+/// A source delivering this many bytes without a single valid packet is not
+/// a packet stream (a real stream starts with its StreamStart packet; even a
+/// capture joined mid-stream has a packet within 4 KiB).
+pub const NOT_A_STREAM_AFTER: u64 = 4 << 20;
+
+/// Slowest and fastest `--rate-mbps`, MB (10⁶ bytes) per second.
+pub const RATE_MBPS_RANGE: (f64, f64) = (1e-3, 1e5);
 
 /// What the reader thread sends.
 enum Msg {
@@ -27,6 +43,10 @@ pub struct FileSource {
     label: String,
     path: PathBuf,
     reader: Option<Box<dyn Read + Send>>,
+    /// A pipe or device to open in the reader thread (see the module docs).
+    open_later: Option<PathBuf>,
+    /// Looks for a first valid packet; `None` once one was found.
+    sniffer: Option<Decoder>,
     rx: Option<Receiver<Msg>>,
     /// Bytes received from the thread but not yet handed out.
     pending: Vec<u8>,
@@ -41,11 +61,32 @@ pub struct FileSource {
 
 impl FileSource {
     /// Opens `path` for reading. Nothing is read until [`PacketSource::start`].
+    /// A directory is refused; a named pipe, socket or device is opened by the
+    /// reader thread once started, so that waiting for its writer honours
+    /// the caller's timeout.
     pub fn open(path: &Path) -> Result<FileSource, TransportError> {
-        let file = std::fs::File::open(path).map_err(|error| TransportError::Io {
+        let io = |error| TransportError::Io {
             path: path.to_path_buf(),
             error,
-        })?;
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.is_dir() {
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "is a directory, not a packet stream (give a .rois file or a named pipe)",
+            )));
+        }
+        if !meta.is_file() {
+            let mut src = Self::from_reader(
+                format!("file {}", path.display()),
+                path,
+                Box::new(std::io::empty()),
+            );
+            src.reader = None;
+            src.open_later = Some(path.to_path_buf());
+            return Ok(src);
+        }
+        let file = std::fs::File::open(path).map_err(io)?;
         Ok(Self::from_reader(
             format!("file {}", path.display()),
             path,
@@ -59,6 +100,8 @@ impl FileSource {
             label,
             path: path.to_path_buf(),
             reader: Some(reader),
+            open_later: None,
+            sniffer: Some(Decoder::new()),
             rx: None,
             pending: Vec::new(),
             pending_at: 0,
@@ -71,11 +114,13 @@ impl FileSource {
     }
 
     /// Paces delivery at `mb_per_s` megabytes (10⁶ bytes) per second, as a
-    /// device would. Non-positive or non-finite rates are refused.
+    /// device would. Rates outside [`RATE_MBPS_RANGE`] are refused.
     pub fn with_rate(mut self, mb_per_s: f64) -> Result<FileSource, TransportError> {
-        if !(mb_per_s.is_finite() && mb_per_s > 0.0) {
+        let (lo, hi) = RATE_MBPS_RANGE;
+        if !(mb_per_s.is_finite() && (lo..=hi).contains(&mb_per_s)) {
             return Err(TransportError::Config(format!(
-                "--rate-mbps must be a positive number, not {mb_per_s}"
+                "--rate-mbps must be a number in {lo} ..= {hi} MB/s (10^6 bytes per second), not {}",
+                smartagg_model::params::fmt_num(mb_per_s)
             )));
         }
         self.rate = Some(mb_per_s * 1e6);
@@ -92,18 +137,52 @@ impl FileSource {
         if budget >= 1.0 {
             (budget.min(usize::MAX as f64) as usize, Duration::ZERO)
         } else {
-            (0, Duration::from_secs_f64((1.0 - budget) / rate))
+            let wait = Duration::try_from_secs_f64((1.0 - budget) / rate)
+                .unwrap_or(Duration::from_secs(1));
+            (0, wait)
         }
     }
 
-    fn take_pending(&mut self, buf: &mut [u8], limit: usize) -> usize {
+    fn take_pending(&mut self, buf: &mut [u8], limit: usize) -> Result<usize, TransportError> {
         let n = (self.pending.len() - self.pending_at)
             .min(buf.len())
             .min(limit);
         buf[..n].copy_from_slice(&self.pending[self.pending_at..self.pending_at + n]);
         self.pending_at += n;
         self.delivered += n as u64;
-        n
+        self.sniff(&buf[..n])?;
+        Ok(n)
+    }
+
+    /// Until a first valid packet is seen: refuses a source that delivered
+    /// [`NOT_A_STREAM_AFTER`] bytes without one.
+    fn sniff(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        let Some(d) = &mut self.sniffer else {
+            return Ok(());
+        };
+        d.feed(bytes);
+        while let Some(e) = d.next_event() {
+            if matches!(e, Event::Packet(_)) {
+                self.sniffer = None;
+                return Ok(());
+            }
+        }
+        if self.delivered >= NOT_A_STREAM_AFTER {
+            self.stopped = true;
+            self.rx = None;
+            return Err(TransportError::Io {
+                path: self.path.clone(),
+                error: std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!(
+                        "not a packet stream: no valid packet in its first {} bytes ({} MiB)",
+                        self.delivered,
+                        NOT_A_STREAM_AFTER >> 20
+                    ),
+                ),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -122,25 +201,42 @@ impl PacketSource for FileSource {
     }
 
     fn start(&mut self) -> Result<(), TransportError> {
-        let Some(mut reader) = self.reader.take() else {
+        let later = self.open_later.take();
+        let reader = self.reader.take();
+        if reader.is_none() && later.is_none() {
             return Ok(());
-        };
+        }
         // Small bound: the thread reads ahead a few chunks, no more.
         let (tx, rx) = mpsc::sync_channel(4);
-        std::thread::spawn(move || loop {
-            let mut chunk = vec![0u8; READ_CHUNK];
-            match reader.read(&mut chunk) {
-                Ok(0) => break,
-                Ok(n) => {
-                    chunk.truncate(n);
-                    if tx.send(Msg::Data(chunk)).is_err() {
+        std::thread::spawn(move || {
+            let mut reader = match (reader, later) {
+                (Some(r), _) => r,
+                // May block until a writer opens the pipe: `read` gives up
+                // after its wait meanwhile.
+                (None, Some(path)) => match std::fs::File::open(path) {
+                    Ok(f) => Box::new(f) as Box<dyn Read + Send>,
+                    Err(e) => {
+                        let _ = tx.send(Msg::Error(e));
+                        return;
+                    }
+                },
+                (None, None) => return,
+            };
+            loop {
+                let mut chunk = vec![0u8; READ_CHUNK];
+                match reader.read(&mut chunk) {
+                    Ok(0) => break,
+                    Ok(n) => {
+                        chunk.truncate(n);
+                        if tx.send(Msg::Data(chunk)).is_err() {
+                            break;
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(e) => {
+                        let _ = tx.send(Msg::Error(e));
                         break;
                     }
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                Err(e) => {
-                    let _ = tx.send(Msg::Error(e));
-                    break;
                 }
             }
         });
@@ -167,7 +263,7 @@ impl PacketSource for FileSource {
             }
         }
         if self.pending_at < self.pending.len() {
-            return Ok(Chunk::Data(self.take_pending(buf, allowed)));
+            return Ok(Chunk::Data(self.take_pending(buf, allowed)?));
         }
         let Some(rx) = &self.rx else {
             return Err(TransportError::Config(
@@ -178,7 +274,7 @@ impl PacketSource for FileSource {
             Ok(Msg::Data(chunk)) => {
                 self.pending = chunk;
                 self.pending_at = 0;
-                Ok(Chunk::Data(self.take_pending(buf, allowed)))
+                Ok(Chunk::Data(self.take_pending(buf, allowed)?))
             }
             Ok(Msg::Error(error)) => Err(TransportError::Io {
                 path: self.path.clone(),
@@ -254,11 +350,14 @@ mod tests {
         let allowed = 10_000.0 * t0.elapsed().as_secs_f64() + 1.0;
         assert!(got as f64 <= allowed, "{got} bytes > {allowed}");
         assert!(got > 0);
-        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-100, 1e300] {
             let src =
                 FileSource::from_reader("mem".into(), Path::new("mem"), Box::new(std::io::empty()));
             let e = src.with_rate(bad).err().unwrap().to_string();
-            assert!(e.contains("--rate-mbps must be a positive number"), "{e}");
+            assert!(
+                e.contains("--rate-mbps must be a number in 0.001 ..= 100000 MB/s"),
+                "{e}"
+            );
         }
     }
 
