@@ -96,3 +96,86 @@ fn main() {
         std::process::exit(2);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+    use proptest::prelude::*;
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    /// Every subcommand path and every long option of the CLI.
+    fn vocabulary() -> (Vec<Vec<String>>, Vec<String>) {
+        fn walk(
+            cmd: &clap::Command,
+            path: Vec<String>,
+            paths: &mut Vec<Vec<String>>,
+            opts: &mut Vec<String>,
+        ) {
+            for a in cmd.get_arguments() {
+                if let Some(l) = a.get_long() {
+                    opts.push(format!("--{l}"));
+                }
+            }
+            paths.push(path.clone());
+            for sub in cmd.get_subcommands() {
+                let mut p = path.clone();
+                p.push(sub.get_name().to_string());
+                walk(sub, p, paths, opts);
+            }
+        }
+        let (mut paths, mut opts) = (Vec::new(), Vec::new());
+        walk(&Cli::command(), Vec::new(), &mut paths, &mut opts);
+        opts.sort();
+        opts.dedup();
+        (paths, opts)
+    }
+
+    const VALUES: [&str; 16] = [
+        "0",
+        "-1",
+        "1",
+        "nan",
+        "inf",
+        "-inf",
+        "1e308",
+        "1e-320",
+        "18446744073709551616",
+        "4294967296",
+        "",
+        "x",
+        "0x",
+        "file:",
+        "cosim:",
+        "320x240",
+    ];
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        /// Any mix of subcommands, options and hostile values is parsed or
+        /// refused with a message; the argument layer never panics.
+        #[test]
+        fn the_argument_layer_never_panics(
+            path in any::<prop::sample::Index>(),
+            args in prop::collection::vec((any::<prop::sample::Index>(), any::<prop::sample::Index>(), any::<bool>()), 0..8),
+        ) {
+            let (paths, opts) = vocabulary();
+            let mut argv = vec!["smartagg".to_string()];
+            argv.extend(path.get(&paths).iter().cloned());
+            for (o, v, with_value) in args {
+                argv.push(o.get(&opts).clone());
+                if with_value {
+                    argv.push(v.get(&VALUES).to_string());
+                }
+            }
+            if let Err(e) = Cli::try_parse_from(&argv) {
+                prop_assert!(!e.to_string().is_empty());
+            }
+        }
+    }
+}

@@ -107,6 +107,8 @@ fn a_zero_length_file_is_an_error_even_with_allow_loss() {
     let input = dir.path().join("empty.rois");
     std::fs::write(&input, b"").unwrap();
     let out = dir.path().join("out.rois");
+    // An earlier output of that name survives a download that got nothing.
+    std::fs::write(&out, b"earlier capture").unwrap();
     for extra in [&[][..], &["--allow-loss"][..]] {
         let o = download(&input, &out, extra);
         let t = text(&o);
@@ -118,8 +120,11 @@ fn a_zero_length_file_is_an_error_even_with_allow_loss() {
             )),
             "{t}"
         );
-        assert_eq!(std::fs::read(&out).unwrap(), b"");
+        assert_eq!(std::fs::read(&out).unwrap(), b"earlier capture");
+        assert!(!dir.path().join("out.rois.json").exists());
     }
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(names.len(), 2, "no partial file left behind: {names:?}");
 }
 
 /// The same packets re-labelled as format `version`, CRCs recomputed.

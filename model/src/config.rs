@@ -72,6 +72,10 @@ pub struct PipelineConfig {
 
 /// Default number of tracking slots M.
 pub const DEFAULT_SLOTS: usize = 32;
+/// Most pixels a pipeline's sensor may have (4096 × 4096): the engines keep
+/// per-pixel state (the delay line alone holds N bits per pixel), so a
+/// configuration above it is refused before anything is allocated.
+pub const MAX_SENSOR_PIXELS: u64 = 1 << 24;
 /// Default L_max: 10,000 planes (one second at 10 kHz).
 pub const DEFAULT_L_MAX: u32 = 10_000;
 
@@ -134,6 +138,15 @@ impl PipelineConfig {
         }
         if self.height == 0 || self.height > 65535 {
             return Err(invalid("height", self.height, "must be 1..=65535 pixels"));
+        }
+        if self.width as u64 * self.height as u64 > MAX_SENSOR_PIXELS {
+            return Err(invalid(
+                "width",
+                format!("{}x{}", self.width, self.height),
+                format!(
+                    "the sensor may have at most {MAX_SENSOR_PIXELS} pixels (4096x4096): the engines keep state for every pixel"
+                ),
+            ));
         }
         if self.n_window == 0 {
             return Err(invalid(
@@ -290,6 +303,13 @@ mod tests {
         type Mutation = Box<dyn Fn(&mut PipelineConfig)>;
         let cases: Vec<(&str, Mutation)> = vec![
             ("width", Box::new(|c| c.width = 0)),
+            (
+                "width",
+                Box::new(|c| {
+                    c.width = 65535;
+                    c.height = 32768;
+                }),
+            ),
             ("n_window", Box::new(|c| c.n_window = 0)),
             ("kernel", Box::new(|c| c.kernel = vec![1, 3])),
             ("kernel", Box::new(|c| c.kernel = vec![1, 1, 1])),

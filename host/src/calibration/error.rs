@@ -50,6 +50,20 @@ pub enum CalibrationError {
         /// Bit-plane period, s (to say how long to record).
         plane_period_s: f64,
     },
+    /// The flat recording is too short to measure the photon response
+    /// (PRNU) to the requested precision.
+    FlatTooShort {
+        /// Planes in the flat.
+        planes: u64,
+        /// Planes the precision needs.
+        needed: u64,
+        /// Requested relative uncertainty.
+        precision: f64,
+        /// Relative uncertainty of the median pixel's photon response reached.
+        achieved: f64,
+        /// Bit-plane period of the flat, s.
+        plane_period_s: f64,
+    },
     /// An option or parameter outside its range; the message names it.
     Invalid {
         /// The option or parameter.
@@ -178,6 +192,19 @@ impl fmt::Display for CalibrationError {
                     *needed as f64 * plane_period_s
                 )
             }
+            FlatTooShort {
+                planes,
+                needed,
+                precision,
+                achieved,
+                plane_period_s,
+            } => write!(
+                f,
+                "the flat recording is too short: {planes} bit-planes reach {:.2} % relative uncertainty of the median pixel's photon response (PRNU); {:.2} % needs {needed} planes ({:.1} s of recording). Record longer, relax --precision, or pass --allow-short to accept it",
+                100.0 * achieved,
+                100.0 * precision,
+                *needed as f64 * plane_period_s
+            ),
             Invalid { name, why } => write!(f, "invalid `{name}`: {why}"),
             Stack { path, why } => write!(f, "frame stack {}: {why}", path.display()),
             NotCalibration { path, why } => {

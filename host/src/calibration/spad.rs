@@ -591,6 +591,32 @@ fn prnu_from_flat(
             ),
         ));
     }
+    // The counting noise of the median pixel's response, against the
+    // precision asked of the dark: a short flat would mark pixels dead and
+    // report a PRNU that is only noise.
+    let usable_sd: Vec<f64> = (0..pixels)
+        .filter(|&i| usable(fl[i]))
+        .map(|i| response_sd[i])
+        .collect();
+    let achieved = median(&usable_sd).unwrap_or(f64::INFINITY) / median_resp;
+    if achieved.is_nan() || achieved > options.precision {
+        let needed = if achieved.is_finite() {
+            (n as f64 * (achieved / options.precision).powi(2)).ceil() as u64
+        } else {
+            u64::MAX
+        };
+        let err = CalibrationError::FlatTooShort {
+            planes: n,
+            needed,
+            precision: options.precision,
+            achieved,
+            plane_period_s: f.plane_period_s,
+        };
+        if !options.allow_short {
+            return Err(err);
+        }
+        eprintln!("warning: {err} (accepted with --allow-short)");
+    }
     for i in 0..pixels {
         if response[i] < options.dead_below * median_resp && fl[i] & flags::FLAT_SATURATED == 0 {
             fl[i] |= flags::DEAD;

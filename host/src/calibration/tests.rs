@@ -466,6 +466,41 @@ fn short_recordings_say_so_unless_accepted() {
 }
 
 #[test]
+fn a_flat_too_short_for_the_precision_is_refused_unless_allowed() {
+    let (cam, maps) = test_camera_and_maps(21);
+    let dark = simulate(&cam, &maps, 0.0, 200_000, 22);
+    let light_per_um2 = 3000.0 / (cam.eta() * (spcimager_preset().pixel_nm() / 1000.0).powi(2));
+    let flat = simulate(&cam, &maps, light_per_um2, 20, 23);
+    let e = calibrate_spad(
+        &dark,
+        Some(&flat),
+        &preset_spec(),
+        &SpadOptions::default(),
+        prov(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("the flat recording is too short: 20 bit-planes"),
+        "{e}"
+    );
+    assert!(e.contains("--allow-short"), "{e}");
+    let needed: u64 = e
+        .split(" needs ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap();
+    // Counting noise at p ≈ 0.26: 5 % needs a few thousand planes, not 20.
+    assert!((500..50_000).contains(&needed), "{needed}: {e}");
+    let allowed = SpadOptions {
+        allow_short: true,
+        ..Default::default()
+    };
+    assert!(calibrate_spad(&dark, Some(&flat), &preset_spec(), &allowed, prov()).is_ok());
+}
+
+#[test]
 fn saturated_dead_and_one_plane_recordings_are_finite_and_flagged() {
     let n = 2000;
     let mut dark = vec![20u64; 64];
@@ -1109,4 +1144,39 @@ fn tiff_stacks_are_read_page_by_page_and_bad_pages_are_named() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("absent.tif"), "{e}");
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config::with_cases(64))]
+
+    /// Damaged calibration directories (bytes flipped, cut or inserted in
+    /// the header or any map) load or fail with an error; never a panic, and
+    /// a map that loads is finite.
+    #[test]
+    fn damaged_calibrations_never_panic(
+        file in 0usize..4,
+        edits in proptest::collection::vec((proptest::num::usize::ANY, proptest::num::u8::ANY, 0u8..3), 1..6),
+    ) {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("calib");
+        small_calibration().save(&dir).unwrap();
+        let name = ["calibration.toml", "dcr_hz.tif", "flags.tif", "prnu.tif"][file];
+        let path = dir.join(name);
+        let mut bytes = std::fs::read(&path).unwrap();
+        for (at, value, kind) in edits {
+            let i = at % (bytes.len() + 1);
+            match kind {
+                0 if i < bytes.len() => bytes[i] ^= value | 1,
+                1 => bytes.truncate(i),
+                _ => bytes.insert(i, value),
+            }
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        if let Ok(c) = Calibration::load(&dir) {
+            proptest::prop_assert!(c.dcr_hz.iter().all(|v| v.is_finite()));
+            if let Some(p) = &c.prnu {
+                proptest::prop_assert!(p.iter().all(|v| v.is_finite()));
+            }
+        }
+    }
 }

@@ -33,8 +33,8 @@ pub struct Args {
     /// Planes for the (slow) golden engine.
     #[arg(long, default_value_t = 300)]
     pub golden_planes: usize,
-    /// Worker threads of the multi-threaded run (default: all cores).
-    #[arg(long)]
+    /// Worker threads of the multi-threaded run, 1..=1024 (default: all cores; more than the cores oversubscribe them, as asked).
+    #[arg(long, value_parser = crate::setup::thread_count)]
     pub threads: Option<usize>,
     /// Field width (default: the sensor).
     #[arg(long)]

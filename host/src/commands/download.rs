@@ -1,6 +1,8 @@
 //! `smartagg download`: receive the blink-ROI packet stream from a board, a
 //! recorded file or the co-simulated gateware, write it to a `.rois` file as
-//! it arrives, and report what was lost.
+//! it arrives (beside the output, renamed into place when the download ends;
+//! a download that receives nothing leaves an earlier output as it was), and
+//! report what was lost.
 //!
 //! Exit status: 0 when the stream arrived whole (nothing lost or skipped,
 //! closed by its stream-end record); otherwise an error (status 2) that names
@@ -9,6 +11,7 @@
 //! empty source, a stream with no valid packet (e.g. only packets of a newer
 //! format version), a stalled or failing source are errors either way.
 
+use crate::output::AtomicFile;
 use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
 use crate::transport::download::{
@@ -56,7 +59,9 @@ pub struct Args {
     /// recorded .rois stream or a named pipe), cosim:PRESET (co-simulated gateware).
     #[arg(long, default_value = "frontpanel")]
     pub source: String,
-    /// Output packet stream (.rois), written as the bytes arrive.
+    /// Output packet stream (.rois): the bytes go to a file beside it as they
+    /// arrive, which takes its name when the download ends (an earlier file
+    /// of that name stays as it was if nothing arrived).
     #[arg(long)]
     pub out: PathBuf,
     /// USB vendor id, hexadecimal (usb source).
@@ -230,8 +235,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("configuring {}", source.describe()))?;
         opts.expected_start = Some(cfg.expected_start());
     }
-    let mut out = std::fs::File::create(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    // The bytes go to a file beside the output as they arrive; it becomes
+    // the output when the download ends, whatever was lost, unless nothing
+    // arrived (then an earlier file of that name is left as it was).
+    let mut out = AtomicFile::create(&args.out)?;
     let bar = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {
@@ -246,8 +253,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out_name = args.out.display().to_string();
     let result = download(source.as_mut(), &mut out, &out_name, &opts, &mut observer);
     bar.finish_and_clear();
-    // The bytes are in the OS already (written per chunk); make them durable.
-    let synced = out.sync_all();
+    let received = match &result {
+        Ok(r) => r.bytes,
+        Err(f) => f.report.bytes,
+    };
+    if received > 0 {
+        out.commit()?;
+    } else {
+        drop(out);
+    }
     // What localize needs to know about the stream, beside every byte kept.
     let report = match result {
         Ok(r) => r,
@@ -258,7 +272,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     write_sidecar(&args, &preset, &report)?;
-    synced.with_context(|| format!("syncing {}", args.out.display()))?;
     print_summary(&report, &args.out);
     if report.complete() {
         return Ok(());

@@ -713,16 +713,30 @@ fn export_tiff(
             let Some((width, height)) = sensor else {
                 bail!("--export-layout sensor needs the stream-start record (sensor size), which this stream lacks");
             };
+            // One sensor-sized page per blink, built in memory.
+            const MAX_BYTES: u64 = 2 << 30;
+            let bytes = (width * height) as u64 * 4 * pages.len() as u64;
+            if bytes > MAX_BYTES {
+                bail!(
+                    "--export-layout sensor would build {} sensor-sized pages of {width}x{height} pixels ({:.1} GiB, the limit is 2 GiB): use --export-layout compact",
+                    pages.len(),
+                    bytes as f64 / (1u64 << 30) as f64
+                );
+            }
             RoiLayout::Sensor { width, height }
         }
     };
     let (w, h, data) = tiffio::roi_pages(&pages, layout);
-    let out = tiffio::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let bits16 = tiffio::write_stack(out, w, h, &data)
+    let mut out = std::io::BufWriter::new(AtomicFile::create(path)?);
+    let bits16 = tiffio::write_stack(&mut out, w, h, &data)
         .with_context(|| format!("writing {}", path.display()))?;
+    out.into_inner()
+        .map_err(|e| e.into_error())
+        .with_context(|| format!("writing {}", path.display()))?
+        .commit()?;
     if layout == RoiLayout::Compact {
         let origins = PathBuf::from(format!("{}.origins.csv", path.display()));
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&origins)?);
+        let mut f = std::io::BufWriter::new(AtomicFile::create(&origins)?);
         writeln!(
             f,
             "\"page\",\"x0 [px]\",\"y0 [px]\",\"t_start [plane]\",\"t_end [plane]\",\"planes\""
@@ -739,7 +753,10 @@ fn export_tiff(
                 r.planes_summed
             )?;
         }
-        f.flush()?;
+        f.into_inner()
+            .map_err(|e| e.into_error())
+            .with_context(|| format!("writing {}", origins.display()))?
+            .commit()?;
         eprintln!(
             "{} ROIs written to {} ({}x{}, {}); page origins in {}",
             rois.len(),

@@ -64,8 +64,8 @@ pub struct Args {
     /// Localisations further than this from the truth are false, nm.
     #[arg(long, default_value_t = smartagg_study::spec::DEFAULT_MATCH_RADIUS_NM)]
     pub match_radius: f64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; more than the cores are capped, with a note).
+    #[arg(long, value_parser = crate::setup::thread_count)]
     pub threads: Option<usize>,
     /// No progress bar.
     #[arg(long)]
@@ -194,11 +194,8 @@ fn run_one(
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(t) = a.threads {
-        if t == 0 {
-            bail!("--threads must be at least 1");
-        }
         rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
+            .num_threads(crate::setup::cap_threads(t))
             .build_global()
             .context("setting up the worker threads")?;
     }
