@@ -521,3 +521,35 @@ fn render_skips_outliers_and_bad_rows_and_counts_them() {
     let o = smartagg(&["render", s(&t2), "--out", s(&png)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn a_header_claiming_a_huge_sensor_with_no_planes_is_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let spad = dir.path().join("zero.spad");
+    let mut h = b"SPADBITS".to_vec();
+    h.extend_from_slice(&1u16.to_le_bytes());
+    h.extend_from_slice(&48u16.to_le_bytes());
+    h.extend_from_slice(&65535u32.to_le_bytes());
+    h.extend_from_slice(&32768u32.to_le_bytes());
+    h.extend_from_slice(&100_000u64.to_le_bytes());
+    h.extend_from_slice(&100_000u64.to_le_bytes());
+    h.extend_from_slice(&[0, 0, 0, 0]);
+    h.extend_from_slice(&0u64.to_le_bytes());
+    assert_eq!(h.len(), 48);
+    std::fs::write(&spad, &h).unwrap();
+    let out = dir.path().join("z.rois");
+    for engine in ["golden", "fast"] {
+        let o = smartagg(&[
+            "aggregate",
+            spad.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--engine",
+            engine,
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains("at most 16777216 pixels"), "{e}");
+        assert!(!out.exists());
+    }
+}

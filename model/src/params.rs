@@ -56,7 +56,10 @@ pub fn fmt_num(v: f64) -> String {
     }
     let plain = format!("{v}");
     let a = v.abs();
-    if !(1e-4..1e7).contains(&a) {
+    if v.fract() == 0.0 && plain.len() <= 10 && !plain.ends_with("000000") {
+        // A whole number that is not round (a count of planes) reads best in full.
+        plain
+    } else if !(1e-4..1e7).contains(&a) {
         format!("{v:e}")
     } else if plain.len() <= 12 {
         plain
@@ -665,6 +668,7 @@ mod tests {
         assert_eq!(fmt_num(1500.0), "1500");
         assert_eq!(fmt_num(65535.0), "65535");
         assert_eq!(fmt_num(1e9), "1e9");
+        assert_eq!(fmt_num(536_870_912.0), "536870912");
         assert_eq!(fmt_num(2.5e10), "2.5e10");
         assert_eq!(fmt_num(1e300), "1e300");
         assert_eq!(fmt_num(-1e12), "-1e12");
