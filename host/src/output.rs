@@ -57,11 +57,32 @@ impl AtomicFile {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let tmp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".partial")
-            .tempfile_in(dir)
-            .with_context(|| format!("creating {} (a file beside it)", target.display()))?;
+        let prefix = format!(".{name}.");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".partial");
+        // An output gets the mode of the file it replaces, else 0666 less the
+        // umask, as `File::create` would (tempfile's default is 0600).
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(target).map_or(0o666, |m| m.permissions().mode() & 0o7777);
+            builder.permissions(std::fs::Permissions::from_mode(mode));
+        }
+        if !dir.is_dir() {
+            bail!(
+                "cannot create {}: the folder {} does not exist",
+                target.display(),
+                dir.display()
+            );
+        }
+        let tmp = builder.tempfile_in(dir).map_err(|e| {
+            anyhow::anyhow!(
+                "cannot create {} in {}: {}",
+                target.display(),
+                dir.display(),
+                std::io::Error::from(e.kind())
+            )
+        })?;
         Ok(AtomicFile {
             tmp,
             target: target.to_path_buf(),
@@ -128,6 +149,22 @@ mod tests {
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
+    #[cfg(unix)]
+    #[test]
+    fn an_output_is_readable_as_create_would_make_it() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        let fresh = dir.path().join("fresh");
+        write_atomic(&fresh, b"x").unwrap();
+        let plain = dir.path().join("plain");
+        std::fs::write(&plain, b"x").unwrap();
+        assert_eq!(mode(&fresh), mode(&plain), "umask applied as File::create");
+        std::fs::set_permissions(&plain, std::fs::Permissions::from_mode(0o640)).unwrap();
+        write_atomic(&plain, b"y").unwrap();
+        assert_eq!(mode(&plain), 0o640, "a replaced file keeps its mode");
+    }
+
     #[test]
     fn links_to_an_input_are_the_input() {
         let dir = tempfile::tempdir().unwrap();
@@ -141,6 +178,14 @@ mod tests {
             std::os::unix::fs::symlink(&input, &soft).unwrap();
             assert!(refuse_overwriting(&soft, &[&input]).is_err());
         }
+        let e = AtomicFile::create(&dir.path().join("no/such/out"))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("the folder") && e.contains("does not exist"),
+            "{e}"
+        );
         let e = refuse_overwriting(&hard, &[&input])
             .unwrap_err()
             .to_string();

@@ -26,6 +26,11 @@ fn text(o: &Output) -> String {
 
 /// A valid stream with `blinks` blinks.
 fn stream(blinks: u32) -> Vec<u8> {
+    stream_claiming(blinks, blinks as u64)
+}
+
+/// A stream with `blinks` blinks whose StreamEnd says `claimed`.
+fn stream_claiming(blinks: u32, claimed: u64) -> Vec<u8> {
     let cfg = PipelineConfig::new(64, 48, 10, vec![1, 2, 1], 2, 20);
     let mut records = vec![Record::Start(cfg.stream_start())];
     for i in 0..blinks {
@@ -45,7 +50,7 @@ fn stream(blinks: u32) -> Vec<u8> {
     }
     records.push(Record::End(StreamEnd {
         planes: 1000,
-        blinks: blinks as u64,
+        blinks: claimed,
         ..Default::default()
     }));
     encode_stream(&records).unwrap()
@@ -317,5 +322,33 @@ fn cosim_source_plays_the_verilated_gateware_and_refuses_bad_specs() {
     match records.last() {
         Some(Record::End(e)) => assert_eq!(e.planes, 4, "{e:?}"),
         other => panic!("the stream ends with {other:?}"),
+    }
+}
+
+#[test]
+fn a_repeated_capture_and_a_lying_stream_end_are_not_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let twice = [stream(4), stream(4)].concat();
+    let lying = stream_claiming(4, u64::MAX);
+    for (name, bytes, want) in [
+        ("twice", &twice, "4 packets repeat earlier ones"),
+        (
+            "lying",
+            &lying,
+            "count 18446744073709551615 blinks but 4 arrived",
+        ),
+    ] {
+        let input = dir.path().join(format!("{name}.rois"));
+        std::fs::write(&input, bytes).unwrap();
+        let out = dir.path().join(format!("{name}-out.rois"));
+        let o = download_file(&input, &out, &[]);
+        let t = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {t}");
+        assert!(t.contains(want), "{name}: {t}");
+        // Kept as received, for the record.
+        assert_eq!(&std::fs::read(&out).unwrap(), bytes);
+        let o = download_file(&input, &out, &["--allow-loss"]);
+        assert_eq!(o.status.code(), Some(0), "{name}: {}", text(&o));
+        assert!(text(&o).contains("WARNING"), "{name}");
     }
 }

@@ -32,7 +32,7 @@ pub mod flags {
 
 /// Parameters the pipeline ran with, sent first in every stream so the host
 /// can interpret everything after it without any other file.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct StreamStart {
     /// Sensor width, pixels.
     pub width: u16,
@@ -67,7 +67,7 @@ pub struct StreamStart {
 }
 
 /// One confirmed blink (or one segment of a blink longer than L_max).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct BlinkRecord {
     /// Tracking slot that followed the blink.
     pub slot: u8,
@@ -120,7 +120,7 @@ impl BlinkRecord {
 }
 
 /// Candidates that found no free tracking slot during one plane.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct DroppedRecord {
     /// The plane.
     pub plane: u64,
@@ -133,7 +133,7 @@ pub struct DroppedRecord {
 }
 
 /// Totals sent when the stream is stopped.
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct StreamEnd {
     /// Bit-planes processed.
     pub planes: u64,
@@ -154,7 +154,7 @@ pub struct StreamEnd {
 /// Emitted by the gateware only: records it numbered but lost, because its
 /// record queue or its output FIFO was full. It carries no sequence number of
 /// its own (see [`crate::packet`] and `model/PACKETS.md` §5).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct OverflowRecord {
     /// Sequence number of the first record lost.
     pub first_seq: u32,
@@ -163,7 +163,7 @@ pub struct OverflowRecord {
 }
 
 /// Any record of the stream.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Record {
     /// Parameters, first in every stream.
     Start(StreamStart),

@@ -279,7 +279,7 @@ pub fn finalize(
         ("timing.csv", timing_csv(plan, &summary)),
     ] {
         let p = dir.join(name);
-        std::fs::write(&p, text).map_err(|e| StudyError::io(&p, e))?;
+        crate::experiment::common::write_text(&p, &text)?;
         written.push(p);
     }
     let png = dir.join(format!("{}.png", plan.study));
@@ -289,7 +289,7 @@ pub fn finalize(
     }
     let md = markdown(plan, &summary, &setups, provenance, &png, &warnings);
     let p = dir.join("summary.md");
-    std::fs::write(&p, md).map_err(|e| StudyError::io(&p, e))?;
+    crate::experiment::common::write_text(&p, &md)?;
     written.push(p);
     Ok((written, warnings))
 }

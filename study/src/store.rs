@@ -41,7 +41,7 @@ pub struct Manifest {
 }
 
 fn write(path: &Path, text: &str) -> Result<(), StudyError> {
-    std::fs::write(path, text).map_err(|e| StudyError::io(path, e))
+    crate::experiment::common::write_text(path, text)
 }
 
 fn read(path: &Path) -> Result<String, StudyError> {

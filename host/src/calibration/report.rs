@@ -20,7 +20,8 @@ pub struct ReportFiles {
 }
 
 fn write_file(path: &Path, text: &str) -> Result<(), CalibrationError> {
-    std::fs::write(path, text).map_err(|e| CalibrationError::io(path, "writing", e))
+    crate::output::write_atomic(path, text.as_bytes())
+        .map_err(|e| CalibrationError::invalid("report", format!("{e:#}")))
 }
 
 /// Log-spaced histogram of the positive values: (lower edge, upper edge, count).

@@ -474,11 +474,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         merged: false,
         rows: locs.clone(),
     };
-    let mut f = std::io::BufWriter::new(
-        std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?,
-    );
-    table.write_csv(&mut f)?;
-    std::io::Write::flush(&mut f)?;
+    let mut table_bytes = Vec::new();
+    table.write_csv(&mut table_bytes)?;
+    crate::output::write_atomic(&csv, &table_bytes)?;
     let png = args.out.join("render.png");
     let points: Vec<Point> = locs
         .iter()
@@ -498,7 +496,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ropts.height = ropts.width;
     let (image, _) = render::render(&points, &ropts)?;
     let (png_bytes, _) = render::to_png(&image, 0.5)?;
-    std::fs::write(&png, png_bytes).with_context(|| format!("writing {}", png.display()))?;
+    crate::output::write_atomic(&png, &png_bytes)?;
     timing.add(
         "write outputs",
         t,
@@ -521,7 +519,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         gateware.as_ref(),
     );
     let md = args.out.join("report.md");
-    std::fs::write(&md, &report)?;
+    crate::output::write_atomic(&md, report.as_bytes())?;
     println!("{report}");
     println!(
         "written: {}, {}, {}, {}",

@@ -77,7 +77,7 @@ fn design(preset: &str, objective: u32) -> anyhow::Result<Design> {
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    crate::output::write_atomic(path, text.as_bytes())
 }
 
 /// The ISE 14.7 project script of a design.

@@ -128,6 +128,13 @@ pub struct DownloadReport {
     pub stream_end: Option<StreamEnd>,
     /// The sensor (width, height) of the first StreamStart delivered.
     pub sensor: Option<(u32, u32)>,
+    /// Packets that repeat an earlier one (same sequence number, same
+    /// record): kept in the output as received, counted here.
+    pub duplicates: u64,
+    /// Blink records delivered once (duplicates left out).
+    pub unique_blinks: u64,
+    /// Blinks the StreamEnd records (each counted once) say were sent.
+    pub claimed_blinks: u64,
     /// The decoder's exact loss accounting.
     pub stats: LossStats,
     /// Highest newer format version met, if any.
@@ -188,6 +195,20 @@ impl DownloadReport {
                 "the stream has no stream-end record after its last packet: the capture is incomplete (records after the last packet cannot be counted)"
                     .to_string(),
             );
+        }
+        if self.duplicates > 0 {
+            p.push(format!(
+                "{} packets repeat earlier ones (same sequence number and record: a duplicated transfer, or a capture concatenated with itself); they are kept as received, and `smartagg localize` drops them",
+                self.duplicates
+            ));
+        } else if self.ended_with_stream_end
+            && !self.stats.any_loss()
+            && self.claimed_blinks != self.unique_blinks
+        {
+            p.push(format!(
+                "the stream-end records count {} blinks but {} arrived",
+                self.claimed_blinks, self.unique_blinks
+            ));
         }
         if let Some(m) = &self.start_mismatch {
             p.push(m.clone());
@@ -308,6 +329,8 @@ struct State<'a> {
     decoder: Decoder,
     report: DownloadReport,
     last_was_end: bool,
+    /// (sequence number, hash of the record) of every packet delivered.
+    seen: std::collections::HashSet<(u32, u64)>,
     expected_start: Option<&'a StreamStart>,
     t0: Instant,
     last_progress: Instant,
@@ -338,6 +361,28 @@ impl State<'_> {
         match e {
             Event::Packet(p) => {
                 self.last_was_end = matches!(p.record, Record::End(_));
+                let key = {
+                    use std::hash::{Hash, Hasher};
+                    let mut h = std::collections::hash_map::DefaultHasher::new();
+                    p.record.hash(&mut h);
+                    (p.seq, h.finish())
+                };
+                // StreamStart and StreamEnd may repeat across captures of one
+                // configuration; a repeated Blink, Dropped or Overflow cannot.
+                let repeatable = matches!(p.record, Record::Start(_) | Record::End(_));
+                let repeated = !repeatable && !self.seen.insert(key);
+                if repeated {
+                    self.report.duplicates += 1;
+                } else {
+                    match &p.record {
+                        Record::Blink(_) => self.report.unique_blinks += 1,
+                        Record::End(end) => {
+                            self.report.claimed_blinks =
+                                self.report.claimed_blinks.saturating_add(end.blinks)
+                        }
+                        _ => {}
+                    }
+                }
                 match &p.record {
                     Record::Blink(_) => self.report.blinks += 1,
                     Record::Start(s) => {
@@ -448,6 +493,7 @@ pub fn download(
             ..Default::default()
         },
         last_was_end: false,
+        seen: Default::default(),
         expected_start: opts.expected_start.as_ref(),
         t0,
         last_progress: t0,
@@ -935,6 +981,34 @@ pub(crate) mod tests {
         )
         .unwrap();
         assert_eq!((r.streams, r.blinks), (2, 4));
+        // The same capture twice: its Blink and Dropped packets repeat.
+        assert_eq!(r.duplicates, 3);
+        assert!(r.problems()[0].contains("3 packets repeat earlier ones"));
+        // Two different captures of one configuration are whole.
+        let mut enc = Encoder::new();
+        let mut other = Vec::new();
+        for rec in [
+            Record::Start(start_record()),
+            blink(10),
+            blink(11),
+            Record::End(StreamEnd {
+                planes: 200,
+                blinks: 2,
+                ..Default::default()
+            }),
+        ] {
+            enc.push(&rec, &mut other).unwrap();
+        }
+        let mut src = ScriptSource::new(vec![Step::Data([one, other].concat()), Step::End], false);
+        let r = download(
+            &mut src,
+            &mut Vec::new(),
+            "o",
+            &opts(500),
+            &mut Collect::default(),
+        )
+        .unwrap();
+        assert_eq!((r.streams, r.blinks, r.duplicates), (2, 4, 0));
         assert!(r.complete(), "{:?}", r.problems());
     }
 

@@ -388,9 +388,26 @@ pub fn wilson(k: f64, n: f64) -> (f64, f64) {
     ((c - h).max(0.0), (c + h).min(1.0))
 }
 
-/// Writes a text file, naming it in the error.
+/// Writes a text file atomically (beside the target, then renamed into
+/// place, so a failure never leaves a half-written result), naming it in the
+/// error.
 pub fn write_text(path: &Path, text: &str) -> Result<(), StudyError> {
-    std::fs::write(path, text).map_err(|e| StudyError::io(path, e))
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    // 0666 less the umask, as `fs::write` would (tempfile's default is 0600).
+    #[cfg(unix)]
+    builder
+        .permissions(<std::fs::Permissions as std::os::unix::fs::PermissionsExt>::from_mode(0o666));
+    let mut tmp = builder
+        .tempfile_in(dir)
+        .map_err(|e| StudyError::io(path, e))?;
+    std::io::Write::write_all(&mut tmp, text.as_bytes()).map_err(|e| StudyError::io(path, e))?;
+    tmp.persist(path)
+        .map_err(|e| StudyError::io(path, e.error))?;
+    Ok(())
 }
 
 /// A plotting error on `path`.
