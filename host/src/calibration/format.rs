@@ -415,15 +415,17 @@ fn frame_maps(c: &FrameCalibration) -> Vec<(Spec, Data<'_>)> {
     v
 }
 
+/// Writes one map to `path` (a file beside its final name); the entry names
+/// the final file `file`.
 fn write_map(
-    dir: &Path,
+    path: &Path,
+    file: String,
     spec: &Spec,
     w: u32,
     h: u32,
     data: &Data,
 ) -> Result<MapEntry, CalibrationError> {
-    let file = format!("{}.tif", spec.name);
-    let path = dir.join(&file);
+    let path = path.to_path_buf();
     let out =
         std::fs::File::create(&path).map_err(|e| CalibrationError::io(&path, "creating", e))?;
     let tiff_err = |e: tiff::TiffError| map_err(spec.name, &path, format!("writing: {e}"));
@@ -473,8 +475,34 @@ fn save_dir(
         ));
     }
     std::fs::create_dir_all(dir).map_err(|e| CalibrationError::io(dir, "creating directory", e))?;
-    // The header goes last (through a rename), so a half-written directory
-    // never reads as a calibration.
+    // Every map is written beside its final name first: a failure there
+    // leaves an earlier calibration in the directory as it was.
+    let partial = |name: &str| dir.join(format!(".{name}.tif.partial"));
+    let mut staged = Vec::new();
+    for (spec, data) in &maps {
+        let file = format!("{}.tif", spec.name);
+        match write_map(
+            &partial(spec.name),
+            file.clone(),
+            spec,
+            header.width,
+            header.height,
+            data,
+        ) {
+            Ok(entry) => {
+                header.maps.insert(spec.name.to_string(), entry);
+                staged.push((partial(spec.name), dir.join(file)));
+            }
+            Err(e) => {
+                for (s, _) in &maps {
+                    let _ = std::fs::remove_file(partial(s.name));
+                }
+                return Err(e);
+            }
+        }
+    }
+    // Then the switch, in renames: the header goes out first and comes back
+    // last, so a half-switched directory never reads as a calibration.
     let header_path = dir.join(HEADER_FILE);
     match std::fs::remove_file(&header_path) {
         Ok(()) => {}
@@ -490,9 +518,8 @@ fn save_dir(
             Err(e) => return Err(CalibrationError::io(&stale, "removing stale map", e)),
         }
     }
-    for (spec, data) in &maps {
-        let entry = write_map(dir, spec, header.width, header.height, data)?;
-        header.maps.insert(spec.name.to_string(), entry);
+    for (from, to) in &staged {
+        std::fs::rename(from, to).map_err(|e| CalibrationError::io(to, "writing", e))?;
     }
     let text = toml::to_string(&header)
         .map_err(|e| CalibrationError::invalid("header", format!("serialising: {e}")))?;

@@ -1180,3 +1180,27 @@ proptest::proptest! {
         }
     }
 }
+
+#[test]
+fn a_save_that_fails_leaves_the_earlier_calibration_as_it_was() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("calib");
+    let c = small_calibration();
+    c.save(&dir).unwrap();
+    let before = Calibration::load(&dir).unwrap();
+    // The last map cannot be written (its file beside the target is a folder).
+    std::fs::create_dir(dir.join(".prnu.tif.partial")).unwrap();
+    let mut other = c.clone();
+    other.dcr_hz[0] += 1.0;
+    assert!(other.save(&dir).is_err());
+    assert_eq!(Calibration::load(&dir).unwrap(), before);
+    std::fs::remove_dir(dir.join(".prnu.tif.partial")).unwrap();
+    let left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    other.save(&dir).unwrap();
+    assert_ne!(Calibration::load(&dir).unwrap(), before);
+}
