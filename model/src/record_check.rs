@@ -87,6 +87,39 @@ pub enum Implausible {
     },
 }
 
+/// Finds packets that repeat an earlier one of the same stream file: a
+/// Blink, Dropped or Overflow record with the same sequence number and the
+/// same content (a duplicated transfer, a capture concatenated with itself),
+/// compared by a 64-bit hash of the record.
+/// StreamStart and StreamEnd are never repeats: two captures of one
+/// configuration legitimately share them. Holds 16 bytes per packet seen.
+#[derive(Debug, Default)]
+pub struct RepeatFilter {
+    seen: std::collections::HashSet<(u32, u64)>,
+    repeats: u64,
+}
+
+impl RepeatFilter {
+    /// Whether the packet `(seq, record)` repeats one seen before; counts it.
+    pub fn is_repeat(&mut self, seq: u32, record: &crate::record::Record) -> bool {
+        use crate::record::Record;
+        use std::hash::{Hash, Hasher};
+        if matches!(record, Record::Start(_) | Record::End(_)) {
+            return false;
+        }
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        record.hash(&mut h);
+        let repeat = !self.seen.insert((seq, h.finish()));
+        self.repeats += u64::from(repeat);
+        repeat
+    }
+
+    /// Repeats found so far.
+    pub fn repeats(&self) -> u64 {
+        self.repeats
+    }
+}
+
 /// Whether `r` is an empty segment: a continuation cut on its last plane,
 /// which sums no plane.
 pub fn is_empty_segment(r: &BlinkRecord) -> bool {
@@ -196,6 +229,23 @@ mod tests {
             roi_size: 3,
             counts: vec![1, 2, 3, 4, 30, 4, 3, 2, 1],
         }
+    }
+
+    #[test]
+    fn repeats_are_blinks_seen_before_never_starts_or_ends() {
+        use crate::record::{Record, StreamEnd};
+        let mut f = RepeatFilter::default();
+        let end = Record::End(StreamEnd::default());
+        let b = Record::Blink(blink());
+        assert!(!f.is_repeat(0, &Record::Start(start())));
+        assert!(!f.is_repeat(1, &b));
+        assert!(!f.is_repeat(2, &end));
+        assert!(!f.is_repeat(0, &Record::Start(start())));
+        assert!(f.is_repeat(1, &b));
+        assert!(!f.is_repeat(2, &end));
+        // Same content under another sequence number is another packet.
+        assert!(!f.is_repeat(7, &b));
+        assert_eq!(f.repeats(), 1);
     }
 
     #[test]

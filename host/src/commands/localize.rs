@@ -40,7 +40,7 @@ use smartagg_localize::{
 };
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::record::{flags as rflags, BlinkRecord, Record, StreamStart};
-use smartagg_model::record_check::{check_blink, is_empty_segment};
+use smartagg_model::record_check::{check_blink, is_empty_segment, RepeatFilter};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -364,22 +364,15 @@ pub fn read_stream(path: &Path) -> anyhow::Result<StreamContent> {
     }
     let mut start: Option<StreamStart> = None;
     let mut ends: Vec<smartagg_model::record::StreamEnd> = Vec::new();
-    let mut seen: std::collections::HashMap<u32, Vec<Record>> = Default::default();
-    let (mut duplicates, mut received, mut empty_segments) = (0usize, 0u64, 0usize);
+    let mut repeats = RepeatFilter::default();
+    let (mut received, mut empty_segments) = (0u64, 0usize);
     let (mut rejected, mut examples) = (0usize, Vec::new());
     let mut blinks = Vec::new();
     for p in decoded.packets {
         // A packet repeated by the transport (or a capture concatenated with
         // itself) has the same sequence number and the same record.
-        // StreamStart and StreamEnd may repeat across captures of one
-        // configuration; a repeated Blink, Dropped or Overflow cannot.
-        if !matches!(p.record, Record::Start(_) | Record::End(_)) {
-            let same_seq = seen.entry(p.seq).or_default();
-            if same_seq.contains(&p.record) {
-                duplicates += 1;
-                continue;
-            }
-            same_seq.push(p.record.clone());
+        if repeats.is_repeat(p.seq, &p.record) {
+            continue;
         }
         match p.record {
             Record::Start(s) if start.is_none() => start = Some(s),
@@ -397,6 +390,7 @@ pub fn read_stream(path: &Path) -> anyhow::Result<StreamContent> {
             path.display()
         );
     }
+    let duplicates = repeats.repeats();
     if duplicates > 0 {
         problems.push(format!(
             "{duplicates} repeated packets (same sequence number and content) dropped"

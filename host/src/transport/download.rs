@@ -11,6 +11,7 @@
 use super::{Chunk, PacketSource, TransportError};
 use smartagg_model::packet::{newer_version_message, Decoder, Event, LossStats};
 use smartagg_model::record::{Record, StreamEnd, StreamStart};
+use smartagg_model::record_check::RepeatFilter;
 use std::fmt;
 use std::io::Write;
 use std::time::{Duration, Instant};
@@ -329,8 +330,7 @@ struct State<'a> {
     decoder: Decoder,
     report: DownloadReport,
     last_was_end: bool,
-    /// (sequence number, hash of the record) of every packet delivered.
-    seen: std::collections::HashSet<(u32, u64)>,
+    repeats: RepeatFilter,
     expected_start: Option<&'a StreamStart>,
     t0: Instant,
     last_progress: Instant,
@@ -361,17 +361,7 @@ impl State<'_> {
         match e {
             Event::Packet(p) => {
                 self.last_was_end = matches!(p.record, Record::End(_));
-                let key = {
-                    use std::hash::{Hash, Hasher};
-                    let mut h = std::collections::hash_map::DefaultHasher::new();
-                    p.record.hash(&mut h);
-                    (p.seq, h.finish())
-                };
-                // StreamStart and StreamEnd may repeat across captures of one
-                // configuration; a repeated Blink, Dropped or Overflow cannot.
-                let repeatable = matches!(p.record, Record::Start(_) | Record::End(_));
-                let repeated = !repeatable && !self.seen.insert(key);
-                if repeated {
+                if self.repeats.is_repeat(p.seq, &p.record) {
                     self.report.duplicates += 1;
                 } else {
                     match &p.record {
@@ -493,7 +483,7 @@ pub fn download(
             ..Default::default()
         },
         last_was_end: false,
-        seen: Default::default(),
+        repeats: RepeatFilter::default(),
         expected_start: opts.expected_start.as_ref(),
         t0,
         last_progress: t0,
