@@ -34,23 +34,30 @@
 //!   slot from `t + 1` as a CONTINUATION segment, so no slot or counter is held
 //!   forever. Because a cut waits out a one-plane dip, a segment holds at most
 //!   `L_max + 1` live planes.
-//! * **Summation ranges** (stage 6): live planes `[t_cross, t_drop]`; a first
-//!   segment also sums the pre-roll `[max(0, t_cross − N), t_cross − 1]`, read
-//!   from the delay line as `B_{t−N}` during planes `t_cross … t_cross + N − 1`.
-//! * **Completion.** A confirmed segment completes at the end of the first plane
-//!   at which its live range has ended and its pre-roll is complete:
-//!   `max(t_drop + 1, t_cross + N − 1)` for a dropped first segment,
-//!   `t_drop + 1` for a dropped continuation, the cut plane for a cut one
-//!   (`L_max ≥ N`, so its pre-roll is complete). Records are emitted in order
-//!   of completion plane, then slot; the slot is free again from the next plane.
+//! * **Summation ranges** (stage 6). A segment sums only the delayed plane
+//!   `B_{t−N}` that leaves the window, at the planes `t ≥ max(N, t_cross)`
+//!   while it is live and, after a drop, while `t ≤ t_drop + N − end_trim`:
+//!   the bit-planes `[max(0, t_cross − N), last]`, with `last = t_drop −
+//!   end_trim` for a dropped segment, `t_drop − N` for a cut one (its
+//!   continuation goes on from `t_drop + 1 − N`: a track's planes are summed
+//!   once, in order, by one accumulator) and `t_drop` for a truncated one.
+//!   `end_trim = 0` sums the paper's `[t_s − N/2, t_e + N/2]`; `⌊N/2⌋`
+//!   stops at the estimated end `t_e`, leaving out the planes in which the
+//!   window still held the blink after it ended.
+//! * **Completion.** A confirmed segment completes at the end of the plane of
+//!   its last sum: `t_drop + N − end_trim` for a dropped segment (first or
+//!   continuation; `end_trim ≤ N − 1`, so after the drop is seen), the cut
+//!   plane for a cut one. Records are emitted in order of completion plane,
+//!   then slot; the slot is free again from the next plane (a cut slot holds
+//!   its continuation).
 //! * **Stream end.** Live segments end with `t_drop` = last plane (flag
 //!   TRUNCATED). A continuation is confirmed; a first segment is confirmed
 //!   when `e − t_cross ≥ L_min` with `e` = the last plane if it is in a dip,
 //!   the plane after the stream otherwise (so a TRUNCATED record may have
-//!   `t_drop − t_cross = L_min − 1`). Confirmed segments complete their
-//!   pre-roll from the delay line. A cut at the last plane leaves an *empty*
-//!   continuation: CONTINUATION | TRUNCATED, `t_drop = t_cross − 1`,
-//!   `planes_summed = 0`.
+//!   `t_drop − t_cross = L_min − 1`). Confirmed segments complete their sums
+//!   from the delay line. A cut at the last plane leaves a continuation with
+//!   `t_cross = t_drop + 1 = p` (CONTINUATION | TRUNCATED) that sums the
+//!   last N planes.
 //!
 //! `model/PACKETS.md` §8 states these rules as the contract of the stream.
 
@@ -66,7 +73,7 @@ pub struct Segment {
     pub anchor_y: u16,
     /// First live plane of the segment.
     pub t_cross: u64,
-    /// Whether this segment continues a cut one (no pre-roll).
+    /// Whether this segment continues a cut one.
     pub continuation: bool,
     /// Whether live planes are still being summed.
     pub live: bool,
@@ -74,7 +81,7 @@ pub struct Segment {
     pub in_dip: bool,
     /// The plane of the pending dip.
     pub dip_plane: u64,
-    /// Last live plane summed, once the live range has ended.
+    /// Last live plane, once the live range has ended.
     pub t_drop: Option<u64>,
     /// CUT / TRUNCATED bits decided by the tracker.
     pub end_flags: u8,
@@ -83,13 +90,29 @@ pub struct Segment {
 }
 
 impl Segment {
-    /// First plane summed into the ROI.
+    /// First plane summed into the ROI: `max(0, t_cross − N)`.
     pub fn first_plane(&self, n_window: u32) -> u64 {
-        if self.continuation {
-            self.t_cross
+        self.t_cross.saturating_sub(n_window as u64)
+    }
+
+    /// Last plane summed into the ROI, once the segment has ended (may be
+    /// below [`Segment::first_plane`]: nothing summed): `t_drop − end_trim`
+    /// after a drop, `t_drop − N` after a cut, `t_drop` when truncated.
+    pub fn last_plane(&self, n_window: u32, end_trim: u32) -> Option<i64> {
+        let d = self.t_drop? as i64;
+        Some(if self.end_flags & flags::CUT != 0 {
+            d - n_window as i64
+        } else if self.end_flags & flags::TRUNCATED != 0 {
+            d
         } else {
-            self.t_cross.saturating_sub(n_window as u64)
-        }
+            d - end_trim as i64
+        })
+    }
+
+    /// Planes summed into the ROI, once the segment has ended.
+    pub fn planes_summed(&self, n_window: u32, end_trim: u32) -> Option<u64> {
+        let last = self.last_plane(n_window, end_trim)?;
+        Some((last + 1 - self.first_plane(n_window) as i64).max(0) as u64)
     }
 
     /// Flags this segment contributes to its record (CUT, CONTINUATION,
@@ -110,7 +133,7 @@ impl Segment {
 pub enum Slot {
     /// Available.
     Free,
-    /// Holding a segment (live, or waiting for its pre-roll).
+    /// Holding a segment (live, or ended and waiting for its last sums).
     Busy(Segment),
 }
 
@@ -141,6 +164,7 @@ pub struct TrackerCounters {
 pub struct BlinkTracker {
     slots: Vec<Slot>,
     n_window: u32,
+    end_trim: u32,
     l_min: u32,
     l_max: u32,
     r_assoc: u32,
@@ -160,11 +184,21 @@ pub struct Drops {
 }
 
 impl BlinkTracker {
-    /// A tracker with `slots` free slots.
-    pub fn new(slots: usize, n_window: u32, l_min: u32, l_max: u32, r_assoc: u32) -> BlinkTracker {
+    /// A tracker with `slots` free slots (`end_trim ≤ N − 1`, see
+    /// [`crate::config::PipelineConfig::end_trim`]).
+    pub fn new(
+        slots: usize,
+        n_window: u32,
+        end_trim: u32,
+        l_min: u32,
+        l_max: u32,
+        r_assoc: u32,
+    ) -> BlinkTracker {
+        debug_assert!(end_trim < n_window.max(1));
         BlinkTracker {
             slots: vec![Slot::Free; slots],
             n_window,
+            end_trim,
             l_min,
             l_max,
             r_assoc,
@@ -279,20 +313,17 @@ impl BlinkTracker {
         (opened, drops)
     }
 
-    /// Whether slot `i` sums the live plane `t` into its ROI.
-    pub fn sums_live(&self, i: usize, t: u64) -> bool {
-        match &self.slots[i] {
-            Slot::Busy(seg) => seg.live || seg.t_drop.is_some_and(|d| d >= t),
-            Slot::Free => false,
-        }
-    }
-
-    /// Whether slot `i` sums the delayed plane `t − N` (its pre-roll) at plane `t`.
-    pub fn sums_preroll(&self, i: usize, t: u64) -> bool {
+    /// Whether slot `i` sums the delayed plane `B_{t−N}` into its ROI at plane `t`.
+    pub fn sums_delayed(&self, i: usize, t: u64) -> bool {
         let n = self.n_window as u64;
         match &self.slots[i] {
-            Slot::Busy(seg) => !seg.continuation && t >= n && t < seg.t_cross + n,
-            Slot::Free => false,
+            Slot::Busy(seg) if t >= n && t >= seg.t_cross => {
+                seg.live
+                    || seg
+                        .last_plane(self.n_window, self.end_trim)
+                        .is_some_and(|last| (t - n) as i64 <= last)
+            }
+            _ => false,
         }
     }
 
@@ -319,8 +350,13 @@ impl BlinkTracker {
                 *slot = Slot::Free;
                 continue;
             }
-            let preroll_done = seg.continuation || t + 1 >= seg.t_cross + n;
-            if !preroll_done {
+            // A cut completes at once; a drop once its last plane has left
+            // the window (at `t_drop + N − end_trim`).
+            let sums_done = seg.end_flags & flags::CUT != 0
+                || seg
+                    .last_plane(self.n_window, self.end_trim)
+                    .is_some_and(|last| t as i64 >= last + n as i64);
+            if !sums_done {
                 continue;
             }
             done.push(Completed {
@@ -349,7 +385,7 @@ impl BlinkTracker {
 
     /// Stream end after `planes` planes: ends live tracks at the last plane
     /// (TRUNCATED) and returns every confirmed segment still held, slot order.
-    /// Their pre-rolls are completed by the caller from the delay line.
+    /// Their sums are completed by the caller from the delay line.
     pub fn finish(&mut self, planes: u64) -> Vec<Completed> {
         let mut done = Vec::new();
         for (i, slot) in self.slots.iter_mut().enumerate() {
@@ -459,7 +495,7 @@ mod tests {
             cands in proptest::collection::btree_set((0u16..12, 0u16..12), 0..60),
             r_assoc in 0u32..4,
         ) {
-            let mut tr = BlinkTracker::new(slots.len(), 20, 3, 100, r_assoc);
+            let mut tr = BlinkTracker::new(slots.len(), 20, 0, 3, 100, r_assoc);
             for (i, &(busy, x, y, active, free_prev)) in slots.iter().enumerate() {
                 if busy {
                     tr.slots[i] = Slot::Busy(Segment {

@@ -54,6 +54,13 @@ pub struct PipelineConfig {
     /// `≥ T_hold`. `1 ≤ T_hold ≤ T_int`; `T_hold = T_int` is the paper's
     /// single-threshold rule.
     pub threshold_hold: u32,
+    /// Planes between a dropped segment's last summed plane and its `t_drop`
+    /// (`0 ≤ end_trim ≤ N − 1`): a segment that ends by a drop sums the
+    /// bit-planes `[t_cross − N, t_drop − end_trim]`. 0 is the paper's rule
+    /// (sum to `t_drop` = `t_e + N/2`); `⌊N/2⌋` sums to the estimated end of
+    /// the blink `t_e`, leaving out the planes the window took to fall
+    /// below the hold level (PACKETS.md §8.6).
+    pub end_trim: u32,
     /// Planes a track must stay on to be confirmed (≥ 1).
     pub l_min: u32,
     /// Planes after which an on track is cut into a new segment (≥ max(L_min, N)).
@@ -81,7 +88,7 @@ pub const DEFAULT_L_MAX: u32 = 10_000;
 
 impl PipelineConfig {
     /// A configuration with the defaults for everything but the essentials:
-    /// T_hold = T_int and L_min 1 (the paper's rule), L_max 10,000,
+    /// T_hold = T_int, end_trim 0 and L_min 1 (the paper's rule), L_max 10,000,
     /// r_assoc 1, 32 slots, ROI side = kernel size.
     pub fn new(
         width: usize,
@@ -100,6 +107,7 @@ impl PipelineConfig {
             kernel_shift,
             threshold_int,
             threshold_hold: threshold_int,
+            end_trim: 0,
             l_min: 1,
             l_max: DEFAULT_L_MAX.max(n_window),
             r_assoc: 1,
@@ -219,6 +227,16 @@ impl PipelineConfig {
                 ),
             ));
         }
+        if self.end_trim >= self.n_window {
+            return Err(invalid(
+                "end_trim",
+                self.end_trim,
+                format!(
+                    "must be 0..=N − 1 = {} (a dropped segment's last summed plane must be out of the window by the plane its drop is seen)",
+                    self.n_window.saturating_sub(1)
+                ),
+            ));
+        }
         if self.l_min == 0 {
             return Err(invalid(
                 "l_min",
@@ -272,6 +290,7 @@ impl PipelineConfig {
             n_window: self.n_window,
             threshold_int: self.threshold_int,
             threshold_hold: self.threshold_hold,
+            end_trim: Some(self.end_trim),
             l_min: self.l_min,
             l_max: self.l_max,
             r_assoc: self.r_assoc as u8,
@@ -317,6 +336,7 @@ mod tests {
             ("threshold_int", Box::new(|c| c.threshold_int = 0)),
             ("threshold_hold", Box::new(|c| c.threshold_hold = 0)),
             ("threshold_hold", Box::new(|c| c.threshold_hold = 21)),
+            ("end_trim", Box::new(|c| c.end_trim = c.n_window)),
             ("l_min", Box::new(|c| c.l_min = 0)),
             ("l_max", Box::new(|c| c.l_max = 5)),
             ("slots", Box::new(|c| c.slots = 0)),

@@ -36,6 +36,16 @@
 //! * **`L_min = 1`**: the open level already controls the false blinks, so
 //!   every open track is confirmed and short blinks are kept.
 //! * **N** stays the paper's Eq. 6 window.
+//! * **Summed planes** `end_trim = ⌊N/2⌋`: a dropped segment sums
+//!   `[t_cross − N, t_drop − ⌊N/2⌋]`, from a window before the crossing to
+//!   the estimated end of the blink `t_e`. With the paper's rule
+//!   (`end_trim = 0`, sum to `t_drop`) the ROI also takes the planes after
+//!   the blink in which the window still held it above the hold level —
+//!   about `(1 − k)·N` planes of background alone, `k` the fraction of the
+//!   window's signal that the hold level needs — and at the study's light
+//!   the background, mostly dark counts, is what limits a short blink's
+//!   localisation. The open level is high, so the crossing comes late in
+//!   the blink's first window and the whole pre-roll `t_cross − N` is kept.
 //!
 //! ## Predicted recall
 //!
@@ -114,6 +124,9 @@ pub struct FieldDesign {
     pub r_assoc: u32,
     /// L_min, planes.
     pub l_min: u32,
+    /// Planes between a dropped segment's last summed plane and its
+    /// `t_drop`: `⌊N/2⌋`, the estimated end of the blink.
+    pub end_trim: u32,
     /// Exact per-pixel up-crossing probability of `T_open` per plane.
     pub upcrossing_per_pixel_plane: f64,
     /// Bound on background-only false blinks over the field, per second.
@@ -268,6 +281,7 @@ pub fn design(
         hold_sigmas: sigmas(hold),
         r_assoc: ((2.0 * det.sigma_px).round() as u32).max(1),
         l_min: 1,
+        end_trim: det.n_window / 2,
         upcrossing_per_pixel_plane: u_open,
         predicted_false_blinks_per_s: rate,
         shortest_blink_planes: None,

@@ -1,4 +1,4 @@
-//! The blink-ROI packet stream, format version 2: the byte contract between
+//! The blink-ROI packet stream, format version 3: the byte contract between
 //! the golden model's encoder, the gateware's packetiser and the host's
 //! decoder. `model/PACKETS.md` is the full written definition (with the
 //! checked-in test vectors of `model/tests/vectors/`); this summary and that
@@ -11,7 +11,7 @@
 //! | bytes        | field                                                     |
 //! |--------------|-----------------------------------------------------------|
 //! | 0–1          | magic `0x53 0x41` ("SA"), [`MAGIC`]                       |
-//! | 2            | format version, [`VERSION`] = 2 (1 is still read)         |
+//! | 2            | format version, [`VERSION`] = 3 (1 and 2 are still read)  |
 //! | 3            | record type, see [`record_type`]                          |
 //! | 4–7          | sequence number, u32                                      |
 //! | 8–9          | payload length `L`, u16, at most [`MAX_PAYLOAD`] = 4096   |
@@ -24,14 +24,17 @@
 //! # Payloads (offsets in bytes; u48/i48 are 6-byte little-endian, i48 in
 //! two's complement)
 //!
-//! * `0x01` StreamStart, `37 + 2n` bytes: width u16 @0, height u16 @2,
+//! * `0x01` StreamStart, `41 + 2n` bytes: width u16 @0, height u16 @2,
 //!   n_window u32 @4, threshold_int u32 @8, l_min u32 @12, l_max u32 @16,
 //!   r_assoc u8 @20, slots u8 @21, roi_size u8 @22, kernel_shift u8 @23,
 //!   kernel length `n` u8 @24, `n` kernel weights u16 @25, plane_period_ns
-//!   u32 @25+2n, masked_pixels u32 @29+2n, threshold_hold u32 @33+2n. A
-//!   version-1 StreamStart has `33 + 2n` bytes, no threshold_hold, and is
-//!   read with `threshold_hold = threshold_int` (the one-threshold rule).
-//!   Every other payload is the same in both versions.
+//!   u32 @25+2n, masked_pixels u32 @29+2n, threshold_hold u32 @33+2n,
+//!   end_trim u32 @37+2n. A version-2 StreamStart has `37 + 2n` bytes and no
+//!   end_trim (read as `None`: its segments summed by the version-2 rule,
+//!   PACKETS.md §8.6); a version-1 one has `33 + 2n` bytes, no
+//!   threshold_hold either, and is read with `threshold_hold = threshold_int`
+//!   (the one-threshold rule). Every other payload is the same in all three
+//!   versions.
 //! * `0x02` Blink, `35 + block` bytes: slot u8 @0, flags u8 @1, anchor_x u16
 //!   @2, anchor_y u16 @4, t_cross u48 @6, t_drop u48 @12, t_s i48 @18, t_e i48
 //!   @24, planes_summed u32 @30, roi_size u8 @34 (odd, 1..=31), then the R×R
@@ -88,7 +91,7 @@ use thiserror::Error;
 /// First two bytes of every packet: "SA".
 pub const MAGIC: [u8; 2] = [0x53, 0x41];
 /// Format version this crate writes (and the newest it reads).
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 /// Oldest format version this crate reads: version 1, whose StreamStart has
 /// no hold threshold.
 pub const OLDEST_VERSION: u8 = 1;
@@ -181,6 +184,10 @@ pub enum PacketError {
         /// Counts present.
         got: usize,
     },
+    /// A StreamStart read from a version-1 or 2 stream (no `end_trim`): its
+    /// records were summed by the earlier rule, which version 3 cannot say.
+    #[error("a stream-start without end_trim (from a version-1 or 2 stream) cannot be written as version {VERSION}")]
+    NoEndTrim,
     /// A kernel longer than 255 weights.
     #[error("kernel has {0} weights, at most 255 fit a stream-start packet")]
     KernelTooLong(usize),
@@ -314,6 +321,9 @@ fn validate(record: &Record, seq: u32) -> Result<(), PacketError> {
             if s.kernel.len() > MAX_KERNEL_LEN {
                 return Err(PacketError::KernelTooLong(s.kernel.len()));
             }
+            if s.end_trim.is_none() {
+                return Err(PacketError::NoEndTrim);
+            }
         }
         Record::Blink(b) => {
             if !roi_size_ok(b.roi_size) {
@@ -371,6 +381,8 @@ fn write_payload(record: &Record, out: &mut Vec<u8>) {
             out.extend_from_slice(&s.plane_period_ns.to_le_bytes());
             out.extend_from_slice(&s.masked_pixels.to_le_bytes());
             out.extend_from_slice(&s.threshold_hold.to_le_bytes());
+            // `validate` refuses a StreamStart without end_trim.
+            out.extend_from_slice(&s.end_trim.unwrap_or(0).to_le_bytes());
         }
         Record::Blink(b) => {
             out.extend_from_slice(&[b.slot, b.flags]);
@@ -526,7 +538,7 @@ fn exact_len(record: &'static str, payload: &[u8], expected: usize) -> Result<()
     Ok(())
 }
 
-/// Decodes the payload of a frame of format `version` (1 or 2), type `kind`
+/// Decodes the payload of a frame of format `version` (1, 2 or 3), type `kind`
 /// and header `seq`.
 pub fn decode_payload(
     version: u8,
@@ -536,8 +548,13 @@ pub fn decode_payload(
 ) -> Result<Record, PayloadError> {
     match kind {
         record_type::STREAM_START => {
-            // Version 2 appends threshold_hold (u32) to version 1's fields.
-            let fixed: usize = if version >= 2 { 37 } else { 33 };
+            // Version 2 appends threshold_hold (u32) to version 1's fields,
+            // version 3 end_trim (u32) to version 2's.
+            let fixed: usize = match version {
+                1 => 33,
+                2 => 37,
+                _ => 41,
+            };
             if payload.len() < fixed {
                 return Err(PayloadError::TooShort {
                     record: "stream-start",
@@ -566,6 +583,7 @@ pub fn decode_payload(
             let plane_period_ns = f.u32();
             let masked_pixels = f.u32();
             let threshold_hold = if version >= 2 { f.u32() } else { threshold_int };
+            let end_trim = (version >= 3).then(|| f.u32());
             if !roi_size_ok(roi_size) {
                 return Err(PayloadError::BadRoiSize(roi_size));
             }
@@ -575,6 +593,7 @@ pub fn decode_payload(
                 n_window,
                 threshold_int,
                 threshold_hold,
+                end_trim,
                 l_min,
                 l_max,
                 r_assoc,

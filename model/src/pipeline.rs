@@ -8,7 +8,7 @@
 //! 3. evaluate the tracks live at the end of plane t−1 against `H_t` (stage 5);
 //! 4. threshold and 3×3-maximum candidates (stages 3–4), associated in raster
 //!    order, opening tracks in free slots (stage 5);
-//! 5. ROI sums of live `B_t` and pre-roll `B_{t−N}` (stage 6);
+//! 5. ROI sums of the delayed plane `B_{t−N}` (stage 6, the slots' ranges);
 //! 6. cuts, completions and slot frees; records out in slot order, then one
 //!    dropped-candidates record if any candidate found no slot (stage 7).
 //!
@@ -179,7 +179,14 @@ impl<F: FrontEnd> Pipeline<F> {
         Ok(Pipeline {
             delay: DelayLine::new(cfg.n_window as usize, w, h),
             front,
-            tracker: BlinkTracker::new(cfg.slots, cfg.n_window, cfg.l_min, cfg.l_max, cfg.r_assoc),
+            tracker: BlinkTracker::new(
+                cfg.slots,
+                cfg.n_window,
+                cfg.end_trim,
+                cfg.l_min,
+                cfg.l_max,
+                cfg.r_assoc,
+            ),
             rois: RoiAggregator::new(cfg.slots, cfg.roi_size, w, h),
             planes: 0,
             blinks: 0,
@@ -255,8 +262,7 @@ impl<F: FrontEnd> Pipeline<F> {
         };
         // The delay line keeps `B_t`; read it back rather than copy it.
         let delayed = self.delay.push(live);
-        let live = self.delay.newest();
-        self.front.push(live, &delayed);
+        self.front.push(self.delay.newest(), &delayed);
 
         // Stage 5a: tracks live at the end of t−1.
         let front = &self.front;
@@ -274,10 +280,7 @@ impl<F: FrontEnd> Pipeline<F> {
 
         // Stage 6.
         for slot in 0..self.cfg.slots {
-            if self.tracker.sums_live(slot, t) {
-                self.rois.add(slot, live);
-            }
-            if self.tracker.sums_preroll(slot, t) {
+            if self.tracker.sums_delayed(slot, t) {
                 self.rois.add(slot, &delayed);
             }
         }
@@ -301,8 +304,8 @@ impl<F: FrontEnd> Pipeline<F> {
         Ok(out)
     }
 
-    /// Ends the stream: closes live tracks (TRUNCATED), completes pending
-    /// pre-rolls from the delay line, and returns the last blink records and
+    /// Ends the stream: closes live tracks (TRUNCATED), completes their
+    /// sums from the delay line, and returns the last blink records and
     /// the stream-end record. Further planes are refused.
     pub fn finish(&mut self) -> Vec<Record> {
         if self.finished {
@@ -315,15 +318,16 @@ impl<F: FrontEnd> Pipeline<F> {
             let p = self.planes;
             let done = self.tracker.finish(p);
             for c in done {
-                // Pre-roll planes not yet read: d in [max(p − N, t_cross − N), t_cross − 1],
-                // still inside the delay line, which holds B_{p−N} … B_{p−1}.
+                // Planes not yet summed: u in [max(first, p − N), last], still
+                // inside the delay line, which holds B_{p−N} … B_{p−1}.
                 let seg = &c.segment;
-                if !seg.continuation {
-                    let from = p.saturating_sub(n).max(seg.t_cross.saturating_sub(n));
-                    for d in from..seg.t_cross {
-                        let i = (d + n - p) as usize;
-                        self.rois.add(c.slot, self.delay.peek(i));
-                    }
+                let first = seg.first_plane(self.cfg.n_window).max(p.saturating_sub(n));
+                let last = seg
+                    .last_plane(self.cfg.n_window, self.cfg.end_trim)
+                    .expect("a finished segment has ended");
+                for u in first as i64..=last {
+                    let i = (u as u64 + n - p) as usize;
+                    self.rois.add(c.slot, self.delay.peek(i));
                 }
                 out.push(self.emit(c));
             }
@@ -368,7 +372,9 @@ impl<F: FrontEnd> Pipeline<F> {
             t_drop,
             t_s,
             t_e,
-            planes_summed: (t_drop + 1 - seg.first_plane(n)) as u32,
+            planes_summed: seg
+                .planes_summed(n, self.cfg.end_trim)
+                .expect("a completed segment has ended") as u32,
             roi_size: self.cfg.roi_size as u8,
             counts,
         })

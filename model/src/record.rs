@@ -46,6 +46,11 @@ pub struct StreamStart {
     /// Integer threshold T_hold that holds an open track on (≤ T_int; equal
     /// to it for the one-threshold rule and in version-1 streams).
     pub threshold_hold: u32,
+    /// Planes between a dropped segment's last summed plane and its `t_drop`
+    /// ([`crate::config::PipelineConfig::end_trim`]); `None` in a version-1
+    /// or 2 stream, whose segments summed the live range and a first
+    /// segment's pre-roll (PACKETS.md §8.6).
+    pub end_trim: Option<u32>,
     /// Planes a track must stay on to be confirmed (L_min).
     pub l_min: u32,
     /// Planes after which an on track is cut and restarted (L_max).

@@ -7,9 +7,13 @@
 //! The rules follow from the pipeline (model/PACKETS.md):
 //! - the anchor is a pixel of the sensor, the slot one of the stream's slots
 //!   and the ROI side the stream's R, with R×R counts;
-//! - a segment sums the planes `t_cross ..= t_drop`, so `t_drop ≥ t_cross`,
-//!   except for an *empty* segment (a continuation cut on its last plane:
-//!   CONTINUATION set, `t_drop = t_cross − 1`, `planes_summed = 0`);
+//! - `t_drop ≥ t_cross`, except for a continuation cut on the stream's
+//!   last plane (CONTINUATION | TRUNCATED, `t_drop = t_cross − 1`);
+//! - `planes_summed` is the length of the range [`summed_planes`] gives:
+//!   `[max(0, t_cross − N), t_drop − end_trim]` after a drop, `t_drop − N`
+//!   as the end after a cut, `t_drop` when truncated (version 3); a
+//!   version-1 or 2 stream summed `[max(0, t_cross − N), t_drop]`, a
+//!   continuation from `t_cross` (PACKETS.md §8.6);
 //! - a bit-plane adds at most one detection per pixel, so no count exceeds
 //!   `planes_summed`, and a stream of `P` planes holds no plane at or after `P`.
 
@@ -120,10 +124,33 @@ impl RepeatFilter {
     }
 }
 
-/// Whether `r` is an empty segment: a continuation cut on its last plane,
-/// which sums no plane.
+/// Whether `r` is an empty segment, which sums no plane (nothing to fit):
+/// in version 3 a first segment cut or dropped before its first plane came
+/// out of the window; in versions 1 and 2 a continuation cut on its last
+/// plane.
 pub fn is_empty_segment(r: &BlinkRecord) -> bool {
-    r.has(flags::CONTINUATION) && r.planes_summed == 0 && r.t_drop.checked_add(1) == Some(r.t_cross)
+    r.planes_summed == 0
+}
+
+/// The bit-planes that `r` summed, as the half-open range `first..end`
+/// (`end == first` when it summed none), by the rule of its stream's
+/// version (PACKETS.md §8.6). Saturates on values no pipeline writes;
+/// [`check_blink`] tells those apart.
+pub fn summed_planes(r: &BlinkRecord, start: &StreamStart) -> std::ops::Range<u64> {
+    let n = u64::from(start.n_window);
+    let continuation = r.has(flags::CONTINUATION);
+    let first = match start.end_trim {
+        None if continuation => r.t_cross,
+        _ => r.t_cross.saturating_sub(n),
+    };
+    let after = r.t_drop.saturating_add(1);
+    let end = match start.end_trim {
+        None => after,
+        Some(_) if r.has(flags::CUT) => after.saturating_sub(n),
+        Some(_) if r.has(flags::TRUNCATED) => after,
+        Some(c) => after.saturating_sub(u64::from(c)),
+    };
+    first..end.max(first)
 }
 
 /// Checks `r` against its stream's `start` and, when known, the stream's
@@ -158,15 +185,7 @@ pub fn check_blink(
             roi: start.roi_size,
         });
     }
-    // A segment sums `first ..= t_drop`: a new track from its pre-roll
-    // `t_cross − N` (clipped at plane 0), a continuation from `t_cross`.
-    let continuation = r.has(flags::CONTINUATION);
-    let first = if continuation {
-        r.t_cross
-    } else {
-        r.t_cross.saturating_sub(u64::from(start.n_window))
-    };
-    let earliest_drop = if continuation {
+    let earliest_drop = if r.has(flags::CONTINUATION) {
         r.t_cross.saturating_sub(1)
     } else {
         r.t_cross
@@ -177,7 +196,8 @@ pub fn check_blink(
             t_drop: r.t_drop,
         });
     }
-    if u64::from(r.planes_summed) != r.t_drop + 1 - first {
+    let summed = summed_planes(r, start);
+    if u64::from(r.planes_summed) != summed.end - summed.start {
         return Err(Implausible::PlanesSummed {
             planes_summed: r.planes_summed,
             t_cross: r.t_cross,
@@ -260,14 +280,72 @@ mod tests {
             ..blink()
         };
         assert_eq!(check_blink(&b, &start(), None), Ok(()));
-        // A continuation sums from t_cross; an empty one sums nothing.
+        // Version 3: a continuation also sums from t_cross − N; cut ends
+        // N planes early, a drop end_trim planes early, a truncation at t_drop.
+        let c = BlinkRecord {
+            flags: flags::CONTINUATION,
+            counts: vec![0; 9],
+            ..blink()
+        };
+        assert_eq!(check_blink(&c, &start(), Some(60)), Ok(()));
+        let cut = BlinkRecord {
+            flags: flags::CUT,
+            planes_summed: 20,
+            counts: vec![0; 9],
+            ..blink()
+        };
+        assert_eq!(check_blink(&cut, &start(), None), Ok(()));
+        assert_eq!(summed_planes(&cut, &start()), 30..50);
+        let mut trimmed = start();
+        trimmed.end_trim = Some(5);
+        let d = BlinkRecord {
+            planes_summed: 25,
+            counts: vec![0; 9],
+            ..blink()
+        };
+        assert_eq!(check_blink(&d, &trimmed, None), Ok(()));
+        assert!(check_blink(&blink(), &trimmed, None).is_err());
+        let tr = BlinkRecord {
+            flags: flags::TRUNCATED,
+            ..blink()
+        };
+        assert_eq!(check_blink(&tr, &trimmed, Some(60)), Ok(()));
+        // The continuation of a cut on the last plane sums the last N planes.
+        let last = BlinkRecord {
+            flags: flags::CONTINUATION | flags::TRUNCATED,
+            t_drop: 39,
+            planes_summed: 10,
+            counts: vec![0; 9],
+            ..blink()
+        };
+        assert_eq!(check_blink(&last, &start(), Some(40)), Ok(()));
+        // A first segment that ends before its first plane left the window
+        // summed nothing.
+        let e3 = BlinkRecord {
+            t_cross: 0,
+            t_drop: 3,
+            planes_summed: 0,
+            counts: vec![0; 9],
+            ..blink()
+        };
+        assert!(is_empty_segment(&e3));
+        assert_eq!(check_blink(&e3, &trimmed, None), Ok(()));
+        assert!(check_blink(&e3, &start(), None).is_err());
+
+        // Version 2: a continuation sums from t_cross; a cut on the last
+        // plane leaves an empty one.
+        let mut v2 = start();
+        v2.end_trim = None;
         let c = BlinkRecord {
             flags: flags::CONTINUATION,
             planes_summed: 20,
             counts: vec![0; 9],
             ..blink()
         };
-        assert_eq!(check_blink(&c, &start(), Some(60)), Ok(()));
+        assert_eq!(check_blink(&c, &v2, Some(60)), Ok(()));
+        assert!(check_blink(&c, &start(), Some(60)).is_err());
+        let cut2 = BlinkRecord { flags: flags::CUT, ..blink() };
+        assert_eq!(check_blink(&cut2, &v2, None), Ok(()));
         let e = BlinkRecord {
             flags: flags::CONTINUATION | flags::TRUNCATED,
             t_drop: 39,
@@ -276,7 +354,7 @@ mod tests {
             ..blink()
         };
         assert!(is_empty_segment(&e));
-        assert_eq!(check_blink(&e, &start(), Some(40)), Ok(()));
+        assert_eq!(check_blink(&e, &v2, Some(40)), Ok(()));
     }
 
     #[test]

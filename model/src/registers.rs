@@ -20,6 +20,7 @@
 //! | 0x05 | `PLANE_PERIOD_NS` | bit-plane period, ns, copied into the StreamStart record   |
 //! | 0x06 | `MASKED_PIXELS`   | number of masked pixels, copied into the StreamStart record (0 is sent there without `MASK_ENABLE`, whatever this register holds) |
 //! | 0x07 | `THRESHOLD_HOLD`  | integer threshold T_hold that holds an open track on (1 ..= T_int) |
+//! | 0x08 | `END_TRIM`        | planes between a dropped segment's last summed plane and its t_drop (0 ..= N − 1; PACKETS.md §8.6) |
 //!
 //! # Wire-outs (device → host)
 //!
@@ -71,15 +72,15 @@
 //! 1. read the wire-outs 0x22–0x27 and compare them with the preset: any
 //!    difference is an error naming each field;
 //! 2. pulse `RESET`;
-//! 3. write wire-ins 0x00–0x07 and commit them (FrontPanel `UpdateWireIns`);
+//! 3. write wire-ins 0x00–0x08 and commit them (FrontPanel `UpdateWireIns`);
 //! 4. if a hot-pixel mask is set, write it to pipe-in 0x81;
 //! 5. `START` pulses trigger 0x40 bit 1; `STOP` bit 2.
 
 use crate::packet::{crc32c, VERSION as PACKET_VERSION};
 
 /// Version of this register map, reported in bits 15:8 of wire-out `VERSION`.
-/// Version 2 added wire-in `THRESHOLD_HOLD` (0x07).
-pub const REGISTER_MAP_VERSION: u8 = 2;
+/// Version 2 added wire-in `THRESHOLD_HOLD` (0x07), version 3 `END_TRIM` (0x08).
+pub const REGISTER_MAP_VERSION: u8 = 3;
 
 /// FrontPanel pipe transfers are whole multiples of this many bytes (the
 /// USB 3.0 granule of the XEM6310; block-throttled pipes use blocks of it).
@@ -103,8 +104,10 @@ pub mod wire_in {
     pub const MASKED_PIXELS: u8 = 0x06;
     /// Integer threshold T_hold (hysteresis: holds an open track on).
     pub const THRESHOLD_HOLD: u8 = 0x07;
-    /// How many wire-ins there are (0x00 ..= 0x07).
-    pub const COUNT: usize = 8;
+    /// Planes between a dropped segment's last summed plane and its t_drop.
+    pub const END_TRIM: u8 = 0x08;
+    /// How many wire-ins there are (0x00 ..= 0x08).
+    pub const COUNT: usize = 9;
 }
 
 /// Bits of wire-in [`wire_in::CONTROL`].
@@ -203,7 +206,7 @@ mod tests {
 
     #[test]
     fn words_follow_the_table() {
-        assert_eq!(version_word(), 0x0202);
+        assert_eq!(version_word(), 0x0303);
         // CRC-32C of [1, 2, 1] as u16 LE, and it depends on every weight.
         assert_eq!(kernel_crc([1, 2, 1]), crc32c(&[1, 0, 2, 0, 1, 0]));
         assert_ne!(kernel_crc([1, 2, 1]), kernel_crc([1, 2, 2]));
@@ -211,7 +214,7 @@ mod tests {
             wire_out::MAX_N - wire_out::STATUS + 1,
             wire_out::COUNT as u8
         );
-        assert_eq!(wire_in::THRESHOLD_HOLD as usize + 1, wire_in::COUNT);
+        assert_eq!(wire_in::END_TRIM as usize + 1, wire_in::COUNT);
         // Every status bit is distinct.
         let bits = [
             status::RUNNING,

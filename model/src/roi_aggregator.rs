@@ -1,10 +1,9 @@
 //! Stage 6 — ROI aggregation: each slot sums the *raw* (masked) bit-planes of
 //! its blink in an R×R ROI centred on the anchor.
 //!
-//! At plane t a slot adds the live plane `B_t` while its live range
-//! `[t_cross, t_drop]` lasts, and the delayed plane `B_{t−N}` while its
-//! pre-roll `[max(0, t_cross − N), t_cross − 1]` comes out of the delay line
-//! (the [tracker](crate::blink_tracker) decides both). Pixels outside the sensor
+//! At plane t a slot adds the delayed plane `B_{t−N}` while the planes of
+//! its segment come out of the delay line, `[max(0, t_cross − N), last]`
+//! (the [tracker](crate::blink_tracker) decides the range). Pixels outside the sensor
 //! count 0 and set the EDGE flag; masked (hot) pixels count 0 (the plane arrives
 //! masked) and set the MASKED flag. ROIs of neighbouring tracks may overlap;
 //! each counts its photons independently. A count never exceeds

@@ -340,7 +340,7 @@ proptest! {
         seed in any::<u64>(), w in 3usize..72, h in 3usize..16, planes in 1usize..160, n in 1u32..20,
         spots in 0usize..8, p in 0.0f64..0.08, thr in 1u32..400, slots in 1usize..6, l_min in 1u32..8,
         threads in 1usize..4, chunk in 1usize..50, masked in 0usize..4, kernel in 0usize..5,
-        hold_pct in 1u32..=100, r_assoc in 0u32..4,
+        hold_pct in 1u32..=100, r_assoc in 0u32..4, trim in 0u32..20,
     ) {
         let (k1, shift) = kernels()[kernel].clone();
         // Thresholds scaled to the kernel's sum so that every kernel sees blinks.
@@ -348,6 +348,7 @@ proptest! {
         let mut cfg = PipelineConfig::new(w, h, n, k1, shift, thr);
         cfg.threshold_hold = ((thr as u64 * hold_pct as u64) / 100).max(1) as u32;
         cfg.r_assoc = r_assoc;
+        cfg.end_trim = trim % n;
         cfg.slots = slots;
         cfg.l_min = l_min;
         cfg.l_max = n.max(l_min).max(25);
@@ -359,7 +360,8 @@ proptest! {
         let stream = scene(seed, w, h, planes, spots, p, 0.6);
         let golden = run(cfg.clone(), stream.clone()).unwrap();
         // Every record the pipeline writes passes the consumer's plausibility
-        // check (continuations, cuts, truncation, masks, pre-roll clipping).
+        // check (continuations, cuts, truncation, masks, pre-roll clipping,
+        // end_trim).
         let start = cfg.stream_start();
         let total = golden.iter().find_map(|r| match r { Record::End(e) => Some(e.planes), _ => None });
         prop_assert_eq!(total, Some(planes as u64));

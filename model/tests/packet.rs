@@ -47,6 +47,7 @@ fn arb_start() -> impl Strategy<Value = StreamStart> {
                 threshold_int,
                 // Any value round-trips; the pipeline keeps it ≤ threshold_int.
                 threshold_hold: threshold_int.rotate_left(7),
+                end_trim: Some(n_window.rotate_left(13)),
                 l_min,
                 l_max,
                 r_assoc,
@@ -992,7 +993,7 @@ fn raw_frame(version: u8, kind: u8, seq: u32, payload: &[u8]) -> Vec<u8> {
 #[test]
 fn newer_version_is_visible() {
     let mut bytes = encode(&Record::Start(vector_start()), 0);
-    let v2 = raw_frame(3, 0x02, 1, &[1, 2, 3, 4, 5]);
+    let v2 = raw_frame(4, 0x02, 1, &[1, 2, 3, 4, 5]);
     bytes.extend_from_slice(&v2);
     // A bogus "version 9" header with a bad CRC is noise, not a newer version.
     let mut bogus = raw_frame(9, 0x01, 1, &[0; 8]);
@@ -1005,19 +1006,19 @@ fn newer_version_is_visible() {
     let events = d.finish();
     assert!(events.contains(&Event::Skipped {
         bytes: v2.len() as u64,
-        reason: SkipReason::NewerVersion(3)
+        reason: SkipReason::NewerVersion(4)
     }));
     assert_eq!(d.stats().newer_version, 1);
     assert_eq!(d.stats().crc_errors, 1);
-    assert_eq!(d.newer_version_seen(), Some(3));
+    assert_eq!(d.newer_version_seen(), Some(4));
     assert_eq!(
-        newer_version_message(3),
-        "stream format version 3 is newer than this smartagg supports (2)"
+        newer_version_message(4),
+        "stream format version 4 is newer than this smartagg supports (3)"
     );
-    assert_eq!(VERSION, 2);
+    assert_eq!(VERSION, 3);
     assert!(d.stats().any_loss());
     assert!(d.stats().to_string().contains("newer"));
-    assert_eq!(decode_frame(&v2), Err(FrameError::NewerVersion(3)));
+    assert_eq!(decode_frame(&v2), Err(FrameError::NewerVersion(4)));
 }
 
 #[test]
@@ -1105,8 +1106,8 @@ fn malformed_payloads_are_counted_not_delivered() {
             },
             PayloadError::Length {
                 record: "stream-start",
-                expected: 43,
-                got: 37,
+                expected: 47,
+                got: 41,
             },
         ),
     ];
@@ -1178,6 +1179,7 @@ fn vector_start() -> StreamStart {
         n_window: 108,
         threshold_int: 1_234_567,
         threshold_hold: 654_321,
+        end_trim: Some(54),
         l_min: 3,
         l_max: 10_000,
         r_assoc: 1,
@@ -1213,7 +1215,8 @@ fn vector_blink() -> BlinkRecord {
         t_drop: 123_789,
         t_s: 123_402,
         t_e: 123_735,
-        planes_summed: 442,
+        // [t_cross − N, t_drop − end_trim] (version 3; 442 to t_drop in 1 and 2).
+        planes_summed: 388,
         roi_size: 9,
         counts: VECTOR_BLINK_COUNTS.to_vec(),
     }
@@ -1238,7 +1241,8 @@ fn vector_blink_edge() -> BlinkRecord {
         t_drop: 260,
         t_s: -14,
         t_e: 206,
-        planes_summed: 261,
+        // [0, t_drop − end_trim] (version 3; 261 to t_drop in 1 and 2).
+        planes_summed: 207,
         roi_size: 9,
         counts,
     }
@@ -1405,6 +1409,9 @@ fn annotate(frame: &[u8]) -> String {
             if frame[2] >= 2 {
                 s.put(4, format!("threshold_hold {}", r.threshold_hold));
             }
+            if let Some(c) = r.end_trim {
+                s.put(4, format!("end_trim {c}"));
+            }
         }
         Record::Blink(b) => {
             s.put(1, format!("slot {}", b.slot));
@@ -1480,7 +1487,7 @@ fn annotate(frame: &[u8]) -> String {
 /// and shown when a frozen file no longer matches the encoder).
 fn vector_text(file: &str, description: &str, packets: &[(u32, Record)]) -> String {
     let mut text = format!(
-        "# {file}: {description}\n# smartagg packet format version 2, see model/PACKETS.md. \
+        "# {file}: {description}\n# smartagg packet format version 3, see model/PACKETS.md. \
          FROZEN: never regenerate.\n\n"
     );
     let frames: Vec<String> = packets
@@ -1530,61 +1537,85 @@ fn hex_vectors_are_frozen() {
     }
 }
 
-/// The version-1 vectors (`tests/vectors/v1/`, frozen when version 1 was
-/// current) still decode, to the same records with `threshold_hold =
-/// threshold_int` (a version-1 stream has one threshold), and with the same
-/// loss accounting; re-encoded they become version-2 frames that differ only
-/// in the version byte, the StreamStart's appended threshold_hold, the
-/// payload length and the CRC.
+/// The records of the vectors as a stream of format `version` (1 or 2)
+/// carries them: no end_trim, (version 1) one threshold, and the Blinks of
+/// the vectors summed to t_drop.
+fn as_older_version(r: &Record, version: u8) -> Record {
+    match r {
+        Record::Start(s) => Record::Start(StreamStart {
+            threshold_hold: if version == 1 {
+                s.threshold_int
+            } else {
+                s.threshold_hold
+            },
+            end_trim: None,
+            ..s.clone()
+        }),
+        Record::Blink(b) if *b == vector_blink() => Record::Blink(BlinkRecord {
+            planes_summed: 442,
+            ..b.clone()
+        }),
+        Record::Blink(b) if *b == vector_blink_edge() => Record::Blink(BlinkRecord {
+            planes_summed: 261,
+            ..b.clone()
+        }),
+        other => other.clone(),
+    }
+}
+
+/// The vectors of versions 1 and 2 (`tests/vectors/v1/`, `v2/`, frozen when
+/// each was current) still decode, to the same records with `end_trim =
+/// None` (and, in version 1, `threshold_hold = threshold_int`: one
+/// threshold), with the same loss accounting. Every payload but
+/// StreamStart's is the same in all versions: a lone non-start frame differs
+/// from the current encoder's only in the version byte and the CRC.
 #[test]
-fn version_1_vectors_still_decode() {
-    for (file, packets) in vectors() {
-        let path = vector_dir().join("v1").join(file);
-        let text =
-            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let bytes = parse_hex(&text);
-        let want: Vec<(u32, Record)> = packets
-            .iter()
-            .map(|(seq, r)| {
-                let r = match r {
-                    Record::Start(s) => Record::Start(StreamStart {
-                        threshold_hold: s.threshold_int,
-                        ..s.clone()
-                    }),
-                    other => other.clone(),
-                };
-                (*seq, r)
-            })
-            .collect();
-        let d = decode_all(&bytes);
-        let got: Vec<(u32, Record)> = d.packets.into_iter().map(|p| (p.seq, p.record)).collect();
-        assert_eq!(got, want, "v1/{file}");
-        assert_eq!(d.stats.malformed + d.stats.newer_version, 0, "v1/{file}");
-        assert_eq!(d.stats.lost_in_transport, packets[0].0 as u64, "v1/{file}");
-        // Each v1 frame is a v2 frame with version byte 1 and (StreamStart
-        // only) no threshold_hold.
-        let v2: Vec<u8> = want.iter().flat_map(|(seq, r)| encode(r, *seq)).collect();
-        if !matches!(want[0].1, Record::Start(_)) && want.len() == 1 {
-            assert_eq!(bytes.len(), v2.len(), "v1/{file}");
-            assert_eq!(bytes[2], 1);
-            assert_eq!(v2[2], 2);
-            assert_eq!(bytes[3..10], v2[3..10], "v1/{file}");
-            assert_eq!(
-                bytes[10..bytes.len() - 4],
-                v2[10..v2.len() - 4],
-                "v1/{file}"
-            );
+fn older_version_vectors_still_decode() {
+    for version in [1u8, 2] {
+        let dir = format!("v{version}");
+        for (file, packets) in vectors() {
+            let path = vector_dir().join(&dir).join(file);
+            let text = std::fs::read_to_string(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let bytes = parse_hex(&text);
+            let want: Vec<(u32, Record)> = packets
+                .iter()
+                .map(|(seq, r)| (*seq, as_older_version(r, version)))
+                .collect();
+            let d = decode_all(&bytes);
+            let got: Vec<(u32, Record)> =
+                d.packets.into_iter().map(|p| (p.seq, p.record)).collect();
+            assert_eq!(got, want, "{dir}/{file}");
+            assert_eq!(d.stats.malformed + d.stats.newer_version, 0, "{dir}/{file}");
+            assert_eq!(d.stats.lost_in_transport, packets[0].0 as u64, "{dir}/{file}");
+            if !matches!(want[0].1, Record::Start(_)) && want.len() == 1 {
+                let now = encode(&want[0].1, want[0].0);
+                assert_eq!(bytes.len(), now.len(), "{dir}/{file}");
+                assert_eq!(bytes[2], version);
+                assert_eq!(now[2], VERSION);
+                assert_eq!(bytes[3..bytes.len() - 4], now[3..now.len() - 4], "{dir}/{file}");
+            }
         }
     }
-    // A v1 StreamStart of the v2 length (or a v2 one of the v1 length) is malformed.
-    let v2 = encode(&Record::Start(vector_start()), 0);
-    let mut as_v1 = v2.clone();
-    as_v1[2] = 1;
-    let crc = smartagg_model::packet::crc32c(&as_v1[..as_v1.len() - 4]);
-    let n = as_v1.len();
-    as_v1[n - 4..].copy_from_slice(&crc.to_le_bytes());
-    assert!(decode_frame(&as_v1).is_err());
-    assert!(decode_frame(&v2).is_ok());
+    // A StreamStart of another version's length is malformed.
+    let v3 = encode(&Record::Start(vector_start()), 0);
+    for version in [1u8, 2] {
+        let mut as_old = v3.clone();
+        as_old[2] = version;
+        let crc = smartagg_model::packet::crc32c(&as_old[..as_old.len() - 4]);
+        let n = as_old.len();
+        as_old[n - 4..].copy_from_slice(&crc.to_le_bytes());
+        assert!(decode_frame(&as_old).is_err());
+    }
+    assert!(decode_frame(&v3).is_ok());
+    // A StreamStart read from an older stream cannot be written as version 3.
+    let old = as_older_version(&Record::Start(vector_start()), 2);
+    let mut out = Vec::new();
+    assert_eq!(
+        encode_record(&old, 0, &mut out),
+        Err(smartagg_model::packet::PacketError::NoEndTrim)
+    );
+    assert!(out.is_empty());
 }
 
 #[test]
@@ -1772,8 +1803,9 @@ fn layouts_match_the_written_definition() {
     }
     p.extend_from_slice(&100_000u32.to_le_bytes());
     p.extend_from_slice(&5u32.to_le_bytes());
-    // Version 2: threshold_hold after masked_pixels.
+    // Version 2: threshold_hold after masked_pixels; version 3: end_trim.
     p.extend_from_slice(&654_321u32.to_le_bytes());
+    p.extend_from_slice(&54u32.to_le_bytes());
     assert_eq!(
         encode(&Record::Start(s), 0),
         raw_frame(VERSION, 0x01, 0, &p)

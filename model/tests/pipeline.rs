@@ -79,11 +79,21 @@ fn single_blink_gives_one_record_with_exact_times_and_sum() {
 #[test]
 fn record_is_emitted_at_its_completion_plane() {
     let planes = spots(40, &[(8, 6, 10..30)]);
-    let mut p = Pipeline::new(cfg(4, 8)).unwrap();
-    for (t, plane) in planes.iter().enumerate() {
-        let out = p.push_plane(plane).unwrap();
-        // The drop (t_drop = 32) is known at plane 33.
-        assert_eq!(out.len(), usize::from(t == 33), "plane {t}: {out:?}");
+    // The drop (t_drop = 32) is known at plane 33; the last summed plane,
+    // t_drop − end_trim, leaves the window N = 4 planes later.
+    for (end_trim, at, summed) in [(0, 36, 26), (2, 34, 24), (3, 33, 23)] {
+        let mut c = cfg(4, 8);
+        c.end_trim = end_trim;
+        let mut p = Pipeline::new(c).unwrap();
+        for (t, plane) in planes.iter().enumerate() {
+            let out = p.push_plane(plane).unwrap();
+            assert_eq!(out.len(), usize::from(t == at), "end_trim {end_trim}, plane {t}: {out:?}");
+            if let Some(Record::Blink(b)) = out.first() {
+                // [t_cross − N, t_drop − end_trim] = [7, 32 − end_trim].
+                assert_eq!(b.planes_summed, summed);
+                assert_eq!(roi_at(b, 8, 6), 20, "the spot is on at 10..=29");
+            }
+        }
     }
 }
 
@@ -368,21 +378,26 @@ proptest! {
     /// follow their definitions; records come in completion order; totals match.
     #[test]
     fn records_match_direct_sums(seed in any::<u64>(), n in 1u32..8, thr in 1u32..40, planes in 1usize..120,
-                                 spots in 0usize..6, bg in 0u64..60, slots in 1usize..5, l_min in 1u32..6, r_assoc in 0u32..3) {
+                                 spots in 0usize..6, bg in 0u64..60, slots in 1usize..5, l_min in 1u32..6, r_assoc in 0u32..3,
+                                 trim in 0u32..8) {
         let stream = random_stream(seed, planes, spots, bg);
         let mut c = cfg(n, thr);
         c.slots = slots;
         c.l_min = l_min;
         c.l_max = n.max(l_min).max(12);
         c.r_assoc = r_assoc;
+        c.end_trim = trim % n;
         let recs = run(c.clone(), stream.clone()).unwrap();
         let b = blinks(&recs);
         let half = (n / 2) as i64;
         let mut last_completion = 0u64;
         let mut last_slot_in_plane: Option<u8> = None;
         for r in &b {
-            let first = if r.has(flags::CONTINUATION) { r.t_cross } else { r.t_cross.saturating_sub(n as u64) };
-            prop_assert_eq!(r.planes_summed as u64, r.t_drop + 1 - first);
+            // Summed: [max(0, t_cross − N), t_drop − end_trim]; a cut ends at
+            // t_drop − N, a truncation at t_drop.
+            let first = r.t_cross.saturating_sub(n as u64);
+            let end = if r.has(flags::CUT) { r.t_drop + 1 - n as u64 } else if r.has(flags::TRUNCATED) { r.t_drop + 1 } else { (r.t_drop + 1).saturating_sub(c.end_trim as u64) }.max(first);
+            prop_assert_eq!(r.planes_summed as u64, end - first);
             let expected_ts = if r.has(flags::CONTINUATION) { r.t_cross as i64 } else { r.t_cross as i64 - half };
             prop_assert_eq!(r.t_s, expected_ts);
             let cut_or_trunc = r.has(flags::CUT) || r.has(flags::TRUNCATED);
@@ -392,13 +407,14 @@ proptest! {
             for dy in 0..r.roi_size as i32 {
                 for dx in 0..r.roi_size as i32 {
                     let (x, y) = (r.roi_x0() + dx, r.roi_y0() + dy);
-                    let direct = (first..=r.t_drop).filter(|&u| stream[u as usize].get_or_zero(x as i64, y as i64)).count() as u32;
+                    let direct = (first..end).filter(|&u| stream[u as usize].get_or_zero(x as i64, y as i64)).count() as u32;
                     prop_assert_eq!(r.counts[(dy * r.roi_size as i32 + dx) as usize], direct);
                 }
             }
-            // Completion plane: cut → t_drop; truncated → end; else max(t_drop+1, t_cross+N−1).
-            let completion = if r.has(flags::TRUNCATED) { planes as u64 } else if r.has(flags::CUT) { r.t_drop } else if r.has(flags::CONTINUATION) { r.t_drop + 1 } else {
-                (r.t_drop + 1).max(r.t_cross + n as u64 - 1).min(planes as u64)
+            // Completion plane: cut → t_drop; truncated → end; else once
+            // the last summed plane has left the window, t_drop + N − end_trim.
+            let completion = if r.has(flags::TRUNCATED) { planes as u64 } else if r.has(flags::CUT) { r.t_drop } else {
+                (r.t_drop + n as u64 - c.end_trim as u64).min(planes as u64)
             };
             prop_assert!(completion >= last_completion, "records out of completion order");
             if completion == last_completion {
