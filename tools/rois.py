@@ -23,7 +23,7 @@ import json
 import sys
 
 MAGIC = b"SA"  # 0x53 0x41
-VERSION = 2  # newest version read; version 1 is read too
+VERSION = 3  # newest version read; versions 1 and 2 are read too
 MAX_PAYLOAD = 4096
 HEADER_LEN = 10
 CRC_LEN = 4
@@ -137,10 +137,10 @@ def decode_counts(block, n):
 
 
 def decode_payload(version, kind, seq, p):
-    """The record of a CRC-valid frame of version 1 or 2 (§3), as a dict in
-    the key order of §9; Malformed if the payload is invalid."""
+    """The record of a CRC-valid frame of version 1, 2 or 3 (§3), as a dict
+    in the key order of §9; Malformed if the payload is invalid."""
     if kind == 0x01:
-        fixed = 37 if version >= 2 else 33
+        fixed = {1: 33, 2: 37}.get(version, 41)
         if len(p) < fixed:
             raise Malformed("stream-start too short")
         n = p[24]
@@ -160,6 +160,8 @@ def decode_payload(version, kind, seq, p):
             "threshold_int": threshold_int,
             # Version 1 has no threshold_hold: it equals threshold_int.
             "threshold_hold": _u(p, after + 8, 4) if version >= 2 else threshold_int,
+            # Versions 1 and 2 have no end_trim (their segments summed to t_drop).
+            "end_trim": _u(p, after + 12, 4) if version >= 3 else None,
             "l_min": _u(p, 12, 4),
             "l_max": _u(p, 16, 4),
             "r_assoc": p[20],

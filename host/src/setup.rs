@@ -52,6 +52,12 @@ pub struct PipelineArgs {
     /// Override the integer threshold T_hold that holds a track on (≤ T_int).
     #[arg(long)]
     pub threshold_hold: Option<u32>,
+    /// Planes left out at the end of a blink's sum: a blink that ends sums
+    /// the bit-planes [t_cross − N, t_drop − END_TRIM] (0 ..= N − 1);
+    /// default: ⌊N/2⌋ with `--detection field` (to the blink's estimated
+    /// end), 0 with `paper` (the paper's sum, to t_drop).
+    #[arg(long)]
+    pub end_trim: Option<u32>,
     /// Planes a track must stay on to be confirmed (default 1, both designs).
     #[arg(long)]
     pub l_min: Option<u32>,
@@ -94,6 +100,7 @@ impl PipelineArgs {
         );
         note(self.threshold_int.is_some(), "--threshold-int");
         note(self.threshold_hold.is_some(), "--threshold-hold");
+        note(self.end_trim.is_some(), "--end-trim");
         note(self.l_min.is_some(), "--l-min");
         note(self.l_max != d.l_max, "--l-max");
         note(self.slots != d.slots, "--slots");
@@ -116,6 +123,7 @@ impl Default for PipelineArgs {
             false_blinks_per_s: smartagg_model::field_design::DEFAULT_FALSE_BLINKS_PER_S,
             threshold_int: None,
             threshold_hold: None,
+            end_trim: None,
             l_min: None,
             l_max: smartagg_model::config::DEFAULT_L_MAX,
             slots: smartagg_model::config::DEFAULT_SLOTS,
@@ -195,8 +203,8 @@ pub fn pipeline_config(
     };
     let n = det.n_window;
     let t32 = |t: u64| u32::try_from(t).context("the derived threshold does not fit 32 bits");
-    let (mut threshold, mut hold, mut r_assoc, mut l_min) =
-        (t32(det.threshold_int)?, t32(det.threshold_int)?, 1, 1);
+    let (mut threshold, mut hold, mut r_assoc, mut l_min, mut end_trim) =
+        (t32(det.threshold_int)?, t32(det.threshold_int)?, 1, 1, 0);
     if args.detection == DetectionMode::Field {
         if plane_period_ns == 0 {
             bail!("the recording's plane period is 0 ns");
@@ -213,6 +221,7 @@ pub fn pipeline_config(
         hold = t32(d.threshold_hold)?;
         r_assoc = d.r_assoc;
         l_min = d.l_min;
+        end_trim = d.end_trim;
     }
     if let Some(t) = args.threshold_int {
         threshold = t;
@@ -232,6 +241,13 @@ pub fn pipeline_config(
         threshold,
     );
     cfg.threshold_hold = hold;
+    cfg.end_trim = args.end_trim.unwrap_or(end_trim);
+    if cfg.end_trim >= n {
+        bail!(
+            "--end-trim {} planes must be below the window N = {n}: a blink's last summed plane must have left the window when its end is seen",
+            cfg.end_trim
+        );
+    }
     cfg.l_min = args.l_min.unwrap_or(l_min);
     if args.l_max < n.max(cfg.l_min) {
         bail!(
@@ -289,7 +305,7 @@ pub fn describe_design(d: &smartagg_model::field_design::FieldDesign) -> String 
         None => "warning: at this budget no blink reaches 90 % predicted detection: the light is too weak; raise --false-blinks-per-s or use a longer window".into(),
     };
     format!(
-        "detection: a track opens at T_int = {} ({:.1} sd above background: at most {:.3} false blinks/s over the {}x{} field from background alone, budget {}/s) and stays on down to T_hold = {} (the paper's 3-sigma level); {shortest}",
+        "detection: a track opens at T_int = {} ({:.1} sd above background: at most {:.3} false blinks/s over the {}x{} field from background alone, budget {}/s) and stays on down to T_hold = {} (the paper's 3-sigma level); a blink's ROI sums the planes from N before the crossing to its estimated end, t_drop - {}; {shortest}",
         d.threshold_open,
         d.open_sigmas,
         d.predicted_false_blinks_per_s,
@@ -297,18 +313,20 @@ pub fn describe_design(d: &smartagg_model::field_design::FieldDesign) -> String 
         d.height,
         d.budget_per_s,
         d.threshold_hold,
+        d.end_trim,
     )
 }
 
 /// One line describing a configuration.
 pub fn describe(cfg: &PipelineConfig) -> String {
     format!(
-        "pipeline: {}x{} pixels, window N = {} planes, T_int = {} (open), T_hold = {}, kernel {:?} (sum 2^{}), L_min = {}, L_max = {}, r_assoc = {}, {} slots, ROI {}x{}",
+        "pipeline: {}x{} pixels, window N = {} planes, T_int = {} (open), T_hold = {}, end_trim = {}, kernel {:?} (sum 2^{}), L_min = {}, L_max = {}, r_assoc = {}, {} slots, ROI {}x{}",
         cfg.width,
         cfg.height,
         cfg.n_window,
         cfg.threshold_int,
         cfg.threshold_hold,
+        cfg.end_trim,
         cfg.kernel,
         cfg.kernel_shift,
         cfg.l_min,

@@ -133,8 +133,9 @@ impl PipelineConfig {
         self.n_window as u64 * (1u64 << (2 * self.kernel_shift as u32))
     }
 
-    /// Largest number of planes one ROI segment can sum: N pre-roll planes
-    /// plus at most L_max + 1 live planes (a cut waits out a one-plane dip).
+    /// A bound on the planes one ROI segment sums: the N planes before the
+    /// crossing plus at most L_max + 1 live planes (a cut waits out a
+    /// one-plane dip).
     pub fn max_planes_summed(&self) -> u64 {
         self.n_window as u64 + self.l_max as u64 + 1
     }

@@ -2,8 +2,8 @@
 //!
 //! Planes before stream start are all zero, so for `t < N` it returns a zero
 //! plane (the gateware must force this: DDR2 powers up with garbage). The same
-//! delayed stream serves the rolling count (stage 1) and the ROI pre-roll
-//! (stage 6), which needs the planes from `t_cross − N` on.
+//! delayed stream serves the rolling count (stage 1) and the ROI sums
+//! (stage 6), which add the planes from `t_cross − N` on as they leave.
 
 use crate::plane::BitPlane;
 use std::collections::VecDeque;
@@ -44,7 +44,7 @@ impl DelayLine {
 
     /// The plane that will come out `i + 1` pushes from now (`i < N`), i.e.
     /// `B_{t−N+1+i}` after `B_t` went in; zero where that plane precedes the stream.
-    /// Used to drain pre-rolls at stream end.
+    /// Used to complete the ROI sums at stream end.
     pub fn peek(&self, i: usize) -> &BitPlane {
         let missing = self.n - self.planes.len();
         if i < missing {

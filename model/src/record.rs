@@ -19,14 +19,14 @@ pub mod flags {
     /// The blink was still on after `L_max` planes: this segment was cut and
     /// the next record of the same slot continues it.
     pub const CUT: u8 = 1 << 2;
-    /// This segment continues a cut one: it has no pre-roll (the previous
-    /// segment already summed the planes before `t_cross`).
+    /// This segment continues a cut one: its summed planes start where the
+    /// cut segment's ended (`t_cross − N`, PACKETS.md §8.6).
     pub const CONTINUATION: u8 = 1 << 3;
     /// The stream ended while the segment was live; `t_drop` is the last
-    /// plane of the stream (with CONTINUATION, possibly `t_cross − 1`: an
-    /// empty segment).
+    /// plane of the stream (with CONTINUATION, possibly `t_cross − 1`: the
+    /// continuation of a cut at the last plane).
     pub const TRUNCATED: u8 = 1 << 4;
-    /// `t_cross < N`: the pre-roll was clipped at plane 0.
+    /// `t_cross < N`: the first window, `t_cross − N …`, was clipped at plane 0.
     pub const PREROLL_CLIPPED: u8 = 1 << 5;
 }
 
@@ -85,10 +85,10 @@ pub struct BlinkRecord {
     /// First live plane: the plane at which the track opened (threshold
     /// crossed), or the plane after the cut for a continuation.
     pub t_cross: u64,
-    /// Last live plane summed: the first of the two consecutive planes below
+    /// Last live plane: the first of the two consecutive planes below
     /// T_hold, the cut plane (CUT), or the last plane of the stream
-    /// (TRUNCATED). `t_cross − 1` for an empty continuation (a cut at the
-    /// last plane: CONTINUATION | TRUNCATED, `planes_summed = 0`).
+    /// (TRUNCATED). `t_cross − 1` for the continuation of a cut at the
+    /// last plane (CONTINUATION | TRUNCATED).
     pub t_drop: u64,
     /// Estimated start of the blink: `t_cross − ⌊N/2⌋` (mid-window), or
     /// `t_cross` for a continuation segment. May be negative near stream start.
@@ -97,8 +97,11 @@ pub struct BlinkRecord {
     /// truncated segment. May be below `t_s`: a continuation that ends within
     /// ⌊N/2⌋ planes of its `t_cross`, and an empty segment.
     pub t_e: i64,
-    /// Number of bit-planes summed into the ROI: `t_drop + 1 − max(0, t_cross − N)`,
-    /// or `t_drop + 1 − t_cross` for a continuation (0 for an empty one).
+    /// Number of bit-planes summed into the ROI: the length of
+    /// `[max(0, t_cross − N), last]`, `last = t_drop − end_trim` after a drop,
+    /// `t_drop − N` after a cut, `t_drop` when truncated (0: an empty
+    /// segment; see [`crate::record_check::summed_planes`], which also
+    /// knows the rule of version-1 and 2 streams).
     pub planes_summed: u32,
     /// ROI side R; `counts` has R×R entries.
     pub roi_size: u8,

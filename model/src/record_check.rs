@@ -137,14 +137,24 @@ pub fn is_empty_segment(r: &BlinkRecord) -> bool {
 /// version (PACKETS.md §8.6). Saturates on values no pipeline writes;
 /// [`check_blink`] tells those apart.
 pub fn summed_planes(r: &BlinkRecord, start: &StreamStart) -> std::ops::Range<u64> {
-    let n = u64::from(start.n_window);
+    summed_planes_by(r, start.n_window, start.end_trim)
+}
+
+/// [`summed_planes`] from the stream's window N and `end_trim` (`None`: a
+/// version-1 or 2 stream).
+pub fn summed_planes_by(
+    r: &BlinkRecord,
+    n_window: u32,
+    end_trim: Option<u32>,
+) -> std::ops::Range<u64> {
+    let n = u64::from(n_window);
     let continuation = r.has(flags::CONTINUATION);
-    let first = match start.end_trim {
+    let first = match end_trim {
         None if continuation => r.t_cross,
         _ => r.t_cross.saturating_sub(n),
     };
     let after = r.t_drop.saturating_add(1);
-    let end = match start.end_trim {
+    let end = match end_trim {
         None => after,
         Some(_) if r.has(flags::CUT) => after.saturating_sub(n),
         Some(_) if r.has(flags::TRUNCATED) => after,

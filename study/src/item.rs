@@ -5,7 +5,7 @@
 use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
 use crate::matching::{outcome, BlinkOutcome, Loc, SchemeOutcome, Truth};
-use crate::sim::{record_frames, record_spad, Setup};
+use crate::sim::{record_frames, record_planes, record_spad, Setup};
 use crate::spec::{Axis, Estimator, Method, Plan, MERGE_RADIUS_NM};
 use crate::timeline::{derive_seed, key_hash, place, BlinkNm, Timeline, FRAME_S};
 use smartagg_localize::merge::merge_consecutive;
@@ -13,6 +13,7 @@ use smartagg_localize::spad::{crlb_binomial, SpadEmitter};
 use smartagg_localize::{
     fit_binomial, fit_roi, Fit, HotPixelMode, Localization, NoiseModel, PixelMaps, RoiView, SpadRoi,
 };
+use smartagg_model::config::PipelineConfig;
 use smartagg_model::params::Camera;
 use smartagg_model::record::{flags, BlinkRecord};
 use std::time::Instant;
@@ -112,12 +113,13 @@ pub fn run_item(
                 )
             });
             let want_paper = methods.contains(&Method::SmartLmin1);
+            let paper_cfg = setup.paper.as_ref().expect("SPAD setup");
             let mut pipelines = Vec::new();
             if want_main {
                 pipelines.push(spad.1.clone());
             }
             if want_paper {
-                pipelines.push(setup.paper.clone().expect("SPAD setup"));
+                pipelines.push(paper_cfg.clone());
             }
             let frames = methods.iter().any(|m| {
                 matches!(
@@ -165,12 +167,17 @@ pub fn run_item(
                 let m = plan.schemes[s].method;
                 let o = match m {
                     Method::Smart | Method::SmartLmin1 => {
-                        let recs = if m == Method::Smart { main } else { paper };
+                        let (recs, cfg) = if m == Method::Smart {
+                            (main, &spad.1)
+                        } else {
+                            (paper, paper_cfg)
+                        };
                         let a = Instant::now();
                         let opts = fit_options(setup.sigma_px, fit_sigma, NoiseModel::Poisson);
                         let r = localize_records(
                             setup,
                             &sensor,
+                            cfg,
                             recs,
                             &truth,
                             radius,
@@ -205,6 +212,7 @@ pub fn run_item(
                         let r = localize_records(
                             setup,
                             &sensor,
+                            &spad.1,
                             main,
                             &truth,
                             radius,
@@ -367,8 +375,9 @@ struct RecordLocs {
     failed: u32,
 }
 
-/// Whether a localisation from `rec` could match any blink of `truth`: its
-/// summed planes must overlap the blink's on-time, and an accepted fit lies
+/// Whether a localisation from `rec`, a record of a pipeline configured with
+/// `cfg`, could match any blink of `truth`: its summed planes
+/// ([`record_planes`]) must overlap the blink's on-time, and an accepted fit lies
 /// within half a pixel of the ROI (outside it the fit reports
 /// `OutsideRoi`), so the ROI grown by that and by the match radius must
 /// contain the blink. Records that cannot match are false positives
@@ -376,13 +385,15 @@ struct RecordLocs {
 /// blinks, far from the molecule, are skipped this way).
 fn could_match(
     rec: &BlinkRecord,
+    cfg: &PipelineConfig,
     truth: &[Truth],
     radius: f64,
     pixel_nm: f64,
     period: f64,
 ) -> bool {
-    let first = (rec.t_drop + 1 - rec.planes_summed as u64) as f64 * period;
-    let last = (rec.t_drop + 1) as f64 * period;
+    let planes = record_planes(rec, cfg);
+    let first = planes.start as f64 * period;
+    let last = planes.end as f64 * period;
     let side = rec.roi_size as f64;
     let x0 = (rec.roi_x0() as f64 - 0.5) * pixel_nm;
     let y0 = (rec.roi_y0() as f64 - 0.5) * pixel_nm;
@@ -398,10 +409,13 @@ fn could_match(
     })
 }
 
-/// Localises the records that could match a blink with `fit`.
+/// Localises with `fit` the records, of a pipeline configured with `cfg`,
+/// that could match a blink; a localisation spans the planes its record
+/// summed.
 fn localize_records(
     setup: &Setup,
     sensor: &SensorView,
+    cfg: &PipelineConfig,
     records: &[BlinkRecord],
     truth: &[Truth],
     radius: f64,
@@ -414,7 +428,7 @@ fn localize_records(
         failed: 0,
     };
     for rec in records {
-        if !could_match(rec, truth, radius, setup.pixel_nm, period) {
+        if !could_match(rec, cfg, truth, radius, setup.pixel_nm, period) {
             continue;
         }
         out.fitted += 1;
@@ -425,12 +439,12 @@ fn localize_records(
             out.failed += 1;
             continue;
         }
-        let first = rec.t_drop + 1 - rec.planes_summed as u64;
+        let planes = record_planes(rec, cfg);
         out.locs.push(Loc {
             x_nm: (rec.roi_x0() as f64 + f.x) * setup.pixel_nm,
             y_nm: (rec.roi_y0() as f64 + f.y) * setup.pixel_nm,
-            t0_s: first as f64 * period,
-            t1_s: (rec.t_drop + 1) as f64 * period,
+            t0_s: planes.start as f64 * period,
+            t1_s: planes.end as f64 * period,
             photons: f.photons,
         });
     }

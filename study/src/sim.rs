@@ -27,10 +27,12 @@ use smartagg_model::packet::decode_all;
 use smartagg_model::packetiser::encode_stream;
 use smartagg_model::params::{Camera, Preset, PresetName, SpadCamera};
 use smartagg_model::record::{BlinkRecord, Record};
+use smartagg_model::record_check::summed_planes_by;
 use smartagg_model::stats::{self, Detection, DetectionInputs};
 use smartagg_scene::{
     Blinking, EmccdSimulator, ExplicitBlink, Position, Scene, ScmosSimulator, SpadSimulator,
 };
+use std::ops::Range;
 use std::time::Instant;
 
 /// A camera configuration with everything derived from its preset.
@@ -238,6 +240,16 @@ pub struct SpadData {
     pub simulate_s: f64,
     /// Wall time in the pipelines, packetiser and decoder, s.
     pub pipeline_s: f64,
+}
+
+/// The bit-planes summed into `rec`, a record of a pipeline configured with
+/// `cfg` (half-open, `first..end`): the model's rule
+/// (`record_check::summed_planes_by`) with the configuration's window N and
+/// `end_trim` — `[t_cross − N, t_drop − end_trim]` for a segment that ended
+/// by a drop, `t_drop − N` the last plane of a CUT segment, `t_drop` of a
+/// TRUNCATED one. The studies' only copy of the rule.
+pub fn record_planes(rec: &BlinkRecord, cfg: &PipelineConfig) -> Range<u64> {
+    summed_planes_by(rec, cfg.n_window, Some(cfg.end_trim))
 }
 
 /// The blink records of a finished stream, through the packet path: every
@@ -456,14 +468,23 @@ mod tests {
         let t = Timeline::one_at_a_time(3, 3, 0.08);
         let blinks = place(&t.blinks, s.field_nm(), s.margin_nm);
         let cfg = s.spad.as_ref().unwrap().1.clone();
-        let d = record_spad(&s, &blinks, t.end_s, 11, &[cfg], true, None).unwrap();
+        let d = record_spad(
+            &s,
+            &blinks,
+            t.end_s,
+            11,
+            std::slice::from_ref(&cfg),
+            true,
+            None,
+        )
+        .unwrap();
         assert_eq!(d.planes, (t.end_s / 1e-4).round() as u64);
         assert_eq!(d.frames.len() as u64, d.planes / 500);
         assert!(d.packet_bytes > 0);
         for b in &blinks {
             let near = d.records[0].iter().any(|r| {
-                let first = (r.t_drop + 1 - r.planes_summed as u64) as f64 * 1e-4;
-                let last = (r.t_drop + 1) as f64 * 1e-4;
+                let p = record_planes(r, &cfg);
+                let (first, last) = (p.start as f64 * 1e-4, p.end as f64 * 1e-4);
                 let (ax, ay) = (
                     (r.anchor_x as f64 + 0.5) * s.pixel_nm,
                     (r.anchor_y as f64 + 0.5) * s.pixel_nm,

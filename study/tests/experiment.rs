@@ -6,6 +6,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use smartagg_model::config::PipelineConfig;
 use smartagg_model::record::{flags, BlinkRecord};
 use smartagg_study::experiment::blink_durations::{self, join_segments};
 use smartagg_study::experiment::common::TLoc;
@@ -13,6 +14,7 @@ use smartagg_study::experiment::nanoruler::{
     self, density_filter, gaussian_mixture, kmeans3, principal_axis, NanorulerOptions,
 };
 use smartagg_study::experiment::{detection, emccd_frames, run, Experiment, ExperimentOptions};
+use smartagg_study::sim::record_planes;
 
 #[test]
 fn nanoruler_distances_and_spreads() {
@@ -272,26 +274,41 @@ fn analysis_helpers_find_known_markers() {
 
 #[test]
 fn cut_segments_are_joined_with_their_continuations() {
-    let rec = |slot: u8, fl: u8, t_s: i64, t_e: i64, t_drop: u64, planes: u32| BlinkRecord {
+    // N = 109 (⌊N/2⌋ = 54): a blink cut at plane 10,154 goes on from 10,155
+    // in the same slot; another blink in slot 1 meanwhile.
+    let rec = |slot: u8, fl: u8, t_cross: u64, t_drop: u64, t_s: i64, t_e: i64| BlinkRecord {
         slot,
         flags: fl,
         anchor_x: 5,
         anchor_y: 5,
-        t_cross: t_s as u64 + 54,
+        t_cross,
         t_drop,
         t_s,
         t_e,
-        planes_summed: planes,
+        planes_summed: 0,
         roi_size: 1,
         counts: vec![1],
     };
     let recs = vec![
-        rec(0, flags::CUT, 100, 10_154, 10_154, 10_109),
-        rec(1, 0, 500, 900, 954, 509),
-        rec(0, flags::CONTINUATION, 10_155, 12_000, 12_054, 1_900),
+        rec(0, flags::CUT, 154, 10_154, 100, 10_154),
+        rec(1, 0, 554, 954, 500, 900),
+        rec(0, flags::CONTINUATION, 10_155, 12_054, 10_155, 12_000),
     ];
-    let j = join_segments(&recs);
-    assert_eq!(j.len(), 2);
-    assert_eq!((j[0].t_s, j[0].t_e, j[0].segments), (100, 12_000, 2));
-    assert_eq!((j[1].t_s, j[1].t_e, j[1].segments), (500, 900, 1));
+    for end_trim in [0, 54] {
+        let mut cfg = PipelineConfig::new(32, 32, 109, vec![1, 2, 1], 2, 100);
+        cfg.end_trim = end_trim;
+        // The cut segment sums to t_drop − N, its continuation from
+        // t_cross − N: contiguous, every plane once.
+        assert_eq!(record_planes(&recs[0], &cfg), 45..10_046);
+        assert_eq!(
+            record_planes(&recs[2], &cfg),
+            10_046..12_055 - end_trim as u64
+        );
+        let j = join_segments(&recs, &cfg);
+        assert_eq!(j.len(), 2);
+        assert_eq!((j[0].t_s, j[0].t_e, j[0].segments), (100, 12_000, 2));
+        assert_eq!((j[0].first, j[0].last), (45, 12_055 - end_trim as u64));
+        assert_eq!((j[1].t_s, j[1].t_e, j[1].segments), (500, 900, 1));
+        assert_eq!((j[1].first, j[1].last), (445, 955 - end_trim as u64));
+    }
 }

@@ -459,7 +459,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // 5. Compare with the truth, measure the rulers.
     let t = Instant::now();
     let period = cam.plane_period_s;
-    let analysis = analyse(&locs, &records, &truth, &rulers, sim.emitters(), period);
+    let analysis = analyse(
+        &locs,
+        &records,
+        (cfg.n_window, cfg.end_trim),
+        &truth,
+        &rulers,
+        sim.emitters(),
+        period,
+    );
     timing.add("analysis", t, format!("{} matched", analysis.matched));
 
     // 6. Outputs.
@@ -567,14 +575,14 @@ struct MarkerStats {
 fn analyse(
     locs: &[Localization],
     records: &[BlinkRecord],
+    (n_window, end_trim): (u32, u32),
     truth: &[BlinkTruth],
     rulers: &[[usize; 3]],
     emitters: &[Position],
     period_s: f64,
 ) -> Analysis {
     // A localisation matches the nearest true blink within MATCH_NM whose
-    // on-time overlaps the record's estimated [t_s, t_e] (widened by the
-    // record's summation range).
+    // on-time overlaps the planes the record summed.
     let mut per_emitter: Vec<Vec<(f64, f64)>> = vec![Vec::new(); emitters.len()];
     let mut found = vec![false; truth.len()];
     let (mut matched, mut sq) = (0usize, 0.0);
@@ -582,8 +590,12 @@ fn analyse(
         if !loc.status.is_ok() {
             continue;
         }
-        let t0 = (rec.t_drop as f64 + 1.0 - rec.planes_summed as f64) * period_s;
-        let t1 = (rec.t_drop as f64 + 1.0) * period_s;
+        let summed =
+            smartagg_model::record_check::summed_planes_by(rec, n_window, Some(end_trim));
+        let (t0, t1) = (
+            summed.start as f64 * period_s,
+            summed.end as f64 * period_s,
+        );
         let best = truth
             .iter()
             .enumerate()

@@ -37,6 +37,13 @@ impl Obj {
         let _ = write!(self.0, ",\"{key}\":{v}");
         self
     }
+    /// An integer, or `null` when absent.
+    fn opt(self, key: &str, v: Option<impl std::fmt::Display>) -> Obj {
+        match v {
+            Some(v) => self.int(key, v),
+            None => self.int(key, "null"),
+        }
+    }
     fn word(mut self, key: &str, v: &str) -> Obj {
         let _ = write!(self.0, ",\"{key}\":\"{v}\"");
         self
@@ -74,6 +81,7 @@ pub fn event_json(e: &Event) -> String {
                     .int("n_window", s.n_window)
                     .int("threshold_int", s.threshold_int)
                     .int("threshold_hold", s.threshold_hold)
+                    .opt("end_trim", s.end_trim)
                     .int("l_min", s.l_min)
                     .int("l_max", s.l_max)
                     .int("r_assoc", s.r_assoc)
@@ -248,12 +256,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(s) = &tally.first_start {
         writeln!(
             out,
-            "parameters: {}x{} pixels, N = {}, T_int = {}, T_hold = {}, L_min = {}, L_max = {}, {} slots, r_assoc = {}, {}x{} ROIs, {} ns planes, {} masked pixels",
+            "parameters: {}x{} pixels, N = {}, T_int = {}, T_hold = {}, {}, L_min = {}, L_max = {}, {} slots, r_assoc = {}, {}x{} ROIs, {} ns planes, {} masked pixels",
             s.width,
             s.height,
             s.n_window,
             s.threshold_int,
             s.threshold_hold,
+            match s.end_trim {
+                Some(c) => format!("end_trim = {c}"),
+                None => "no end_trim (a version-1 or 2 stream: segments sum to t_drop)".into(),
+            },
             s.l_min,
             s.l_max,
             s.slots,

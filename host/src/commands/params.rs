@@ -181,6 +181,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "  it stays on while H near its anchor is >= T_hold = {} (the paper's {:.2}-sd threshold), so one blink gives one record spanning the blink; candidates within r_assoc = {} px (2 sigma) of a live track belong to it; L_min = {}",
             d.threshold_hold, d.hold_sigmas, d.r_assoc, d.l_min
         );
+        println!(
+            "  each blink's image sums the bit-planes from N before the crossing to its estimated end, t_drop - {} (--end-trim; the paper sums to t_drop, {:.1} ms more, after the blink has ended: background, which at this light limits the localisation of short blinks)",
+            d.end_trim,
+            d.end_trim as f64 / rate * 1e3
+        );
         let row: Vec<String> = recall
             .iter()
             .map(|(ms, r)| format!("{ms:.0} ms {r:.2}"))

@@ -77,6 +77,8 @@ pub struct DeviceConfig {
     pub threshold_int: u32,
     /// Runtime register: integer threshold T_hold (holds a track on).
     pub threshold_hold: u32,
+    /// Planes between a dropped segment's last summed plane and its t_drop.
+    pub end_trim: u32,
     /// Runtime register: L_min.
     pub l_min: u32,
     /// Runtime register: L_max.
@@ -126,6 +128,7 @@ impl DeviceConfig {
             n_window: start.n_window,
             threshold_int: start.threshold_int,
             threshold_hold: start.threshold_hold,
+            end_trim: cfg.end_trim,
             l_min: start.l_min,
             l_max: start.l_max,
             plane_period_ns: start.plane_period_ns,
@@ -149,6 +152,7 @@ impl DeviceConfig {
             n_window: self.n_window,
             threshold_int: self.threshold_int,
             threshold_hold: self.threshold_hold,
+            end_trim: Some(self.end_trim),
             l_min: self.l_min,
             l_max: self.l_max,
             r_assoc: self.r_assoc,
@@ -162,7 +166,7 @@ impl DeviceConfig {
     }
 
     /// The wire-in values, in address order.
-    pub fn wire_ins(&self) -> [(u8, u32); 8] {
+    pub fn wire_ins(&self) -> [(u8, u32); wire_in::COUNT] {
         let mut ctl = 0;
         if self.hot_mask.is_some() {
             ctl |= control::MASK_ENABLE;
@@ -176,6 +180,7 @@ impl DeviceConfig {
             (wire_in::PLANE_PERIOD_NS, self.plane_period_ns),
             (wire_in::MASKED_PIXELS, self.masked_pixels),
             (wire_in::THRESHOLD_HOLD, self.threshold_hold),
+            (wire_in::END_TRIM, self.end_trim),
         ]
     }
 }
@@ -430,6 +435,7 @@ pub(crate) mod tests {
     pub(crate) fn pipeline() -> PipelineConfig {
         let mut cfg = PipelineConfig::new(16, 12, 10, vec![1, 2, 1], 2, 20);
         cfg.threshold_hold = 13;
+        cfg.end_trim = 4;
         cfg.l_min = 3;
         cfg.l_max = 50;
         cfg.plane_period_ns = 100_000;
@@ -454,6 +460,7 @@ pub(crate) mod tests {
         assert_eq!(c[&wire_in::N_WINDOW], 10);
         assert_eq!(c[&wire_in::THRESHOLD_INT], 20);
         assert_eq!(c[&wire_in::THRESHOLD_HOLD], p.threshold_hold);
+        assert_eq!(c[&wire_in::END_TRIM], 4);
         assert_eq!(c[&wire_in::L_MIN], 3);
         assert_eq!(c[&wire_in::L_MAX], 50);
         assert_eq!(c[&wire_in::PLANE_PERIOD_NS], 100_000);

@@ -32,13 +32,14 @@
 use super::common::*;
 use crate::error::StudyError;
 use crate::matching::{outcome, Loc, Truth};
-use crate::sim::Setup;
+use crate::sim::{record_planes, Setup};
 use crate::timeline::{derive_seed, key_hash};
 use plotters::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use smartagg_localize::NoiseModel;
+use smartagg_model::config::PipelineConfig;
 use smartagg_model::params::{Camera, PresetName};
 use smartagg_model::record::{flags, BlinkRecord};
 use smartagg_scene::{ExplicitBlink, Position};
@@ -60,9 +61,11 @@ pub struct Joined {
     pub t_s: i64,
     /// Estimated end, planes.
     pub t_e: i64,
-    /// First plane summed (pre-roll included).
+    /// First plane summed (pre-roll included): the first segment's.
     pub first: u64,
-    /// One past the last plane summed.
+    /// One past the last plane summed: the last segment's. A CUT segment
+    /// sums up to `t_drop − N` and its continuation from `t_drop + 1 − N`,
+    /// so `first..last` is every plane the joined segments summed, once.
     pub last: u64,
     /// Plane the track opened.
     pub t_cross: u64,
@@ -75,12 +78,13 @@ pub struct Joined {
 }
 
 /// Joins every CUT segment with the CONTINUATION segments that follow it in
-/// the same slot.
-pub fn join_segments(records: &[BlinkRecord]) -> Vec<Joined> {
+/// the same slot; `records` come from a pipeline configured with `cfg`.
+pub fn join_segments(records: &[BlinkRecord], cfg: &PipelineConfig) -> Vec<Joined> {
     let mut open: Vec<Option<usize>> = vec![None; 256];
     let mut out: Vec<Joined> = Vec::new();
     for r in records {
-        let (first, last) = record_planes(r);
+        let planes = record_planes(r, cfg);
+        let (first, last) = (planes.start, planes.end);
         if r.has(flags::CONTINUATION) {
             if let Some(i) = open[r.slot as usize] {
                 let j = &mut out[i];
@@ -312,7 +316,12 @@ pub fn compute(
             // Smart: a joined record belongs to the blink whose on-time
             // overlaps its live planes [t_cross, t_drop] widened by N
             // (the window's delay) and whose pixel is within 2 px of its anchor.
-            let joined: Vec<Vec<Joined>> = run.records.iter().map(|r| join_segments(r)).collect();
+            let joined: Vec<Vec<Joined>> = run
+                .records
+                .iter()
+                .zip(&cfgs)
+                .map(|(r, c)| join_segments(r, c))
+                .collect();
             let mut rows: Vec<BlinkRow> = v
                 .iter()
                 .zip(&em_frames)

@@ -6,7 +6,7 @@ use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
 use crate::item::{record_maps, roi_view};
 use crate::matching::Loc;
-use crate::sim::through_packets;
+use crate::sim::{record_planes, through_packets};
 use crate::spec::ROI_SIDE;
 use plotters::prelude::*;
 use rand::Rng;
@@ -267,16 +267,14 @@ pub fn run_emccd(
     Ok((out, t0.elapsed().as_secs_f64()))
 }
 
-/// The first and one-past-last bit-plane summed into a record.
-pub fn record_planes(r: &BlinkRecord) -> (u64, u64) {
-    (r.t_drop + 1 - r.planes_summed as u64, r.t_drop + 1)
-}
-
-/// Fits every record's ROI (Poisson MLE, σ fitted from the optics' σ);
-/// failed fits are dropped and counted. Returns (localisations, record
-/// index of each, failed fits).
+/// Fits every record's ROI (Poisson MLE, σ fitted from the optics' σ) of a
+/// pipeline configured with `cfg`; failed fits are dropped and counted. A
+/// localisation spans the planes its record summed
+/// ([`crate::sim::record_planes`]).
+/// Returns (localisations, record index of each, failed fits).
 pub fn fit_records(
     records: &[BlinkRecord],
+    cfg: &PipelineConfig,
     field: u32,
     pixel_nm: f64,
     sigma_px: f64,
@@ -292,12 +290,12 @@ pub fn fit_records(
             failed += 1;
             continue;
         }
-        let (a, b) = record_planes(rec);
+        let planes = record_planes(rec, cfg);
         locs.push(TLoc {
             x_nm: (rec.roi_x0() as f64 + f.x) * pixel_nm,
             y_nm: (rec.roi_y0() as f64 + f.y) * pixel_nm,
-            t0_s: a as f64 * period_s,
-            t1_s: b as f64 * period_s,
+            t0_s: planes.start as f64 * period_s,
+            t1_s: planes.end as f64 * period_s,
             photons: f.photons,
             frames: 1,
         });

@@ -397,6 +397,7 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
             let recs = &run.records[0];
             let (locs, _, failed) = fit_records(
                 recs,
+                cfg,
                 setup.field,
                 setup.pixel_nm,
                 setup.sigma_px,

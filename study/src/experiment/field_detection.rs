@@ -1,12 +1,21 @@
 //! `field-detection`: detection on the **whole sensor** — false blinks per
-//! second on background alone, recall, records per blink and RMS error
-//! against blink duration, and candidates dropped at SMLM density, for the
-//! field design (the default: open and hold thresholds for a false-blink
-//! budget, `model::field_design`), the paper's literal scheme (one 3σ
-//! threshold, `L_min = 1`, `r_assoc = 1`) and the paper's threshold with the
-//! field's `L_min` from the false-alarm bound (what `smartagg params`
-//! suggested before the field design), side by side, with the design's
-//! predicted false-blink rate and recall beside the measured ones.
+//! second on background alone, recall, records per blink, planes summed per
+//! record and RMS error against blink duration, and candidates dropped at
+//! SMLM density — for four schemes side by side, with the design's
+//! predicted false-blink rate and recall beside the measured ones:
+//! * **`field`**: the field design as `smartagg aggregate` defaults to
+//!   (`model::field_design`): open and hold thresholds T_open, T_hold for a
+//!   false-blink budget, its r_assoc and L_min, and `end_trim = ⌊N/2⌋` — a
+//!   blink sums the bit-planes `[t_cross − N, t_drop − ⌊N/2⌋]`, to its
+//!   estimated end `t_e`;
+//! * **`field-v2`**: the same detection summed to `t_drop` (`end_trim = 0`),
+//!   the default before packet format v3: the same tracks, `⌊N/2⌋` more
+//!   planes (of background alone) in each dropped record;
+//! * **`paper`**: the paper's literal scheme (one 3σ threshold,
+//!   `L_min = 1`, `r_assoc = 1`, summed to `t_drop`);
+//! * **`paper-lmin`**: the paper's threshold with the field's `L_min` from
+//!   the false-alarm bound (what `smartagg params` suggested before the
+//!   field design), summed to `t_drop`.
 //!
 //! Three recordings per camera, the same bit-planes for every scheme:
 //! * **background**: no molecule, the study's light, the whole sensor;
@@ -17,11 +26,14 @@
 //!   (50 emitters/µm², 30 ms mean on-time, 30 s mean off-time).
 //!
 //! Records are localised (Poisson MLE, σ fitted) and matched to the truth
-//! by the studies' rule (within 53.3 nm, overlapping in time).
+//! by the studies' rule (within 53.3 nm, the planes the record summed —
+//! `sim::record_planes` with its scheme's N and end_trim — overlapping the
+//! blink's on-time).
 
 use super::common::*;
 use crate::error::StudyError;
-use crate::matching::{outcome, Loc, Truth};
+use crate::matching::{assign, outcome, Loc, Truth};
+use crate::sim::record_planes;
 use crate::spec::{DEFAULT_MATCH_RADIUS_NM, ROI_SIDE};
 use crate::timeline::{derive_seed, key_hash};
 use rand::{Rng, SeedableRng};
@@ -58,8 +70,10 @@ pub struct SchemeSpec {
     pub cfg: PipelineConfig,
 }
 
-/// The schemes of a camera on its whole sensor: the field design (default),
-/// the paper's, and the paper's threshold with the field's L_min.
+/// The schemes of a camera on its whole sensor: the field design as
+/// `smartagg aggregate` defaults to (`field`), the same summed to `t_drop`
+/// (`field-v2`), the paper's (`paper`), and the paper's threshold with the
+/// field's L_min (`paper-lmin`).
 pub fn schemes(
     preset: &Preset,
     det: &Detection,
@@ -93,6 +107,11 @@ pub fn schemes(
     field.threshold_hold = t32(design.threshold_hold)?;
     field.r_assoc = design.r_assoc;
     field.l_min = design.l_min;
+    field.end_trim = design.end_trim;
+    let field_v2 = PipelineConfig {
+        end_trim: 0,
+        ..field.clone()
+    };
     let l = l_min_for_target(
         &det.kernel(),
         det.n_window,
@@ -109,7 +128,7 @@ pub fn schemes(
     let mut lmin = base.clone();
     lmin.l_min = l;
     lmin.l_max = lmin.l_max.max(l);
-    for c in [&field, &base, &lmin] {
+    for c in [&field, &field_v2, &base, &lmin] {
         c.validate()?;
     }
     Ok((
@@ -118,26 +137,34 @@ pub fn schemes(
             SchemeSpec {
                 id: "field",
                 label: format!(
-                    "field design (default): T_open {} ({:.1} sd), T_hold {} ({:.1} sd), r_assoc {}, L_min 1",
+                    "field design, the default of `smartagg aggregate`: T_open {} ({:.1} sd), T_hold {} ({:.1} sd), r_assoc {}, L_min {}, end_trim {} (a blink sums [t_cross − N, t_drop − {}], to its estimated end)",
                     design.threshold_open,
                     design.open_sigmas,
                     design.threshold_hold,
                     design.hold_sigmas,
-                    design.r_assoc
+                    design.r_assoc,
+                    design.l_min,
+                    design.end_trim,
+                    design.end_trim
                 ),
                 cfg: field,
             },
             SchemeSpec {
+                id: "field-v2",
+                label: "field design summed to t_drop (end_trim 0), the default before packet format v3: the same detection, ⌊N/2⌋ more planes per dropped record".into(),
+                cfg: field_v2,
+            },
+            SchemeSpec {
                 id: "paper",
                 label: format!(
-                    "paper: one threshold T {} ({:.1} sd), r_assoc 1, L_min 1",
+                    "paper: one threshold T {} ({:.1} sd), r_assoc 1, L_min 1, end_trim 0 (sum to t_drop)",
                     det.threshold_int, design.hold_sigmas
                 ),
                 cfg: base,
             },
             SchemeSpec {
                 id: "paper-lmin",
-                label: format!("paper's T with the field's L_min = {l} (1 false blink/s bound)"),
+                label: format!("paper's T with the field's L_min = {l} (1 false blink/s bound), end_trim 0"),
                 cfg: lmin,
             },
         ],
@@ -172,6 +199,9 @@ pub struct DurationPoint {
     pub tracked: u32,
     /// Matched localisations.
     pub matched: u32,
+    /// Σ planes summed (`planes_summed`, as the pipeline reports it) over
+    /// the records of the matched localisations.
+    pub matched_planes: u64,
     /// Records that matched no blink.
     pub false_records: u32,
     /// Σ squared error of the matches, nm².
@@ -194,6 +224,10 @@ impl DurationPoint {
     /// Matched localisations per detected blink.
     pub fn records_per_blink(&self) -> Option<f64> {
         (self.detected > 0).then(|| self.matched as f64 / self.detected as f64)
+    }
+    /// Mean planes summed per matched record.
+    pub fn planes_per_match(&self) -> Option<f64> {
+        (self.matched > 0).then(|| self.matched_planes as f64 / self.matched as f64)
     }
     /// RMS error of the matches, nm.
     pub fn rms_nm(&self) -> Option<f64> {
@@ -379,8 +413,14 @@ pub fn compute_camera(
                 .collect();
             let mut pts = Vec::new();
             for ((recs, tally), spec) in runs.iter().zip(&specs) {
-                let (tl, _, failed) = fit_records(recs, w, pixel_nm, sigma_px, period);
+                let (tl, idx, failed) = fit_records(recs, &spec.cfg, w, pixel_nm, sigma_px, period);
                 let locs: Vec<Loc> = tl.iter().map(TLoc::loc).collect();
+                let matched_planes: u64 = assign(&truth, &locs, DEFAULT_MATCH_RADIUS_NM)
+                    .iter()
+                    .zip(&idx)
+                    .filter(|(m, _)| m.is_some())
+                    .map(|(_, &i)| u64::from(recs[i].planes_summed))
+                    .sum();
                 let o = outcome(
                     &truth,
                     &locs,
@@ -393,8 +433,8 @@ pub fn compute_camera(
                     .iter()
                     .filter(|b| {
                         recs.iter().any(|r| {
-                            let (a, z) = record_planes(r);
-                            let (t0, t1) = (a as f64 * period, z as f64 * period);
+                            let p = record_planes(r, &spec.cfg);
+                            let (t0, t1) = (p.start as f64 * period, p.end as f64 * period);
                             (r.anchor_x as f64 + 0.5 - b.x_nm / pixel_nm).abs() <= TRACK_PX
                                 && (r.anchor_y as f64 + 0.5 - b.y_nm / pixel_nm).abs() <= TRACK_PX
                                 && t0 < b.t_off_s
@@ -410,6 +450,7 @@ pub fn compute_camera(
                     detected,
                     tracked,
                     matched,
+                    matched_planes,
                     false_records: o.false_pos,
                     sse_nm2: o.blinks.iter().map(|b| b.sse_nm2).sum(),
                     predicted_recall: (spec.id == "field")
@@ -488,7 +529,7 @@ pub fn summary_camera(c: &CameraResult) -> String {
     );
     let _ = writeln!(
         s,
-        "Field design: N = {}, T_open = {} ({:.2} sd of background H), T_hold = {} ({:.2} sd), r_assoc = {}, L_min = {}; predicted background false blinks ≤ {:.3}/s (budget {}/s); shortest blink detected with ≥ 90 % (predicted): {}.\n",
+        "Field design: N = {}, T_open = {} ({:.2} sd of background H), T_hold = {} ({:.2} sd), r_assoc = {}, L_min = {}, end_trim = {} (a blink sums the planes [t_cross − N, t_drop − end_trim]); predicted background false blinks ≤ {:.3}/s (budget {}/s); shortest blink detected with ≥ 90 % (predicted): {}.\n",
         d.n_window,
         d.threshold_open,
         d.open_sigmas,
@@ -496,6 +537,7 @@ pub fn summary_camera(c: &CameraResult) -> String {
         d.hold_sigmas,
         d.r_assoc,
         d.l_min,
+        d.end_trim,
         d.predicted_false_blinks_per_s,
         d.budget_per_s,
         d.shortest_blink_planes.map_or("none".into(), |p| format!(
@@ -531,14 +573,14 @@ pub fn summary_camera(c: &CameraResult) -> String {
     }
     let _ = writeln!(
         s,
-        "\n| duration, ms | scheme | recall (predicted) | tracked | records per detected blink | RMS error, nm | unmatched records | dropped candidates |"
+        "\n| duration, ms | scheme | recall (predicted) | tracked | records per detected blink | planes summed per matched record | RMS error, nm | unmatched records | dropped candidates |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
     for p in &c.points {
         let (lo, hi) = wilson(p.detected as f64, p.blinks as f64);
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} [{:.3}, {:.3}]{} | {:.3} | {} | {} | {} | {} |",
+            "| {} | {} | {:.3} [{:.3}, {:.3}]{} | {:.3} | {} | {} | {} | {} | {} |",
             p.duration_ms,
             p.scheme,
             p.recall(),
@@ -548,6 +590,7 @@ pub fn summary_camera(c: &CameraResult) -> String {
                 .map_or(String::new(), |r| format!(" ({r:.3})")),
             p.track_recall(),
             opt(p.records_per_blink(), 3),
+            opt(p.planes_per_match(), 0),
             opt(p.rms_nm(), 1),
             p.false_records,
             p.dropped
@@ -561,13 +604,13 @@ pub fn summary_camera(c: &CameraResult) -> String {
 pub fn write(dir: &Path, r: &FieldResult) -> Result<(Vec<PathBuf>, Vec<String>), StudyError> {
     std::fs::create_dir_all(dir).map_err(|e| StudyError::io(dir, e))?;
     let mut csv = String::from(
-        "preset,objective,duration_ms,scheme,blinks,detected,recall,predicted_recall,tracked,matched,records_per_blink,rms_nm,false_records,dropped\n",
+        "preset,objective,duration_ms,scheme,blinks,detected,recall,predicted_recall,tracked,matched,records_per_blink,planes_per_match,rms_nm,false_records,dropped\n",
     );
     for c in &r.cameras {
         for p in &c.points {
             let _ = writeln!(
                 csv,
-                "{},{},{},{},{},{},{:.4},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{:.4},{},{},{},{},{},{},{},{}",
                 c.preset.as_str(),
                 c.objective,
                 p.duration_ms,
@@ -581,6 +624,8 @@ pub fn write(dir: &Path, r: &FieldResult) -> Result<(Vec<PathBuf>, Vec<String>),
                 p.matched,
                 p.records_per_blink()
                     .map_or(String::new(), |v| format!("{v:.4}")),
+                p.planes_per_match()
+                    .map_or(String::new(), |v| format!("{v:.1}")),
                 p.rms_nm().map_or(String::new(), |v| format!("{v:.2}")),
                 p.false_records,
                 p.dropped
@@ -588,7 +633,7 @@ pub fn write(dir: &Path, r: &FieldResult) -> Result<(Vec<PathBuf>, Vec<String>),
         }
     }
     let mut md = format!(
-        "# Detection on the whole sensor\n\n`smartagg study field-detection --seed {}{}`: {} blinks per duration, one molecule on at a time; background-only and SMLM-density recordings of the whole sensor; the study's light (see `study/src/experiment/field_detection.rs`). Recall is the fraction of blinks with a localisation within {} nm overlapping them in time (the interval is Wilson's 95 %; in brackets the field design's prediction); *tracked* is the fraction with a track opened within {} pixels of them and overlapping them in time, whatever its localisation: the detection alone.\n\n",
+        "# Detection on the whole sensor\n\n`smartagg study field-detection --seed {}{}`: {} blinks per duration, one molecule on at a time; background-only and SMLM-density recordings of the whole sensor; the study's light (see `study/src/experiment/field_detection.rs`). Schemes: `field` is the field design as `smartagg aggregate` defaults to (open and hold thresholds for a false-blink budget, its r_assoc and L_min, end_trim = ⌊N/2⌋: a blink sums the bit-planes [t_cross − N, t_drop − ⌊N/2⌋], to its estimated end); `field-v2` the same detection summed to t_drop (end_trim 0, the default before packet format v3); `paper` the paper's one 3σ threshold with L_min = 1 and r_assoc = 1, summed to t_drop; `paper-lmin` the paper's threshold with L_min from the false-alarm bound, summed to t_drop. Recall is the fraction of blinks with a localisation within {} nm whose summed planes overlap them in time (the interval is Wilson's 95 %; in brackets the field design's prediction); *tracked* is the fraction with a track opened within {} pixels of them whose summed planes overlap them in time, whatever its localisation: the detection alone; *planes summed per matched record* is the mean `planes_summed` of the records whose localisation matched a blink.\n\n",
         r.seed,
         if r.quick { " --quick" } else { "" },
         r.blinks,

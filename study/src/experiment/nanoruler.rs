@@ -424,10 +424,22 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
             )?;
             let shared = run.simulate_s;
             let a = Instant::now();
-            let (smart, _, smart_failed) =
-                fit_records(&run.records[0], spad_side, spad_px, spad.sigma_px(), period);
-            let (wide, _, wide_failed) =
-                fit_records(&run.records[1], spad_side, spad_px, spad.sigma_px(), period);
+            let (smart, _, smart_failed) = fit_records(
+                &run.records[0],
+                &cfg,
+                spad_side,
+                spad_px,
+                spad.sigma_px(),
+                period,
+            );
+            let (wide, _, wide_failed) = fit_records(
+                &run.records[1],
+                &cfg_wide,
+                spad_side,
+                spad_px,
+                spad.sigma_px(),
+                period,
+            );
             // The two pipelines ran on the same planes: half the pipeline time each.
             let smart_s = run.pipeline_s / 2.0 + a.elapsed().as_secs_f64() / 2.0;
             let a = Instant::now();
