@@ -112,7 +112,7 @@ pub fn run_item(
                     Method::Smart | Method::SmartSpadMle | Method::Estimator(_)
                 )
             });
-            let want_paper = methods.contains(&Method::SmartLmin1);
+            let want_paper = methods.contains(&Method::SmartPaper);
             let paper_cfg = setup.paper.as_ref().expect("SPAD setup");
             let mut pipelines = Vec::new();
             if want_main {
@@ -166,7 +166,7 @@ pub fn run_item(
             for &s in &schemes {
                 let m = plan.schemes[s].method;
                 let o = match m {
-                    Method::Smart | Method::SmartLmin1 => {
+                    Method::Smart | Method::SmartPaper => {
                         let (recs, cfg) = if m == Method::Smart {
                             (main, &spad.1)
                         } else {

@@ -4,7 +4,7 @@
 use crate::error::StudyError;
 use crate::item::ItemResult;
 use crate::sim::Setup;
-use crate::spec::{Method, Plan, StudyName, FIXED_FRAME_PLANES, MERGE_RADIUS_NM, ROI_SIDE};
+use crate::spec::{LMin, Method, Plan, StudyName, FIXED_FRAME_PLANES, MERGE_RADIUS_NM, ROI_SIDE};
 use crate::stats::{summarise, Estimate, Summary};
 use plotters::prelude::*;
 use std::fmt::Write as _;
@@ -296,7 +296,7 @@ pub fn finalize(
 
 fn describe_setups(plan: &Plan, setups: &[Setup]) -> String {
     let mut s = String::new();
-    for (c, st) in plan.configs.iter().zip(setups) {
+    for (ci, (c, st)) in plan.configs.iter().zip(setups).enumerate() {
         let _ = write!(
             s,
             "- **{}**: field {}x{} px of {:.1} nm, PSF sigma {:.3} px, background {:.1} Hz/px detected",
@@ -307,20 +307,57 @@ fn describe_setups(plan: &Plan, setups: &[Setup]) -> String {
             st.sigma_px,
             st.preset.background_rate_hz()
         );
-        if let Some((det, cfg)) = &st.spad {
+        let uses = |f: fn(Method) -> bool| {
+            plan.schemes
+                .iter()
+                .any(|sc| sc.config == ci && f(sc.method))
+        };
+        let smart = uses(|m| {
+            matches!(
+                m,
+                Method::Smart | Method::SmartSpadMle | Method::Estimator(_)
+            )
+        });
+        if let (true, Some((det, cfg)), Some(d)) = (smart, &st.spad, &st.design) {
+            let over = |v: u32, design: u32| {
+                if v == design {
+                    String::new()
+                } else {
+                    format!(" (overridden; the design's is {design})")
+                }
+            };
             let _ = write!(
                 s,
-                "; pipeline N = {} planes, T_int = {} (T = {:.4}), kernel {:?} (sum 2^{}), L_min = {}, r_assoc = {}, {} slots, ROI {}x{}",
+                "; smart: the field design of this {}x{} field at {} planes/s (as `smartagg aggregate` defaults to, with the study's fitted ROI size; false-blink budget {}/s over the field): N = {} planes, T_open = T_int = {} ({:.2} sd of background H above its mean; background alone opens at most {:.3} false blinks/s, predicted), T_hold = {} (Eq. 7's T = {:.4}, {:.2} sd), end_trim = {} (a blink sums the planes [t_cross − N, t_drop − {}], to its estimated end), kernel {:?} (sum 2^{}), L_min = {}{}, r_assoc = {}{}, {} slots, ROI {}x{}",
+                d.width,
+                d.height,
+                d.plane_rate_hz,
+                d.budget_per_s,
                 cfg.n_window,
                 cfg.threshold_int,
+                d.open_sigmas,
+                d.predicted_false_blinks_per_s,
+                cfg.threshold_hold,
                 det.threshold,
+                d.hold_sigmas,
+                cfg.end_trim,
+                cfg.end_trim,
                 cfg.kernel,
                 cfg.kernel_shift,
                 cfg.l_min,
+                over(cfg.l_min, d.l_min),
                 cfg.r_assoc,
+                over(cfg.r_assoc, d.r_assoc),
                 cfg.slots,
                 cfg.roi_size,
                 cfg.roi_size
+            );
+        }
+        if let (true, Some(p)) = (uses(|m| m == Method::SmartPaper), &st.paper) {
+            let _ = write!(
+                s,
+                "; the paper's scheme: one threshold T_int = {} (opens and holds), end_trim = {} (a blink sums [t_cross − N, t_drop]), L_min = {}, r_assoc = {}, the same N, kernel, slots and ROI",
+                p.threshold_int, p.end_trim, p.l_min, p.r_assoc
             );
         }
         s.push('\n');
@@ -328,7 +365,7 @@ fn describe_setups(plan: &Plan, setups: &[Setup]) -> String {
     if let Some(cal) = &plan.options.calibration {
         let _ = writeln!(
             s,
-            "- **Calibrated sensor**: the SPCIMAGER configurations simulate the maps of `{}` (`smartagg calibrate`) instead of the preset's synthetic ones: each work item takes a field-sized crop at an offset drawn from its seed; dark counts are the measured DCR of each pixel, detection efficiency PDE x fill factor x the measured PRNU; pixels whose dark counts alone would cross the configuration's T_int (the calibration's criterion at its N and T_int) are masked in the smart pipeline, left out of the record fits and handled by the fixed-frame hot-pixel curves. The other cameras are not the calibrated one and keep their synthetic maps.",
+            "- **Calibrated sensor**: the SPCIMAGER configurations simulate the maps of `{}` (`smartagg calibrate`) instead of the preset's synthetic ones: each work item takes a field-sized crop at an offset drawn from its seed; dark counts are the measured DCR of each pixel, detection efficiency PDE x fill factor x the measured PRNU; pixels whose dark counts alone would reach the configuration's hold level (the calibration's criterion at its N and T_hold, the paper's Eq. 7 threshold: such a pixel would keep a neighbouring track on, as `smartagg aggregate --calibration` judges it) are masked in the smart pipelines, left out of the record fits and handled by the fixed-frame hot-pixel curves. The other cameras are not the calibrated one and keep their synthetic maps.",
             cal.id
         );
     }
@@ -349,14 +386,18 @@ fn markdown(
     let _ = writeln!(m, "{provenance}\n");
     let _ = writeln!(
         m,
-        "{} blinks per point in work items of {} (seed {}, {} bootstrap resamples{}); L_min {}{}; frame threshold {}; sigma {}.\n",
+        "{} blinks per point in work items of {} (seed {}, {} bootstrap resamples{}); smart scheme: the field design{}{}; frame threshold {}; sigma {}.\n",
         o.blinks_per_point,
         o.block,
         o.seed,
         o.bootstrap,
         if o.quick { ", --quick" } else { "" },
-        o.l_min,
-        o.r_assoc.map_or(String::new(), |r| format!(", r_assoc {r}")),
+        match o.l_min {
+            LMin::Design => String::new(),
+            LMin::Planes(l) => format!(", L_min {l} (override)"),
+        },
+        o.r_assoc
+            .map_or(String::new(), |r| format!(", r_assoc {r} (override)")),
         o.frame_threshold,
         if o.fit_sigma {
             "fitted (ThunderSTORM's default)"
@@ -524,7 +565,7 @@ fn localizer_table(m: &mut String, plan: &Plan, s: &Summary) {
 }
 
 const METHOD_TEXT: &str = "- **Scene** (paper §4): one molecule on at a time at a random position (3 sigma from the edges) in the camera's study field, 50,000 photons/s, 70,000 background photons/s/um^2, every blink exactly the point's duration, gaps of 10 ms + Exp(40 ms). Every configuration of a point sees the same blinks (same times, same relative positions) as explicit blinks of the scene simulator, each camera with its own photon noise; each work item is one continuous recording per configuration.
-- **Smart aggregation**: the model's pipeline (its fast engine, proven byte-identical to the golden pipeline by the model's tests) on the simulated bit-planes, N, T_int and kernel from the paper's statistics; its records go through the packetiser and the packet decoder (any loss is an error); each ROI is fitted with the Poisson MLE (and the SPAD binomial MLE with the record's on/off split where shown). L_min comes from the model's false-alarm statistics (1 false blink/s over the study field) unless set; `smart (L_min = 1 as in the paper)` is the paper's literal scheme on the same bit-planes. Records whose summed planes and ROI cannot reach any blink are false positives whatever their fit and are not fitted.
+- **Smart aggregation**: the model's pipeline (its fast engine, proven byte-identical to the golden pipeline by the model's tests) on the simulated bit-planes with the **field design** of each configuration's study field, as `smartagg aggregate` defaults to on a recording of that size and plane rate (`model::field_design`): N and the kernel from the paper's statistics; a track opens where H reaches T_open, the lowest threshold at which background alone opens at most 1 false blink/s over the field, and stays on while H stays at or above T_hold, the paper's Eq. 7 threshold; candidates within r_assoc = round(2 sigma) of a live track belong to it; L_min = 1; a blink sums the bit-planes from N before its crossing to its estimated end, t_drop − end_trim with end_trim = floor(N/2). `--l-min` and `--r-assoc` override the design's L_min and r_assoc. `smart (paper's scheme)` is the paper's literal scheme on the same bit-planes: one threshold T (Eq. 7) that opens and holds, L_min = 1, r_assoc = 1, each blink summed to t_drop (end_trim 0). Records go through the packetiser and the packet decoder (any loss is an error); each ROI is fitted with the Poisson MLE (and the SPAD binomial MLE with the record's on/off split where shown). Records whose summed planes and ROI cannot reach any blink are false positives whatever their fit and are not fitted.
 - **Frame detection** (fixed SPAD frames, EMCCD, sCMOS, hot-pixel frames): B-spline wavelet (ThunderSTORM's default), 8-neighbour local maxima of the second wavelet level above the frame threshold times the std of the first; Poisson MLE of a 9x9 ROI (EMCCD: F^2 = 2 in the bound; sCMOS: per-pixel read variance). Hot pixels (known map) are interpolated for detection, then ignored or interpolated in the fit.
 - **CRLB reference** (dashed): per blink, the SPAD binomial Cramér–Rao bound at its true position for an ideal aggregation of exactly its on-planes (no off-plane), in a 9x9 ROI centred on its pixel, sigma fixed or fitted as the fits; the curve is sqrt(mean(var_x + var_y)).
 ";
@@ -565,7 +606,7 @@ fn scheme_colour(plan: &Plan, i: usize) -> RGBColor {
 fn marker(m: Method) -> u8 {
     match m {
         Method::SmartSpadMle | Method::FramesMerged | Method::HotInterpolate => 1,
-        Method::SmartLmin1 => 2,
+        Method::SmartPaper => 2,
         Method::Estimator(e) => (e as u8) % 3,
         _ => 0,
     }

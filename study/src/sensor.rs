@@ -9,9 +9,10 @@
 //! * Dark counts: the calibrated DCR of each pixel (hot ones included, at
 //!   their measured rate). Detection efficiency: the preset's PDE × fill
 //!   factor × the calibrated PRNU (1 without a flat), clamped to [0, 1].
-//! * Hot pixels are those whose dark counts alone would cross this
-//!   configuration's threshold (the calibration's criterion re-derived for
-//!   its N and T_int); the smart pipeline masks them as
+//! * Hot pixels are those whose dark counts alone would reach this
+//!   configuration's hold level (the calibration's criterion re-derived for
+//!   its N and T_hold, the paper's Eq. 7 threshold: a hot pixel there would
+//!   keep a neighbouring track on); the smart pipeline masks them as
 //!   `smartagg aggregate --calibration` does, the localisers leave them out
 //!   of the likelihood, and the fixed-frame `hot` curves use the same set.
 //!
@@ -24,9 +25,10 @@ use smartagg_model::params::SpadCamera;
 use smartagg_scene::spad::SpadMaps;
 use std::sync::Arc;
 
-/// The critical dark-count rate of a configuration: `(N, T_int)` → the DCR
-/// at and above which a pixel's dark counts alone cross T_int (`None`: no
-/// rate can), or why it cannot be derived.
+/// The critical dark-count rate of a configuration: `(N, T)` → the DCR at
+/// and above which a pixel's dark counts alone reach T (`None`: no rate
+/// can), or why it cannot be derived. The study asks it at the pipeline's
+/// hold level T_hold.
 pub type CriticalDcr = dyn Fn(u32, u64) -> Result<Option<f64>, String> + Send + Sync;
 
 /// Calibrated per-pixel maps of a whole sensor, raster order.
@@ -39,7 +41,7 @@ pub struct SensorMaps {
     pub dcr_hz: Vec<f64>,
     /// Relative photon detection efficiency (mean 1), if a flat was recorded.
     pub prnu: Option<Vec<f64>>,
-    /// The hot-pixel criterion of the calibration, for any N and T_int.
+    /// The hot-pixel criterion of the calibration, for any N and threshold.
     pub critical_dcr: Box<CriticalDcr>,
 }
 
@@ -172,7 +174,7 @@ impl std::fmt::Debug for SensorCalibration {
 }
 
 /// A calibrated sensor applied to one configuration: the maps and the
-/// critical DCR under its N and T_int.
+/// critical DCR under its N and T_hold.
 #[derive(Debug, Clone)]
 pub struct CalibratedSetup {
     /// The sensor's maps.

@@ -5,12 +5,16 @@
 //! **Smart aggregation** runs the model's pipeline with the fast engine
 //! (`model::fast_engine::fast_pipeline`: the golden stages 5–7 with
 //! incremental stages 1–4, proven byte-identical to the golden pipeline by
-//! the model's tests). Parameters come from the paper's statistics for the
-//! preset (`stats::derive`: N, T_int, kernel), a 9×9 ROI and the default
-//! slots; [`Setup::new`] sets `L_min = 1` (the paper's scheme) and
-//! [`Setup::with_pipeline`] applies the study's choice (by default from the
-//! false-alarm statistics), keeping the `L_min = 1` pipeline in
-//! [`Setup::paper`] for the paper's curve.
+//! the model's tests). Its parameters are the **field design** of the study
+//! field ([`field_design_config`], what `smartagg aggregate` defaults to on
+//! a recording of that size and plane rate): the paper's statistics for the
+//! preset (`stats::derive`: N, kernel, Eq. 7's T) and
+//! `model::field_design::design` with the default budget of 1 false
+//! blink/s over the field (T_open, T_hold, r_assoc, L_min, end_trim), a 9×9
+//! ROI and the default slots. [`Setup::with_pipeline`] applies the study's
+//! overrides (`--l-min`, `--r-assoc`) to it; [`Setup::paper`] is the
+//! paper's literal scheme on the same field ([`paper_config`]: one
+//! threshold T, L_min 1, r_assoc 1, end_trim 0), never overridden.
 //! Every record then goes through `packetiser::encode_stream` and
 //! `packet::decode_all`, the real packet path; any decoder loss is an error.
 
@@ -20,8 +24,8 @@ use crate::sensor::{CalibratedSetup, SensorCalibration};
 use crate::spec::{LMin, FIXED_FRAME_PLANES, ROI_SIDE};
 use crate::timeline::BlinkNm;
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::false_alarm::l_min_for_target;
 use smartagg_model::fast_engine::fast_pipeline;
+use smartagg_model::field_design::{self, FieldDesign, DEFAULT_FALSE_BLINKS_PER_S};
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packet::decode_all;
 use smartagg_model::packetiser::encode_stream;
@@ -48,43 +52,37 @@ pub struct Setup {
     pub sigma_px: f64,
     /// Margin kept free of molecules, nm (3σ, at most a quarter of the field).
     pub margin_nm: f64,
-    /// SPAD only: the paper's statistics and the pipeline configuration.
+    /// SPAD only: the paper's statistics and the smart scheme's pipeline
+    /// configuration (the field design, with the study's overrides).
     pub spad: Option<(Detection, PipelineConfig)>,
-    /// SPAD only: the same pipeline with the paper's literal `L_min = 1`.
+    /// SPAD only: the field design the smart scheme was built from (before
+    /// the study's overrides), with what it predicts.
+    pub design: Option<FieldDesign>,
+    /// SPAD only: the paper's literal scheme on the same field (one
+    /// threshold T, L_min 1, r_assoc 1, end_trim 0).
     pub paper: Option<PipelineConfig>,
     /// SPCImager only: a calibrated sensor whose maps replace the synthetic ones.
     pub sensor: Option<CalibratedSetup>,
 }
 
 impl Setup {
-    /// Derives the setup of `preset` with `objective`.
+    /// Derives the setup of `preset` with `objective`: the field design as
+    /// the smart scheme, the paper's literal scheme beside it.
     pub fn new(preset: PresetName, objective: u32) -> Result<Setup, StudyError> {
         let preset = Preset::new(preset, objective)?;
         let field = preset.study_field_px;
         let sigma_px = preset.sigma_px();
         let pixel_nm = preset.pixel_nm();
         let margin_nm = (3.0 * sigma_px).min(field as f64 / 4.0) * pixel_nm;
-        let spad = match preset.camera {
-            Camera::Spad(_) => {
+        let (spad, design, paper) = match preset.camera {
+            Camera::Spad(ref cam) => {
                 let det = stats::derive(&DetectionInputs::from_preset(&preset, None)?)?;
-                let t_int = u32::try_from(det.threshold_int).map_err(|_| StudyError::Option {
-                    name: "threshold",
-                    why: format!("T_int = {} does not fit 32 bits", det.threshold_int),
-                })?;
-                let mut cfg = PipelineConfig::new(
-                    field as usize,
-                    field as usize,
-                    det.n_window,
-                    det.kernel_weights.clone(),
-                    det.kernel_shift,
-                    t_int,
-                );
-                cfg.l_min = 1;
-                cfg.roi_size = ROI_SIDE;
-                cfg.validate()?;
-                Some((det, cfg))
+                let period = cam.plane_period_s;
+                let (design, cfg) = field_design_config(&det, field, field, period)?;
+                let paper = paper_config(&det, field, field, period)?;
+                (Some((det, cfg)), Some(design), Some(paper))
             }
-            _ => None,
+            _ => (None, None, None),
         };
         Ok(Setup {
             preset,
@@ -92,47 +90,26 @@ impl Setup {
             pixel_nm,
             sigma_px,
             margin_nm,
-            paper: spad.as_ref().map(|(_, c)| c.clone()),
             spad,
+            design,
+            paper,
             sensor: None,
         })
     }
 
-    /// The same setup with the pipeline's `L_min` (a number of planes, or
-    /// from the false-alarm statistics for the study field) and association
-    /// radius; [`Setup::paper`] keeps the same pipeline with `L_min = 1`.
+    /// The same setup with the study's overrides of the smart scheme (the
+    /// field design): `L_min` ([`LMin::Design`] keeps the design's) and the
+    /// association radius. [`Setup::paper`] stays the paper's literal scheme.
     pub fn with_pipeline(mut self, l_min: LMin, r_assoc: Option<u32>) -> Result<Setup, StudyError> {
-        let field = self.field;
-        if let Some((det, cfg)) = self.spad.as_mut() {
-            let l = match l_min {
-                LMin::Planes(l) => l,
-                LMin::Auto { false_blinks_per_s } => {
-                    let rate = 1.0 / self.preset.period_s();
-                    l_min_for_target(
-                        &det.kernel(),
-                        det.n_window,
-                        det.p_off,
-                        det.threshold_int,
-                        field as u64 * field as u64,
-                        rate,
-                        false_blinks_per_s,
-                    )
-                    .map_err(|e| StudyError::Option {
-                        name: "l-min",
-                        why: format!("L_min from the false-alarm statistics: {e}"),
-                    })?
-                }
-            };
-            cfg.l_min = l;
-            cfg.l_max = cfg.l_max.max(l);
+        if let Some((_, cfg)) = self.spad.as_mut() {
+            if let LMin::Planes(l) = l_min {
+                cfg.l_min = l;
+                cfg.l_max = cfg.l_max.max(l);
+            }
             if let Some(r) = r_assoc {
                 cfg.r_assoc = r;
             }
             cfg.validate()?;
-            self.paper = Some(PipelineConfig {
-                l_min: 1,
-                ..cfg.clone()
-            });
         }
         Ok(self)
     }
@@ -140,7 +117,8 @@ impl Setup {
     /// The same setup simulating a calibrated sensor, if it applies: only the
     /// SPCImager presets (the other cameras are not the calibrated one).
     /// Errors if the sensor is smaller than the study field, if the maps are
-    /// bad, or if the hot-pixel criterion cannot be derived for this N and T.
+    /// bad, or if the hot-pixel criterion cannot be derived for this N and
+    /// T_hold.
     /// Without maps (options read back from a manifest) nothing changes:
     /// [`crate::run::run`] refuses to simulate then.
     pub fn with_sensor(mut self, cal: Option<&SensorCalibration>) -> Result<Setup, StudyError> {
@@ -164,13 +142,16 @@ impl Setup {
                 cal.id, maps.width, maps.height, self.field, self.field
             )));
         }
+        // A hot pixel at the hold level would keep a neighbouring track on
+        // (as `aggregate --calibration` judges it); the paper's scheme has
+        // the same N and its one threshold is the design's T_hold.
         let (n, t) = match &self.spad {
-            Some((_, cfg)) => (cfg.n_window, u64::from(cfg.threshold_int)),
+            Some((_, cfg)) => (cfg.n_window, u64::from(cfg.threshold_hold)),
             None => return Ok(self),
         };
         let critical_dcr_hz = (maps.critical_dcr)(n, t).map_err(|e| {
             bad(format!(
-                "{}: hot-pixel criterion for N = {n}, T_int = {t}: {e}",
+                "{}: hot-pixel criterion for N = {n}, T_hold = {t}: {e}",
                 cal.id
             ))
         })?;
@@ -215,6 +196,81 @@ impl Setup {
         );
         s
     }
+}
+
+/// The smart scheme of every study on a `width × height` field recorded at
+/// one plane per `plane_period_s`: the **field design**
+/// (`model::field_design::design` with the default budget,
+/// [`DEFAULT_FALSE_BLINKS_PER_S`] false blinks/s over the field), built as
+/// `smartagg aggregate` builds its default pipeline for a recording of that
+/// size and plane period: `T_int` = T_open, `T_hold`, `r_assoc`, `L_min`
+/// and `end_trim` (⌊N/2⌋: a blink sums `[t_cross − N, t_drop − end_trim]`)
+/// from the design, N and the kernel from `det`. The study's one
+/// difference: every fitted ROI is [`ROI_SIDE`] pixels wide (aggregate's
+/// default is the kernel's size), as the study's frame fits are. The
+/// studies' only construction of it.
+pub fn field_design_config(
+    det: &Detection,
+    width: u32,
+    height: u32,
+    plane_period_s: f64,
+) -> Result<(FieldDesign, PipelineConfig), StudyError> {
+    let mut cfg = paper_config(det, width, height, plane_period_s)?;
+    let rate = 1e9 / cfg.plane_period_ns as f64;
+    let design = field_design::design(det, width, height, rate, DEFAULT_FALSE_BLINKS_PER_S)
+        .map_err(|e| StudyError::Option {
+            name: "field design",
+            why: e.to_string(),
+        })?;
+    cfg.threshold_int = threshold32(design.threshold_open)?;
+    cfg.threshold_hold = threshold32(design.threshold_hold)?;
+    cfg.r_assoc = design.r_assoc;
+    cfg.l_min = design.l_min;
+    cfg.l_max = cfg.l_max.max(design.l_min);
+    cfg.end_trim = design.end_trim;
+    cfg.validate()?;
+    Ok((design, cfg))
+}
+
+/// The paper's literal scheme on a `width × height` field recorded at one
+/// plane per `plane_period_s`: one threshold, Eq. 7's `T_int` from `det`
+/// (opens and holds), `L_min = 1`, `r_assoc = 1`, `end_trim = 0` (a blink
+/// sums `[t_cross − N, t_drop]`), a [`ROI_SIDE`]-wide ROI.
+pub fn paper_config(
+    det: &Detection,
+    width: u32,
+    height: u32,
+    plane_period_s: f64,
+) -> Result<PipelineConfig, StudyError> {
+    let period_ns = (plane_period_s * 1e9).round();
+    if !(period_ns >= 1.0 && period_ns <= u32::MAX as f64) {
+        return Err(StudyError::Option {
+            name: "plane period",
+            why: format!("{plane_period_s} s is not 1 ns ..= 4.29 s"),
+        });
+    }
+    let mut cfg = PipelineConfig::new(
+        width as usize,
+        height as usize,
+        det.n_window,
+        det.kernel_weights.clone(),
+        det.kernel_shift,
+        threshold32(det.threshold_int)?,
+    );
+    cfg.l_min = 1;
+    cfg.r_assoc = 1;
+    cfg.end_trim = 0;
+    cfg.roi_size = ROI_SIDE;
+    cfg.plane_period_ns = period_ns as u32;
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+fn threshold32(t: u64) -> Result<u32, StudyError> {
+    u32::try_from(t).map_err(|_| StudyError::Option {
+        name: "threshold",
+        why: format!("T_int = {t} does not fit 32 bits"),
+    })
 }
 
 /// What a SPAD recording gave.
@@ -460,6 +516,69 @@ mod tests {
         assert_eq!(n(PresetName::Spcimager, 60), 65);
         assert_eq!(n(PresetName::SpcimagerProjected, 150), 18);
         assert!(Setup::new(PresetName::Emccd, 150).unwrap().spad.is_none());
+    }
+
+    #[test]
+    fn the_smart_scheme_is_the_field_design_and_the_papers_stays_literal() {
+        let s = Setup::new(PresetName::Spcimager, 150).unwrap();
+        let (det, cfg) = s.spad.clone().unwrap();
+        let d = s.design.clone().unwrap();
+        // The model's design of the 32x32 study field at 10 kHz, as
+        // `aggregate` makes it for such a recording.
+        let direct = field_design::design(&det, 32, 32, 1e4, DEFAULT_FALSE_BLINKS_PER_S).unwrap();
+        assert_eq!(d, direct);
+        assert_eq!(
+            (
+                u64::from(cfg.threshold_int),
+                u64::from(cfg.threshold_hold),
+                cfg.r_assoc,
+                cfg.l_min,
+                cfg.end_trim
+            ),
+            (
+                d.threshold_open,
+                d.threshold_hold,
+                d.r_assoc,
+                d.l_min,
+                d.end_trim
+            )
+        );
+        assert_eq!(u64::from(cfg.threshold_hold), det.threshold_int);
+        assert!(cfg.threshold_int > cfg.threshold_hold);
+        assert_eq!(
+            (cfg.end_trim, cfg.r_assoc, cfg.l_min),
+            (det.n_window / 2, 3, 1)
+        );
+        assert_eq!((cfg.roi_size, cfg.plane_period_ns), (ROI_SIDE, 100_000));
+        let paper = s.paper.clone().unwrap();
+        let literal = |p: &PipelineConfig| {
+            assert_eq!(
+                (
+                    u64::from(p.threshold_int),
+                    u64::from(p.threshold_hold),
+                    p.l_min,
+                    p.r_assoc,
+                    p.end_trim
+                ),
+                (det.threshold_int, det.threshold_int, 1, 1, 0)
+            );
+            assert_eq!(
+                (&p.kernel, p.n_window, p.roi_size),
+                (&cfg.kernel, cfg.n_window, cfg.roi_size)
+            );
+        };
+        literal(&paper);
+        // The study's overrides change the smart scheme only.
+        let o = s.with_pipeline(LMin::Planes(150), Some(2)).unwrap();
+        let c = &o.spad.as_ref().unwrap().1;
+        assert_eq!((c.l_min, c.r_assoc, c.l_max), (150, 2, cfg.l_max.max(150)));
+        assert_eq!(c.threshold_int, cfg.threshold_int);
+        literal(o.paper.as_ref().unwrap());
+        let same = Setup::new(PresetName::Spcimager, 150)
+            .unwrap()
+            .with_pipeline(LMin::Design, None)
+            .unwrap();
+        assert_eq!(same.spad.unwrap().1, cfg);
     }
 
     #[test]

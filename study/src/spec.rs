@@ -98,12 +98,15 @@ pub struct StudyOptions {
     /// Explicit x values (blink durations in ms, or hot-pixel percentages)
     /// instead of the study's defaults.
     pub points: Option<Vec<f64>>,
-    /// Planes a track must stay on to be confirmed. Default: from the
-    /// model's false-alarm statistics at 1 false blink/s over the study field
-    /// (the paper's literal `L_min = 1` is the `smart (L_min = 1 as in the
-    /// paper)` curve of `smart-vs-fixed`, or `--l-min 1`).
+    /// Override of the smart scheme's L_min, planes a track must stay on to
+    /// be confirmed. Default [`LMin::Design`]: the field design's own
+    /// (`L_min = 1`: its open threshold already keeps background within 1
+    /// false blink/s over the study field). The paper's literal scheme (the
+    /// `smart (paper's scheme)` curve of `smart-vs-fixed`) is never
+    /// overridden.
     pub l_min: LMin,
-    /// Pipeline override: association radius, pixels (default: the model's 1).
+    /// Override of the smart scheme's association radius, pixels (default:
+    /// the field design's, round(2σ) of the PSF).
     pub r_assoc: Option<u32>,
     /// Frame detection threshold in units of std of the first wavelet level
     /// (ThunderSTORM-like default 1.5).
@@ -114,50 +117,37 @@ pub struct StudyOptions {
     pub calibration: Option<crate::sensor::SensorCalibration>,
 }
 
-/// The pipeline's confirmation length L_min.
+/// The smart scheme's confirmation length L_min.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum LMin {
-    /// A fixed number of planes (1 = the paper: every crossing is a blink).
+    /// The field design's (`model::field_design`: 1, every open track is
+    /// confirmed; its open threshold controls the false blinks).
+    Design,
+    /// A fixed number of planes instead (1 = every open track is a blink).
     Planes(u32),
-    /// From the model's false-alarm statistics
-    /// (`false_alarm::l_min_for_target`): the smallest L_min whose bounded
-    /// false-blink rate over the study field is at most this many per second.
-    Auto {
-        /// Tolerated false blinks per second over the field.
-        false_blinks_per_s: f64,
-    },
 }
 
 impl LMin {
-    /// Parses `auto` (1 false blink/s), `auto:RATE`, or a number of planes.
+    /// Parses `design` or a number of planes.
     pub fn parse(s: &str) -> Result<LMin, StudyError> {
-        let bad = || StudyError::Option {
-            name: "l-min",
-            why: format!(
-                "`{s}`: expected a number of planes, `auto` or `auto:RATE` (false blinks/s)"
-            ),
-        };
-        if s == "auto" {
-            return Ok(LMin::Auto {
-                false_blinks_per_s: 1.0,
-            });
+        match s {
+            "design" => Ok(LMin::Design),
+            _ => s.parse().map(LMin::Planes).map_err(|_| StudyError::Option {
+                name: "l-min",
+                why: format!(
+                    "`{s}`: expected a number of planes or `design` (the field design's L_min)"
+                ),
+            }),
         }
-        if let Some(r) = s.strip_prefix("auto:") {
-            let v: f64 = r.parse().map_err(|_| bad())?;
-            return Ok(LMin::Auto {
-                false_blinks_per_s: v,
-            });
-        }
-        s.parse().map(LMin::Planes).map_err(|_| bad())
     }
 }
 
 impl std::fmt::Display for LMin {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            LMin::Design => f.write_str("design"),
             LMin::Planes(n) => write!(f, "{n}"),
-            LMin::Auto { false_blinks_per_s } => write!(f, "auto:{false_blinks_per_s}"),
         }
     }
 }
@@ -188,9 +178,7 @@ impl Default for StudyOptions {
             fit_sigma: true,
             match_radius_nm: DEFAULT_MATCH_RADIUS_NM,
             points: None,
-            l_min: LMin::Auto {
-                false_blinks_per_s: 1.0,
-            },
+            l_min: LMin::Design,
             r_assoc: None,
             frame_threshold: 1.5,
             calibration: None,
@@ -225,17 +213,8 @@ impl StudyOptions {
                 "must be a positive multiple of the noise std",
             );
         }
-        match self.l_min {
-            LMin::Planes(0) => return bad("l-min", "must be at least 1 plane"),
-            LMin::Auto { false_blinks_per_s }
-                if !(false_blinks_per_s.is_finite() && false_blinks_per_s > 0.0) =>
-            {
-                return bad(
-                    "l-min",
-                    "the false-blink target must be a positive rate per second",
-                )
-            }
-            _ => {}
+        if self.l_min == LMin::Planes(0) {
+            return bad("l-min", "must be at least 1 plane");
         }
         if self.r_assoc.is_some_and(|r| r > 16) {
             return bad("r-assoc", "must be 0..=16 pixels");
@@ -259,13 +238,14 @@ pub enum Method {
     /// SPAD: consecutive 500-plane frames of the same bit-planes, frame
     /// detection, Poisson MLE.
     Fixed,
-    /// SPAD: the pipeline's blink ROIs (through the packet stream), Poisson MLE.
+    /// SPAD: the blink ROIs of the smart scheme (the field design, through
+    /// the packet stream), Poisson MLE.
     Smart,
     /// SPAD: the same ROIs, SPAD binomial MLE with the record's on/off split.
     SmartSpadMle,
-    /// SPAD: the pipeline with the paper's literal `L_min = 1` on the same
-    /// bit-planes, Poisson MLE.
-    SmartLmin1,
+    /// SPAD: the paper's literal scheme (one threshold T, L_min 1, r_assoc
+    /// 1, end_trim 0) on the same bit-planes, Poisson MLE.
+    SmartPaper,
     /// Reference: the Cramér–Rao bound (binomial, true on/off split, true
     /// position) of every matched smart ROI; its "error" is √(mean bound).
     SmartCrlb,
@@ -330,7 +310,7 @@ impl Method {
             Method::Fixed => "fixed",
             Method::Smart => "smart",
             Method::SmartSpadMle => "smart-spad-mle",
-            Method::SmartLmin1 => "smart-lmin1",
+            Method::SmartPaper => "smart-paper",
             Method::SmartCrlb => "smart-crlb",
             Method::Frames => "frames",
             Method::FramesMerged => "frames-merged",
@@ -351,7 +331,7 @@ impl Method {
             Method::Fixed => "fixed 50 ms",
             Method::Smart => "smart",
             Method::SmartSpadMle => "smart (SPAD MLE)",
-            Method::SmartLmin1 => "smart (L_min = 1 as in the paper)",
+            Method::SmartPaper => "smart (paper's scheme)",
             Method::SmartCrlb => "CRLB",
             Method::Frames => "50 ms frames",
             Method::FramesMerged => "merged",
@@ -507,7 +487,7 @@ impl Plan {
                     (0, Fixed),
                     (0, Smart),
                     (0, SmartSpadMle),
-                    (0, SmartLmin1),
+                    (0, SmartPaper),
                     (0, SmartCrlb),
                 ],
             ),
@@ -627,15 +607,15 @@ impl Plan {
                     None,
                 ),
                 ratio(
-                    "smart L_min = 1 / smart",
-                    "spcimager-150x/smart-lmin1",
+                    "smart paper / smart",
+                    "spcimager-150x/smart-paper",
                     "spcimager-150x/smart",
                     None,
                 ),
                 ratio(
-                    "fixed / smart L_min = 1",
+                    "fixed / smart paper",
                     "spcimager-150x/fixed",
-                    "spcimager-150x/smart-lmin1",
+                    "spcimager-150x/smart-paper",
                     None,
                 ),
             ],

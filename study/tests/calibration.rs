@@ -56,9 +56,12 @@ fn the_calibrated_hot_pixels_are_simulated_and_masked_at_the_items_crop() {
     let cfg = s.spad.as_ref().unwrap().1.clone();
     assert_eq!(
         asked.lock().unwrap().as_slice(),
-        &[(cfg.n_window, u64::from(cfg.threshold_int))],
-        "the criterion is asked for this configuration's N and T_int"
+        &[(cfg.n_window, u64::from(cfg.threshold_hold))],
+        "the criterion is asked for this configuration's N and hold level"
     );
+    // The field design's hold level is the paper's one threshold.
+    assert_eq!(cfg.threshold_hold, s.paper.as_ref().unwrap().threshold_int);
+    assert!(cfg.threshold_int > cfg.threshold_hold);
     let sensor = s.sensor.as_ref().expect("SPCImager takes the calibration");
     assert_eq!(sensor.critical_dcr_hz, Some(50_000.0));
 

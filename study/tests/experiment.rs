@@ -1,7 +1,8 @@
 //! The experiment studies (`nanoruler`, `emccd-frames`, `blink-durations`,
-//! `detection`) on `--quick` runs: what the results must show (issue #11),
-//! the derived blink-duration bias, the diagnosis of split blinks, and the
-//! analysis helpers on data with a known answer.
+//! `detection`; smart aggregation is the field design) on `--quick` runs:
+//! what the results must show (issue #11), the derived blink-duration bias,
+//! the diagnosis of split blinks, and the analysis helpers on data with a
+//! known answer.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -52,22 +53,33 @@ fn nanoruler_distances_and_spreads() {
     let em = r.median_spread(0).unwrap();
     let smart_spread = r.median_spread(2).unwrap();
     assert!(em < smart_spread, "EMCCD {em} vs smart {smart_spread}");
-    // Smart aggregation with the model's r_assoc = 1 gives more records per
-    // blink than with r_assoc = 3 (duplicated concurrent tracks).
+    // Smart aggregation (the field design, r_assoc = round(2σ) = 3) gives
+    // one record per blink; with the paper's r_assoc = 1 the same bit-planes
+    // give more (duplicated concurrent tracks).
+    assert_eq!(r.smart.r_assoc, 3);
     assert!(
-        r.schemes[2].locs_per_blink > 1.3,
+        r.schemes[2].locs_per_blink < 1.1,
         "{}",
         r.schemes[2].locs_per_blink
     );
     assert!(
-        r.schemes[3].locs_per_blink < 1.2,
+        r.schemes[3].locs_per_blink > 1.25,
         "{}",
         r.schemes[3].locs_per_blink
     );
-    // Detection and false positives are measured for every scheme.
-    for sr in &r.schemes {
+    // Detection and false positives are measured for every scheme. The
+    // smart schemes' false positives are mostly background-only tracks (the
+    // design allows up to 1 false blink/s over the field, 100 in this
+    // 100 s acquisition) and short blinks' poor localisations.
+    for (s, sr) in r.schemes.iter().enumerate() {
         assert!(sr.detection > 0.2 && sr.detection <= 1.0);
-        assert!(sr.false_pos < 0.1);
+        let fp = if s >= 2 { 0.15 } else { 0.05 };
+        assert!(
+            sr.false_pos < fp,
+            "{}: {}",
+            nanoruler::SCHEMES[s],
+            sr.false_pos
+        );
         assert!(sr.kept <= sr.locs && sr.kept > 0);
     }
     let dir = tempfile::tempdir().unwrap();
@@ -110,9 +122,9 @@ fn emccd_frames_merging_helps_long_blinks_and_dead_time_costs_short_ones() {
 #[test]
 fn blink_durations_bias_is_derived_and_splits_are_concurrent_tracks() {
     let r = blink_durations::compute(1, true, None).unwrap();
-    // Derived bias (N − 2k* + 1 planes) against the measurement on blinks
-    // with exactly one record: within 1 ms, and the corrected estimator is
-    // unbiased to within 1 ms.
+    // Derived bias (N − k_open − k_hold + 1 planes) against the measurement
+    // on blinks with exactly one record: within 1 ms, and the corrected
+    // estimator is unbiased to within 1 ms.
     let (measured, sd, k) = r.bias(0, false).unwrap();
     assert!(k >= 50, "{k}");
     assert!(
@@ -125,23 +137,27 @@ fn blink_durations_bias_is_derived_and_splits_are_concurrent_tracks() {
         corrected.abs() < 1.0 + 2.0 * sd / (k as f64).sqrt(),
         "{corrected}"
     );
-    // The window does not add N − 1 planes: k* is a large part of N.
+    // The window does not add N − 1 planes: the open and hold on-counts are
+    // large parts of N (the open level's, above Eq. 7's, more than half).
     assert!(r.derived_bias_ms < 0.5 * (r.n_window as f64 - 1.0) * 0.1);
-    // Split blinks: with r_assoc = 1 a 40–60 ms blink gives well over one
-    // record, with r_assoc = 3 about one; the extra records are concurrent
-    // tracks (opened while the first was on), not drops and restarts.
-    let r1 = r.records_per_blink(0, 40.0, 60.0).unwrap();
-    let r3 = r.records_per_blink(1, 40.0, 60.0).unwrap();
+    assert!(r.k_open > r.k_hold && r.k_open < r.n_window as f64);
+    // Split blinks: the field design (r_assoc = round(2σ) = 3) gives about
+    // one record per 40–60 ms blink, the paper's r_assoc = 1 well over one;
+    // the extra records are concurrent tracks (opened while the first was
+    // on), not drops and restarts.
+    assert_eq!(r.r_assoc, [3, 1]);
+    let r3 = r.records_per_blink(0, 40.0, 60.0).unwrap();
+    let r1 = r.records_per_blink(1, 40.0, 60.0).unwrap();
     assert!(r1 > 1.3 && r3 < 1.15, "{r1} {r3}");
-    let conc: u32 = r.blinks.iter().map(|b| b.split[0].concurrent).sum();
-    let seq: u32 = r.blinks.iter().map(|b| b.split[0].sequential).sum();
+    let conc: u32 = r.blinks.iter().map(|b| b.split[1].concurrent).sum();
+    let seq: u32 = r.blinks.iter().map(|b| b.split[1].sequential).sum();
     assert!(conc > 5 * seq.max(1), "concurrent {conc}, sequential {seq}");
     // Concurrent anchors are more than r_assoc = 1 apart by construction.
     assert!(r
         .blinks
         .iter()
-        .filter(|b| b.split[0].concurrent > 0)
-        .all(|b| b.anchor_spread[0] >= 2));
+        .filter(|b| b.split[1].concurrent > 0)
+        .all(|b| b.anchor_spread[1] >= 2));
     // EMCCD chains: long blinks span more frames than short ones.
     let frames = |lo: f64, hi: f64| {
         let v: Vec<f64> = r
@@ -177,12 +193,21 @@ fn detection_promise_and_the_gaussian_tail() {
     for w in z3.windows(2) {
         assert!(w[1].p_det >= w[0].p_det - 0.002);
     }
-    // Part B: shorter windows localise shorter blinks but less precisely.
+    // Part B (the field design at each N): the shortest window localises
+    // less precisely, its noisy H splitting blinks into several records; the
+    // longest misses more short blinks than the best window, whose T_hold is
+    // Eq. 7's at that N and T_open keeps 1 false blink/s over the field.
     let first = r.precision.first().unwrap();
     let last = r.precision.last().unwrap();
     assert!(first.n < last.n);
+    assert!(r
+        .precision
+        .iter()
+        .all(|p| p.t_int > p.t_hold && p.l_min == 1));
     assert!(first.rms.value.unwrap() > last.rms.value.unwrap());
-    assert!(first.detected > last.detected);
+    assert!(first.matches as f64 / first.detected as f64 > 1.5);
+    let best = r.precision.iter().map(|p| p.detected).max().unwrap();
+    assert!(last.detected < best);
     let dir = tempfile::tempdir().unwrap();
     detection::write(dir.path(), &r).unwrap();
     let md = std::fs::read_to_string(dir.path().join("summary.md")).unwrap();

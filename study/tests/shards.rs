@@ -159,6 +159,17 @@ fn bad_shard_and_options_are_named() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("hot-pixel"), "{e}");
-    let e = smartagg_study::spec::LMin::parse("soon").unwrap_err();
+    use smartagg_study::spec::LMin;
+    let e = LMin::parse("soon").unwrap_err();
     assert!(e.to_string().contains("l-min"), "{e}");
+    // `design` keeps the field design's L_min; a number overrides it; the
+    // false-alarm bound on the paper's threshold (`auto`) is gone.
+    assert_eq!(LMin::parse("design").unwrap(), LMin::Design);
+    assert!(LMin::parse("auto").is_err());
+    assert_eq!(LMin::parse("7").unwrap(), LMin::Planes(7));
+    assert!(LMin::parse("auto:2").is_err());
+    assert_eq!(
+        LMin::parse(&LMin::Design.to_string()).unwrap(),
+        LMin::Design
+    );
 }

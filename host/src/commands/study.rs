@@ -48,9 +48,10 @@ pub struct Args {
     /// Bootstrap resamples for the 95 % intervals.
     #[arg(long, default_value_t = smartagg_study::spec::DEFAULT_BOOTSTRAP)]
     pub bootstrap: u32,
-    /// Pipeline confirmation length: planes, `auto` (false-alarm statistics,
-    /// 1 false blink/s over the study field) or `auto:RATE`.
-    #[arg(long, default_value = "auto")]
+    /// Pipeline confirmation length of the smart scheme: planes, or `design`
+    /// (the field design's L_min, 1: its open threshold controls the false
+    /// blinks).
+    #[arg(long, default_value = "design")]
     pub l_min: String,
     /// Pipeline association radius, pixels (default: the model's).
     #[arg(long)]

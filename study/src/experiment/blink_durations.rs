@@ -4,6 +4,11 @@
 //! the true distribution (paper Fig. 5); the estimator's bias, derived and
 //! measured; and why smart aggregation gives more than one record per blink.
 //!
+//! Smart aggregation is the field design of the study field, as `smartagg
+//! aggregate` defaults to ([`smart_config`]), and the same with the paper's
+//! association radius r_assoc = 1 on the same bit-planes, to show the
+//! duplicate tracks that the design's round(2σ) avoids.
+//!
 //! Scene: one molecule on at a time at a random position of the study
 //! field (SPCIMAGER 32×32 at 150×, EMCCD 16×16 with 64 ms frames and 30 ms
 //! dead time), exponential blink durations of mean 30 ms, gaps of 30 ms +
@@ -13,20 +18,22 @@
 //! ## Bias of `t_e − t_s` (derivation)
 //!
 //! `t_s = t_cross − ⌊N/2⌋` and `t_e = t_drop − ⌊N/2⌋`, so `t_e − t_s =
-//! t_drop − t_cross`. At the molecule's pixel a window holding `k` on-planes
-//! has mean `H = N·E(F_off) + k·Δ` (Δ = E F_on − E F_off) and the threshold
-//! is `T = N·E(F_off) + 3√(N·Var F_off)` (Eq. 7): the mean crosses T at
-//! `k* = 3√(N·Var F_off)/Δ`, and with Eq. 6's
-//! `√N = 3(√Var F_off + √Var F_on)/Δ` this is
-//! `k* = N·√Var F_off / (√Var F_off + √Var F_on)`. The window's on-count
-//! rises through `k*` at `t_on + k*` and falls through it at
-//! `t_off + N − k*` (for any duration D ≥ k*), so
-//! `t_drop − t_cross ≈ D + N − 2k* = D + N·(√V_on − √V_off)/(√V_on + √V_off)`,
-//! plus about one plane for the two-plane drop rule and a positive
-//! first-passage term (noise makes H cross T early and leave it late).
-//! If instead T were reached by the first on-plane (bright molecule, k* → 1)
-//! the window would add N − 1 planes; here k* is a large fraction of N.
-//! The estimate is corrected by subtracting the derived `N − 2k* + 1`
+//! t_drop − t_cross` (`end_trim` changes only the planes summed). At the
+//! molecule's pixel a window holding `k` on-planes has mean
+//! `H = N·E(F_off) + k·Δ` (Δ = E F_on − E F_off). A track opens when H
+//! reaches T_open and drops when H falls below T_hold, the paper's Eq. 7
+//! threshold `T = N·E(F_off) + 3√(N·Var F_off)`. The mean reaches a
+//! threshold T' at the on-count `k(T') = (T' − N·E(F_off))/Δ`; for the hold
+//! level, with Eq. 6's `√N = 3(√Var F_off + √Var F_on)/Δ`, this is
+//! `k_hold = N·√Var F_off / (√Var F_off + √Var F_on)`. The window's
+//! on-count rises through `k_open` at `t_on + k_open` and falls through
+//! `k_hold` at `t_off + N − k_hold` (for any duration D ≥ k_open), so
+//! `t_drop − t_cross ≈ D + N − k_open − k_hold`, plus about one plane for
+//! the two-plane drop rule and a first-passage term (noise makes H reach
+//! T_open early and leave T_hold late). If instead a threshold were reached
+//! by the first on-plane (bright molecule, k → 1) the window would add
+//! N − 1 planes; here both on-counts are large fractions of N. The estimate
+//! is corrected by subtracting the derived `N − k_open − k_hold + 1`
 //! planes; the measured remaining bias is reported.
 
 use super::common::*;
@@ -51,8 +58,9 @@ use std::time::Instant;
 pub const MEAN_ON_S: f64 = 0.030;
 /// Blinks per work item (one recording each).
 pub const BLOCK: usize = 100;
-/// Association radii compared.
-pub const R_ASSOC: [u32; 2] = [1, 3];
+/// Association radius of the second smart scheme: the paper's 1 pixel (the
+/// first is the field design's own, round(2σ)).
+pub const NARROW_R_ASSOC: u32 = 1;
 
 /// A record joined with its CUT/CONTINUATION segments.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,7 +77,7 @@ pub struct Joined {
     pub last: u64,
     /// Plane the track opened.
     pub t_cross: u64,
-    /// First of the two planes below T.
+    /// First of the two planes below T_hold.
     pub t_drop: u64,
     /// Anchor.
     pub anchor: (u16, u16),
@@ -128,7 +136,8 @@ pub struct SplitCounts {
 pub struct BlinkRow {
     /// True duration, ms.
     pub duration_ms: f64,
-    /// Per association radius of [`R_ASSOC`]: records matched.
+    /// Per association radius of [`BlinkDurationsResult::r_assoc`] (the
+    /// field design's, then [`NARROW_R_ASSOC`]): records matched.
     pub records: [u32; 2],
     /// Per radius: duration from the first matched record (t_e − t_s), ms.
     pub est_ms: [Option<f64>; 2],
@@ -147,16 +156,22 @@ pub struct BlinkRow {
 pub struct BlinkDurationsResult {
     /// Every true blink.
     pub blinks: Vec<BlinkRow>,
-    /// Every smart record's estimated duration (r_assoc 1), ms, and
+    /// Every smart record's estimated duration (the field design), ms, and
     /// whether it matched a blink.
     pub record_ms: Vec<(f64, bool)>,
-    /// N, and k* = N·√V_off/(√V_off+√V_on).
+    /// The smart scheme's pipeline (the field design).
+    pub smart: PipelineConfig,
+    /// The association radii compared: the field design's, then
+    /// [`NARROW_R_ASSOC`].
+    pub r_assoc: [u32; 2],
+    /// N.
     pub n_window: u32,
-    /// Mean crossing on-count k*, planes.
-    pub k_star: f64,
-    /// L_min, planes.
-    pub l_min: u32,
-    /// Derived bias N − 2k* + 1, ms.
+    /// On-count at which the mean of H reaches T_open, planes.
+    pub k_open: f64,
+    /// On-count at which the mean of H reaches T_hold (Eq. 7):
+    /// ≈ N·√V_off/(√V_off+√V_on), planes.
+    pub k_hold: f64,
+    /// Derived bias N − k_open − k_hold + 1, ms.
     pub derived_bias_ms: f64,
     /// EMCCD frame period, ms.
     pub emccd_period_ms: f64,
@@ -242,11 +257,9 @@ pub fn compute(
 ) -> Result<BlinkDurationsResult, StudyError> {
     let n = blinks.unwrap_or(if quick { 400 } else { 1000 }) as usize;
     let spad = Setup::new(PresetName::Spcimager, 150)?;
-    let (det, _) = smart_config(&spad.preset, spad.field, None)?;
-    let cfgs: Vec<_> = R_ASSOC
-        .iter()
-        .map(|&r| smart_config(&spad.preset, spad.field, Some(r)).map(|x| x.1))
-        .collect::<Result<_, _>>()?;
+    let (det, _, smart) = smart_config(&spad.preset, spad.field, None)?;
+    let (_, _, narrow) = smart_config(&spad.preset, spad.field, Some(NARROW_R_ASSOC))?;
+    let cfgs = [smart, narrow];
     let Camera::Spad(cam) = spad.preset.camera.clone() else {
         unreachable!("SPCIMAGER is a SPAD")
     };
@@ -386,16 +399,20 @@ pub fn compute(
             Ok((rows, record_ms, spad_s, em_s))
         })
         .collect::<Result<_, _>>()?;
-    let (v_off, v_on) = (det.var_f_off.sqrt(), det.var_f_on.sqrt());
     let nw = det.n_window as f64;
-    let k_star = nw * v_off / (v_off + v_on);
+    // The on-count at which the mean of H reaches an integer threshold.
+    let k_at =
+        |t: u32| (t as f64 * det.threshold_unit - nw * det.e_f_off) / (det.e_f_on - det.e_f_off);
+    let (k_open, k_hold) = (k_at(cfgs[0].threshold_int), k_at(cfgs[0].threshold_hold));
     let mut res = BlinkDurationsResult {
         blinks: Vec::new(),
         record_ms: Vec::new(),
+        r_assoc: [cfgs[0].r_assoc, cfgs[1].r_assoc],
         n_window: det.n_window,
-        k_star,
-        l_min: cfgs[0].l_min,
-        derived_bias_ms: (nw - 2.0 * k_star + 1.0) * period * 1e3,
+        k_open,
+        k_hold,
+        derived_bias_ms: (nw - k_open - k_hold + 1.0) * period * 1e3,
+        smart: cfgs[0].clone(),
         emccd_period_ms: em_cam.frame_period_s * 1e3,
         seconds: (0.0, 0.0),
     };
@@ -420,7 +437,8 @@ pub fn write(
 ) -> Result<(Vec<PathBuf>, Vec<String>), StudyError> {
     std::fs::create_dir_all(dir).map_err(|e| StudyError::io(dir, e))?;
     let (mut files, mut warnings) = (Vec::new(), Vec::new());
-    let mut csv = String::from("duration_ms,records_r1,est_ms_r1,concurrent_r1,sequential_r1,anchor_spread_r1,records_r3,est_ms_r3,concurrent_r3,sequential_r3,anchor_spread_r3,emccd_frames\n");
+    // Unsuffixed: the smart scheme (the field design); `_r1`: r_assoc 1.
+    let mut csv = String::from("duration_ms,records,est_ms,concurrent,sequential,anchor_spread,records_r1,est_ms_r1,concurrent_r1,sequential_r1,anchor_spread_r1,emccd_frames\n");
     let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:.2}"));
     for b in &r.blinks {
         let _ = writeln!(
@@ -466,7 +484,9 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
     let n = r.blinks.len();
     let _ = writeln!(m, "# Study `blink-durations`: estimated blink durations, smart aggregation and EMCCD against the truth (paper Fig. 5)\n\n![blink-durations](blink-durations.png)\n\n## Set-up\n");
     let _ = writeln!(m, "- **Scene**: {n} blinks, one molecule on at a time at a random position, durations Exp(mean {:.0} ms), gaps 30 ms + Exp(40 ms); study light (50,000 photons/s, 70,000 photons/s/µm²), 150×. SPCIMAGER 32×32, EMCCD 16×16 with 64 ms frames and 34 ms exposure; the same blinks for both.", MEAN_ON_S * 1e3);
-    let _ = writeln!(m, "- **Smart aggregation**: the model's pipeline (fast engine) and packet path, N = {}, T_int from the paper's statistics, L_min = {} planes (false-alarm statistics, 1 false blink/s), r_assoc = 1 (model default) and 3 on the same bit-planes. Estimated duration of a record = (t_e − t_s)·0.1 ms with CUT/CONTINUATION segments joined.", r.n_window, r.l_min);
+    let c = &r.smart;
+    let [ra, rn] = r.r_assoc;
+    let _ = writeln!(m, "- **Smart aggregation**: the model's pipeline (fast engine) and packet path with the field design of the {f}×{f} field, as `smartagg aggregate` defaults to: N = {}, a track opens at T_open = {} (at most 1 false blink/s over the field from background alone) and holds down to T_hold = {} (the paper's Eq. 7 threshold), r_assoc = {ra} px (round(2σ)), L_min = {}, end_trim = {} (a blink sums [t_cross − N, t_drop − {}]); and the same with the paper's r_assoc = {rn} on the same bit-planes. Estimated duration of a record = (t_e − t_s)·0.1 ms with CUT/CONTINUATION segments joined.", c.n_window, c.threshold_int, c.threshold_hold, c.l_min, c.end_trim, c.end_trim, f = c.width);
     let _ = writeln!(m, "- **EMCCD**: ThunderSTORM detection and EMCCD MLE, localisations of consecutive frames within 40 nm merged; estimated duration = frames of the chain × {:.0} ms.", r.emccd_period_ms);
     let _ = writeln!(m, "- **Truth matching**: a smart record belongs to the blink whose on-time overlaps [t_cross − N, t_drop] and whose pixel is within 2 px (Chebyshev) of its anchor (one molecule at a time, so this is unambiguous); an EMCCD chain matches within 53.3 nm with overlapping exposure.\n");
     let det = |r_i: usize| r.blinks.iter().filter(|b| b.records[r_i] > 0).count();
@@ -475,7 +495,7 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
     let _ = writeln!(m, "## Results\n\n| quantity | value |\n|---|---|");
     let _ = writeln!(
         m,
-        "| blinks detected, smart r_assoc 1 / 3 | {:.1} % / {:.1} % |",
+        "| blinks detected, smart (r_assoc {ra}) / r_assoc {rn} | {:.1} % / {:.1} % |",
         100.0 * det(0) as f64 / n as f64,
         100.0 * det(1) as f64 / n as f64
     );
@@ -486,22 +506,22 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
     );
     let _ = writeln!(
         m,
-        "| smart records (r_assoc 1) matching no blink (FP) | {} of {} ({:.1} %) |",
+        "| smart records matching no blink (FP) | {} of {} ({:.1} %) |",
         r.record_ms.len() - matched,
         r.record_ms.len(),
         100.0 * (r.record_ms.len() - matched) as f64 / r.record_ms.len().max(1) as f64
     );
     let _ = writeln!(
         m,
-        "| N; mean crossing on-count k* = N·√V_off/(√V_off+√V_on) | {}; {:.1} planes |",
-        r.n_window, r.k_star
+        "| N; on-counts at which the mean of H reaches T_open (k_open) and T_hold (k_hold ≈ N·√V_off/(√V_off+√V_on)) | {}; {:.1}, {:.1} planes |",
+        r.n_window, r.k_open, r.k_hold
     );
     let _ = writeln!(
         m,
-        "| derived bias of t_e − t_s: N − 2k* + 1 | {:.2} ms |",
+        "| derived bias of t_e − t_s: N − k_open − k_hold + 1 | {:.2} ms |",
         r.derived_bias_ms
     );
-    for (i, ra) in R_ASSOC.iter().enumerate() {
+    for (i, ra) in r.r_assoc.iter().enumerate() {
         if let Some((mu, sd, k)) = r.bias(i, false) {
             let _ = writeln!(m, "| measured bias (estimate − truth), r_assoc {ra}, blinks with one record ({k}) | {mu:.2} ms (sd {sd:.2} ms) |");
         }
@@ -513,7 +533,7 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
         }
     }
     let _ = writeln!(m, "| wall time: SPAD simulation + 2 pipelines; EMCCD simulation + fits (summed over workers) | {:.1} s; {:.1} s |\n", r.seconds.0, r.seconds.1);
-    let _ = writeln!(m, "### Records per detected blink, and how a blink is split\n\n| true duration ms | blinks | records/blink r_assoc 1 | r_assoc 3 | split blinks r1 | concurrent pairs r1 | sequential pairs r1 | median anchor spread of split blinks r1 (px) | median delay of the 2nd track r1 (ms) | EMCCD frames/blink |\n|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(m, "### Records per detected blink, and how a blink is split\n\nEach split column gives the smart scheme (r_assoc {ra}) / r_assoc {rn}.\n\n| true duration ms | blinks | records/blink r_assoc {ra} | r_assoc {rn} | split blinks | concurrent pairs | sequential pairs | median anchor spread of split blinks (px) | median delay of the 2nd track (ms) | EMCCD frames/blink |\n|---|---|---|---|---|---|---|---|---|---|");
     for (lo, hi) in [
         (0.0, 20.0),
         (20.0, 40.0),
@@ -526,20 +546,30 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
             .iter()
             .filter(|b| b.duration_ms >= lo && b.duration_ms < hi)
             .collect();
-        let split: Vec<&&BlinkRow> = sel.iter().filter(|b| b.records[0] > 1).collect();
-        let conc: u32 = sel.iter().map(|b| b.split[0].concurrent).sum();
-        let seq: u32 = sel.iter().map(|b| b.split[0].sequential).sum();
-        let spread: Vec<f64> = split.iter().map(|b| b.anchor_spread[0] as f64).collect();
         let emf: Vec<f64> = sel
             .iter()
             .filter(|b| b.emccd_frames > 0)
             .map(|b| b.emccd_frames as f64)
             .collect();
-        let det0 = sel.iter().filter(|b| b.records[0] > 0).count();
-        let delay: Vec<f64> = sel.iter().filter_map(|b| b.second_delay_ms[0]).collect();
+        let per = |i: usize| {
+            let split: Vec<&&BlinkRow> = sel.iter().filter(|b| b.records[i] > 1).collect();
+            let conc: u32 = sel.iter().map(|b| b.split[i].concurrent).sum();
+            let seq: u32 = sel.iter().map(|b| b.split[i].sequential).sum();
+            let spread: Vec<f64> = split.iter().map(|b| b.anchor_spread[i] as f64).collect();
+            let det = sel.iter().filter(|b| b.records[i] > 0).count();
+            let delay: Vec<f64> = sel.iter().filter_map(|b| b.second_delay_ms[i]).collect();
+            (
+                format!("{} of {det}", split.len()),
+                conc,
+                seq,
+                f1(median(&spread)),
+                f1(median(&delay)),
+            )
+        };
+        let (a, b) = (per(0), per(1));
         let _ = writeln!(
             m,
-            "| {}–{} | {} | {} | {} | {} of {} | {} | {} | {} | {} | {} |",
+            "| {}–{} | {} | {} | {} | {} / {} | {} / {} | {} / {} | {} / {} | {} / {} | {} |",
             lo,
             if hi > 1e8 {
                 "∞".to_string()
@@ -549,16 +579,20 @@ fn markdown(r: &BlinkDurationsResult, warnings: &[String]) -> String {
             sel.len(),
             f1(r.records_per_blink(0, lo, hi)),
             f1(r.records_per_blink(1, lo, hi)),
-            split.len(),
-            det0,
-            conc,
-            seq,
-            f1(median(&spread)),
-            f1(median(&delay)),
+            a.0,
+            b.0,
+            a.1,
+            b.1,
+            a.2,
+            b.2,
+            a.3,
+            b.3,
+            a.4,
+            b.4,
             f1((!emf.is_empty()).then(|| emf.iter().sum::<f64>() / emf.len() as f64))
         );
     }
-    let _ = writeln!(m, "\nA *concurrent* pair: the second track opened (t_cross) before the first dropped — a local maximum of H more than r_assoc from the first anchor while the blink was on; both tracks then stay on (each tests the 3×3 around its own anchor, which still sees the molecule) and each record sums the same planes into an ROI shifted by the anchor distance: duplicates, not shares, of the photons. A *sequential* pair: the first track dropped (two planes below T) and a new one opened later in the same blink.\n");
+    let _ = writeln!(m, "\nA *concurrent* pair: the second track opened (t_cross) before the first dropped — a local maximum of H at or above T_open more than r_assoc from the first anchor while the blink was on; both tracks then stay on (each tests the 3×3 around its own anchor, which still sees the molecule) and each record sums the same planes into an ROI shifted by the anchor distance: duplicates, not shares, of the photons. A *sequential* pair: the first track dropped (two planes below T_hold) and a new one opened later in the same blink.\n");
     let _ = writeln!(
         m,
         "## Where this differs from the paper, and why\n\n{}",

@@ -6,15 +6,14 @@ use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
 use crate::item::{record_maps, roi_view};
 use crate::matching::Loc;
-use crate::sim::{record_planes, through_packets};
-use crate::spec::ROI_SIDE;
+use crate::sim::{field_design_config, record_planes, through_packets};
 use plotters::prelude::*;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use smartagg_localize::{fit_roi, Estimator, NoiseModel};
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::false_alarm::l_min_for_target;
 use smartagg_model::fast_engine::fast_pipeline;
+use smartagg_model::field_design::FieldDesign;
 use smartagg_model::params::{Camera, EmccdCamera, Preset, SpadCamera};
 use smartagg_model::record::{BlinkRecord, Record};
 use smartagg_model::stats::{self, Detection, DetectionInputs};
@@ -103,70 +102,22 @@ pub fn switching_blinks(
     out
 }
 
-/// The paper's statistics (N, T) for the light of `preset` and the
-/// pipeline configuration for a `field × field` sensor with `L_min` from
-/// the false-alarm statistics (1 false blink/s over the field), the
-/// model's default association radius unless `r_assoc` is given.
+/// The paper's statistics for the light of `preset` and the smart scheme
+/// on a `field × field` sensor: the field design, as `smartagg aggregate`
+/// defaults to ([`crate::sim::field_design_config`]), with its association
+/// radius unless `r_assoc` is given.
 pub fn smart_config(
     preset: &Preset,
     field: u32,
     r_assoc: Option<u32>,
-) -> Result<(Detection, PipelineConfig), StudyError> {
+) -> Result<(Detection, FieldDesign, PipelineConfig), StudyError> {
     let det = stats::derive(&DetectionInputs::from_preset(preset, None)?)?;
-    let cfg = config_for(
-        preset,
-        &det,
-        field,
-        det.n_window,
-        det.threshold_int,
-        r_assoc,
-    )?;
-    Ok((det, cfg))
-}
-
-/// The pipeline configuration with window `n` and threshold `t_int` (L_min
-/// from the false-alarm statistics for these).
-pub fn config_for(
-    preset: &Preset,
-    det: &Detection,
-    field: u32,
-    n: u32,
-    t_int: u64,
-    r_assoc: Option<u32>,
-) -> Result<PipelineConfig, StudyError> {
-    let t32 = u32::try_from(t_int).map_err(|_| StudyError::Option {
-        name: "threshold",
-        why: format!("T_int = {t_int} does not fit 32 bits"),
-    })?;
-    let mut cfg = PipelineConfig::new(
-        field as usize,
-        field as usize,
-        n,
-        det.kernel_weights.clone(),
-        det.kernel_shift,
-        t32,
-    );
-    let l = l_min_for_target(
-        &det.kernel(),
-        n,
-        det.p_off,
-        t_int,
-        field as u64 * field as u64,
-        1.0 / preset.period_s(),
-        1.0,
-    )
-    .map_err(|e| StudyError::Option {
-        name: "l-min",
-        why: format!("L_min from the false-alarm statistics: {e}"),
-    })?;
-    cfg.l_min = l;
-    cfg.l_max = cfg.l_max.max(l);
-    cfg.roi_size = ROI_SIDE;
+    let (design, mut cfg) = field_design_config(&det, field, field, preset.period_s())?;
     if let Some(r) = r_assoc {
         cfg.r_assoc = r;
+        cfg.validate()?;
     }
-    cfg.validate()?;
-    Ok(cfg)
+    Ok((det, design, cfg))
 }
 
 /// What a SPAD recording gave.

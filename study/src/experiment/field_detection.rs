@@ -33,8 +33,8 @@
 use super::common::*;
 use crate::error::StudyError;
 use crate::matching::{assign, outcome, Loc, Truth};
-use crate::sim::record_planes;
-use crate::spec::{DEFAULT_MATCH_RADIUS_NM, ROI_SIDE};
+use crate::sim::{field_design_config, paper_config, record_planes};
+use crate::spec::DEFAULT_MATCH_RADIUS_NM;
 use crate::timeline::{derive_seed, key_hash};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -42,7 +42,7 @@ use rayon::prelude::*;
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::false_alarm::l_min_for_target;
 use smartagg_model::fast_engine::fast_pipeline;
-use smartagg_model::field_design::{self, FieldDesign, DEFAULT_FALSE_BLINKS_PER_S};
+use smartagg_model::field_design::FieldDesign;
 use smartagg_model::params::{Camera, Preset, PresetName, SpadCamera};
 use smartagg_model::record::{flags, BlinkRecord, Record};
 use smartagg_model::stats::{self, Detection, DetectionInputs};
@@ -81,33 +81,8 @@ pub fn schemes(
     height: u32,
 ) -> Result<(FieldDesign, Vec<SchemeSpec>), StudyError> {
     let rate = 1.0 / preset.period_s();
-    let design = field_design::design(det, width, height, rate, DEFAULT_FALSE_BLINKS_PER_S)
-        .map_err(|e| StudyError::Option {
-            name: "field design",
-            why: e.to_string(),
-        })?;
-    let t32 = |t: u64| {
-        u32::try_from(t).map_err(|_| StudyError::Option {
-            name: "threshold",
-            why: format!("T_int = {t} does not fit 32 bits"),
-        })
-    };
-    let mut base = PipelineConfig::new(
-        width as usize,
-        height as usize,
-        det.n_window,
-        det.kernel_weights.clone(),
-        det.kernel_shift,
-        t32(det.threshold_int)?,
-    );
-    base.roi_size = ROI_SIDE;
-    base.plane_period_ns = (preset.period_s() * 1e9).round() as u32;
-    let mut field = base.clone();
-    field.threshold_int = t32(design.threshold_open)?;
-    field.threshold_hold = t32(design.threshold_hold)?;
-    field.r_assoc = design.r_assoc;
-    field.l_min = design.l_min;
-    field.end_trim = design.end_trim;
+    let (design, field) = field_design_config(det, width, height, preset.period_s())?;
+    let base = paper_config(det, width, height, preset.period_s())?;
     let field_v2 = PipelineConfig {
         end_trim: 0,
         ..field.clone()

@@ -7,8 +7,11 @@
 //! Exp(3 s), as `Scene::nanorulers`); both cameras see **the same blinks** with half the photons
 //! (molecule and background). Schemes: EMCCD frames (64 ms period, 34 ms
 //! exposure: 30 ms dead time), SPCIMAGER fixed aggregation (640-plane =
-//! 64 ms frames) and SPCIMAGER smart aggregation (N and T from the paper's
-//! statistics for the halved light, L_min from the false-alarm statistics).
+//! 64 ms frames) and SPCIMAGER smart aggregation: the field design of the
+//! 48×48 field, as `smartagg aggregate` defaults to (N from the paper's
+//! statistics for the light reaching the SPAD; open threshold for 1 false
+//! blink/s over the field, Eq. 7's threshold to hold, r_assoc = round(2σ),
+//! L_min 1, end_trim ⌊N/2⌋), and the same with the paper's r_assoc = 1.
 //!
 //! Analysis as a user would do it, without the truth: ThunderSTORM-style
 //! density filter (keep localisations with ≥ 3 others within 30 nm), the
@@ -28,6 +31,8 @@ use plotters::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smartagg_localize::NoiseModel;
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::field_design::FieldDesign;
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_scene::Position;
 use std::fmt::Write as _;
@@ -64,12 +69,13 @@ pub const SCHEMES: [&str; 4] = [
     "EMCCD 64 ms frames",
     "SPCIMAGER fixed 640 planes",
     "SPCIMAGER smart",
-    "SPCIMAGER smart r_assoc 3",
+    "SPCIMAGER smart r_assoc 1",
 ];
 
-/// Association radius of the second smart scheme (the demo's choice: about
-/// 2σ, one track per blink where the local maximum wanders).
-pub const WIDE_R_ASSOC: u32 = 3;
+/// Association radius of the second smart scheme: the paper's (and the
+/// paper's scheme's) 1 pixel instead of the field design's round(2σ), to
+/// show the duplicate tracks the design's radius avoids.
+pub const NARROW_R_ASSOC: u32 = 1;
 
 /// Options of the nanoruler study.
 #[derive(Debug, Clone, Copy)]
@@ -160,8 +166,10 @@ pub struct NanorulerResult {
     /// Paired comparisons on the blinks both schemes localised: (scheme a,
     /// scheme b, blinks, RMS of a, RMS of b), nm.
     pub paired: Vec<(usize, usize, usize, f64, f64)>,
-    /// Smart aggregation's N, T_int, L_min, r_assoc.
-    pub smart_params: (u32, u32, u32, u32),
+    /// Smart aggregation's pipeline (the field design).
+    pub smart: PipelineConfig,
+    /// The field design it was built from.
+    pub design: FieldDesign,
 }
 
 impl NanorulerResult {
@@ -395,8 +403,8 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
     let spad = Preset::new(PresetName::Spcimager, 150)?;
     let spad_px = spad.pixel_nm();
     let spad_side = (FIELD_NM / spad_px).round() as u32;
-    let (_, cfg) = smart_config(&spad, spad_side, None)?;
-    let (_, cfg_wide) = smart_config(&spad, spad_side, Some(WIDE_R_ASSOC))?;
+    let (_, design, cfg) = smart_config(&spad, spad_side, None)?;
+    let (_, _, cfg_narrow) = smart_config(&spad, spad_side, Some(NARROW_R_ASSOC))?;
     let Camera::Spad(spad_cam) = spad.camera.clone() else {
         unreachable!("SPCIMAGER is a SPAD")
     };
@@ -419,7 +427,7 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
                 &spad_scene,
                 seed_spad,
                 planes,
-                &[cfg.clone(), cfg_wide.clone()],
+                &[cfg.clone(), cfg_narrow.clone()],
                 Some(640),
             )?;
             let shared = run.simulate_s;
@@ -432,9 +440,9 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
                 spad.sigma_px(),
                 period,
             );
-            let (wide, _, wide_failed) = fit_records(
+            let (narrow, _, narrow_failed) = fit_records(
                 &run.records[1],
-                &cfg_wide,
+                &cfg_narrow,
                 spad_side,
                 spad_px,
                 spad.sigma_px(),
@@ -457,7 +465,12 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
             let _ = t;
             Ok((
                 (smart, run.records[0].len(), smart_failed, shared + smart_s),
-                (wide, run.records[1].len(), wide_failed, shared + smart_s),
+                (
+                    narrow,
+                    run.records[1].len(),
+                    narrow_failed,
+                    shared + smart_s,
+                ),
                 (fixed, shared + fixed_s),
             ))
         },
@@ -478,11 +491,11 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
             Ok((l, sim_s + a.elapsed().as_secs_f64()))
         },
     );
-    let ((smart, wide, fixed), em) = (spad_res?, em_res?);
+    let ((smart, narrow, fixed), em) = (spad_res?, em_res?);
     let ((fl, fc, ff), fixed_s) = fixed;
     let ((el, ec, ef), em_s) = em;
     let inputs: [(Vec<TLoc>, usize, usize, f64); 4] =
-        [(el, ec, ef, em_s), (fl, fc, ff, fixed_s), smart, wide];
+        [(el, ec, ef, em_s), (fl, fc, ff, fixed_s), smart, narrow];
     let mut schemes = Vec::new();
     let mut markers = Vec::new();
     let mut per_blink = Vec::new();
@@ -583,7 +596,8 @@ pub fn compute(opts: &NanorulerOptions) -> Result<NanorulerResult, StudyError> {
         blinks: blinks.len(),
         schemes,
         markers,
-        smart_params: (cfg.n_window, cfg.threshold_int, cfg.l_min, cfg.r_assoc),
+        smart: cfg,
+        design,
     })
 }
 
@@ -646,7 +660,7 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
     let o = &r.opts;
     let _ = writeln!(m, "# Study `nanoruler`: GATTA-PAINT 80G rulers, EMCCD vs SPCIMAGER fixed vs smart (paper Figs. 6, 7)\n");
     let _ = writeln!(m, "![nanoruler](nanoruler.png)\n\n## Set-up\n");
-    let (n, t, l, ra) = r.smart_params;
+    let (c, d) = (&r.smart, &r.design);
     let _ = writeln!(
         m,
         "- **Sample**: {} rulers (3 markers {SPACING_NM} nm apart, random orientation) on a {:.0} nm field; every marker switches independently, on Exp({:.0} ms), off Exp({:.1} s); {:.0} s acquisition, {} true blinks ({:.0} per marker). Both cameras see the same blinks (explicit blinks of the scene simulator).",
@@ -658,10 +672,10 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
         r.blinks,
         r.blinks as f64 / (3 * r.rulers.len()) as f64
     );
-    let _ = writeln!(m, "- **50/50 splitter**: the sample gives 100,000 photons/s per molecule and 140,000 photons/s/µm² of background; each camera gets half, the study's 50,000/s and 70,000/s/µm² (the paper fed the levels it inferred from its camera outputs into its simulations, which use these). At half of the study's light the SPCIMAGER would need N = 326 and L_min = 613 planes (61 ms) and would detect 16 % of these 30 ms blinks (measured), so the split is applied to a sample twice as bright. 150× objective.");
+    let _ = writeln!(m, "- **50/50 splitter**: the sample gives 100,000 photons/s per molecule and 140,000 photons/s/µm² of background; each camera gets half, the study's 50,000/s and 70,000/s/µm² (the paper fed the levels it inferred from its camera outputs into its simulations, which use these). At half of the study's light the SPCIMAGER would need a window of N = 326 planes (33 ms), longer than these blinks' mean of 30 ms, so the split is applied to a sample twice as bright. 150× objective.");
     let _ = writeln!(m, "- **EMCCD**: 24×24 pixels of 106.7 nm, 64 ms frames with 34 ms exposure (30 ms dead time), ThunderSTORM detection, EMCCD Poisson MLE (σ fitted), no merging.");
     let _ = writeln!(m, "- **SPCIMAGER fixed**: 48×48 pixels of 53.3 nm, the same bit-planes summed in 640-plane (64 ms) frames, ThunderSTORM detection, Poisson MLE.");
-    let _ = writeln!(m, "- **SPCIMAGER smart**: the model's pipeline (fast engine) and packet path on the same bit-planes, N = {n}, T_int = {t} from the paper's statistics for the light reaching it, L_min = {l} planes from the false-alarm statistics (1 false blink/s over the field), r_assoc = {ra} px (the model's default); **SPCIMAGER smart r_assoc 3**: the same with r_assoc = {WIDE_R_ASSOC} px (the demo's choice), on the same bit-planes; every record's 9×9 ROI fitted with the Poisson MLE (σ fitted).");
+    let _ = writeln!(m, "- **SPCIMAGER smart**: the model's pipeline (fast engine) and packet path on the same bit-planes with the field design of the {}×{} field, as `smartagg aggregate` defaults to: N = {} from the paper's statistics for the light reaching the SPAD; a track opens at T_open = {} ({:.2} sd of background H: at most {:.3} false blinks/s over the field from background alone, predicted; budget {}/s) and holds down to T_hold = {} (the paper's Eq. 7 threshold); r_assoc = {} px (round(2σ)); L_min = {}; end_trim = {} (a blink sums the planes [t_cross − N, t_drop − {}], to its estimated end). **SPCIMAGER smart r_assoc {NARROW_R_ASSOC}**: the same with the paper's r_assoc = {NARROW_R_ASSOC} px, on the same bit-planes. Every record's {}×{} ROI fitted with the Poisson MLE (σ fitted).", d.width, d.height, c.n_window, c.threshold_int, d.open_sigmas, d.predicted_false_blinks_per_s, d.budget_per_s, c.threshold_hold, c.r_assoc, c.l_min, c.end_trim, c.end_trim, c.roi_size, c.roi_size);
     let _ = writeln!(m, "- **Analysis** (no truth used): density filter keeps localisations with ≥ {DENSITY_MIN} others within {DENSITY_RADIUS_NM} nm; localisations within {RULER_RADIUS_NM} nm of a ruler's centre belong to it; principal axis; 1-D k-means (3 clusters) along it, refined by a 3-component isotropic 2-D Gaussian mixture (EM) — the clusters' plain centroids are pulled together by the tails that cross the cluster boundaries (measured: 2–4 nm shorter distances for the SPAD schemes); marker = component mean; spread = its per-axis standard deviation; neighbour distances between consecutive marker positions (sorted along the axis).");
     let _ = writeln!(m, "- **Truth matching** (for detection, FP and RMS only): a localisation matches a blink within {MATCH_NM} nm whose on-time overlaps its data's time span (record's planes, frame exposure); nearest wins; unmatched detections are false positives.\n");
     let _ = writeln!(m, "## Results\n");
@@ -694,7 +708,7 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
         );
     }
     let _ = writeln!(m, "\nTimes are wall seconds of one worker: EMCCD simulation + fits; SPAD simulation (shared) + pipeline + fits for smart, + frame fits for fixed. Every marker and distance is in `points.csv` and `distances.csv`; the filtered localisations in `locs.csv`.\n");
-    let _ = writeln!(m, "### Spread per marker (nm)\n\n| ruler | marker | EMCCD | fixed | smart | smart r_assoc 3 |\n|---|---|---|---|---|---|");
+    let _ = writeln!(m, "### Spread per marker (nm)\n\n| ruler | marker | EMCCD | fixed | smart | smart r_assoc 1 |\n|---|---|---|---|---|---|");
     for ruler in 0..r.rulers.len() {
         for k in 0..3 {
             let get = |s: usize| {
@@ -727,7 +741,7 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
     let sp: Vec<Option<f64>> = (0..4).map(|s| r.median_spread(s)).collect();
     let dd: Vec<Option<f64>> = (0..4).map(|s| r.median_distance(s)).collect();
     let _ = writeln!(m, "\n## The paper's claims on this run\n");
-    for (s, what) in [(2, "smart"), (3, "smart with r_assoc 3")] {
+    for (s, what) in [(2, "smart"), (3, "smart with r_assoc 1")] {
         let smaller =
             matches!((sp[s], sp[1], sp[0]), (Some(a), Some(b), Some(c)) if a < b && a < c);
         let _ = writeln!(
@@ -744,7 +758,7 @@ fn markdown(r: &NanorulerResult, warnings: &[String]) -> String {
         .all(|d| d.is_some_and(|d| (d - SPACING_NM).abs() <= 5.0));
     let _ = writeln!(
         m,
-        "- **{}** — median neighbour distances within a few nm (here ≤ 5 nm) of 80 nm for every scheme: EMCCD {}, fixed {}, smart {}, smart r_assoc 3 {} nm.",
+        "- **{}** — median neighbour distances within a few nm (here ≤ 5 nm) of 80 nm for every scheme: EMCCD {}, fixed {}, smart {}, smart r_assoc 1 {} nm.",
         if near { "holds" } else { "does not hold" },
         fmt(dd[0]),
         fmt(dd[1]),
