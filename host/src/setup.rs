@@ -203,8 +203,15 @@ pub fn pipeline_config(
     };
     let n = det.n_window;
     let t32 = |t: u64| u32::try_from(t).context("the derived threshold does not fit 32 bits");
-    let (mut threshold, mut hold, mut r_assoc, mut l_min, mut end_trim) =
-        (t32(det.threshold_int)?, t32(det.threshold_int)?, 1, 1, 0);
+    // The paper's scheme: one threshold, L_min 1, r_assoc 1, end_trim 0.
+    let mut cfg = PipelineConfig::new(
+        width as usize,
+        height as usize,
+        n,
+        det.kernel_weights.clone(),
+        det.kernel_shift,
+        t32(det.threshold_int)?,
+    );
     if args.detection == DetectionMode::Field {
         if plane_period_ns == 0 {
             bail!("the recording's plane period is 0 ns");
@@ -217,38 +224,29 @@ pub fn pipeline_config(
             args.false_blinks_per_s,
         )?;
         eprintln!("{}", describe_design(&d));
-        threshold = t32(d.threshold_open)?;
-        hold = t32(d.threshold_hold)?;
-        r_assoc = d.r_assoc;
-        l_min = d.l_min;
-        end_trim = d.end_trim;
+        d.apply(&mut cfg)?;
     }
     if let Some(t) = args.threshold_int {
-        threshold = t;
+        cfg.threshold_int = t;
         // An open level given alone holds at the same level unless that
         // would put the hold level above it.
-        hold = hold.min(t);
+        cfg.threshold_hold = cfg.threshold_hold.min(t);
     }
     if let Some(t) = args.threshold_hold {
-        hold = t;
+        cfg.threshold_hold = t;
     }
-    let mut cfg = PipelineConfig::new(
-        width as usize,
-        height as usize,
-        n,
-        det.kernel_weights.clone(),
-        det.kernel_shift,
-        threshold,
-    );
-    cfg.threshold_hold = hold;
-    cfg.end_trim = args.end_trim.unwrap_or(end_trim);
+    if let Some(c) = args.end_trim {
+        cfg.end_trim = c;
+    }
     if cfg.end_trim >= n {
         bail!(
             "--end-trim {} planes must be below the window N = {n}: a blink's last summed plane must have left the window when its end is seen",
             cfg.end_trim
         );
     }
-    cfg.l_min = args.l_min.unwrap_or(l_min);
+    if let Some(l) = args.l_min {
+        cfg.l_min = l;
+    }
     if args.l_max < n.max(cfg.l_min) {
         bail!(
             "--l-max {} planes is shorter than the window N = {n} (and L_min = {}): a blink is cut into segments of L_max planes, give at least {}",
@@ -259,7 +257,9 @@ pub fn pipeline_config(
     }
     cfg.l_max = args.l_max;
     cfg.slots = args.slots;
-    cfg.r_assoc = args.r_assoc.unwrap_or(r_assoc);
+    if let Some(r) = args.r_assoc {
+        cfg.r_assoc = r;
+    }
     if let Some(r) = args.roi {
         cfg.roi_size = r;
     }
@@ -281,6 +281,7 @@ pub fn pipeline_config(
             height
         );
         // A hot pixel at the hold level would keep a neighbouring track on.
+        let hold = cfg.threshold_hold;
         let criterion = cal.hot_criterion.with_threshold(n, hold as u64)?;
         let mask = cal.hot_mask_for(&criterion);
         eprintln!(

@@ -60,6 +60,7 @@
 //! several noisy pixels; the study (`smartagg study field-detection`) prints
 //! it beside the measured recall.
 
+use crate::config::{ConfigError, PipelineConfig};
 use crate::false_alarm::{BackgroundProcess, FalseAlarmError};
 use crate::stats::{normal_sf, Detection};
 use serde::Serialize;
@@ -144,6 +145,28 @@ pub struct FieldDesign {
 }
 
 impl FieldDesign {
+    /// Sets the design's detection in `cfg`, the one place that maps a
+    /// design onto a pipeline (`smartagg aggregate`, the studies, the shipped
+    /// gateware designs): `T_int = T_open`, `T_hold`, `r_assoc`, `L_min`
+    /// (`L_max` raised to it if needed) and `end_trim`. Fails when a
+    /// threshold does not fit the pipeline's 32 bits.
+    pub fn apply(&self, cfg: &mut PipelineConfig) -> Result<(), ConfigError> {
+        let t32 = |field: &'static str, v: u64| {
+            u32::try_from(v).map_err(|_| ConfigError::Invalid {
+                field,
+                value: v.to_string(),
+                why: "the designed threshold does not fit 32 bits".into(),
+            })
+        };
+        cfg.threshold_int = t32("threshold_int", self.threshold_open)?;
+        cfg.threshold_hold = t32("threshold_hold", self.threshold_hold)?;
+        cfg.r_assoc = self.r_assoc;
+        cfg.l_min = self.l_min;
+        cfg.l_max = cfg.l_max.max(self.l_min);
+        cfg.end_trim = self.end_trim;
+        Ok(())
+    }
+
     /// Predicted probability that a blink of `planes` bit-planes, centred on
     /// a pixel, opens a track (module docs).
     pub fn recall(&self, planes: u32) -> f64 {

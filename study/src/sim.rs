@@ -222,12 +222,7 @@ pub fn field_design_config(
             name: "field design",
             why: e.to_string(),
         })?;
-    cfg.threshold_int = threshold32(design.threshold_open)?;
-    cfg.threshold_hold = threshold32(design.threshold_hold)?;
-    cfg.r_assoc = design.r_assoc;
-    cfg.l_min = design.l_min;
-    cfg.l_max = cfg.l_max.max(design.l_min);
-    cfg.end_trim = design.end_trim;
+    design.apply(&mut cfg)?;
     cfg.validate()?;
     Ok((design, cfg))
 }
