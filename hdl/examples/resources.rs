@@ -239,7 +239,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     7,
                     6,
                     233,
-                    520,
+                    552,
                     53,
                     9,
                     12,
@@ -252,7 +252,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 Ok(verilog(RoiAggregator::<16, 8, 17, 10, 7>::new(c)?))
             }),
             ("pkt150", "SPCImager 150x packetiser", |c| {
-                Ok(verilog(Packetiser::<17, 10, 7, 8, 520>::new(c)?))
+                Ok(verilog(Packetiser::<17, 10, 7, 8, 552>::new(c)?))
             }),
         ];
         for (key, title, gen) in blocks {

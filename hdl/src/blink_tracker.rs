@@ -4,9 +4,20 @@
 //! plus tracks opened earlier in this plane, lowest free slot, Chebyshev
 //! `r_assoc`, 3×3 on/off around the anchor, single-plane dip bridging,
 //! `L_min` confirmation of a first segment — a continuation is always
-//! confirmed —, cut at `L_max`, completion of a dropped first segment at
-//! `max(t_drop + 1, t_cross + N − 1)`, of a dropped continuation at
-//! `t_drop + 1`, of a cut segment at the cut plane, stream end).
+//! confirmed —, cut at `L_max`, the summation ranges, completion of a
+//! dropped segment (first or continuation) at `t_drop + N − end_trim`, of a
+//! cut segment at the cut plane, stream end).
+//!
+//! **What a segment sums** (the model's `sums_delayed`, PACKETS.md §8.6):
+//! only the delayed plane `B_{t−N}`, never the live one. At plane t a busy
+//! slot sums it iff `t ≥ N`, `t ≥ t_cross` (a continuation's `t_cross` is
+//! the plane after the cut) and the segment is live at t (its opening
+//! plane and the plane after a cut included), or has ended by a drop with
+//! `dage = t − t_drop ≤ N − end_trim`, or has been truncated by the stream
+//! end (all N drain planes). The planes summed are thus
+//! `[max(0, t_cross − N), last]` with `last = t_drop − end_trim` (dropped),
+//! `t_drop − N` (cut: the continuation goes on from `t_drop + 1 − N`, one
+//! accumulator per slot) or `t_drop` (truncated).
 //!
 //! **Input.** The words of the front half's output (above bits, `H ≥ T_hold`, and
 //! candidate bits of P pixels, word column, row) through a FIFO, in raster
@@ -34,7 +45,8 @@
 //!   each kind serves every slot (see "Walk pipeline"): a `pend` drop's t_drop and confirmation,
 //!   the cut at L_max, the unconfirmed free or the completion, the Blink
 //!   record and its continuation, the counters, and the slot's state and
-//!   ROI view for plane t + 1. Then the Dropped record and plane t + 1.
+//!   ROI view for plane t + 1 (its sums of t + 1 follow from its state at
+//!   the end of t: the on/off step of t + 1 changes none of them). Then the Dropped record and plane t + 1.
 //!   The model decides all slots first and then emits in slot order; each
 //!   slot's decision reads only that slot, so one slot at a time gives the
 //!   same records. The stream end's `finish` and the drain planes' ends
@@ -58,14 +70,17 @@
 //! an opening is compared again (`replay`, one clock) before it is decided.
 //! A word's hits on a slot opened in this plane, or on a free one, may be
 //! stale, and need not be right: only slots active at the end of t − 1 have
-//! their on/off step, and the walk clears every slot's hits. The lowest free
+//! their on/off step, and the walk clears every slot's hits. The words of
+//! plane t + 1 must be right for a slot opened in t, so the compare stage
+//! takes none in the clock that decides the last item of t (`end_item`),
+//! which may be an opening. The lowest free
 //! slot (`fpick`) is a register of the previous clock's flags: after an
 //! opening the next candidate is replayed, and after a walk comes WalkEnd.
 //!
 //! **Walk pipeline.** A walk also runs in three stages, one slot per clock:
 //! the read stage takes slot `walk`'s flags and anchor through the
 //! multiplexer, and its word from `walk_mem`, into W1; W1 computes what the
-//! walk does (the comparisons with L_min, L_max and N, the cut, the
+//! walk does (the comparisons with L_min, L_max and N − end_trim, the cut, the
 //! completion, the record's planes, the slot's next state and words) into
 //! W2; W2 waits for the sweep and the bank, pushes the record and writes
 //! the slot. W2 writes slot k while the read stage reads k + 1 or k + 2, and
@@ -78,26 +93,31 @@
 //! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
 //! the tracker is generated): confirmation `t_drop − t_cross ≥ L_min` (of a
 //! first segment; a continuation is always confirmed) is `age ≥ L_min + 1`
-//! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`, the
-//! completion `t + 1 ≥ t_cross + N` is `age ≥ N − 1`, the pre-roll
-//! `t < t_cross + N` is `age < N`. The record's planes are not stored
-//! either: `t_cross = t − age` (a continuation starts at `age = −1`, which
-//! is 0 by the time it can be recorded), and a second per-slot age
-//! `dage = t − t_drop` (16 bits; 0 at a cut, 1 at the drop and at the
-//! stream end, at most N + 1 when recorded) gives `t_drop`; both advance
-//! with t. One subtraction after the slot multiplexer, instead of two
-//! 48-bit registers per slot.
+//! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`. A
+//! second per-slot age `dage = t − t_drop` (also [`AGE_BITS`] bits; 1 at
+//! the plane `t_drop + 1` that sees the drop and at the stream end, where
+//! `t_drop = p − 1` and `t = p`; at most 2N when recorded at the stream end)
+//! gives the completion of a drop, `t ≥ t_drop + N − end_trim`, as
+//! `dage ≥ N − end_trim`, and a dropped segment's sums of plane t + 1,
+//! `dage + 1 ≤ N − end_trim`. The record's planes are not stored either:
+//! `t_cross = t − age` (a continuation starts at `age = −1`, which is 0 by
+//! the time it can be recorded) and `t_drop = t − dage` (a cut: `t`); both
+//! ages advance with t. One subtraction after the slot multiplexer, instead
+//! of two 48-bit registers per slot.
 //!
 //! **ROI view (shadow).** For each plane t and slot, the tracker publishes
-//! what the ROI aggregator needs — sum the live plane (the model's
-//! `sums_live`), sum the delayed plane (`sums_preroll`), first plane of the
-//! segment (`fresh`: the counters start from zero), anchor and counter
-//! bank — in a table indexed by the parity of t. A slot's entry for plane t
-//! is final once row `min(ay + 1, H − 1)` is done (or when it opens), before
-//! the aggregator (which follows `plane`/`rows_done`) reads any ROI row of
-//! it; entries of plane t stay untouched while the tracker works on t+1,
-//! until the sweep has finished plane t (the walk at the end of t + 1
-//! writes the entries of t + 2 over them).
+//! what the ROI aggregator needs — sum the delayed plane (`pre`, the
+//! model's `sums_delayed`), first plane of the segment (`fresh`: its
+//! opening plane or the plane after a cut; the counters and mask flags
+//! start from zero, and the aggregator sweeps the ROI even without `pre`),
+//! anchor and counter bank — in a table indexed by the parity of t. A
+//! slot's entry for plane t is written by the walk at the end of t − 1, or
+//! when the slot opens in t, before the aggregator (which follows
+//! `plane`/`rows_done`) reads any ROI row of it; the stream end's `finish`
+//! clears the flags of a track it ends unconfirmed. Entries of plane t stay
+//! untouched while the tracker works on t+1, until the sweep has finished
+//! plane t (the walk at the end of t + 1 writes the entries of t + 2 over
+//! them).
 //!
 //! **Records** go to the record queue in the model's order, numbered later
 //! by the packetiser: StreamStart, then per plane the completed segments in
@@ -120,24 +140,28 @@
 //! same flip-flops either way. A clock may write a flag of several slots
 //! (the end-of-row step), so each flag is built bit by bit in a local
 //! (`busy_nx`, …) that goes to `d` at the end; a slot's words are written at
-//! most once a clock (walks, openings and end-of-row steps of one clock
-//! touch different slots) and only `restart`, last, overrides them.
+//! most once a clock (the walks and openings of one clock touch different
+//! slots; the end-of-row step writes flags only) and only `restart`, last,
+//! overrides them.
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
 //! follows the N drain planes (their ends are flush rows) so that the
-//! aggregator completes the pre-rolls from the delay line, emits the
-//! finished segments in slot order and then StreamEnd.
+//! aggregator completes the sums from the delay line (`B_{p−N} … B_{p−1}`:
+//! a truncated segment sums every drain plane, a dropped one while
+//! `dage ≤ N − end_trim`), emits the finished segments in slot order and
+//! then StreamEnd.
 
 use crate::bram::{Bram, RamStyle};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
-/// Bits of a slot's ages (`age`, and of the L_min, L_max and N it is
-/// compared with): ages stay below L_max,max + N_max + 2 (a segment is cut
-/// at L_max, completes at most N planes after its drop, and the stream end
-/// adds N drain planes), which [`BlinkTracker::new`] checks against 2^18.
+/// Bits of a slot's ages (`age` and `dage`, and of the L_min, L_max and
+/// N − end_trim they are compared with): they stay below
+/// L_max,max + 2·N_max + 2 (a segment is cut at L_max, completes at most N
+/// planes after its drop, and the stream end adds N drain planes), which
+/// [`BlinkTracker::new`] checks against 2^18.
 /// (`update` writes the width as the literal 18 where rust-hdl's `hdl_gen`
 /// needs a number; the signal types make the compiler check the two agree.)
 pub const AGE_BITS: usize = 18;
@@ -186,11 +210,12 @@ pub mod shadow {
     pub const AY: usize = 10;
     /// Counter bank (`BW` bits).
     pub const BANK: usize = 20;
-    /// Sum the live plane.
-    pub const LIVE: usize = 61;
-    /// Sum the delayed plane (pre-roll).
+    /// Sum the delayed plane `B_{t−N}` (the only plane a segment sums).
     pub const PRE: usize = 62;
-    /// First plane of the segment: the counters start from zero.
+    /// First plane of the segment (its opening plane, or the plane after a
+    /// cut): the counters and the ROI's mask flags start from zero. The
+    /// aggregator sweeps the ROI in this plane even without `PRE` (an
+    /// opening at `t < N`), so that they start there.
     pub const FRESH: usize = 63;
 }
 
@@ -250,6 +275,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     pub emit_start: Signal<In, Bit>,
     /// N register.
     pub n_window: Signal<In, Bits<NW>>,
+    /// END_TRIM register (≤ N − 1): a dropped segment sums while
+    /// `dage ≤ N − end_trim`.
+    pub end_trim: Signal<In, Bits<NW>>,
     /// L_min register (≥ 1).
     pub l_min: Signal<In, Bits<32>>,
     /// L_max register (≥ max(L_min, N)).
@@ -286,7 +314,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// StreamEnd has been pushed.
     pub done: Signal<Out, Bit>,
     /// ROI view, index `parity·M + slot`: one word per entry, fields at
-    /// [`shadow`]'s offsets (live, pre-roll, fresh, anchor, counter bank).
+    /// [`shadow`]'s offsets (sum the delayed plane, fresh, anchor, counter
+    /// bank).
     pub sh: Vec<Signal<Out, Bits<64>>>,
     /// The record queue accepts a push.
     pub rec_room: Signal<In, Bit>,
@@ -416,16 +445,16 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     opened_nx: Signal<Local, Bits<MAX_SLOTS>>,
     hit_nx: Signal<Local, Bits<MAX_SLOTS>>,
     ev_bridge_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    /// The fields that only the walks read, one 37-bit word per slot in LUT
-    /// RAM (bits 0–17 age, 18–33 dage, 34 conf, 35 cont, 36 trunc), read at
+    /// The fields that only the walks read, one 39-bit word per slot in LUT
+    /// RAM (bits 0–17 age, 18–35 dage, 36 conf, 37 cont, 38 trunc), read at
     /// the read stage's next slot so that the word is there when it is.
-    walk_mem: Bram<37, 8>,
+    walk_mem: Bram<39, 8>,
     /// A copy of `walk_mem` (written with it) read at the slot after
     /// `walk`: with `walk_mem` read at `walk` itself, the word of either
     /// next slot is there without the read address waiting on whether the
     /// walk moves on (`rd`, behind the W2 stage's back-pressure); `wm_adv`
-    /// picks one. 37 × M bits of LUT RAM for a shallower path.
-    walk_mem_next: Bram<37, 8>,
+    /// picks one. 39 × M bits of LUT RAM for a shallower path.
+    walk_mem_next: Bram<39, 8>,
     /// The walk moved on to the next slot on the previous clock: the word
     /// read is `walk_mem_next`'s.
     wm_adv: DFF<Bit>,
@@ -434,11 +463,14 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// the clock the next walk issues its read of slot 0 (`one_slot`: for
     /// M > 1 synthesis removes the bypass).
     wm_fwd: DFF<Bit>,
-    wm_last: DFF<Bits<37>>,
+    wm_last: DFF<Bits<39>>,
     /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
     sv: Vec<DFF<Bits<64>>>,
-    /// The walks' constants: N − 1, L_min, L_min + 1, L_max − 1.
-    n_m1: DFF<Bits<AGE_BITS>>,
+    /// The walks' constants: N − end_trim (the `dage` at which a dropped
+    /// segment has summed its last plane), L_min, L_min + 1, L_max − 1.
+    n_mc: DFF<Bits<AGE_BITS>>,
+    /// `N − end_trim = 1`: a drop completes in the plane that sees it.
+    mc_one: DFF<Bit>,
     lmin: DFF<Bits<AGE_BITS>>,
     lmin_p1: DFF<Bits<AGE_BITS>>,
     lmax_m1: DFF<Bits<AGE_BITS>>,
@@ -464,7 +496,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w1_ax: DFF<Bits<COORD_BITS>>,
     w1_ay: DFF<Bits<COORD_BITS>>,
     w1_bank: DFF<Bits<BW>>,
-    w1_word: DFF<Bits<37>>,
+    w1_word: DFF<Bits<39>>,
     w2_valid: DFF<Bit>,
     w2_sel: DFF<Bits<MAX_SLOTS>>,
     w2_slot: DFF<Bits<8>>,
@@ -488,10 +520,12 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w2_fin_end: DFF<Bit>,
     w2_fin_unconf: DFF<Bit>,
     /// The slot's word for `walk_mem`.
-    w2_word: DFF<Bits<37>>,
+    w2_word: DFF<Bits<39>>,
     // Combinational.
     run: Signal<Local, Bit>,
     d_go: Signal<Local, Bit>,
+    /// The decide stage takes the plane's last item.
+    end_item: Signal<Local, Bit>,
     r_from_x: Signal<Local, Bit>,
     x_ready: Signal<Local, Bit>,
     x_take: Signal<Local, Bit>,
@@ -503,7 +537,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     free_v: Signal<Local, Bits<MAX_SLOTS>>,
     on_v: Signal<Local, Bits<MAX_SLOTS>>,
     o_bnd: Signal<Local, Bits<64>>,
-    /// An opening's ROI view pre-roll flag (plane t ≥ N), at its offset.
+    /// An opening's ROI view `pre` flag (plane t ≥ N), at its offset.
     sh_pre: Signal<Local, Bits<64>>,
     rem: Signal<Local, Bits<P>>,
     low: Signal<Local, Bits<P>>,
@@ -567,20 +601,20 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w_opened: Signal<Local, Bit>,
     w_bridge: Signal<Local, Bit>,
     w_age: Signal<Local, Bits<AGE_BITS>>,
-    w_dage: Signal<Local, Bits<16>>,
+    w_dage: Signal<Local, Bits<AGE_BITS>>,
     w_ax: Signal<Local, Bits<COORD_BITS>>,
     w_ay: Signal<Local, Bits<COORD_BITS>>,
     w_bank: Signal<Local, Bits<BW>>,
     w_conf1: Signal<Local, Bit>,
-    w_dage1: Signal<Local, Bits<16>>,
+    w_dage1: Signal<Local, Bits<AGE_BITS>>,
     w_cut: Signal<Local, Bit>,
     w_unconf: Signal<Local, Bit>,
     w_comp: Signal<Local, Bit>,
     w_fconf: Signal<Local, Bit>,
     w_flags: Signal<Local, Bits<8>>,
-    w_word: Signal<Local, Bits<37>>,
+    w_word: Signal<Local, Bits<39>>,
     wr_age: Signal<Local, Bits<AGE_BITS>>,
-    wr_dage: Signal<Local, Bits<16>>,
+    wr_dage: Signal<Local, Bits<AGE_BITS>>,
     wr_conf: Signal<Local, Bit>,
     wr_cont: Signal<Local, Bit>,
     wr_trunc: Signal<Local, Bit>,
@@ -588,7 +622,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     n_live: Signal<Local, Bit>,
     n_cont: Signal<Local, Bit>,
     n_age: Signal<Local, Bits<AGE_BITS>>,
-    n_dage: Signal<Local, Bits<16>>,
+    n_dage: Signal<Local, Bits<AGE_BITS>>,
     n_bank: Signal<Local, Bits<BW>>,
     n_pre: Signal<Local, Bit>,
     n_fresh: Signal<Local, Bit>,
@@ -596,9 +630,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     n_bank_w: Signal<Local, Bits<64>>,
     /// The walked slot's ROI view entry for plane t + 1.
     n_sh: Signal<Local, Bits<64>>,
-    /// The bits of the walked slot's ROI view entry that the stream end's
-    /// `finish` keeps: all but live, and pre-roll too if the track ends
-    /// unconfirmed.
+    /// The bits of the walked slot's ROI view entry (of the first drain
+    /// plane) that the stream end's `finish` keeps: all, but the flags if
+    /// the track ends unconfirmed (freed: it sums nothing more).
     fin_keep: Signal<Local, Bits<64>>,
     /// The walked slot is free for plane t + 1.
     n_free: Signal<Local, Bit>,
@@ -617,7 +651,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     ge_lmin: Signal<Local, Bit>,
     ge_lmin1: Signal<Local, Bit>,
     ge_lmax1: Signal<Local, Bit>,
-    ge_n1: Signal<Local, Bit>,
+    ge_nc: Signal<Local, Bit>,
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
     /// Slot i's first bank, i, at the bank's offset of `geo`.
@@ -625,13 +659,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The bank's bits of `geo` and of a ROI view entry.
     bank_mask: Constant<Bits<64>>,
     /// The bits in use of a `geo` word, of a `win` word and of a ROI view
-    /// entry; of `geo` without the bank; of an entry without `live`.
+    /// entry; of `geo` without the bank.
     geo_used: Constant<Bits<64>>,
     win_used: Constant<Bits<64>>,
     sh_used: Constant<Bits<64>>,
     geo_keep: Constant<Bits<64>>,
-    sh_keep_live: Constant<Bits<64>>,
-    /// An opened slot's ROI view flags: live and fresh.
+    /// An opened slot's ROI view flag: fresh (`pre` too if `t ≥ N`:
+    /// `sh_pre`).
     sh_open: Constant<Bits<64>>,
     /// One bit per slot.
     slot_bits: Constant<Bits<MAX_SLOTS>>,
@@ -656,12 +690,12 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
         GatewareConfig::check_width("BlinkTracker", "P", P, f.pixels_per_clock)?;
         GatewareConfig::check_width("BlinkTracker", "NW", NW, f.count_bits())?;
         GatewareConfig::check_width("BlinkTracker", "BW", BW, cfg.bank_bits())?;
-        if cfg.l_max_max as u64 + f.n_max as u64 + 2 >= 1 << AGE_BITS {
+        if cfg.l_max_max as u64 + 2 * f.n_max as u64 + 2 >= 1 << AGE_BITS {
             return Err(GatewareError::Invalid {
                 field: "l_max_max",
                 value: cfg.l_max_max.to_string(),
                 why: format!(
-                    "L_max,max + N_max + 2 must stay below 2^{AGE_BITS}, the blink tracker's slot ages"
+                    "L_max,max + 2·N_max + 2 must stay below 2^{AGE_BITS}, the blink tracker's slot ages"
                 ),
             });
         }
@@ -699,10 +733,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
         let bank_bits = ones(BW) << slot_word::BANK;
         let geo_used = !((ones(slot_word::BANK_BITS_MAX) << slot_word::BANK) & !bank_bits);
         let win_used = ones(P) | (ones(P) << 32);
-        let sh_used = ones(shadow::BANK + BW)
-            | (1u64 << shadow::LIVE)
-            | (1u64 << shadow::PRE)
-            | (1u64 << shadow::FRESH);
+        let sh_used = ones(shadow::BANK + BW) | (1u64 << shadow::PRE) | (1u64 << shadow::FRESH);
         let c16 = |v: u64| Constant::new(v.to_bits());
         let cc = |v: u64| Constant::new(v.to_bits());
         Ok(BlinkTracker {
@@ -710,6 +741,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             restart: Default::default(),
             emit_start: Default::default(),
             n_window: Default::default(),
+            end_trim: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             stopping: Default::default(),
@@ -818,7 +850,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             wm_fwd: Default::default(),
             wm_last: Default::default(),
             sv: lanes(2 * m),
-            n_m1: Default::default(),
+            n_mc: Default::default(),
+            mc_one: Default::default(),
             lmin: Default::default(),
             lmin_p1: Default::default(),
             lmax_m1: Default::default(),
@@ -863,6 +896,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w2_word: Default::default(),
             run: Default::default(),
             d_go: Default::default(),
+            end_item: Default::default(),
             r_from_x: Default::default(),
             x_ready: Default::default(),
             x_take: Default::default(),
@@ -974,7 +1008,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             ge_lmin: Default::default(),
             ge_lmin1: Default::default(),
             ge_lmax1: Default::default(),
-            ge_n1: Default::default(),
+            ge_nc: Default::default(),
             slot_id: (0..m)
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
@@ -986,8 +1020,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             win_used: Constant::new(win_used.to_bits()),
             sh_used: Constant::new(sh_used.to_bits()),
             geo_keep: Constant::new((geo_used & !bank_bits).to_bits()),
-            sh_keep_live: Constant::new((sh_used & !(1u64 << shadow::LIVE)).to_bits()),
-            sh_open: Constant::new(((1u64 << shadow::LIVE) | (1u64 << shadow::FRESH)).to_bits()),
+            sh_open: Constant::new((1u64 << shadow::FRESH).to_bits()),
             slot_bits: Constant::new(((1u64 << m) - 1).to_bits()),
             lane_id: (0..P).map(|j| cc(j as u64)).collect(),
             all_lanes: Constant::new(Bits::<P>::mask()),
@@ -1059,7 +1092,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             replay,
             fpick,
             fpick_any,
-            n_m1,
+            n_mc,
+            mc_one,
             lmin,
             lmin_p1,
             lmax_m1,
@@ -1140,7 +1174,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.n32.next = bit_cast::<18, NW>(self.n_window.val());
         // (Registered: the walk compares ages with them; the registers are
         // written long before a walk.)
-        self.n_m1.d.next = self.n32.val() - 1;
+        self.n_mc.d.next = self.n32.val() - bit_cast::<18, NW>(self.end_trim.val());
+        self.mc_one.d.next = self.n32.val() == bit_cast::<18, NW>(self.end_trim.val()) + 1;
         self.lmin.d.next = bit_cast::<18, 32>(self.l_min.val());
         self.lmin_p1.d.next = bit_cast::<18, 32>(self.l_min.val()) + 1;
         self.lmax_m1.d.next = bit_cast::<18, 32>(self.l_max.val()) - 1;
@@ -1156,10 +1191,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // stage takes the item stage's when it is empty or decided; the item
         // stage takes the head word's next lane when it is empty or moves on.
         // (When `fin_cond` holds, both stages are empty: they take only real
-        // words, and every real plane is done.)
+        // words, and every real plane is done.) The compare stage does not
+        // take an item in the clock that decides the plane's last item: that
+        // item may open a track, and the next plane's words must be compared
+        // with the opened slot's window (its on/off step in the next plane
+        // reads their hits and row end); it takes it a clock later, in the
+        // walk.
         self.run.next = self.state.q.val() == TrackerState::Run;
         self.d_go.next = self.run.val() & self.r_valid.q.val() & !self.replay.q.val();
-        self.r_from_x.next = !self.replay.q.val() & (!self.r_valid.q.val() | self.run.val());
+        self.end_item.next =
+            self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val() & self.r_lastrow.q.val();
+        self.r_from_x.next =
+            !self.replay.q.val() & (!self.r_valid.q.val() | self.run.val()) & !self.end_item.val();
         self.x_ready.next = !self.x_valid.q.val() | self.r_from_x.val();
         self.x_take.next = self.x_ready.val() & self.in_valid.val() & !self.in_flush.val();
 
@@ -1319,6 +1362,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.replay.q.val() {
             self.r_near.d.next = self.near_v.val();
         }
+        if self.end_item.val() {
+            self.r_valid.d.next = false;
+        }
         if self.r_from_x.val() {
             self.r_valid.d.next = self.x_valid.q.val();
             self.r_cand.d.next = self.x_cand.q.val();
@@ -1353,7 +1399,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & !self.fpick_any.q.val();
         self.do_fin.next = self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val();
         self.sh_pre.next = bit_cast::<64, 1>(self.t_ge_n.val().into()) << 62;
-        self.replay.d.next = self.do_open.val() & self.x_valid.q.val() & self.x_cand.q.val();
+        self.replay.d.next =
+            self.do_open.val() & self.x_valid.q.val() & self.x_cand.q.val() & self.r_from_x.val();
 
         // ---- The walks (see "Walk pipeline" in the module doc): the read
         // stage takes the slot at `walk` into W1, W1 decides what the walk
@@ -1459,10 +1506,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // truncated) stand in for it (so that the opening needs no second
         // write port; `dage` means nothing until the drop).
         self.w_age.next = self.w1_word.q.val().get_bits::<18>(0);
-        self.w_dage.next = self.w1_word.q.val().get_bits::<16>(18);
-        self.w_conf.next = self.w1_word.q.val().get_bit(34);
-        self.w_cont.next = self.w1_word.q.val().get_bit(35);
-        self.w_trunc.next = self.w1_word.q.val().get_bit(36);
+        self.w_dage.next = self.w1_word.q.val().get_bits::<18>(18);
+        self.w_conf.next = self.w1_word.q.val().get_bit(36);
+        self.w_cont.next = self.w1_word.q.val().get_bit(37);
+        self.w_trunc.next = self.w1_word.q.val().get_bit(38);
         if self.w1_opened.q.val() {
             self.w_age.next = 0.into();
             self.w_conf.next = false;
@@ -1472,7 +1519,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.ge_lmin.next = self.w_age.val() >= self.lmin.q.val();
         self.ge_lmin1.next = self.w_age.val() >= self.lmin_p1.q.val();
         self.ge_lmax1.next = self.w_age.val() >= self.lmax_m1.q.val();
-        self.ge_n1.next = self.w_age.val() >= self.n_m1.q.val();
         // A blink that ended in this plane (its on/off step found the second
         // plane below: `pend`) ended at t_drop = t − 1, confirmed if it lasted
         // L_min planes.
@@ -1482,8 +1528,16 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.w_conf1.next = self.w_cont.val() | self.ge_lmin1.val();
             self.w_dage1.next = 1.into();
         }
+        // A dropped segment's last plane, t_drop − end_trim, leaves the
+        // window (is summed) at plane t_drop + N − end_trim: `dage1 ≥ N −
+        // end_trim` (dage1 = t − t_drop in this plane: 1 for a `pend` drop,
+        // compared through a register rather than behind the multiplexer).
+        self.ge_nc.next = self.w_dage.val() >= self.n_mc.q.val();
+        if self.w1_pend.q.val() {
+            self.ge_nc.next = self.mc_one.q.val();
+        }
         // Cut at L_max; an ended track unconfirmed is freed, a confirmed one
-        // completes once its last plane is out of the window.
+        // completes once it has summed its last plane.
         self.w_cut.next = self.w1_busy.q.val()
             & self.w1_live.q.val()
             & !self.w1_dip.q.val()
@@ -1493,7 +1547,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             | (self.w1_busy.q.val()
                 & !self.w1_live.q.val()
                 & self.w_conf1.val()
-                & (self.w_cont.val() | self.ge_n1.val()));
+                & self.ge_nc.val());
         // The model's `finish`: a live track is confirmed if it lasted L_min planes.
         self.w_fconf.next = self.w_cont.val()
             | (!self.w1_dip.q.val() & self.ge_lmin.val())
@@ -1510,7 +1564,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.w_flags.next = self.w_flags.val() | 16;
         }
         self.rec_tc.next = self.t.q.val() - bit_cast::<48, 18>(self.w_age.val());
-        self.rec_td.next = self.t.q.val() - bit_cast::<48, 16>(self.w_dage1.val());
+        self.rec_td.next = self.t.q.val() - bit_cast::<48, 18>(self.w_dage1.val());
         if self.w_cut.val() {
             self.rec_td.next = self.t.q.val();
         }
@@ -1533,14 +1587,16 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         if self.state.q.val() == TrackerState::DrainWalk {
             self.n_busy.next = self.w1_busy.q.val();
         }
-        // Its ROI view for plane t + 1: the pre-roll while t + 1 < t_cross + N,
-        // i.e. n_age < N (n_age is 0 after a cut, age + 1 < N otherwise);
-        // the first plane of a segment where n_age = 0, i.e. after a cut
-        // (ages stay below 2^AGE_BITS − 1, so age + 1 is never 0).
+        // Its ROI view for plane t + 1 (≥ t_cross of a busy slot's
+        // segment): sum B_{t+1−N} if t + 1 ≥ N and the segment is live, or
+        // truncated by the stream end (every drain plane), or dropped with
+        // dage(t + 1) = dage1 + 1 ≤ N − end_trim (at the end of a real
+        // plane a dropped segment still busy has not completed, so this
+        // holds; in a drain plane it may not). The first plane of a
+        // segment after a cut (the opening writes its own).
         self.n_pre.next = self.n_busy.val()
-            & !self.n_cont.val()
             & self.t1_ge_n.val()
-            & (self.w_cut.val() | !self.ge_n1.val());
+            & (self.n_live.val() | self.w_trunc.val() | !self.ge_nc.val());
         self.n_fresh.next = self.n_busy.val() & self.w_cut.val();
         // What the walk writes back to the slot's word: the end of a plane
         // its next state, the stream end's `finish` the end of a live track
@@ -1590,11 +1646,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.w2_fin_end.d.next = self.w1_busy.q.val() & self.w1_live.q.val();
             self.w2_fin_unconf.d.next =
                 self.w1_busy.q.val() & self.w1_live.q.val() & !self.w_fconf.val();
-            self.w2_word.d.next = bit_cast::<37, 18>(self.wr_age.val())
-                | (bit_cast::<37, 16>(self.wr_dage.val()) << 18)
-                | (bit_cast::<37, 1>(self.wr_conf.val().into()) << 34)
-                | (bit_cast::<37, 1>(self.wr_cont.val().into()) << 35)
-                | (bit_cast::<37, 1>(self.wr_trunc.val().into()) << 36);
+            self.w2_word.d.next = bit_cast::<39, 18>(self.wr_age.val())
+                | (bit_cast::<39, 18>(self.wr_dage.val()) << 18)
+                | (bit_cast::<39, 1>(self.wr_conf.val().into()) << 36)
+                | (bit_cast::<39, 1>(self.wr_cont.val().into()) << 37)
+                | (bit_cast::<39, 1>(self.wr_trunc.val().into()) << 38);
         }
 
         // ---- Record port defaults.
@@ -1644,17 +1700,15 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.n_sh.next = bit_cast::<64, 10>(self.w2_ax.q.val())
             | (bit_cast::<64, 10>(self.w2_ay.q.val()) << 10)
             | self.n_bank_w.val()
-            | (bit_cast::<64, 1>(
-                (self.w2_n_busy.q.val() & self.w2_n_live.q.val() & self.we_walk.val()).into(),
-            ) << 61)
             | (bit_cast::<64, 1>(self.w2_n_pre.q.val().into()) << 62)
             | (bit_cast::<64, 1>((self.w2_n_fresh.q.val() & self.we_walk.val()).into()) << 63);
         // (A value shifted into a wider word is a signal of its own: Verilog
         // widens the operands of `~` before inverting them.)
         self.n_free.next = !self.w2_n_busy.q.val();
-        self.fin_keep.next = self.sh_keep_live.val();
+        self.fin_keep.next = self.sh_used.val();
         if self.w2_fin_unconf.q.val() {
             self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
+            self.fin_keep.next = self.fin_keep.val().replace_bit(63, false);
         }
         self.walk_mem.write_address.next = self.w2_slot.q.val();
         self.walk_mem.write_enable.next =
@@ -1882,35 +1936,28 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // ---- End of a row: the on/off step of slots whose 3x3 window has streamed.
         if self.do_fin.val() {
-            for mm in self._m..(self._m + 1) {
-                for i in 0..self._m {
-                    if self.do_fin.val()
-                        & self.aprev.q.val().get_bit(i)
-                        & self.busy.q.val().get_bit(i)
-                        & self.live.q.val().get_bit(i)
-                        & self.r_frow.q.val().get_bit(i)
-                    {
-                        if self.on_v.val().get_bit(i) {
-                            if self.dip.q.val().get_bit(i) {
-                                self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                                self.ev_bridge_nx.next =
-                                    self.ev_bridge_nx.val().replace_bit(i, true);
-                            }
-                        } else if !self.dip.q.val().get_bit(i) {
-                            self.dip_nx.next = self.dip_nx.val().replace_bit(i, true);
-                        } else {
-                            // Second plane below: the blink ended at t − 1 (its
-                            // t_drop and confirmation are settled by the walk).
-                            self.live_nx.next = self.live_nx.val().replace_bit(i, false);
+            for i in 0..self._m {
+                if self.do_fin.val()
+                    & self.aprev.q.val().get_bit(i)
+                    & self.busy.q.val().get_bit(i)
+                    & self.live.q.val().get_bit(i)
+                    & self.r_frow.q.val().get_bit(i)
+                {
+                    if self.on_v.val().get_bit(i) {
+                        if self.dip.q.val().get_bit(i) {
                             self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                            self.pend_nx.next = self.pend_nx.val().replace_bit(i, true);
-                            if self.par.val() {
-                                self.sv[i + mm].d.next =
-                                    self.sv[i + mm].q.val() & self.sh_keep_live.val();
-                            } else {
-                                self.sv[i].d.next = self.sv[i].q.val() & self.sh_keep_live.val();
-                            }
+                            self.ev_bridge_nx.next = self.ev_bridge_nx.val().replace_bit(i, true);
                         }
+                    } else if !self.dip.q.val().get_bit(i) {
+                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, true);
+                    } else {
+                        // Second plane below: the blink ended at t − 1 (its
+                        // t_drop and confirmation are settled by the walk;
+                        // its view of plane t stays: it sums B_{t−N} at
+                        // dage = 1 ≤ N − end_trim).
+                        self.live_nx.next = self.live_nx.val().replace_bit(i, false);
+                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
+                        self.pend_nx.next = self.pend_nx.val().replace_bit(i, true);
                     }
                 }
             }

@@ -489,9 +489,9 @@ impl BackHalfConfig {
 
     /// Bytes of the header and fixed payload the packetiser assembles before
     /// streaming a packet (`PW = 8 ×` this): the largest of StreamStart
-    /// (10 + 37 + 2k), StreamEnd (10 + 48) and Blink (10 + 35 + 5 + 1).
+    /// (10 + 41 + 2k), StreamEnd (10 + 48) and Blink (10 + 35 + 5 + 1).
     pub fn prefix_bytes(&self) -> usize {
-        (47 + 2 * self.front.kernel.len()).max(58)
+        (51 + 2 * self.front.kernel.len()).max(58)
     }
 }
 

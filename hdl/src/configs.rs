@@ -19,10 +19,12 @@
 //! ([`smartagg_model::field_design::design`] for the whole sensor at the
 //! preset's plane rate and the default false-blink budget): the open level
 //! T_open (the T_int register's default), the hold level T_hold (the
-//! T_hold register's default) and the association radius r_assoc (a
-//! compile-time constant of the tracker). M = 32 slots and L_max up to
-//! 65,535 planes are the model's defaults. N, T_int, T_hold, L_min, L_max
-//! and the hot-pixel mask are runtime registers, latched at stream start
+//! T_hold register's default), the end trim `⌊N/2⌋` (the END_TRIM
+//! register's default: a dropped segment sums up to its estimated end
+//! `t_e`) and the association radius r_assoc (a compile-time constant of
+//! the tracker). M = 32 slots and L_max up to 65,535 planes are the model's
+//! defaults. N, T_int, T_hold, END_TRIM, L_min, L_max and the hot-pixel
+//! mask are runtime registers, latched at stream start
 //! ([`crate::pipeline::StreamControl`]).
 //!
 //! rust-hdl widths are const generics, so each design is one type alias
@@ -138,6 +140,9 @@ pub struct Design {
     /// The field design's hold level T_hold (the T_hold register's default,
     /// ≤ `threshold_int`).
     pub threshold_hold: u64,
+    /// The field design's end trim (the END_TRIM register's default,
+    /// ≤ `n_window − 1`).
+    pub end_trim: u32,
     /// The generation parameters (sensor, P, N_max, kernel, M, R, …).
     pub config: BackHalfConfig,
 }
@@ -222,6 +227,7 @@ impl Design {
             u32::try_from(fd.threshold_open).unwrap_or(u32::MAX),
         );
         cfg.threshold_hold = u32::try_from(fd.threshold_hold).unwrap_or(u32::MAX);
+        cfg.end_trim = fd.end_trim;
         cfg.slots = SLOTS;
         cfg.roi_size = front.kernel.len();
         cfg.r_assoc = fd.r_assoc;
@@ -236,6 +242,7 @@ impl Design {
             n_window: det.n_window,
             threshold_int: fd.threshold_open,
             threshold_hold: fd.threshold_hold,
+            end_trim: fd.end_trim,
             config,
         })
     }
@@ -334,17 +341,17 @@ pub fn on_generation_stack<T: Send>(f: impl FnOnce() -> T + Send) -> T {
 pub type Spcimager150Xem = crate::xem6310::Spcimager150Xem;
 
 /// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
-pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
+pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12>;
 
 /// The XEM6310 top of the projected SPCImager at 150× (k = 9, N_max = 24,
 /// block RAM; for the XEM6310-LX150).
 pub type Projected150Xem =
-    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 
 /// The XEM6310 top of the projected SPCImager at 60× (k = 5, N_max = 24,
 /// block RAM; for the XEM6310-LX150).
 pub type Projected60Xem =
-    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
+    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12>;
 
 /// The core clock: FrontPanel's host-interface clock `okClk`, Hz.
 pub const CLOCK_HZ: f64 = 100.8e6;

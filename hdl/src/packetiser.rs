@@ -45,7 +45,6 @@
 //! `crc' = (crc >> 8) ^ ⊕ᵢ vᵢ·T(2ⁱ)`, `v = (crc ^ byte) & 0xFF`, where T is
 //! the reflected byte table of polynomial 0x82F63B78 (linear in v).
 
-use crate::blink_tracker::MAX_SLOTS;
 use crate::bram::RamStyle;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
@@ -132,6 +131,8 @@ pub struct Packetiser<
     pub threshold: Signal<In, Bits<32>>,
     /// T_hold register (StreamStart).
     pub threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM register (StreamStart; ≤ N − 1, so NW bits hold it).
+    pub end_trim: Signal<In, Bits<NW>>,
     /// L_min register (StreamStart).
     pub l_min: Signal<In, Bits<32>>,
     /// L_max register (StreamStart).
@@ -180,10 +181,6 @@ pub struct Packetiser<
     pub r_bank: Signal<In, Bits<BW>>,
     /// Blink: its counts are final.
     pub r_ready: Signal<In, Bit>,
-    /// Blink: no plane was summed (counts 0, MASKED from `r_empty_masked`).
-    pub r_empty: Signal<In, Bit>,
-    /// MASKED of an empty Blink.
-    pub r_empty_masked: Signal<In, Bit>,
     /// Done with the head record.
     pub r_pop: Signal<Out, Bit>,
     /// Counter row read request.
@@ -311,6 +308,8 @@ pub struct Packetiser<
     need: Signal<Local, Bits<16>>,
     type_code: Signal<Local, Bits<8>>,
     n16: Signal<Local, Bits<16>>,
+    /// END_TRIM widened to its StreamStart field.
+    trim32: Signal<Local, Bits<32>>,
     sel_tree: Vec<Signal<Local, Bits<8>>>,
     rec_prefix: Vec<Signal<Local, Bits<8>>>,
     ovf_prefix: Vec<Signal<Local, Bits<8>>>,
@@ -377,6 +376,7 @@ pub struct Packetiser<
     _o_period: usize,
     _o_masked: usize,
     _o_hold: usize,
+    _o_trim: usize,
 }
 
 impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const PW: usize>
@@ -396,7 +396,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         let kn = rice_candidates(RCW);
         // The constant bytes of StreamStart: header (seq and the registers
         // are added at run time) and the generation parameters.
-        let start_payload = 37 + 2 * k;
+        let start_payload = 41 + 2 * k;
         let mut sb = vec![0u8; 10 + start_payload];
         sb[..4].copy_from_slice(&[0x53, 0x41, PACKET_VERSION, 0x01]);
         sb[8..10].copy_from_slice(&(start_payload as u16).to_le_bytes());
@@ -418,6 +418,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             n_window: Default::default(),
             threshold: Default::default(),
             threshold_hold: Default::default(),
+            end_trim: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             plane_period: Default::default(),
@@ -442,8 +443,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             r_planes: Default::default(),
             r_bank: Default::default(),
             r_ready: Default::default(),
-            r_empty: Default::default(),
-            r_empty_masked: Default::default(),
             r_pop: Default::default(),
             rd_req: Default::default(),
             rd_addr: Default::default(),
@@ -527,6 +526,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             need: Default::default(),
             type_code: Default::default(),
             n16: Default::default(),
+            trim32: Default::default(),
             sel_tree: lanes(2 * (PW / 8).next_power_of_two()),
             rec_prefix: lanes(PW / 8),
             ovf_prefix: lanes(PW / 8),
@@ -594,6 +594,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             _o_period: 35 + 2 * k,
             _o_masked: 39 + 2 * k,
             _o_hold: 43 + 2 * k,
+            _o_trim: 47 + 2 * k,
         })
     }
 }
@@ -703,16 +704,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         }
         if self.cs_active.q.val() {
             if !self.row_valid.q.val() & !self.cs_wait.q.val() {
-                if self.r_empty.val() {
-                    for dx in 0..self._r {
-                        self.row[dx].d.next = 0.into();
-                    }
-                    self.row_valid.d.next = true;
-                } else {
-                    self.rd_req.next = true;
-                    if self.rd_grant.val() {
-                        self.cs_wait.d.next = true;
-                    }
+                self.rd_req.next = true;
+                if self.rd_grant.val() {
+                    self.cs_wait.d.next = true;
                 }
             }
             if self.cs_wait.q.val() {
@@ -916,10 +910,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         }
         // (Verilog cannot slice an expression: N widened into a signal first.)
         self.n16.next = bit_cast::<16, NW>(self.n_window.val());
+        self.trim32.next = bit_cast::<32, NW>(self.end_trim.val());
         // Read only when a packet starts (Decide, and Crc after an Overflow
         // packet), and computed only then.
         if (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc) {
-            // Header: magic "SA", version 2, type, sequence number, length.
+            // Header: magic "SA", version `PACKET_VERSION`, type, sequence number, length.
             self.rec_prefix[0].next = 0x53.into();
             self.rec_prefix[1].next = 0x41.into();
             self.rec_prefix[2].next = self.version.val();
@@ -1008,6 +1003,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                         for b in 0..4 {
                             self.rec_prefix[o + b].next =
                                 self.threshold_hold.val().get_bits::<8>(8 * b);
+                        }
+                    }
+                    for o in self._o_trim..(self._o_trim + 1) {
+                        for b in 0..4 {
+                            self.rec_prefix[o + b].next = self.trim32.val().get_bits::<8>(8 * b);
                         }
                     }
                 }
@@ -1136,7 +1136,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             PacketState::Wait => {
                 if self.r_ready.val() {
                     self.base.d.next = self.all_ones.val();
-                    self.masked.d.next = self.r_empty.val() & self.r_empty_masked.val();
+                    self.masked.d.next = false;
                     self.cs_active.d.next = true;
                     self.cs_dy.d.next = 0.into();
                     self.cs_dx.d.next = 0.into();
@@ -1501,23 +1501,24 @@ impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<B
 /// The fields of a Blink record that follow from the tracker's descriptor,
 /// as the model's `Pipeline::emit` computes them: `t_s = t_cross − ⌊N/2⌋`
 /// (a continuation: `t_cross`), `t_e = t_drop − ⌊N/2⌋` (cut or truncated:
-/// `t_drop`), planes summed `t_drop + 1 − first` with `first = t_cross` for a
-/// continuation and `max(0, t_cross − N)` otherwise, EDGE from the anchor,
-/// PREROLL_CLIPPED when `t_cross < N` (not a continuation); the counts are
-/// final once the aggregator has swept the record's plane; a segment with
-/// `t_drop < t_cross` summed nothing.
+/// `t_drop`), planes summed `max(0, last + 1 − first)` with
+/// `first = max(0, t_cross − N)` and `last = t_drop − N` (cut), `t_drop`
+/// (truncated) or `t_drop − end_trim` (dropped) (PACKETS.md §8.6), EDGE
+/// from the anchor, PREROLL_CLIPPED when `t_cross < N` (not a
+/// continuation); the counts are final once the aggregator has swept the
+/// record's plane. (A segment that summed no plane reads zero counts and
+/// its ROI's mask flags from its bank like any other: the aggregator
+/// swept it in its first plane.)
 #[derive(LogicBlock)]
 pub struct RecordFinisher<const NW: usize> {
     /// N register.
     pub n_window: Signal<In, Bits<NW>>,
+    /// END_TRIM register.
+    pub end_trim: Signal<In, Bits<NW>>,
     /// Planes the aggregator has swept.
     pub planes_done: Signal<In, Bits<48>>,
-    /// MASKED per slot (aggregator; bit i: slot i).
-    pub slot_masked: Signal<In, Bits<MAX_SLOTS>>,
     /// Kind.
     pub kind: Signal<In, Bits<2>>,
-    /// Slot.
-    pub slot: Signal<In, Bits<8>>,
     /// Tracker flags (CUT, CONTINUATION, TRUNCATED).
     pub flags: Signal<In, Bits<8>>,
     /// Anchor column.
@@ -1540,25 +1541,27 @@ pub struct RecordFinisher<const NW: usize> {
     pub o_planes: Signal<Out, Bits<32>>,
     /// Counts final.
     pub o_ready: Signal<Out, Bit>,
-    /// Summed nothing.
-    pub o_empty: Signal<Out, Bit>,
-    /// MASKED of the slot (for an empty segment).
-    pub o_empty_masked: Signal<Out, Bit>,
     n48: Signal<Local, Bits<48>>,
+    n32: Signal<Local, Bits<32>>,
+    c32: Signal<Local, Bits<32>>,
     half: Signal<Local, Bits<48>>,
     cont: Signal<Local, Bit>,
+    cut: Signal<Local, Bit>,
+    trunc: Signal<Local, Bit>,
     /// `t_cross ≥ N`.
     t0_ge_n: Signal<Local, Bit>,
-    /// The low 32 bits of t_drop − t_cross (all the planes count needs).
+    /// The low 32 bits of t_drop − t_cross, and of t_drop + 1 (all the
+    /// planes count needs: with `t_cross < N`, `t_drop < 2^32`).
     dt32: Signal<Local, Bits<32>>,
+    t1p: Signal<Local, Bits<32>>,
+    /// `N + 1 − end_trim`.
+    nc1: Signal<Local, Bits<32>>,
     at_edge: Signal<Local, Bit>,
     f_edge: Signal<Local, Bits<8>>,
     f_clip: Signal<Local, Bits<8>>,
     h: Constant<Bits<16>>,
     last_x: Constant<Bits<16>>,
     last_y: Constant<Bits<16>>,
-    ids: Vec<Constant<Bits<8>>>,
-    _m: usize,
 }
 
 impl<const NW: usize> RecordFinisher<NW> {
@@ -1569,10 +1572,9 @@ impl<const NW: usize> RecordFinisher<NW> {
         let h = cfg.roi_half() as u64;
         Ok(RecordFinisher {
             n_window: Default::default(),
+            end_trim: Default::default(),
             planes_done: Default::default(),
-            slot_masked: Default::default(),
             kind: Default::default(),
-            slot: Default::default(),
             flags: Default::default(),
             ax: Default::default(),
             ay: Default::default(),
@@ -1584,13 +1586,17 @@ impl<const NW: usize> RecordFinisher<NW> {
             o_te: Default::default(),
             o_planes: Default::default(),
             o_ready: Default::default(),
-            o_empty: Default::default(),
-            o_empty_masked: Default::default(),
             n48: Default::default(),
+            n32: Default::default(),
+            c32: Default::default(),
             half: Default::default(),
             cont: Default::default(),
+            cut: Default::default(),
+            trunc: Default::default(),
             t0_ge_n: Default::default(),
             dt32: Default::default(),
+            t1p: Default::default(),
+            nc1: Default::default(),
             at_edge: Default::default(),
             f_edge: Default::default(),
             f_clip: Default::default(),
@@ -1598,10 +1604,6 @@ impl<const NW: usize> RecordFinisher<NW> {
             // ax + h ≥ W  ⟺  ax > W − 1 − h (W > 2h: R < H ≤ … and R ≤ P < W).
             last_x: Constant::new((cfg.front.width as u64 - 1 - h).to_bits()),
             last_y: Constant::new((cfg.front.height as u64 - 1 - h).to_bits()),
-            ids: (0..cfg.slots)
-                .map(|i| Constant::new((i as u64).to_bits()))
-                .collect(),
-            _m: cfg.slots,
         })
     }
 }
@@ -1610,27 +1612,52 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
     #[hdl_gen]
     fn update(&mut self) {
         self.n48.next = bit_cast::<48, NW>(self.n_window.val());
+        self.n32.next = bit_cast::<32, NW>(self.n_window.val());
+        self.c32.next = bit_cast::<32, NW>(self.end_trim.val());
         self.half.next = self.n48.val() >> 1;
+        self.cut.next = self.flags.val().get_bit(2);
         self.cont.next = self.flags.val().get_bit(3);
+        self.trunc.next = self.flags.val().get_bit(4);
         self.o_ts.next = self.t0.val() - self.half.val();
         if self.cont.val() {
             self.o_ts.next = self.t0.val();
         }
         self.o_te.next = self.t1.val() - self.half.val();
-        if self.flags.val().get_bit(2) | self.flags.val().get_bit(4) {
+        if self.cut.val() | self.trunc.val() {
             self.o_te.next = self.t1.val();
         }
-        // t_drop + 1 − first in 32 bits, one form per case of first (t_cross,
-        // t_cross − N or 0) computed beside the compare that picks one, so
-        // that the compare and the subtractions are not in series.
+        // last + 1 − first in 32 bits, one form per case of first
+        // (t_cross − N, or 0) and of last (t_drop − N, t_drop, t_drop −
+        // end_trim), each computed beside the compares that pick one, so
+        // that the compares and the subtractions are not in series.
+        // With t_cross ≥ N: t_drop − t_cross + 1, + N, + N − end_trim.
+        // With t_cross < N (a first segment): t_drop + 1 − N (0 unless
+        // t_drop ≥ N), t_drop + 1, t_drop + 1 − end_trim (0 unless
+        // t_drop ≥ end_trim).
         self.t0_ge_n.next = self.t0.val() >= self.n48.val();
         self.dt32.next = bit_cast::<32, 48>(self.t1.val()) - bit_cast::<32, 48>(self.t0.val());
-        self.o_planes.next = bit_cast::<32, 48>(self.t1.val()) + 1;
+        self.t1p.next = bit_cast::<32, 48>(self.t1.val()) + 1;
+        self.nc1.next = self.n32.val() + 1 - self.c32.val();
         if self.t0_ge_n.val() {
-            self.o_planes.next = self.dt32.val() + bit_cast::<32, NW>(self.n_window.val()) + 1;
-        }
-        if self.cont.val() {
-            self.o_planes.next = self.dt32.val() + 1;
+            if self.cut.val() {
+                self.o_planes.next = self.dt32.val() + 1;
+            } else if self.trunc.val() {
+                self.o_planes.next = self.dt32.val() + self.n32.val() + 1;
+            } else {
+                self.o_planes.next = self.dt32.val() + self.nc1.val();
+            }
+        } else if self.cut.val() {
+            self.o_planes.next = 0.into();
+            if self.t1.val() >= self.n48.val() {
+                self.o_planes.next = self.t1p.val() - self.n32.val();
+            }
+        } else if self.trunc.val() {
+            self.o_planes.next = self.t1p.val();
+        } else {
+            self.o_planes.next = 0.into();
+            if bit_cast::<32, 48>(self.t1.val()) >= self.c32.val() {
+                self.o_planes.next = self.t1p.val() - self.c32.val();
+            }
         }
         self.at_edge.next = (self.ax.val() < self.h.val())
             | (self.ay.val() < self.h.val())
@@ -1646,12 +1673,5 @@ impl<const NW: usize> Logic for RecordFinisher<NW> {
         }
         self.o_flags.next = self.flags.val() | self.f_edge.val() | self.f_clip.val();
         self.o_ready.next = (self.kind.val() != 1) | (self.planes_done.val() > self.tag.val());
-        self.o_empty.next = self.t1.val() < self.t0.val();
-        self.o_empty_masked.next = false;
-        for i in 0..self._m {
-            if self.slot.val() == self.ids[i].val() {
-                self.o_empty_masked.next = self.slot_masked.val().get_bit(i);
-            }
-        }
     }
 }

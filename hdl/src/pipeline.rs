@@ -6,11 +6,12 @@
 //!
 //! **Stream start** ([`StreamControl`]): START checks the registers as the
 //! model's `PipelineConfig::validate` does (1 ≤ N ≤ N_max, T_int ≥ 1,
-//! 1 ≤ T_hold ≤ T_int, L_min ≥ 1, max(L_min, N) ≤ L_max ≤ L_max,max;
-//! otherwise `config_error` and nothing starts; the check is a register of
-//! the START clock's values and decides a clock later), latches N, T_int,
-//! T_hold, L_min, L_max, the plane period, the masked-pixel count and
-//! MASK_ENABLE, restarts every block (the tracker then pushes StreamStart,
+//! 1 ≤ T_hold ≤ T_int, END_TRIM ≤ N − 1, L_min ≥ 1,
+//! max(L_min, N) ≤ L_max ≤ L_max,max; otherwise `config_error` and nothing
+//! starts; the check is a register of the START clock's values and decides
+//! a clock later), latches N, T_int, T_hold, END_TRIM, L_min, L_max, the
+//! plane period, the masked-pixel count and MASK_ENABLE, restarts every
+//! block (the tracker then pushes StreamStart,
 //! sequence 0) and waits for the first `sop`. The front half compares H with
 //! `min(T_int, 2^HW − 1)` (candidates) and `min(T_hold, 2^HW − 1)` (the
 //! tracker's on/off bits), which decide the same since
@@ -19,10 +20,11 @@
 //! **Stream end**: STOP takes effect at the next plane boundary (a partial
 //! plane is completed first). The control then sends N *drain planes* —
 //! stored in the delay line, so that `B_{p−N} … B_{p−1}` come out for the
-//! pre-rolls still open, as the model's `Pipeline::finish` reads them from
-//! its delay line — and one flush plane that pushes the last rows out of the
+//! sums still open, as the model's `Pipeline::finish` reads them from its
+//! delay line — and one flush plane that pushes the last rows out of the
 //! row-lagged stages; the tracker truncates the live tracks after plane
-//! p − 1, completes the pre-rolls during the drain planes, emits the
+//! p − 1, completes their sums (and those of segments that dropped and
+//! wait for their last planes) during the drain planes, emits the
 //! remaining segments and StreamEnd. `ended` rises when the last byte is in
 //! the output FIFO. With p = 0 planes nothing is drained.
 //!
@@ -120,6 +122,8 @@ pub struct BackHalf<
     pub threshold: Signal<In, Bits<32>>,
     /// T_hold register (for StreamStart).
     pub threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM register (≤ N − 1).
+    pub end_trim: Signal<In, Bits<NW>>,
     /// L_min register.
     pub l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -148,9 +152,7 @@ pub struct BackHalf<
     pub raw_valid: Signal<In, Bit>,
     /// Its column.
     pub raw_x: Signal<In, Bits<16>>,
-    /// `B_t`.
-    pub raw_live: Signal<In, Bits<P>>,
-    /// `B_{t−N}`.
+    /// `B_{t−N}` (the only plane the ROIs sum).
     pub raw_delayed: Signal<In, Bits<P>>,
     /// Mask bits.
     pub raw_mask: Signal<In, Bits<P>>,
@@ -251,6 +253,7 @@ impl<
             n_window: Default::default(),
             threshold: Default::default(),
             threshold_hold: Default::default(),
+            end_trim: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             plane_period: Default::default(),
@@ -265,7 +268,6 @@ impl<
             fh_cand: lanes(P),
             raw_valid: Default::default(),
             raw_x: Default::default(),
-            raw_live: Default::default(),
             raw_delayed: Default::default(),
             raw_mask: Default::default(),
             out_valid: Default::default(),
@@ -354,6 +356,7 @@ impl<
 
         // Tracker.
         self.tracker.n_window.next = self.n_window.val();
+        self.tracker.end_trim.next = self.end_trim.val();
         self.tracker.l_min.next = self.l_min.val();
         self.tracker.l_max.next = self.l_max.val();
         self.tracker.stopping.next = self.stopping.val();
@@ -392,7 +395,6 @@ impl<
         // ROI aggregator: raw words and the tracker's ROI view.
         self.agg.in_valid.next = self.raw_valid.val();
         self.agg.in_x.next = self.raw_x.val();
-        self.agg.in_live.next = self.raw_live.val();
         self.agg.in_delayed.next = self.raw_delayed.val();
         self.agg.in_mask.next = self.raw_mask.val();
         self.agg.tr_plane.next = self.tracker.plane.val();
@@ -417,10 +419,9 @@ impl<
 
         // Derived Blink fields.
         self.fin.n_window.next = self.n_window.val();
+        self.fin.end_trim.next = self.end_trim.val();
         self.fin.planes_done.next = self.agg.planes_done.val();
-        self.fin.slot_masked.next = self.agg.slot_masked.val();
         self.fin.kind.next = self.queue.h_kind.val();
-        self.fin.slot.next = self.queue.h_slot.val();
         self.fin.flags.next = self.queue.h_flags.val();
         self.fin.ax.next = self.queue.h_x.val();
         self.fin.ay.next = self.queue.h_y.val();
@@ -433,6 +434,7 @@ impl<
         self.pkt.n_window.next = self.n_window.val();
         self.pkt.threshold.next = self.threshold.val();
         self.pkt.threshold_hold.next = self.threshold_hold.val();
+        self.pkt.end_trim.next = self.end_trim.val();
         self.pkt.l_min.next = self.l_min.val();
         self.pkt.l_max.next = self.l_max.val();
         self.pkt.plane_period.next = self.plane_period.val();
@@ -457,8 +459,6 @@ impl<
         self.pkt.r_planes.next = self.fin.o_planes.val();
         self.pkt.r_bank.next = self.queue.h_bank.val();
         self.pkt.r_ready.next = self.fin.o_ready.val();
-        self.pkt.r_empty.next = self.fin.o_empty.val();
-        self.pkt.r_empty_masked.next = self.fin.o_empty_masked.val();
         self.agg.rd_req.next = self.pkt.rd_req.val();
         self.agg.rd_addr.next = self.pkt.rd_addr.val();
         self.pkt.rd_grant.next = self.agg.rd_grant.val();
@@ -538,6 +538,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub reg_threshold: Signal<In, Bits<32>>,
     /// T_hold register.
     pub reg_threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM register.
+    pub reg_end_trim: Signal<In, Bits<32>>,
     /// L_min register.
     pub reg_l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -572,6 +574,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub threshold_hold_hw: Signal<Out, Bits<HW>>,
     /// Latched T_hold (StreamStart).
     pub threshold_hold: Signal<Out, Bits<32>>,
+    /// Latched END_TRIM (< N, so NW bits hold it).
+    pub end_trim: Signal<Out, Bits<NW>>,
     /// Latched L_min.
     pub l_min: Signal<Out, Bits<32>>,
     /// Latched L_max.
@@ -610,6 +614,7 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     n: DFF<Bits<NW>>,
     thr: DFF<Bits<32>>,
     thr_hold: DFF<Bits<32>>,
+    trim: DFF<Bits<NW>>,
     lmin: DFF<Bits<32>>,
     lmax: DFF<Bits<32>>,
     period: DFF<Bits<32>>,
@@ -673,6 +678,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             reg_n: Default::default(),
             reg_threshold: Default::default(),
             reg_threshold_hold: Default::default(),
+            reg_end_trim: Default::default(),
             reg_l_min: Default::default(),
             reg_l_max: Default::default(),
             reg_period: Default::default(),
@@ -690,6 +696,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             threshold: Default::default(),
             threshold_hold_hw: Default::default(),
             threshold_hold: Default::default(),
+            end_trim: Default::default(),
             l_min: Default::default(),
             l_max: Default::default(),
             plane_period: Default::default(),
@@ -711,6 +718,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             n: Default::default(),
             thr: Default::default(),
             thr_hold: Default::default(),
+            trim: Default::default(),
             lmin: Default::default(),
             lmax: Default::default(),
             period: Default::default(),
@@ -746,7 +754,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, n, thr, thr_hold, lmin, lmax, period, masked, men, synced,
+            self, clock, state, n, thr, thr_hold, trim, lmin, lmax, period, masked, men, synced,
             stop_req, widx, w_zero, w_last, planes_in, drains, n_last, ended_q, cfg_err, frm_err,
             rst, regs_ok
         );
@@ -756,6 +764,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             & (self.reg_threshold.val() != 0)
             & (self.reg_threshold_hold.val() != 0)
             & (self.reg_threshold_hold.val() <= self.reg_threshold.val())
+            & (self.reg_end_trim.val() < self.reg_n.val())
             & (self.reg_l_min.val() != 0)
             & (self.reg_l_max.val() >= self.reg_l_min.val())
             & (self.reg_l_max.val() >= self.reg_n.val())
@@ -779,6 +788,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                     self.n_last.d.next = bit_cast::<NW, 32>(self.reg_n.val()) - 1;
                     self.thr.d.next = self.reg_threshold.val();
                     self.thr_hold.d.next = self.reg_threshold_hold.val();
+                    self.trim.d.next = bit_cast::<NW, 32>(self.reg_end_trim.val());
                     self.lmin.d.next = self.reg_l_min.val();
                     self.lmax.d.next = self.reg_l_max.val();
                     self.period.d.next = self.reg_period.val();
@@ -887,6 +897,7 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             self.threshold_hw.next = bit_cast::<HW, 32>(self.thr_max.val());
         }
         self.threshold_hold.next = self.thr_hold.q.val();
+        self.end_trim.next = self.trim.q.val();
         self.threshold_hold_hw.next = bit_cast::<HW, 32>(self.thr_hold.q.val());
         if self.thr_hold.q.val() > self.thr_max.val() {
             self.threshold_hold_hw.next = bit_cast::<HW, 32>(self.thr_max.val());
@@ -951,6 +962,8 @@ pub struct Pipeline<
     pub reg_threshold: Signal<In, Bits<32>>,
     /// T_hold register.
     pub reg_threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM register.
+    pub reg_end_trim: Signal<In, Bits<32>>,
     /// L_min register.
     pub reg_l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -1071,6 +1084,7 @@ impl<
             reg_n: Default::default(),
             reg_threshold: Default::default(),
             reg_threshold_hold: Default::default(),
+            reg_end_trim: Default::default(),
             reg_l_min: Default::default(),
             reg_l_max: Default::default(),
             reg_period: Default::default(),
@@ -1149,6 +1163,7 @@ impl<
         self.control.reg_n.next = self.reg_n.val();
         self.control.reg_threshold.next = self.reg_threshold.val();
         self.control.reg_threshold_hold.next = self.reg_threshold_hold.val();
+        self.control.reg_end_trim.next = self.reg_end_trim.val();
         self.control.reg_l_min.next = self.reg_l_min.val();
         self.control.reg_l_max.next = self.reg_l_max.val();
         self.control.reg_period.next = self.reg_period.val();
@@ -1196,6 +1211,7 @@ impl<
         self.back.n_window.next = self.control.n_window.val();
         self.back.threshold.next = self.control.threshold.val();
         self.back.threshold_hold.next = self.control.threshold_hold.val();
+        self.back.end_trim.next = self.control.end_trim.val();
         self.back.l_min.next = self.control.l_min.val();
         self.back.l_max.next = self.control.l_max.val();
         self.back.plane_period.next = self.control.plane_period.val();
@@ -1213,7 +1229,6 @@ impl<
         self.back.raw_valid.next =
             self.delay.out_valid.val() & (!self.delay.out_flush.val() | self.delay.out_drain.val());
         self.back.raw_x.next = self.delay.out_x.val();
-        self.back.raw_live.next = self.delay.out_live.val();
         self.back.raw_delayed.next = self.delay.out_delayed.val();
         self.back.raw_mask.next = self.delay.out_side.val();
         self.back.out_pop.next = self.out_pop.val();
@@ -1279,6 +1294,8 @@ pub struct PipelineDdr<
     pub reg_threshold: Signal<In, Bits<32>>,
     /// T_hold register.
     pub reg_threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM register.
+    pub reg_end_trim: Signal<In, Bits<32>>,
     /// L_min register.
     pub reg_l_min: Signal<In, Bits<32>>,
     /// L_max register.
@@ -1397,6 +1414,7 @@ impl<
             reg_n: Default::default(),
             reg_threshold: Default::default(),
             reg_threshold_hold: Default::default(),
+            reg_end_trim: Default::default(),
             reg_l_min: Default::default(),
             reg_l_max: Default::default(),
             reg_period: Default::default(),
@@ -1475,6 +1493,7 @@ impl<
         self.control.reg_n.next = self.reg_n.val();
         self.control.reg_threshold.next = self.reg_threshold.val();
         self.control.reg_threshold_hold.next = self.reg_threshold_hold.val();
+        self.control.reg_end_trim.next = self.reg_end_trim.val();
         self.control.reg_l_min.next = self.reg_l_min.val();
         self.control.reg_l_max.next = self.reg_l_max.val();
         self.control.reg_period.next = self.reg_period.val();
@@ -1536,6 +1555,7 @@ impl<
         self.back.n_window.next = self.control.n_window.val();
         self.back.threshold.next = self.control.threshold.val();
         self.back.threshold_hold.next = self.control.threshold_hold.val();
+        self.back.end_trim.next = self.control.end_trim.val();
         self.back.l_min.next = self.control.l_min.val();
         self.back.l_max.next = self.control.l_max.val();
         self.back.plane_period.next = self.control.plane_period.val();
@@ -1553,7 +1573,6 @@ impl<
         self.back.raw_valid.next =
             self.delay.out_valid.val() & (!self.delay.out_flush.val() | self.delay.out_drain.val());
         self.back.raw_x.next = self.delay.out_x.val();
-        self.back.raw_live.next = self.delay.out_live.val();
         self.back.raw_delayed.next = self.delay.out_delayed.val();
         self.back.raw_mask.next = self.delay.out_side.val();
         self.back.out_pop.next = self.out_pop.val();
@@ -1608,10 +1627,10 @@ pub fn test_back_config(
 }
 
 /// [`Pipeline`] of [`test_back_config`]`(4, 3, 1)`.
-pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
 
 /// [`PipelineDdr`] of [`test_back_config`]`(4, 3, 1)`, prefetch of 64 words.
-pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
 
 /// The SPCImager at 150× (320×240, P = 16, N_max = 128, the model's kernel
 /// for σ = 1.51 px) with the model's defaults M = 32, 9×9 ROIs (R = k),
@@ -1653,8 +1672,8 @@ fn back_config_for(front: GatewareConfig, n: u32) -> Result<BackHalfConfig, Gate
 
 /// [`Pipeline`] of [`projected150_back_config`] (block-RAM delay line).
 pub type Projected150Pipeline =
-    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 
 /// [`PipelineDdr`] of [`spcimager150_back_config`].
 pub type Spcimager150PipelineDdr =
-    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;

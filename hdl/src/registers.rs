@@ -28,7 +28,7 @@ mod tests {
 
     #[test]
     fn the_kernel_word_is_the_hosts() {
-        assert_eq!(version_word(), 0x0202);
+        assert_eq!(version_word(), 0x0303);
         let k = [2u32, 10, 29, 54, 66, 54, 29, 10, 2];
         assert_eq!(
             kernel_crc(&k),

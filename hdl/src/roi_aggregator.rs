@@ -1,27 +1,29 @@
 //! Stage 6 — ROI aggregation: per slot, R×R counters summing the raw
-//! (masked) live plane `B_t` while the tracker says `sums_live` and the
-//! delayed plane `B_{t−N}` during the pre-roll (`sums_preroll`), as
+//! (masked) delayed plane `B_{t−N}` while the tracker says so (its ROI
+//! view's `pre`, the model's `sums_delayed`: a segment sums its planes as
+//! they leave the window, never the live plane), as
 //! [`smartagg_model::roi_aggregator`].
 //!
 //! **Row skew.** A track opens only when its candidate has come out of the
-//! front half, c + 1 rows after its row went in, and its on/off step for
-//! plane t is known only when row `ay + 1` of H has been processed. The raw
-//! live, delayed and mask bits therefore go into a ring of
+//! front half, c + 1 rows after its row went in. The raw delayed and mask
+//! bits therefore go into a ring of
 //! [`BackHalfConfig::row_buffer_rows`] rows (c + h + 5 rows of lag plus the
 //! sweep backlog), and raw row r of plane t is summed (*swept*) only once
 //! the tracker has finished row `min(r + h + 2, H)` of plane t: by then
 //! every slot whose ROI covers row r has its final flags for plane t in the
 //! tracker's ROI view (see [`crate::blink_tracker`]), including tracks
-//! opened by candidates up to row r + h. A ring overrun (the sweep fell a
-//! whole ring behind) sets the sticky `overrun` flag.
+//! opened by candidates up to row r + h. (Only the openings need the wait:
+//! the tracker's on/off step at row `ay + 1` changes no view, so
+//! `r + h + 1` rows would do; the margin is kept.) A ring overrun (the
+//! sweep fell a whole ring behind) sets the sticky `overrun` flag.
 //!
 //! **Sweep.** For each raw row, the slots whose ROI covers it and that sum
-//! this plane are taken one per clock (lowest slot first): the R bits of
-//! the row at columns `ax − h … ax + h` are cut from the two words that hold
-//! them (the ring keeps even and odd words in separate banks, so both are
-//! read in one clock; columns outside the sensor read 0), and the R counters
-//! of that ROI row are read, incremented by `live·sums_live +
-//! delayed·sums_preroll`, and written back the next clock. Three stages, so
+//! this plane (`pre`) or start in it (`fresh`) are taken one per clock
+//! (lowest slot first): the R bits of the row at columns `ax − h … ax + h`
+//! are cut from the two words that hold them (the ring keeps even and odd
+//! words in separate banks, so both are read in one clock; columns outside
+//! the sensor read 0), and the R counters of that ROI row are read,
+//! incremented by `delayed·pre`, and written back the next clock. Three stages, so
 //! that no path between registers is long: S0 picks the slot (the lowest
 //! bit of `rel`) and registers its view; SA computes the word and
 //! counter addresses; S1 adds and writes. The view of plane t stays
@@ -31,11 +33,12 @@
 //! and `rhi` (what row `ra` waits for and which ROI rows cover it) move with
 //! `ra` instead of being computed from it. In the first
 //! plane of a segment (`fresh`) the old counts read as zero, so counters
-//! never need clearing. ROI rows outside the sensor are never swept; the
+//! never need clearing; as every segment is swept in its first plane (even
+//! an opening at `t < N`, which sums nothing yet), its counters and mask
+//! flags are its own from then on, and a segment that sums no plane at all
+//! reads zero counts. ROI rows outside the sensor are never swept; the
 //! packetiser reads them as 0. The MASKED flag is the OR of the mask bits
-//! of the ROI, kept beside each counter row, and per slot for the one
-//! segment that sums nothing (a continuation starting at the stream's end,
-//! which the model still reports, with zero counts).
+//! of the ROI, kept beside each counter row.
 //!
 //! **Counters: block RAM.** R memories (one per ROI column) of
 //! `(M + Q)·R` counter rows of RCW bits, plus one 1-bit memory for the mask
@@ -79,8 +82,6 @@ pub struct RoiAggregator<
     pub in_valid: Signal<In, Bit>,
     /// Its word column.
     pub in_x: Signal<In, Bits<16>>,
-    /// `B_t`.
-    pub in_live: Signal<In, Bits<P>>,
     /// `B_{t−N}`.
     pub in_delayed: Signal<In, Bits<P>>,
     /// Hot-pixel mask bits.
@@ -111,10 +112,8 @@ pub struct RoiAggregator<
     pub rd_counts: Vec<Signal<Out, Bits<RCW>>>,
     /// The row's mask flag.
     pub rd_masked: Signal<Out, Bit>,
-    /// Per slot: MASKED of the ROI of its latest segment that summed a plane
-    /// (for a continuation cut off by the stream end before summing any).
-    /// (Bit i: slot i.)
-    pub slot_masked: Signal<Out, Bits<MAX_SLOTS>>,
+    /// The row buffer: delayed and mask bits of even words (0, 1) and of
+    /// odd words (2, 3).
     ring: Vec<Bram<P, RAW>>,
     cnt: Vec<Bram<RCW, CAW>>,
     msk: Bram<1, CAW>,
@@ -126,8 +125,8 @@ pub struct RoiAggregator<
     ovf: DFF<Bit>,
     // Sweep.
     sweeping: DFF<Bit>,
-    /// Slots still to sweep in the row (bit i: slot i; so are `s1_sel` and
-    /// `mflag`: one register per field, not per slot, as in the tracker).
+    /// Slots still to sweep in the row (bit i: slot i: one register, not one
+    /// per slot, as in the tracker).
     rel: DFF<Bits<MAX_SLOTS>>,
     rbase: DFF<Bits<RAW>>,
     rslot: DFF<Bits<16>>,
@@ -146,16 +145,13 @@ pub struct RoiAggregator<
     // Address stage (SA): the selected slot's view, registered after the
     // slot multiplexer, with the row it sweeps.
     a_valid: DFF<Bit>,
-    a_sel: DFF<Bits<MAX_SLOTS>>,
     /// The selected slot's view entry (fields at
     /// [`crate::blink_tracker::shadow`]'s offsets).
     a_view: DFF<Bits<64>>,
     a_row_hi: DFF<Bits<COORD_BITS>>,
-    a_ra0: DFF<Bit>,
     a_rbase: DFF<Bits<RAW>>,
     ra: DFF<Bits<16>>,
     s1_valid: DFF<Bit>,
-    s1_live: DFF<Bit>,
     s1_pre: DFF<Bit>,
     s1_fresh: DFF<Bit>,
     s1_off: DFF<Bits<16>>,
@@ -166,9 +162,6 @@ pub struct RoiAggregator<
     s1_hi_ok: DFF<Bit>,
     s1_odd: DFF<Bit>,
     s1_addr: DFF<Bits<CAW>>,
-    s1_first: DFF<Bit>,
-    s1_sel: DFF<Bits<MAX_SLOTS>>,
-    mflag: DFF<Bits<MAX_SLOTS>>,
     // Combinational.
     pending: Signal<Local, Bits<16>>,
     par: Signal<Local, Bit>,
@@ -196,8 +189,6 @@ pub struct RoiAggregator<
     now_rel: Vec<Signal<Local, Bit>>,
     /// `now_rel` packed, bit i: slot i.
     now_v: Signal<Local, Bits<MAX_SLOTS>>,
-    /// MASKED bits to set: the slot of S1 if its ROI row has a masked pixel.
-    m_set: Signal<Local, Bits<MAX_SLOTS>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
     /// The OR tree that finds the selected slot's view entry.
@@ -208,13 +199,10 @@ pub struct RoiAggregator<
     half_wq: Signal<Local, Bits<16>>,
     odd_addr: Signal<Local, Bits<16>>,
     caddr: Signal<Local, Bits<CAW>>,
-    lo_l: Signal<Local, Bits<P>>,
     lo_d: Signal<Local, Bits<P>>,
     lo_m: Signal<Local, Bits<P>>,
-    hi_l: Signal<Local, Bits<P>>,
     hi_d: Signal<Local, Bits<P>>,
     hi_m: Signal<Local, Bits<P>>,
-    win_l: Signal<Local, Bits<P>>,
     win_d: Signal<Local, Bits<P>>,
     win_m: Signal<Local, Bits<P>>,
     inc: Vec<Signal<Local, Bits<RCW>>>,
@@ -268,7 +256,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             restart: Default::default(),
             in_valid: Default::default(),
             in_x: Default::default(),
-            in_live: Default::default(),
             in_delayed: Default::default(),
             in_mask: Default::default(),
             tr_plane: Default::default(),
@@ -282,8 +269,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             rd_grant: Default::default(),
             rd_counts: lanes(r),
             rd_masked: Default::default(),
-            slot_masked: Default::default(),
-            ring: (0..6).map(|_| Bram::new(ring_depth, ring_style)).collect(),
+            ring: (0..4).map(|_| Bram::new(ring_depth, ring_style)).collect(),
             cnt: (0..r)
                 .map(|_| Bram::new(counter_rows, RamStyle::Block))
                 .collect(),
@@ -306,14 +292,11 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             gs_w: Default::default(),
             pd: Default::default(),
             a_valid: Default::default(),
-            a_sel: Default::default(),
             a_view: Default::default(),
             a_row_hi: Default::default(),
-            a_ra0: Default::default(),
             a_rbase: Default::default(),
             ra: Default::default(),
             s1_valid: Default::default(),
-            s1_live: Default::default(),
             s1_pre: Default::default(),
             s1_fresh: Default::default(),
             s1_off: Default::default(),
@@ -322,9 +305,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             s1_hi_ok: Default::default(),
             s1_odd: Default::default(),
             s1_addr: Default::default(),
-            s1_first: Default::default(),
-            s1_sel: Default::default(),
-            mflag: Default::default(),
             pending: Default::default(),
             par: Default::default(),
             need: Default::default(),
@@ -343,7 +323,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             rest_any: Default::default(),
             now_rel: lanes(m),
             now_v: Default::default(),
-            m_set: Default::default(),
             row_done: Default::default(),
             s0: Default::default(),
             kt: lanes(2 * m - 1),
@@ -353,13 +332,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             half_wq: Default::default(),
             odd_addr: Default::default(),
             caddr: Default::default(),
-            lo_l: Default::default(),
             lo_d: Default::default(),
             lo_m: Default::default(),
-            hi_l: Default::default(),
             hi_d: Default::default(),
             hi_m: Default::default(),
-            win_l: Default::default(),
             win_d: Default::default(),
             win_m: Default::default(),
             inc: lanes(r),
@@ -394,12 +370,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
     fn update(&mut self) {
         dff_setup!(
             self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rlo, rhi, gs_w, pd,
-            ra, need, a_valid, a_sel, a_view, a_row_hi, a_ra0, a_rbase, s1_valid, s1_live, s1_pre,
-            s1_fresh, s1_off, s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, s1_first, rel, s1_sel,
-            mflag
+            ra, need, a_valid, a_view, a_row_hi, a_rbase, s1_valid, s1_pre, s1_fresh, s1_off,
+            s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, rel
         );
-        self.slot_masked.next = self.mflag.q.val();
-        for q in 0..6 {
+        for q in 0..4 {
             self.ring[q].clock.next = self.clock.val();
         }
         for dx in 0..self._r {
@@ -407,24 +381,22 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         }
         self.msk.clock.next = self.clock.val();
 
-        // ---- Writer: even words to ring 0..2, odd words to ring 3..5.
+        // ---- Writer: even words to ring 0..1, odd words to ring 2..3.
         self.pending.next = self.gw.q.val() - self.gs_w.q.val();
         self.gs_w.d.next = self.gs.q.val();
         self.pd.d.next = self.ta.q.val();
-        for q in 0..6 {
+        for q in 0..4 {
             self.ring[q].write_address.next =
                 self.wbase.q.val() + bit_cast::<RAW, 16>(self.in_x.val() >> 1);
         }
-        self.ring[0].write_data.next = self.in_live.val();
-        self.ring[1].write_data.next = self.in_delayed.val();
-        self.ring[2].write_data.next = self.in_mask.val();
-        self.ring[3].write_data.next = self.in_live.val();
-        self.ring[4].write_data.next = self.in_delayed.val();
-        self.ring[5].write_data.next = self.in_mask.val();
-        for q in 0..3 {
+        self.ring[0].write_data.next = self.in_delayed.val();
+        self.ring[1].write_data.next = self.in_mask.val();
+        self.ring[2].write_data.next = self.in_delayed.val();
+        self.ring[3].write_data.next = self.in_mask.val();
+        for q in 0..2 {
             self.ring[q].write_enable.next = self.in_valid.val() & !self.in_x.val().get_bit(0);
         }
-        for q in 3..6 {
+        for q in 2..4 {
             self.ring[q].write_enable.next = self.in_valid.val() & self.in_x.val().get_bit(0);
         }
         if self.in_valid.val() {
@@ -454,7 +426,8 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 | ((self.dplane.val() == 0) & (self.tr_rows.val() >= self.need.q.val())));
         self.go.next = self.trig.val() & !self.sweeping.q.val();
 
-        // ---- Slots whose ROI covers row ra and that sum this plane: read
+        // ---- Slots whose ROI covers row ra and that sum this plane or start
+        // in it (`pre` or `fresh`): read
         // only when a row's sweep starts (and computed only then, which
         // costs nothing in hardware and saves a simulator the 32 slots'
         // comparisons on the other clocks).
@@ -467,13 +440,13 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 for i in 0..self._m {
                     // (Offsets: `shadow`; literals for hdl_gen.)
                     if self.par.val() {
-                        self.now_rel[i].next = (self.sh[i + mm].val().get_bit(61)
-                            | self.sh[i + mm].val().get_bit(62))
+                        self.now_rel[i].next = (self.sh[i + mm].val().get_bit(62)
+                            | self.sh[i + mm].val().get_bit(63))
                             & (self.sh[i + mm].val().get_bits::<10>(10) >= self.rlo.q.val())
                             & (self.sh[i + mm].val().get_bits::<10>(10) <= self.rhi.q.val());
                     } else {
-                        self.now_rel[i].next = (self.sh[i].val().get_bit(61)
-                            | self.sh[i].val().get_bit(62))
+                        self.now_rel[i].next = (self.sh[i].val().get_bit(62)
+                            | self.sh[i].val().get_bit(63))
                             & (self.sh[i].val().get_bits::<10>(10) >= self.rlo.q.val())
                             & (self.sh[i].val().get_bits::<10>(10) <= self.rhi.q.val());
                     }
@@ -528,12 +501,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         // ---- S0 → SA: the selected slot's view and its row, registered
         // (the priority chain and the slot multiplexer are the stage's logic).
         self.a_valid.d.next = self.s0.val();
-        self.a_sel.d.next = self.rsel_v.val();
         for mm in self._m..(self._m + 1) {
             self.a_view.d.next = self.kt[2 * mm - 2].val();
         }
         self.a_row_hi.d.next = self.rhi.q.val();
-        self.a_ra0.d.next = self.ra.q.val() == 0;
         self.a_rbase.d.next = self.rbase.q.val();
 
         // ---- SA: addresses of the two words and of the counter row.
@@ -547,11 +518,11 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         if !self.wq.val().get_bit(0) {
             self.odd_addr.next = self.half_wq.val() - 1;
         }
-        for q in 0..3 {
+        for q in 0..2 {
             self.ring[q].read_address.next =
                 self.a_rbase.q.val() + bit_cast::<RAW, 16>(self.half_wq.val());
         }
-        for q in 3..6 {
+        for q in 2..4 {
             self.ring[q].read_address.next =
                 self.a_rbase.q.val() + bit_cast::<RAW, 16>(self.odd_addr.val());
         }
@@ -569,8 +540,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         }
         self.rd_grant.next = self.rd_req.val() & !self.a_valid.q.val();
         self.s1_valid.d.next = self.a_valid.q.val();
-        self.s1_sel.d.next = self.a_sel.q.val();
-        self.s1_live.d.next = self.a_view.q.val().get_bit(61);
         self.s1_pre.d.next = self.a_view.q.val().get_bit(62);
         self.s1_fresh.d.next = self.a_view.q.val().get_bit(63);
         self.s1_off.d.next = self.x0p.val() & self.pm1.val();
@@ -579,41 +548,31 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.s1_hi_ok.d.next = self.wq.val() < self.words.val();
         self.s1_odd.d.next = self.wq.val().get_bit(0);
         self.s1_addr.d.next = self.caddr.val();
-        // The first in-sensor row of the ROI.
-        self.s1_first.d.next = (self.dy.val() == 0) | self.a_ra0.q.val();
 
         // ---- S1: the R columns of the ROI row, added to its counters.
         // Word a = wq − 1 (left) is even when wq is odd.
-        self.lo_l.next = 0.into();
         self.lo_d.next = 0.into();
         self.lo_m.next = 0.into();
-        self.hi_l.next = 0.into();
         self.hi_d.next = 0.into();
         self.hi_m.next = 0.into();
         if self.s1_lo_ok.q.val() {
             if self.s1_odd.q.val() {
-                self.lo_l.next = self.ring[0].read_data.val();
-                self.lo_d.next = self.ring[1].read_data.val();
-                self.lo_m.next = self.ring[2].read_data.val();
+                self.lo_d.next = self.ring[0].read_data.val();
+                self.lo_m.next = self.ring[1].read_data.val();
             } else {
-                self.lo_l.next = self.ring[3].read_data.val();
-                self.lo_d.next = self.ring[4].read_data.val();
-                self.lo_m.next = self.ring[5].read_data.val();
+                self.lo_d.next = self.ring[2].read_data.val();
+                self.lo_m.next = self.ring[3].read_data.val();
             }
         }
         if self.s1_hi_ok.q.val() {
             if self.s1_odd.q.val() {
-                self.hi_l.next = self.ring[3].read_data.val();
-                self.hi_d.next = self.ring[4].read_data.val();
-                self.hi_m.next = self.ring[5].read_data.val();
+                self.hi_d.next = self.ring[2].read_data.val();
+                self.hi_m.next = self.ring[3].read_data.val();
             } else {
-                self.hi_l.next = self.ring[0].read_data.val();
-                self.hi_d.next = self.ring[1].read_data.val();
-                self.hi_m.next = self.ring[2].read_data.val();
+                self.hi_d.next = self.ring[0].read_data.val();
+                self.hi_m.next = self.ring[1].read_data.val();
             }
         }
-        self.win_l.next =
-            (self.lo_l.val() >> self.s1_off.q.val()) | (self.hi_l.val() << self.s1_sh_hi.q.val());
         self.win_d.next =
             (self.lo_d.val() >> self.s1_off.q.val()) | (self.hi_d.val() << self.s1_sh_hi.q.val());
         self.win_m.next =
@@ -624,17 +583,8 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 self.old[dx].next = 0.into();
             }
             self.inc[dx].next = 0.into();
-            if (self.s1_live.q.val() & self.win_l.val().get_bit(dx))
-                | (self.s1_pre.q.val() & self.win_d.val().get_bit(dx))
-            {
+            if self.s1_pre.q.val() & self.win_d.val().get_bit(dx) {
                 self.inc[dx].next = 1.into();
-            }
-            if self.s1_live.q.val()
-                & self.win_l.val().get_bit(dx)
-                & self.s1_pre.q.val()
-                & self.win_d.val().get_bit(dx)
-            {
-                self.inc[dx].next = 2.into();
             }
             self.cnt[dx].write_address.next = self.s1_addr.q.val();
             self.cnt[dx].write_data.next = self.old[dx].val() + self.inc[dx].val();
@@ -645,17 +595,6 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.any_m.next = (self.win_m.val() & self.roi_mask.val()).any();
         self.msk.write_address.next = self.s1_addr.q.val();
         self.msk.write_data.next = (self.old_m.val() | self.any_m.val()).into();
-        self.m_set.next = 0.into();
-        if self.any_m.val() {
-            self.m_set.next = self.s1_sel.q.val();
-        }
-        if self.s1_valid.q.val() & self.s1_fresh.q.val() {
-            if self.s1_first.q.val() {
-                self.mflag.d.next = (self.mflag.q.val() & !self.s1_sel.q.val()) | self.m_set.val();
-            } else {
-                self.mflag.d.next = self.mflag.q.val() | self.m_set.val();
-            }
-        }
         self.msk.write_enable.next = self.s1_valid.q.val();
         self.rd_masked.next = self.msk.read_data.val().any();
 

@@ -504,7 +504,7 @@ pub struct $core<
 > {
     /// okClk.
     pub clock: Signal<In, Clock>,
-    /// Wire-ins 0x00 … 0x07.
+    /// Wire-ins 0x00 … 0x08.
     pub wire_in: Vec<Signal<In, Bits<32>>>,
     /// Trigger-in 0x40 (one-clock pulses).
     pub trigger: Signal<In, Bits<32>>,
@@ -748,8 +748,9 @@ impl<
         self.pipe.reg_l_max.next = self.wire_in[4].val();
         self.pipe.reg_period.next = self.wire_in[5].val();
         self.pipe.reg_masked.next = self.wire_in[6].val();
-        // wire_in::THRESHOLD_HOLD (checked below the block).
+        // wire_in::THRESHOLD_HOLD and END_TRIM (checked below the block).
         self.pipe.reg_threshold_hold.next = self.wire_in[7].val();
+        self.pipe.reg_end_trim.next = self.wire_in[8].val();
         self.pipe.reset.next = self.trigger.val().get_bit(0);
         if self.trigger.val().get_bit(1) {
             self.start_pend.d.next = true;
@@ -945,12 +946,12 @@ xem_core!(
 
 /// [`XemCore`] of [`crate::pipeline::test_back_config`]`(4, 3, 1)` (the
 /// parameters of [`crate::pipeline::TestPipelineDdr`]).
-pub type TestXemCore = XemCore<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestXemCore = XemCore<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
 
 /// [`XemCoreOnChip`] of the same configuration (the parameters of
 /// [`crate::pipeline::TestPipeline`]).
 pub type TestXemCoreOnChip =
-    XemCoreOnChip<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+    XemCoreOnChip<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
 
 // The core's wire-in indices are literals (an `#[hdl_gen]` body indexes
 // with them): they are the register map's addresses.
@@ -962,7 +963,8 @@ const _: () = assert!(
         && registers::wire_in::PLANE_PERIOD_NS == 5
         && registers::wire_in::MASKED_PIXELS == 6
         && registers::wire_in::THRESHOLD_HOLD == 7
-        && registers::wire_in::COUNT == 8
+        && registers::wire_in::END_TRIM == 8
+        && registers::wire_in::COUNT == 9
 );
 
 /// Depth (address bits) of the sensor port's clock-crossing FIFO.
@@ -1066,6 +1068,7 @@ pub struct $top<
     wi5: OkEndpoint,
     wi6: OkEndpoint,
     wi7: OkEndpoint,
+    wi8: OkEndpoint,
     wo0: OkEndpoint,
     wo1: OkEndpoint,
     wo2: OkEndpoint,
@@ -1152,6 +1155,7 @@ impl<
             wi5: wi(5),
             wi6: wi(6),
             wi7: wi(7),
+            wi8: wi(8),
             wo0: wo(0),
             wo1: wo(1),
             wo2: wo(2),
@@ -1212,6 +1216,7 @@ impl<
         self.wi5.ok_he.next = self.host.ok_he.val();
         self.wi6.ok_he.next = self.host.ok_he.val();
         self.wi7.ok_he.next = self.host.ok_he.val();
+        self.wi8.ok_he.next = self.host.ok_he.val();
         self.wo0.ok_he.next = self.host.ok_he.val();
         self.wo1.ok_he.next = self.host.ok_he.val();
         self.wo2.ok_he.next = self.host.ok_he.val();
@@ -1245,6 +1250,7 @@ impl<
         self.wi5.ep_datain.next = 0.into();
         self.wi6.ep_datain.next = 0.into();
         self.wi7.ep_datain.next = 0.into();
+        self.wi8.ep_datain.next = 0.into();
         self.ti40.ep_datain.next = 0.into();
         self.pi80.ep_datain.next = 0.into();
         self.pi81.ep_datain.next = 0.into();
@@ -1256,6 +1262,7 @@ impl<
         self.wi5.ep_ready.next = false;
         self.wi6.ep_ready.next = false;
         self.wi7.ep_ready.next = false;
+        self.wi8.ep_ready.next = false;
         self.wo0.ep_ready.next = false;
         self.wo1.ep_ready.next = false;
         self.wo2.ep_ready.next = false;
@@ -1273,6 +1280,7 @@ impl<
         self.wi5.ep_clk.next = self.host.ok_clk.val();
         self.wi6.ep_clk.next = self.host.ok_clk.val();
         self.wi7.ep_clk.next = self.host.ok_clk.val();
+        self.wi8.ep_clk.next = self.host.ok_clk.val();
         self.wo0.ep_clk.next = self.host.ok_clk.val();
         self.wo1.ep_clk.next = self.host.ok_clk.val();
         self.wo2.ep_clk.next = self.host.ok_clk.val();
@@ -1294,6 +1302,7 @@ impl<
         self.core.wire_in[5].next = self.wi5.ep_dataout.val();
         self.core.wire_in[6].next = self.wi6.ep_dataout.val();
         self.core.wire_in[7].next = self.wi7.ep_dataout.val();
+        self.core.wire_in[8].next = self.wi8.ep_dataout.val();
         self.core.trigger.next = self.ti40.ep_dataout.val();
         self.wo0.ep_datain.next = self.core.wire_out[0].val();
         self.wo1.ep_datain.next = self.core.wire_out[1].val();
@@ -1393,7 +1402,7 @@ xem_top!(
 /// The XEM6310 top for the SPCImager at 150×
 /// ([`crate::pipeline::spcimager150_back_config`]), DDR2 delay line.
 pub type Spcimager150Xem =
-    Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+    Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 
 /// A small XEM6310 top ([`crate::pipeline::test_back_config`]) for lint.
-pub type TestXem = Xem6310Top<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 464, 29, 5, 11>;
+pub type TestXem = Xem6310Top<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;

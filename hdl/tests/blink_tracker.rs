@@ -1,16 +1,17 @@
 //! The gateware tracker against `model::blink_tracker::BlinkTracker` on
 //! random H streams (blinking molecules with one- and two-plane dips,
 //! neighbours within the association radius, short false alarms), random
-//! word timing, few slots (exhaustion), short L_max (cuts), a record queue
-//! that is sometimes full (losses counted), and the stream end with its N
-//! drain planes.
+//! word timing, few slots (exhaustion), short L_max (cuts), any END_TRIM
+//! (0 ..= N − 1), a record queue that is sometimes full (losses counted),
+//! and the stream end with its N drain planes.
 //!
 //! Checked: every record (kind, slot, flags, anchor, t_cross, t_drop,
 //! Dropped count and first position, StreamEnd counters), the loss counts,
 //! bank hand-over, and the ROI view (shadow) exactly when and where the ROI
 //! aggregator reads it: for every row r of plane t once the tracker has done
 //! `min(r + h + 2, H)` rows, and for the whole previous plane, which slots
-//! sum row r and with which flags and anchor.
+//! sweep row r (sum the delayed plane, or start their counters) and with
+//! which flags and anchor.
 
 mod common;
 
@@ -115,10 +116,11 @@ fn blink(c: &Completed) -> Rec {
     }
 }
 
-/// What the aggregator must see for one slot in one plane.
+/// What the aggregator must see for one slot in one plane: whether it
+/// sums the delayed plane (the model's `sums_delayed`), whether it is the
+/// segment's first plane (its counters start; swept even without a sum).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct View {
-    live: bool,
     pre: bool,
     fresh: bool,
     ax: u16,
@@ -127,7 +129,7 @@ struct View {
 
 impl View {
     fn sums(&self) -> bool {
-        self.live || self.pre
+        self.pre || self.fresh
     }
     fn covers(&self, r: usize, h: usize) -> bool {
         self.sums() && (self.ay as usize + h >= r) && (self.ay as usize <= r + h)
@@ -138,13 +140,33 @@ struct Expected {
     records: Vec<Rec>,
     views: Vec<Vec<View>>, // per plane (real and drain), per slot
     counters: [u64; 5],    // blinks, unconfirmed, dropped, bridged, cuts
+    /// The OR of the Blink records' flags.
+    flags: u8,
+    /// Blinks that summed no plane.
+    empty: usize,
 }
 
-fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> Expected {
-    let mut tr = Model::new(m, n, l_min, l_max, r);
+#[allow(clippy::too_many_arguments)]
+fn model(
+    hs: &[Vec<u32>],
+    m: usize,
+    n: u32,
+    end_trim: u32,
+    l_min: u32,
+    l_max: u32,
+    r: u32,
+) -> Expected {
+    let mut tr = Model::new(m, n, end_trim, l_min, l_max, r);
     let mut records = vec![Rec::Start];
     let mut views = Vec::new();
     let mut blinks = 0u64;
+    let (mut all_flags, mut empty) = (0u8, 0usize);
+    let mut note = |c: &Completed| {
+        all_flags |= c.segment.flags(n);
+        if c.segment.planes_summed(n, end_trim) == Some(0) {
+            empty += 1;
+        }
+    };
     for (t, hmap) in hs.iter().enumerate() {
         let t = t as u64;
         tr.evaluate(t, |x, y| {
@@ -156,14 +178,12 @@ fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> E
             (0..m)
                 .map(|i| match &tr.slots()[i] {
                     Slot::Busy(s) => View {
-                        live: tr.sums_live(i, t),
-                        pre: tr.sums_preroll(i, t),
+                        pre: tr.sums_delayed(i, t),
                         fresh: s.t_cross == t,
                         ax: s.anchor_x,
                         ay: s.anchor_y,
                     },
                     Slot::Free => View {
-                        live: false,
                         pre: false,
                         fresh: false,
                         ax: 0,
@@ -174,6 +194,7 @@ fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> E
         );
         for c in tr.end_of_plane(t) {
             blinks += 1;
+            note(&c);
             records.push(blink(&c));
         }
         if let Some(d) = drops {
@@ -192,7 +213,6 @@ fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> E
             let t = p + j;
             let mut v = vec![
                 View {
-                    live: false,
                     pre: false,
                     fresh: false,
                     ax: 0,
@@ -202,10 +222,13 @@ fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> E
             ];
             for c in &done {
                 let s = &c.segment;
+                // Drain plane t sums B_{t−N} while t − N ≤ the last plane
+                // (a truncated segment: every drain plane).
+                let last = s.last_plane(n, end_trim).unwrap();
+                // (A cut at the last plane: the continuation starts at p.)
                 v[c.slot] = View {
-                    live: false,
-                    pre: !s.continuation && t >= n as u64 && t < s.t_cross + n as u64,
-                    fresh: false,
+                    pre: t >= n as u64 && (t - n as u64) as i64 <= last,
+                    fresh: s.t_cross == t,
                     ax: s.anchor_x,
                     ay: s.anchor_y,
                 };
@@ -214,6 +237,7 @@ fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> E
         }
         for c in &done {
             blinks += 1;
+            note(c);
             records.push(blink(c));
         }
     }
@@ -229,15 +253,19 @@ fn model(hs: &[Vec<u32>], m: usize, n: u32, l_min: u32, l_max: u32, r: u32) -> E
             c.bridged_dips,
             c.cut_segments,
         ],
+        flags: all_flags,
+        empty,
     }
 }
 
+#[derive(Clone, Copy)]
 struct Params {
     seed: u64,
     planes: usize,
     molecules: usize,
     slots: usize,
     n: u32,
+    end_trim: u32,
     l_min: u32,
     l_max: u32,
     r_assoc: u32,
@@ -262,18 +290,42 @@ struct Outcome {
     /// Clocks a Blink waited for a bank: the queue had room, the free list
     /// showed none.
     bank_waits: usize,
+    /// The OR of the model's Blink flags.
+    flags: u8,
+    /// The model's Blinks that summed no plane.
+    empty: usize,
 }
 
 /// Runs a stream and checks it against the model.
 fn run(pr: &Params) -> Outcome {
     let mut rng = common::rng(pr.seed);
     let hs = scene(&mut rng, pr.planes, pr.molecules, 0.3);
-    let exp = model(&hs, pr.slots, pr.n, pr.l_min, pr.l_max, pr.r_assoc);
+    run_on(pr, &hs, rng)
+}
+
+/// Runs the H maps `hs` (`pr.planes` and `pr.molecules` unused) with the
+/// word timing drawn from `rng`.
+fn run_on(pr: &Params, hs: &[Vec<u32>], mut rng: ChaCha8Rng) -> Outcome {
+    let hs = hs.to_vec();
+    let pr = &Params {
+        planes: hs.len(),
+        ..*pr
+    };
+    let exp = model(
+        &hs,
+        pr.slots,
+        pr.n,
+        pr.end_trim,
+        pr.l_min,
+        pr.l_max,
+        pr.r_assoc,
+    );
 
     let mut mcfg = PipelineConfig::new(W, H, pr.n, vec![1, 2, 1], 2, THR);
     mcfg.slots = pr.slots;
     mcfg.roi_size = 3;
     mcfg.r_assoc = pr.r_assoc;
+    mcfg.end_trim = pr.end_trim;
     mcfg.l_min = pr.l_min;
     mcfg.l_max = pr.l_max;
     let front = GatewareConfig::new(&mcfg, P, 7).unwrap();
@@ -286,6 +338,7 @@ fn run(pr: &Params) -> Outcome {
     b.uut.restart.next = true;
     b.uut.emit_start.next = true;
     b.uut.n_window.next = (pr.n as u64).to_bits();
+    b.uut.end_trim.next = (pr.end_trim as u64).to_bits();
     b.uut.l_min.next = (pr.l_min as u64).to_bits();
     b.uut.l_max.next = (pr.l_max as u64).to_bits();
     b.tick();
@@ -372,7 +425,6 @@ fn run(pr: &Params) -> Outcome {
             let w = u.sh[par * m + i].val().to_u64();
             let field = |at: usize| ((w >> at) & ((1 << COORD_BITS) - 1)) as u16;
             View {
-                live: w >> shadow::LIVE & 1 == 1,
                 pre: w >> shadow::PRE & 1 == 1,
                 fresh: w >> shadow::FRESH & 1 == 1,
                 ax: field(shadow::AX),
@@ -483,6 +535,8 @@ fn run(pr: &Params) -> Outcome {
         waited,
         lost: lost_total,
         bank_waits,
+        flags: exp.flags,
+        empty: exp.empty,
     }
 }
 
@@ -499,6 +553,7 @@ fn tracker_equals_model_with_cuts_dips_and_exhaustion() {
         molecules: 6,
         slots: 3,
         n: 3,
+        end_trim: 2,
         l_min: 2,
         l_max: 5,
         r_assoc: 1,
@@ -519,6 +574,7 @@ fn tracker_counts_records_lost_when_the_queue_is_full() {
         molecules: 5,
         slots: 4,
         n: 2,
+        end_trim: 0,
         l_min: 1,
         l_max: 3,
         r_assoc: 2,
@@ -543,6 +599,7 @@ fn tracker_waits_for_a_returning_bank() {
         molecules: 6,
         slots: 4,
         n: 2,
+        end_trim: 1,
         l_min: 1,
         l_max: 3,
         r_assoc: 1,
@@ -557,9 +614,107 @@ fn tracker_waits_for_a_returning_bank() {
     assert_eq!(out.lost, 0);
 }
 
+/// H maps of `planes` planes with molecules `(x, y, on planes)` over a
+/// quiet background (below the threshold everywhere else).
+fn molecules(planes: usize, mols: &[(usize, usize, std::ops::Range<usize>)]) -> Vec<Vec<u32>> {
+    (0..planes)
+        .map(|t| {
+            let mut h = vec![1u32; W * H];
+            for (x, y, on) in mols {
+                if on.contains(&t) {
+                    for dy in -1i64..=1 {
+                        for dx in -1i64..=1 {
+                            let (xx, yy) = (*x as i64 + dx, *y as i64 + dy);
+                            if xx >= 0 && yy >= 0 && xx < W as i64 && yy < H as i64 {
+                                h[yy as usize * W + xx as usize] +=
+                                    if dx == 0 && dy == 0 { 9 } else { 3 };
+                            }
+                        }
+                    }
+                }
+            }
+            h
+        })
+        .collect()
+}
+
+/// The new summation rule's corners, with END_TRIM = 0 (the paper's) and
+/// 2 (of N = 4): a track on from plane 0 to the end, cut every L_max = N
+/// planes (its first segment, cut at N − 1, sums nothing; a cut at the last
+/// plane leaves a continuation that sums the N drain planes), a drop whose
+/// completion falls after the stream end with END_TRIM 0 and before it with
+/// 2, a one-plane blink whose drop at t_drop = 1 < END_TRIM sums nothing,
+/// a track in a dip at the stream end, and one that drops mid-stream.
+#[test]
+fn tracker_equals_model_with_end_trim_cuts_and_the_stream_end() {
+    let hs = molecules(
+        12,
+        &[
+            (5, 3, 0..12), // cut at 3 (empty), 7 and 11 (the last plane)
+            (12, 5, 2..7), // t_drop 7, completes at 11 − END_TRIM
+            (2, 6, 9..11), // in a dip at the stream end: TRUNCATED
+            (9, 1, 5..9),  // t_drop 9: completes at 13 (drain) or 11
+            (13, 1, 0..1), // t_drop 1: empty with END_TRIM 2
+        ],
+    );
+    for (end_trim, seed) in [(0, 31), (2, 32), (3, 33)] {
+        let pr = Params {
+            seed,
+            planes: 0,
+            molecules: 0,
+            slots: 4,
+            n: 4,
+            end_trim,
+            l_min: 1,
+            l_max: 4,
+            r_assoc: 1,
+            word_rate: 0.8,
+            room_rate: 1.0,
+            bank_rate: 1.0,
+        };
+        let out = run_on(&pr, &hs, common::rng(seed));
+        let want = flags::CUT | flags::CONTINUATION | flags::TRUNCATED;
+        assert_eq!(
+            out.flags & want,
+            want,
+            "END_TRIM {end_trim}: flags {:#x}",
+            out.flags
+        );
+        // The first segment cut at N − 1, and with END_TRIM ≥ 2 the
+        // one-plane blink too.
+        let empty = if end_trim >= 2 { 2 } else { 1 };
+        assert_eq!(out.empty, empty, "END_TRIM {end_trim}: empty segments");
+        assert_eq!(out.lost, 0);
+    }
+}
+
+/// A track opened by the last item of plane 7 (a candidate in the last
+/// word of the last row, N = 1, L_max = 1): the first word of plane 8 must
+/// be compared with the opened slot's window, not in the clock of the
+/// opening (once it was, and the slot's on/off step of plane 8 ran at row
+/// 0 with a stale window row: a dip, then a bridge the model never saw).
+#[test]
+fn tracker_compares_the_next_plane_with_a_slot_the_last_item_opened() {
+    run(&Params {
+        seed: 9268933700957470773,
+        planes: 24,
+        molecules: 4,
+        slots: 3,
+        n: 1,
+        end_trim: 0,
+        l_min: 1,
+        l_max: 1,
+        r_assoc: 0,
+        word_rate: 0.8114189009782796,
+        room_rate: 1.0,
+        bank_rate: 1.0,
+    });
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
-    /// Any window, confirmation length, cut length, radius, slot count and timing.
+    /// Any window, end trim, confirmation length, cut length, radius, slot
+    /// count and timing.
     #[test]
     fn tracker_equals_model_on_random_streams(
         seed in any::<u64>(),
@@ -567,13 +722,15 @@ proptest! {
         molecules in 0usize..8,
         slots in 1usize..=4,
         n in 1u32..=7,
+        trim in 0u32..7,
         l_min in 1u32..=4,
         extra in 0u32..6,
         r_assoc in 0u32..=2,
         word_rate in 0.3f64..=1.0,
     ) {
         let l_max = n.max(l_min) + extra;
-        run(&Params { seed, planes, molecules, slots, n, l_min, l_max, r_assoc, word_rate, room_rate: 1.0, bank_rate: 1.0 });
+        let end_trim = trim % n;
+        run(&Params { seed, planes, molecules, slots, n, end_trim, l_min, l_max, r_assoc, word_rate, room_rate: 1.0, bank_rate: 1.0 });
     }
 }
 
@@ -597,14 +754,14 @@ fn check_generation(w: usize, h: usize, l_max_max: Option<u32>, ok: bool, field:
 }
 
 /// The slot ages are `AGE_BITS` wide: an L_max,max whose ages
-/// (L_max,max + N_max + 2) would not fit is refused, naming the field; the
-/// largest that fits is accepted.
+/// (L_max,max + 2·N_max + 2) would not fit is refused, naming the field;
+/// the largest that fits is accepted.
 #[test]
 fn tracker_refuses_an_l_max_max_its_ages_cannot_hold() {
     use smartagg_hdl::blink_tracker::AGE_BITS;
     let mcfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, THR);
     let n_max = GatewareConfig::new(&mcfg, P, 7).unwrap().n_max as u32;
-    let fits = (1u32 << AGE_BITS) - n_max - 3;
+    let fits = (1u32 << AGE_BITS) - 2 * n_max - 3;
     check_generation(W, H, Some(fits), true, "l_max_max");
     check_generation(W, H, Some(fits + 1), false, "l_max_max");
 }

@@ -25,8 +25,9 @@ fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
         assert_eq!(d.config.front.kernel_shift, det.kernel_shift);
         assert_eq!(d.config.roi_size, det.kernel_size);
         assert!(det.n_window <= d.config.front.n_max, "{}", d.name());
-        // The detection follows the field design: open and hold levels
-        // (register defaults) and the association radius (generated).
+        // The detection follows the field design: open and hold levels and
+        // the end trim (register defaults) and the association radius
+        // (generated).
         let preset = Preset::new(d.preset, d.objective).unwrap();
         let (w, h) = preset.camera.size();
         let fd = field_design::design(
@@ -39,6 +40,10 @@ fn every_design_generates_and_the_spcimager_150x_top_passes_verilator_lint() {
         .unwrap();
         assert_eq!(d.threshold_int, fd.threshold_open, "{}", d.name());
         assert_eq!(d.threshold_hold, fd.threshold_hold, "{}", d.name());
+        // The END_TRIM default: the field design's ⌊N/2⌋ (a dropped
+        // segment sums up to its estimated end), within 0 ..= N − 1.
+        assert_eq!(d.end_trim, fd.end_trim, "{}", d.name());
+        assert!(d.end_trim < d.n_window, "{}", d.name());
         assert_eq!(d.config.r_assoc, fd.r_assoc, "{}", d.name());
         assert!(
             1 <= d.threshold_hold && d.threshold_hold <= d.threshold_int,

@@ -66,25 +66,14 @@ fn parse_hex(text: &str) -> Vec<u8> {
         .collect()
 }
 
-/// A frozen vector of the current format (`model/tests/vectors/`). Until
-/// the version-2 files are frozen there, the version-1 file
-/// (`model/tests/vectors/v1/`) decoded and re-encoded by the model's
-/// encoder: the same records in version 2 (StreamStart with
-/// `threshold_hold = threshold_int`).
+/// A frozen vector of the current format (`model/tests/vectors/`; the
+/// older versions' are in its `v1/` and `v2/`).
 fn vector(name: &str) -> Vec<u8> {
-    let dir = format!("{}/../model/tests/vectors", env!("CARGO_MANIFEST_DIR"));
-    let path = format!("{dir}/{name}");
-    if let Ok(text) = std::fs::read_to_string(&path) {
-        return parse_hex(&text);
-    }
-    let v1 = format!("{dir}/v1/{name}");
-    let bytes =
-        parse_hex(&std::fs::read_to_string(&v1).unwrap_or_else(|e| panic!("{path}, {v1}: {e}")));
-    let mut out = Vec::new();
-    for p in decode_all(&bytes).packets {
-        encode_record(&p.record, p.seq, &mut out).unwrap();
-    }
-    out
+    let path = format!(
+        "{}/../model/tests/vectors/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    parse_hex(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}")))
 }
 
 /// Runs the packetiser over `inputs` (StreamStart registers and StreamEnd
@@ -112,6 +101,7 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
                 u.n_window.next = (s.n_window as u64).to_bits();
                 u.threshold.next = (s.threshold_int as u64).to_bits();
                 u.threshold_hold.next = (s.threshold_hold as u64).to_bits();
+                u.end_trim.next = (s.end_trim.expect("a version-3 StreamStart") as u64).to_bits();
                 u.l_min.next = (s.l_min as u64).to_bits();
                 u.l_max.next = (s.l_max as u64).to_bits();
                 u.plane_period.next = (s.plane_period_ns as u64).to_bits();
@@ -147,8 +137,6 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
         u.r_valid.next = true;
         u.r_lost.next = (inp.lost as u64).to_bits();
         u.r_ready.next = true;
-        u.r_empty.next = false;
-        u.r_empty_masked.next = false;
         u.r_bank.next = bank.to_bits();
         // Without room: less than the smallest record packet (Dropped, 28 bytes).
         u.fifo_free.next = if inp.room {
@@ -170,9 +158,6 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
                 u.r_ts.next = (bl.t_s as u64 & MAX_PLANE).to_bits();
                 u.r_te.next = (bl.t_e as u64 & MAX_PLANE).to_bits();
                 u.r_planes.next = (bl.planes_summed as u64).to_bits();
-                let empty = bl.counts.iter().all(|&c| c == 0) && bl.t_drop < bl.t_cross;
-                u.r_empty.next = empty;
-                u.r_empty_masked.next = bl.flags & flags::MASKED != 0;
                 banks.entry(bank).or_insert_with(|| {
                     let mut counts = bl.counts.clone();
                     let mut masked = vec![false; r];
@@ -274,11 +259,11 @@ fn frozen_vectors_byte_for_byte() {
         ("stream_end.hex", 5),
     ] {
         let want = vector(file);
-        let got = run::<32, 10, 7, 8, 488>(&bh9, seq, &inputs(decoded(&want)), 0.7, seq as u64);
+        let got = run::<32, 10, 7, 8, 520>(&bh9, seq, &inputs(decoded(&want)), 0.7, seq as u64);
         assert_eq!(got, want, "{file}");
     }
     let want = vector("blink_large.hex");
-    let got = run::<32, 9, 7, 8, 488>(&bh3, 3, &inputs(decoded(&want)), 1.0, 3);
+    let got = run::<32, 9, 7, 8, 520>(&bh3, 3, &inputs(decoded(&want)), 1.0, 3);
     assert_eq!(got, want, "blink_large.hex");
 }
 
@@ -303,7 +288,7 @@ fn overflow_vector_after_seven_records_dropped_on_the_device() {
         lost: 0,
         room: true,
     });
-    let got = run::<32, 10, 7, 8, 488>(&bh, 42, &ins, 1.0, 9);
+    let got = run::<32, 10, 7, 8, 520>(&bh, 42, &ins, 1.0, 9);
     let want = vector("overflow.hex");
     assert_eq!(&got[..want.len()], &want[..]);
     let mut tail = Vec::new();
@@ -342,7 +327,7 @@ fn stream_vector_with_two_records_dropped() {
             }),
         }
     }
-    assert_eq!(run::<32, 10, 7, 8, 488>(&bh, 0, &ins, 0.5, 11), want);
+    assert_eq!(run::<32, 10, 7, 8, 520>(&bh, 0, &ins, 0.5, 11), want);
 }
 
 /// A random Blink of side `r`: counts of one of several shapes (flat, PSF
@@ -402,7 +387,9 @@ fn random_blink(rng: &mut rand_chacha::ChaCha8Rng, r: usize) -> BlinkRecord {
 }
 
 fn random_records(seed: u64, n: usize) -> Vec<Record> {
-    let (cfg, _) = config(9);
+    let (mut cfg, _) = config(9);
+    // END_TRIM in the StreamStart (≤ N − 1 = 107).
+    cfg.end_trim = 77;
     let mut rng = common::rng(seed);
     let mut recs = vec![Record::Start(cfg.stream_start())];
     for _ in 0..n {
@@ -438,24 +425,26 @@ fn random_records_equal_the_model_encoder() {
         enc.push(r, &mut want).unwrap();
     }
     assert_eq!(
-        run::<32, 10, 7, 8, 488>(&bh, 0, &inputs(recs), 0.6, 21),
+        run::<32, 10, 7, 8, 520>(&bh, 0, &inputs(recs), 0.6, 21),
         want
     );
 }
 
 #[test]
-fn empty_segment_has_zero_counts_and_its_slots_mask_flag() {
-    // A continuation cut off by the stream end: t_drop = t_cross − 1.
+fn empty_segment_reads_its_bank_like_any_other() {
+    // A first segment cut before plane N summed no plane: its bank holds
+    // zero counts and its ROI's mask flags (the aggregator swept it in its
+    // opening plane), read like any other.
     let (_, bh) = config(9);
     let bl = BlinkRecord {
         slot: 4,
-        flags: flags::CONTINUATION | flags::TRUNCATED | flags::MASKED,
+        flags: flags::CUT | flags::PREROLL_CLIPPED | flags::MASKED,
         anchor_x: 100,
         anchor_y: 50,
-        t_cross: 700,
-        t_drop: 699,
-        t_s: 700,
-        t_e: 699,
+        t_cross: 0,
+        t_drop: 107,
+        t_s: -54,
+        t_e: 107,
         planes_summed: 0,
         roi_size: 9,
         counts: vec![0; 81],
@@ -463,7 +452,7 @@ fn empty_segment_has_zero_counts_and_its_slots_mask_flag() {
     let mut want = Vec::new();
     encode_record(&Record::Blink(bl.clone()), 0, &mut want).unwrap();
     assert_eq!(
-        run::<32, 10, 7, 8, 488>(&bh, 0, &inputs(vec![Record::Blink(bl)]), 1.0, 5),
+        run::<32, 10, 7, 8, 520>(&bh, 0, &inputs(vec![Record::Blink(bl)]), 1.0, 5),
         want
     );
 }
@@ -501,7 +490,7 @@ proptest! {
             lost = 0;
             fed.push(inp);
         }
-        let bytes = run::<32, 10, 7, 8, 488>(&bh, 0, &fed, 0.8, seed);
+        let bytes = run::<32, 10, 7, 8, 520>(&bh, 0, &fed, 0.8, seed);
         let d = decode_all(&bytes);
         prop_assert!(!d.stats.any_loss() || d.stats.lost_on_device > 0, "{}", d.stats);
         prop_assert_eq!(d.stats.crc_errors + d.stats.malformed + d.stats.bytes_skipped + d.stats.lost_in_transport, 0);
@@ -533,7 +522,7 @@ fn three_by_three_rois_too() {
         enc.push(r, &mut want).unwrap();
     }
     assert_eq!(
-        run::<32, 9, 7, 8, 488>(&bh, 1, &inputs(recs), 0.9, 77),
+        run::<32, 9, 7, 8, 520>(&bh, 1, &inputs(recs), 0.9, 77),
         want
     );
 }
@@ -603,7 +592,112 @@ fn narrow_counters_keep_accumulators_up_to_their_width_only() {
         enc.push(r, &mut want).unwrap();
     }
     assert_eq!(
-        run::<9, 10, 7, 8, 488>(&bh, 1, &inputs(recs), 0.8, 91),
+        run::<9, 10, 7, 8, 520>(&bh, 1, &inputs(recs), 0.8, 91),
         want
     );
+}
+
+/// The finisher's derived Blink fields (planes summed, t_s, t_e, EDGE and
+/// PREROLL_CLIPPED) against the model's segments on random descriptors of
+/// every kind: dropped, cut and truncated first segments (`t_cross` below
+/// and above N) and continuations (the one the stream end leaves after a
+/// cut at the last plane too), every N and END_TRIM.
+#[test]
+fn record_finisher_equals_the_models_blink_fields() {
+    use smartagg_hdl::packetiser::RecordFinisher;
+    use smartagg_model::blink_tracker::Segment;
+    let (_, bh) = config(9);
+    let mut f = RecordFinisher::<8>::new(&bh).unwrap();
+    f.connect_all();
+    check_all(&f).unwrap();
+    let mut rng = common::rng(404);
+    let (w, h) = (bh.front.width as i64, bh.front.height as i64);
+    let half = bh.roi_half() as i64;
+    let mut kinds = [0usize; 6];
+    for i in 0..20_000 {
+        let n = rng.gen_range(1..=108u32);
+        let c = rng.gen_range(0..n);
+        let l_max = n + rng.gen_range(0..20);
+        let kind = i % 6;
+        let n64 = n as u64;
+        // 0 dropped first, 1 cut first, 2 truncated first, 3 dropped
+        // continuation, 4 cut continuation, 5 truncated continuation.
+        let continuation = kind >= 3;
+        let t_cross = if continuation {
+            rng.gen_range(n64..n64 + 300)
+        } else if rng.gen_bool(0.5) {
+            rng.gen_range(0..n64)
+        } else {
+            rng.gen_range(0..n64 + 300)
+        };
+        let (t_drop, end) = match kind % 3 {
+            0 => (
+                t_cross + rng.gen_range(if continuation { 0 } else { 1 }..=l_max as u64),
+                0,
+            ),
+            1 => (t_cross + l_max as u64 - 1 + rng.gen_range(0..2), flags::CUT),
+            _ => {
+                // A continuation the stream end truncates at once.
+                let d = if continuation && rng.gen_bool(0.3) {
+                    t_cross - 1
+                } else {
+                    t_cross + rng.gen_range(0..=l_max as u64)
+                };
+                (d, flags::TRUNCATED)
+            }
+        };
+        let seg = Segment {
+            anchor_x: rng.gen_range(0..w as u16),
+            anchor_y: rng.gen_range(0..h as u16),
+            t_cross,
+            continuation,
+            live: false,
+            in_dip: false,
+            dip_plane: 0,
+            t_drop: Some(t_drop),
+            end_flags: end,
+            confirmed: true,
+        };
+        let planes = seg.planes_summed(n, c).unwrap();
+        if planes == 0 {
+            kinds[kind] += 1;
+        }
+        let (ax, ay) = (seg.anchor_x as i64, seg.anchor_y as i64);
+        let edge = ax < half || ay < half || ax + half >= w || ay + half >= h;
+        let hn = (n / 2) as i64;
+        let t_s = if continuation {
+            t_cross as i64
+        } else {
+            t_cross as i64 - hn
+        };
+        let t_e = if end != 0 {
+            t_drop as i64
+        } else {
+            t_drop as i64 - hn
+        };
+        f.n_window.next = (n as u64).to_bits();
+        f.end_trim.next = (c as u64).to_bits();
+        f.kind.next = 1.into();
+        f.flags.next = ((seg.flags(n) & !flags::PREROLL_CLIPPED) as u64).to_bits();
+        f.ax.next = (seg.anchor_x as u64).to_bits();
+        f.ay.next = (seg.anchor_y as u64).to_bits();
+        f.t0.next = t_cross.to_bits();
+        f.t1.next = t_drop.to_bits();
+        f.tag.next = 0.into();
+        f.planes_done.next = 0.into();
+        settle(&mut f);
+        let what = format!("{seg:?}, N {n}, END_TRIM {c}");
+        assert_eq!(f.o_planes.val().to_u64(), planes, "{what}");
+        assert_eq!(
+            f.o_flags.val().to_u64() as u8,
+            seg.flags(n) | if edge { flags::EDGE } else { 0 },
+            "{what}"
+        );
+        assert_eq!(f.o_ts.val().to_u64(), t_s as u64 & MAX_PLANE, "{what}");
+        assert_eq!(f.o_te.val().to_u64(), t_e as u64 & MAX_PLANE, "{what}");
+    }
+    // Empty segments of the kinds that have them: first segments dropped
+    // before END_TRIM or cut before N.
+    assert!(kinds[0] > 0 && kinds[1] > 0, "{kinds:?}");
+    assert_eq!(kinds[2] + kinds[3] + kinds[4] + kinds[5], 0, "{kinds:?}");
 }

@@ -2,8 +2,9 @@
 //! `model::pipeline::run` + `model::packetiser::encode_stream` on a small
 //! field (16×6, P = 4, k = 5, M = 4, 3×3 ROIs), with hot pixels, random
 //! source stalls within the design's duty cycle, and the stream end with its
-//! drain planes; hysteresis (T_hold below T_int); also the register check
-//! at START (T_hold = 0 or above T_int included) and an empty stream.
+//! drain planes; hysteresis (T_hold below T_int); END_TRIM from 0 (the
+//! paper's) to N − 1; also the register check at START (T_hold = 0 or
+//! above T_int, END_TRIM ≥ N included) and an empty stream.
 
 mod common;
 
@@ -29,6 +30,7 @@ struct Stream {
     threshold: u32,
     /// T_hold; `None`: T_int.
     threshold_hold: Option<u32>,
+    end_trim: u32,
     l_min: u32,
     l_max: u32,
     planes: Vec<BitPlane>,
@@ -39,6 +41,7 @@ struct Stream {
 fn model_config(s: &Stream) -> PipelineConfig {
     let mut cfg = PipelineConfig::new(W, H, s.n, vec![1, 4, 6, 4, 1], 4, s.threshold);
     cfg.threshold_hold = hold(s);
+    cfg.end_trim = s.end_trim;
     cfg.slots = 4;
     cfg.roi_size = 3;
     cfg.r_assoc = 1;
@@ -66,6 +69,7 @@ fn start(b: &mut Bench<TestPipeline>, s: &Stream, mask_count: u64) {
     u.reg_n.next = (s.n as u64).to_bits();
     u.reg_threshold.next = (s.threshold as u64).to_bits();
     u.reg_threshold_hold.next = (hold(s) as u64).to_bits();
+    u.reg_end_trim.next = (s.end_trim as u64).to_bits();
     u.reg_l_min.next = (s.l_min as u64).to_bits();
     u.reg_l_max.next = (s.l_max as u64).to_bits();
     u.reg_period.next = 100_000u64.to_bits();
@@ -148,6 +152,7 @@ fn gateware_paced(
             u.reg_n.next = (c % 9).to_bits();
             u.reg_threshold.next = (c % 5).to_bits();
             u.reg_threshold_hold.next = (c % 7).to_bits();
+            u.reg_end_trim.next = (c % 4).to_bits();
             u.reg_l_min.next = (1 + c % 3).to_bits();
             u.reg_l_max.next = (c % 70).to_bits();
             u.reg_mask_enable.next = c % 2 == 0;
@@ -222,6 +227,7 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
     u.reg_n.next = (s.n as u64).to_bits();
     u.reg_threshold.next = (s.threshold as u64).to_bits();
     u.reg_threshold_hold.next = (hold(s) as u64).to_bits();
+    u.reg_end_trim.next = (s.end_trim as u64).to_bits();
     u.reg_l_min.next = (s.l_min as u64).to_bits();
     u.reg_l_max.next = (s.l_max as u64).to_bits();
     u.reg_period.next = 100_000u64.to_bits();
@@ -310,6 +316,8 @@ fn stream(seed: u64, planes: usize, n: u32, l_min: u32, extra: u32, mask_enable:
         n,
         threshold: 1,
         threshold_hold: None,
+        // The field design's END_TRIM.
+        end_trim: n / 2,
         l_min,
         l_max: n.max(l_min) + extra,
         planes,
@@ -421,6 +429,50 @@ fn pipeline_with_hysteresis_bytes_equal_the_model() {
     }
 }
 
+/// END_TRIM 0 (the paper's) and N − 1 on a stream with cuts (L_max = N)
+/// that stops while tracks are live: the gateware follows the model byte
+/// for byte, and the trim changes the planes the Blinks sum.
+#[test]
+fn pipeline_with_end_trim_cuts_and_stream_end_bytes_equal_the_model() {
+    let base = stream(14, 30, 4, 1, 0, true);
+    assert_eq!(base.l_max, base.n);
+    let mut all = Vec::new();
+    for end_trim in [0, 3] {
+        let s = Stream {
+            end_trim,
+            planes: base.planes.clone(),
+            hot: base.hot.clone(),
+            ..base
+        };
+        let recs = check(&s, 50, 5);
+        let blinks: Vec<_> = recs
+            .iter()
+            .filter_map(|r| match r {
+                Record::Blink(b) => Some(b.clone()),
+                _ => None,
+            })
+            .collect();
+        let any = |f: u8| blinks.iter().any(|b| b.flags & f != 0);
+        use smartagg_model::record::flags;
+        assert!(
+            any(flags::CUT) && any(flags::TRUNCATED) && any(flags::CONTINUATION),
+            "END_TRIM {end_trim}: {blinks:#?}"
+        );
+        assert!(
+            blinks
+                .iter()
+                .any(|b| b.flags & (flags::CUT | flags::TRUNCATED) == 0),
+            "END_TRIM {end_trim}: no dropped segment: {blinks:#?}"
+        );
+        match &recs[0] {
+            Record::Start(st) => assert_eq!(st.end_trim, Some(end_trim)),
+            r => panic!("{r:?}"),
+        }
+        all.push(blinks);
+    }
+    assert_ne!(all[0], all[1], "END_TRIM changes the Blinks");
+}
+
 #[test]
 fn pipeline_with_ddr2_delay_line_bytes_equal_the_model() {
     let s = stream(6, 20, 3, 2, 3, true);
@@ -457,6 +509,7 @@ fn empty_stream_is_start_and_end() {
         n: 3,
         threshold: 5,
         threshold_hold: None,
+        end_trim: 1,
         l_min: 1,
         l_max: 10,
         planes: Vec::new(),
@@ -475,6 +528,7 @@ fn bad_registers_refuse_to_start() {
         n: 3,
         threshold: 5,
         threshold_hold: Some(2),
+        end_trim: 1,
         l_min: 2,
         l_max: 10,
         planes: Vec::new(),
@@ -482,13 +536,16 @@ fn bad_registers_refuse_to_start() {
         mask_enable: false,
     };
     type Bad = fn(&mut Stream);
-    let bad: [Bad; 9] = [
+    let bad: [Bad; 12] = [
         |s| s.n = 0,
         |s| s.n = 8, // above N_max = 7
         |s| s.threshold = 0,
         |s| s.threshold_hold = Some(0),
         |s| s.threshold_hold = Some(6), // above T_int = 5
         |s| s.threshold_hold = Some(u32::MAX),
+        |s| s.end_trim = 3,       // N = 3
+        |s| s.end_trim = 1 << 16, // 0 in its low bits
+        |s| s.end_trim = u32::MAX,
         |s| s.l_min = 0,
         |s| s.l_max = 2,  // below N
         |s| s.l_max = 65, // above the generated L_max,max = 64
@@ -510,13 +567,15 @@ fn bad_registers_refuse_to_start() {
     b.tick();
     b.tick();
     assert!(!b.uut.config_error.val() && b.uut.running.val());
-    // T_hold = T_int (the one-threshold rule) and T_hold = 1 are accepted too.
-    for t_hold in [5, 1] {
+    // T_hold = T_int (the one-threshold rule) and T_hold = 1, END_TRIM 0
+    // and N − 1 are accepted too.
+    for (t_hold, end_trim) in [(5, 1), (1, 1), (2, 0), (2, 2)] {
         let mut b = Bench::new(TestPipeline::new(&cfg).unwrap(), |u| &mut u.clock);
         let s = Stream {
             planes: Vec::new(),
             hot: Vec::new(),
             threshold_hold: Some(t_hold),
+            end_trim,
             ..good
         };
         start(&mut b, &s, 0);
@@ -524,7 +583,7 @@ fn bad_registers_refuse_to_start() {
         b.tick();
         assert!(
             !b.uut.config_error.val() && b.uut.running.val(),
-            "T_hold {t_hold}"
+            "T_hold {t_hold}, END_TRIM {end_trim}"
         );
     }
 }
@@ -542,9 +601,11 @@ proptest! {
         stall in 25u64..60,
         // T_hold from 1 to T_int (about one case in six at T_int).
         hold_pct in 0u32..=120,
+        trim in 0u32..7,
     ) {
         let mut s = stream(seed, planes, n, l_min, extra, mask_enable);
         s.threshold_hold = hold_at(&s, hold_pct);
+        s.end_trim = trim % n;
         check_with(&s, stall, seed, false, true);
     }
 }

@@ -1,8 +1,8 @@
 //! Tracker + ROI aggregator + bank pool against the golden pipeline: raw
 //! bit-planes (blinking spots, background, hot pixels) go through the model
 //! for stages 1–4; the gateware gets the model's above/candidate words with
-//! the front half's row lag and the raw live/delayed/mask words, random
-//! stalls, and reads every queued bank back as the packetiser would.
+//! the front half's row lag and the raw delayed/mask words, random stalls,
+//! any END_TRIM, and reads every queued bank back as the packetiser would.
 //! Checked: each Blink record's slot, anchor, times, tracker flags, MASKED
 //! flag and all R×R counts, the order of all records, bank hand-over (a
 //! bank is read only once its plane is swept, and every bank comes back),
@@ -79,40 +79,59 @@ fn word(plane: &BitPlane, x: usize, y: usize) -> u64 {
     (0..P).fold(0, |a, i| a | ((plane.get(x * P + i, y) as u64) << i))
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run(
-    seed: u64,
-    n_planes: usize,
-    spots: usize,
+/// The registers of a run.
+#[derive(Debug, Clone, Copy)]
+struct Regs {
     slots: usize,
     n: u32,
+    end_trim: u32,
     l_min: u32,
     l_max: u32,
-    rate: f64,
-) -> usize {
+    threshold: u32,
+}
+
+impl Regs {
+    fn new(slots: usize, n: u32, end_trim: u32, l_min: u32, l_max: u32) -> Regs {
+        Regs {
+            slots,
+            n,
+            end_trim,
+            l_min,
+            l_max,
+            threshold: 5,
+        }
+    }
+}
+
+fn run(seed: u64, n_planes: usize, spots: usize, regs: Regs, rate: f64) -> usize {
     let mut rng = common::rng(seed);
     let raw = planes(&mut rng, n_planes, spots, 0.05);
     let hot = [(rng.gen_range(0..W), rng.gen_range(0..H))];
     let (mask, _) = HotPixelMask::from_pixels(W, H, &hot);
-    run_stream(&mut rng, raw, mask, slots, n, l_min, l_max, rate)
+    run_stream(&mut rng, raw, mask, regs, rate)
 }
 
-#[allow(clippy::too_many_arguments)]
 fn run_stream(
     rng: &mut rand_chacha::ChaCha8Rng,
     raw: Vec<BitPlane>,
     mask: HotPixelMask,
-    slots: usize,
-    n: u32,
-    l_min: u32,
-    l_max: u32,
+    regs: Regs,
     rate: f64,
 ) -> usize {
     let n_planes = raw.len();
+    let Regs {
+        slots,
+        n,
+        end_trim,
+        l_min,
+        l_max,
+        threshold,
+    } = regs;
 
-    let mut cfg = PipelineConfig::new(W, H, n, vec![1, 2, 1], 2, 5);
+    let mut cfg = PipelineConfig::new(W, H, n, vec![1, 2, 1], 2, threshold);
     cfg.slots = slots;
     cfg.roi_size = 3;
+    cfg.end_trim = end_trim;
     cfg.l_min = l_min;
     cfg.l_max = l_max;
     cfg.hot_mask = Some(mask.clone());
@@ -137,19 +156,14 @@ fn run_stream(
     records.extend(pipe.finish());
     let want: Vec<Record> = records;
 
-    // The raw stream the gateware sees: masked live and delayed planes,
-    // N drain planes (live 0, delayed from the delay line).
+    // The raw stream the gateware sees: the masked delayed planes, N drain
+    // planes (delayed from the delay line).
     let masked: Vec<BitPlane> = raw.iter().map(|p| mask.apply(p)).collect();
     let mut dl = DelayLine::new(n as usize, W, H);
-    let mut live_del: Vec<(BitPlane, BitPlane)> = masked
-        .iter()
-        .map(|p| (p.clone(), dl.push(p.clone())))
-        .collect();
+    let mut delayed: Vec<BitPlane> = masked.iter().map(|p| dl.push(p.clone())).collect();
     if n_planes > 0 {
         for _ in 0..n {
-            let z = BitPlane::zeros(W, H);
-            let d = dl.push(z.clone());
-            live_del.push((z, d));
+            delayed.push(dl.push(BitPlane::zeros(W, H)));
         }
     }
     let mask_plane = BitPlane::from_fn(W, H, |x, y| mask.is_masked(x as i64, y as i64));
@@ -165,6 +179,7 @@ fn run_stream(
     ag.uut.restart.next = true;
     pool.uut.restart.next = true;
     tr.uut.n_window.next = (n as u64).to_bits();
+    tr.uut.end_trim.next = (end_trim as u64).to_bits();
     tr.uut.l_min.next = (l_min as u64).to_bits();
     tr.uut.l_max.next = (l_max as u64).to_bits();
     tr.tick();
@@ -177,7 +192,7 @@ fn run_stream(
     let wpr = W / P;
     let wpp = wpr * H;
     let lag = 2 * wpr + 3; // the front half's output lags its input by c + 1 rows and a few words
-    let stream_planes = live_del.len();
+    let stream_planes = delayed.len();
     let total = (stream_planes + 1) * wpp + lag; // + the flush plane
     let mut g = 0usize;
     let mut fifo: VecDeque<(u64, u64, usize, usize, bool)> = VecDeque::new();
@@ -201,8 +216,7 @@ fn run_stream(
             let (x, y) = (k % wpr, k / wpr);
             a.in_valid.next = true;
             a.in_x.next = (x as u64).to_bits();
-            a.in_live.next = word(&live_del[t].0, x, y).to_bits();
-            a.in_delayed.next = word(&live_del[t].1, x, y).to_bits();
+            a.in_delayed.next = word(&delayed[t], x, y).to_bits();
             a.in_mask.next = word(&mask_plane, x, y).to_bits();
         }
         // Front-half word g − lag to the tracker FIFO.
@@ -291,34 +305,6 @@ fn run_stream(
         }
         if let Some(&(kind, slot, fl, ax, ay, t0, t1, bank, tag)) = queue.front() {
             match kind {
-                record_kind::BLINK if t1 < t0 => {
-                    // A continuation cut off by the stream end: no plane summed.
-                    {
-                        skips.push(lost.pop_front().unwrap());
-                        got.push(Record::Blink(smartagg_model::record::BlinkRecord {
-                            slot,
-                            flags: fl
-                                | if a.slot_masked.val().get_bit(slot as usize) {
-                                    flags::MASKED
-                                } else {
-                                    0
-                                },
-                            anchor_x: ax,
-                            anchor_y: ay,
-                            t_cross: t0,
-                            t_drop: t1,
-                            t_s: 0,
-                            t_e: 0,
-                            planes_summed: 0,
-                            roi_size: 3,
-                            counts: vec![0; 9],
-                        }));
-                    }
-                    pool.uut.ret.next = true;
-                    pool.uut.ret_bank.next = bank.to_bits();
-                    returned += 1;
-                    queue.pop_front();
-                }
                 record_kind::BLINK => {
                     if a.planes_done.val().to_u64() > tag {
                         if reading.is_none() {
@@ -437,14 +423,20 @@ fn run_stream(
 }
 
 #[test]
-fn rois_equal_model_with_preroll_cuts_and_stream_end() {
-    let b = run(3, 40, 5, 3, 4, 2, 6, 0.8);
+fn rois_equal_model_with_end_trim_cuts_and_stream_end() {
+    let b = run(3, 40, 5, Regs::new(3, 4, 2, 2, 6), 0.8);
     assert!(b >= 3, "only {b} blinks");
 }
 
 #[test]
 fn rois_equal_model_with_many_slots_at_the_design_rate() {
-    run(4, 30, 8, 4, 7, 1, 9, 0.75);
+    run(4, 30, 8, Regs::new(4, 7, 3, 1, 9), 0.75);
+}
+
+#[test]
+fn rois_equal_model_with_the_papers_end_trim() {
+    let b = run(5, 40, 6, Regs::new(3, 4, 0, 1, 4), 0.7);
+    assert!(b >= 3, "only {b} blinks");
 }
 
 proptest! {
@@ -456,30 +448,35 @@ proptest! {
         spots in 0usize..8,
         slots in 2usize..=4,
         n in 1u32..=7,
+        trim in 0u32..7,
         l_min in 1u32..=3,
         extra in 0u32..5,
         rate in 0.4f64..=0.8,
     ) {
-        run(seed, n_planes, spots, slots, n, l_min, n.max(l_min) + extra, rate);
+        let regs = Regs::new(slots, n, trim % n, l_min, n.max(l_min) + extra);
+        run(seed, n_planes, spots, regs, rate);
     }
 }
 
-/// A blink ends (second plane below) while a background photon lands in the
-/// top row of its ROI in that very plane: the plane must not be summed. The
-/// ROI's top row is swept before the tracker knows the blink has ended
-/// unless the sweep waits for the tracker's row `ay + 1`.
+/// A blink's opening plane sums the plane N before it, `B_{t_cross − N}`,
+/// and a photon of that plane in the top row of its ROI must be counted:
+/// the ROI's top row is swept before the tracker has opened the track
+/// (its candidate is a row lower) unless the sweep waits for the tracker's
+/// row `ay + h + 1`.
 #[test]
-fn ending_plane_is_not_summed_even_in_the_rois_first_row() {
-    let (sx, sy, on) = (8, 4, 3..13);
+fn opening_plane_sums_its_first_plane_even_in_the_rois_first_row() {
+    let (sx, sy, on) = (8, 4, 6..13);
     let raw: Vec<BitPlane> = (0..20)
         .map(|t| {
             BitPlane::from_fn(W, H, |x, y| {
-                (x == sx && y == sy && on.contains(&t)) || (x == sx && y == sy - 1 && t == 14)
+                (x == sx && y == sy && on.contains(&t)) || (x == sx - 1 && y == sy - 1 && t == 3)
             })
         })
         .collect();
-    // The model ends the blink at t_drop = 13 (found at plane 14).
-    let mut cfg = PipelineConfig::new(W, H, 2, vec![1, 2, 1], 2, 5);
+    // T_int = 8: the blink crosses at its second plane, 7 (the photon of
+    // plane 3 at the ROI's corner does not make plane 6 cross); N = 4, so
+    // plane 7 sums B_3.
+    let mut cfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, 8);
     cfg.roi_size = 3;
     let recs = smartagg_model::pipeline::run(cfg, raw.clone()).unwrap();
     let b: Vec<_> = recs
@@ -489,21 +486,16 @@ fn ending_plane_is_not_summed_even_in_the_rois_first_row() {
             _ => None,
         })
         .collect();
-    assert_eq!((b.len(), b[0].t_cross, b[0].t_drop), (1, 4, 13));
-    assert_eq!(b[0].counts[1], 0, "plane 14 is not summed");
+    assert_eq!((b.len(), b[0].t_cross, b[0].t_drop), (1, 7, 15));
+    assert_eq!(b[0].counts[0], 1, "B_3 is summed at plane 7");
     let mut rng = common::rng(5);
     for rate in [0.5, 0.75] {
+        let regs = Regs {
+            threshold: 8,
+            ..Regs::new(2, 4, 0, 1, 30)
+        };
         assert_eq!(
-            run_stream(
-                &mut rng,
-                raw.clone(),
-                HotPixelMask::new(W, H),
-                2,
-                2,
-                1,
-                30,
-                rate
-            ),
+            run_stream(&mut rng, raw.clone(), HotPixelMask::new(W, H), regs, rate),
             1
         );
     }

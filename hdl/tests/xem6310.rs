@@ -188,8 +188,10 @@ macro_rules! through_the_endpoints {
                 mcfg.roi_size = 3;
                 mcfg.l_min = 2;
                 mcfg.l_max = 8;
-                // Hysteresis through wire-in THRESHOLD_HOLD.
+                // Hysteresis through wire-in THRESHOLD_HOLD, the field
+                // design's trim through END_TRIM.
                 mcfg.threshold_hold = 30;
+                mcfg.end_trim = 2;
                 mcfg.hot_mask = Some(mask.clone());
                 let records = run(mcfg.clone(), planes.clone()).unwrap();
                 assert!(records
@@ -220,6 +222,7 @@ macro_rules! through_the_endpoints {
                     (wire_in::PLANE_PERIOD_NS, 100_000),
                     (wire_in::MASKED_PIXELS, 2),
                     (wire_in::THRESHOLD_HOLD, 30),
+                    (wire_in::END_TRIM, 2),
                 ];
                 for (a, v) in wi {
                     host.core.uut.wire_in[a as usize].next = (v as u64).to_bits();

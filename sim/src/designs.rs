@@ -184,17 +184,17 @@ pub const P: usize = 16;
 
 /// SPCImager 150× core on 64×32.
 pub type Spcimager150Reduced =
-    XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+    XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 /// SPCImager 60× core on 64×32 (the model's kernel for the 60× PSF:
 /// σ = 0.61 px, k = 5, a = 8; R = 5).
-pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 9, 7, 6, 233, 464, 53, 9, 12>;
+pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12>;
 /// Projected SPCImager 150× pipeline (block-RAM delay line) on 64×32.
 pub type Projected150Reduced =
-    Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+    Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 /// SPCImager 150× pipeline (block-RAM delay line, M = 16) on the demo's 48×48 field.
-pub type Spcimager150Demo = Pipeline<16, 14, 7, 8, 15, 23, 2, 8, 17, 9, 6, 5, 232, 520, 53, 9, 12>;
+pub type Spcimager150Demo = Pipeline<16, 14, 7, 8, 15, 23, 2, 8, 17, 9, 6, 5, 232, 552, 53, 9, 12>;
 /// SPCImager 150× core on the full 320×240 field.
-pub type Spcimager150Full = XemCore<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 520, 53, 9, 12>;
+pub type Spcimager150Full = XemCore<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 
 impl DesignSpec {
     /// A configuration on a field (one of [`REDUCED`] and, for SPCImager

@@ -56,6 +56,9 @@ pub struct Case {
     /// `None`: T_hold = T_int (the one-threshold rule), whatever T_int is
     /// set to later.
     pub threshold_hold: Option<u32>,
+    /// END_TRIM (0 ..= N − 1): a dropped segment sums up to
+    /// `t_drop − end_trim` (0: the paper's rule).
+    pub end_trim: u32,
     /// L_min.
     pub l_min: u32,
     /// L_max.
@@ -79,14 +82,16 @@ pub struct Case {
 }
 
 impl Case {
-    /// The bit-planes replayed through the pipe-in with these registers: no
-    /// hot-pixel mask, no host stalls on either side (stall seed 1). Other
-    /// cases change fields from this one (`Case { .., ..Case::replay(..) }`).
+    /// The bit-planes replayed through the pipe-in with these registers
+    /// (T_hold = T_int, END_TRIM 0: the paper's rules): no hot-pixel mask,
+    /// no host stalls on either side (stall seed 1). Other cases change
+    /// fields from this one (`Case { .., ..Case::replay(..) }`).
     pub fn replay(n: u32, threshold: u32, l_min: u32, l_max: u32, planes: Vec<BitPlane>) -> Case {
         Case {
             n,
             threshold,
             threshold_hold: None,
+            end_trim: 0,
             l_min,
             l_max,
             planes,
@@ -102,13 +107,15 @@ impl Case {
 
     /// The bit-planes replayed with a shipped design's register defaults,
     /// the field design's ([`smartagg_hdl::configs::Design`]): its N, the
-    /// open level T_open as T_int, the hold level T_hold, L_min = 1 and
+    /// open level T_open as T_int, the hold level T_hold, its END_TRIM
+    /// (⌊N/2⌋), L_min = 1 and
     /// L_max = 10,000 (the model's default). The design's r_assoc is a
     /// generation parameter: pass it to [`crate::designs::DesignSpec::with_r_assoc`].
     pub fn design_defaults(design: &smartagg_hdl::configs::Design, planes: Vec<BitPlane>) -> Case {
         let t = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
         Case {
             threshold_hold: Some(t(design.threshold_hold)),
+            end_trim: design.end_trim,
             ..Case::replay(
                 design.n_window,
                 t(design.threshold_int),
@@ -262,6 +269,13 @@ pub struct Coverage {
     pub refresh_collisions: u64,
     /// Blink ROIs touching the field's edge.
     pub edge_rois: u64,
+    /// Segments cut at L_max.
+    pub cut_segments: u64,
+    /// Blinks truncated by the stream end.
+    pub truncated_blinks: u64,
+    /// Blinks that summed no plane (a first segment that ended before its
+    /// first plane left the window).
+    pub empty_blinks: u64,
     /// Clock cycles simulated.
     pub cycles: u64,
     /// Clock cycles from START to the end of the stream (of [`Coverage::cycles`]).
@@ -286,6 +300,9 @@ impl Coverage {
         self.records_lost += o.records_lost;
         self.refresh_collisions += o.refresh_collisions;
         self.edge_rois += o.edge_rois;
+        self.cut_segments += o.cut_segments;
+        self.truncated_blinks += o.truncated_blinks;
+        self.empty_blinks += o.empty_blinks;
         self.cycles += o.cycles;
         self.stream_cycles += o.stream_cycles;
         self.seconds += o.seconds;
@@ -312,7 +329,7 @@ impl std::fmt::Display for Coverage {
             f,
             "cases {} planes {} packets {} | confirmed blinks {} bridged dips {} unconfirmed tracks {} \
              slot exhaustion {} output FIFO full {} (records lost {}) DDR2 refresh collisions {} edge ROIs {} \
-             | {} cycles in {:.2} s ({:.2} M cycles/s; per clock {:.2} shim calls, {:.2} evals, {:.2} input-combinational passes)",
+             cuts {} truncated {} empty {} | {} cycles in {:.2} s ({:.2} M cycles/s; per clock {:.2} shim calls, {:.2} evals, {:.2} input-combinational passes)",
             self.cases,
             self.planes,
             self.packets,
@@ -324,6 +341,9 @@ impl std::fmt::Display for Coverage {
             self.records_lost,
             self.refresh_collisions,
             self.edge_rois,
+            self.cut_segments,
+            self.truncated_blinks,
+            self.empty_blinks,
             self.cycles,
             self.seconds,
             self.cycles as f64 / self.seconds.max(1e-9) / 1e6,
@@ -486,6 +506,7 @@ impl Cosim {
             case.threshold,
         );
         cfg.threshold_hold = case.hold();
+        cfg.end_trim = case.end_trim;
         cfg.slots = back.slots;
         cfg.roi_size = back.roi_size;
         cfg.r_assoc = back.r_assoc;
@@ -679,11 +700,18 @@ fn coverage_of(records: &[Record], case: &Case) -> Coverage {
                 if b.flags & flags::EDGE != 0 {
                     c.edge_rois += 1;
                 }
+                if b.flags & flags::TRUNCATED != 0 {
+                    c.truncated_blinks += 1;
+                }
+                if b.planes_summed == 0 {
+                    c.empty_blinks += 1;
+                }
             }
             Record::End(e) => {
                 c.bridged_dips += e.bridged_dips;
                 c.unconfirmed_tracks += e.unconfirmed;
                 c.slot_exhaustion += e.dropped_candidates;
+                c.cut_segments += e.cut_segments;
             }
             _ => {}
         }
@@ -1262,6 +1290,7 @@ impl XemHost {
             (wire_in::PLANE_PERIOD_NS, PLANE_PERIOD_NS),
             (wire_in::MASKED_PIXELS, mask.count() as u32),
             (wire_in::THRESHOLD_HOLD, case.hold()),
+            (wire_in::END_TRIM, case.end_trim),
         ];
         for (a, v) in regs {
             let i = self.p.wire_in[a as usize];
@@ -1510,6 +1539,7 @@ impl BramHost {
             ("reg_n", case.n as u64),
             ("reg_threshold", case.threshold as u64),
             ("reg_threshold_hold", case.hold() as u64),
+            ("reg_end_trim", case.end_trim as u64),
             ("reg_l_min", case.l_min as u64),
             ("reg_l_max", case.l_max as u64),
             ("reg_period", PLANE_PERIOD_NS as u64),

@@ -22,7 +22,7 @@
 //!   top-level input on *every* `eval()` — two per clock — besides the
 //!   evaluation after the clock edge. In rust-hdl's Verilog each module's
 //!   logic is one `always @(*)` process, and the wire-ins (N, T_int, T_hold,
-//!   L_min, L_max) reach the blink tracker combinationally, as does the host's
+//!   END_TRIM, L_min, L_max) reach the blink tracker combinationally, as does the host's
 //!   pipe-out read through the output FIFO's count, the packetiser's
 //!   `fifo_free` and the tracker's `rec_push` (the circular logic below):
 //!   so the tracker's and the packetiser's logic ran three times a clock,

@@ -1,13 +1,18 @@
 //! Co-simulation of the generated Verilog against the golden model: random
-//! scenes and registers (proptest) within each generated configuration on a
-//! reduced 64×32 field, directed cases for slot exhaustion and output-FIFO
-//! overflow, the sensor port, and the full 320×240 SPCImager field.
+//! scenes and registers (proptest, END_TRIM 0 ..= N − 1 included) within
+//! each generated configuration on a reduced 64×32 field, directed cases
+//! for slot exhaustion, output-FIFO overflow and the summation rule's
+//! corners (END_TRIM 0 and N − 1, cuts, the stream end), the sensor port,
+//! and the full 320×240 SPCImager field.
 //! Every case's packet bytes must equal the model's (or, with overflow, be
 //! the model's records with exactly the announced ones missing). Coverage
 //! counters are printed and asserted non-zero per configuration.
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
+use smartagg_model::pipeline::Pipeline;
+use smartagg_model::plane::BitPlane;
+use smartagg_model::record::{flags, Record};
 use smartagg_sim::designs::{Config, DesignSpec, FULL, REDUCED};
 use smartagg_sim::harness::{threshold_at_quantile, Case, Cosim, Coverage, Source};
 use smartagg_sim::scene::{generate, SceneSpec};
@@ -32,6 +37,8 @@ struct Params {
     edge: f64,
     /// T_hold as a fraction of T_int (1 or more: T_hold = T_int).
     hold: f64,
+    /// END_TRIM as a fraction of N (0 or less: 0, the paper's rule).
+    trim: f64,
 }
 
 fn params(n_max: u32) -> impl Strategy<Value = Params> {
@@ -47,9 +54,13 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
         0.0005f64..0.01,
         0.985f64..0.999,
         0.0f64..0.5,
-        // T_hold from about a third of T_int to T_int (a quarter of the
-        // cases at T_int: the one-threshold rule).
-        0.3f64..1.25,
+        (
+            // T_hold from about a third of T_int to T_int (a quarter of the
+            // cases at T_int: the one-threshold rule).
+            0.3f64..1.25,
+            // END_TRIM from 0 (a quarter of the cases) to N − 1.
+            -0.33f64..1.0,
+        ),
     )
         .prop_map(
             |(
@@ -64,7 +75,7 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
                 background,
                 quantile,
                 edge,
-                hold,
+                (hold, trim),
             )| Params {
                 seed,
                 n,
@@ -78,16 +89,12 @@ fn params(n_max: u32) -> impl Strategy<Value = Params> {
                 quantile,
                 edge,
                 hold,
+                trim,
             },
         )
 }
 
-fn scene(
-    w: usize,
-    h: usize,
-    planes: usize,
-    p: &Params,
-) -> (Vec<smartagg_model::plane::BitPlane>, Vec<(usize, usize)>) {
+fn scene(w: usize, h: usize, planes: usize, p: &Params) -> (Vec<BitPlane>, Vec<(usize, usize)>) {
     let hot = vec![
         (
             (p.seed % w as u64) as usize,
@@ -117,7 +124,7 @@ fn scene(
 
 fn case_of(
     c: &Cosim,
-    planes: Vec<smartagg_model::plane::BitPlane>,
+    planes: Vec<BitPlane>,
     hot: Vec<(usize, usize)>,
     p: &Params,
     source: Source,
@@ -126,6 +133,7 @@ fn case_of(
         n: p.n,
         threshold: 1,
         threshold_hold: None,
+        end_trim: trim_of(p.n, p.trim),
         l_min: p.l_min,
         l_max: p.n.max(p.l_min) + p.extra,
         planes,
@@ -143,6 +151,11 @@ fn case_of(
     case
 }
 
+/// END_TRIM at `fraction` of N, within 0 ..= N − 1.
+fn trim_of(n: u32, fraction: f64) -> u32 {
+    ((n as f64 * fraction.max(0.0)) as u32).min(n - 1)
+}
+
 /// T_hold at `fraction` of T_int, within 1 ..= T_int.
 fn hold_of(threshold: u32, fraction: f64) -> u32 {
     ((threshold as f64 * fraction.min(1.0)).round() as u32).clamp(1, threshold)
@@ -152,10 +165,11 @@ fn hold_of(threshold: u32, fraction: f64) -> u32 {
 fn check(c: &mut Cosim, case: &Case) -> Result<Coverage, String> {
     let named = |m: String| {
         format!(
-            "{m} (case: n {} T {} T_hold {} L_min {} L_max {} seed {})",
+            "{m} (case: n {} T {} T_hold {} END_TRIM {} L_min {} L_max {} seed {})",
             case.n,
             case.threshold,
             case.hold(),
+            case.end_trim,
             case.l_min,
             case.l_max,
             case.seed
@@ -188,6 +202,7 @@ fn directed(c: &mut Cosim, seed: u64, hold_reads: bool) -> Coverage {
         quantile: 0.98,
         edge: 0.3,
         hold: 1.0,
+        trim: 0.5,
     };
     let spec = SceneSpec {
         width: w,
@@ -231,11 +246,12 @@ fn burst(c: &mut Cosim, seed: u64) -> Coverage {
         quantile: 0.99,
         edge: 0.0,
         hold: 1.0,
+        trim: 0.5,
     };
     let (mut planes, hot) = scene(w, h, 160, &p);
     for plane in planes.iter_mut().skip(80).take(4) {
         let old = plane.clone();
-        *plane = smartagg_model::plane::BitPlane::from_fn(w, h, |x, y| {
+        *plane = BitPlane::from_fn(w, h, |x, y| {
             let (gx, gy) = (x % 8, y % 6);
             old.get(x, y) || ((3..=5).contains(&gx) && (2..=4).contains(&gy) && y < 30)
         });
@@ -245,6 +261,105 @@ fn burst(c: &mut Cosim, seed: u64) -> Coverage {
     case.threshold_hold = None;
     case.threshold = threshold_at_quantile(&c.model_config(&case).unwrap(), &case.planes, 0.999);
     check(c, &case).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The summation rule's corners on one scene, with END_TRIM 0 (the
+/// paper's) and N − 1: long blinks cut every L_max planes, drops whose
+/// last sums come after the stream end (summed from the drain planes),
+/// and the stream stopped while tracks are live (TRUNCATED, and the
+/// continuation of a cut at the last plane when one falls there). Blinks
+/// stay below the reduced field's sustained rate of about one a plane.
+fn trim_corners(c: &mut Cosim, seed: u64) -> Coverage {
+    let (w, h) = (c.spec.width, c.spec.height);
+    let p = Params {
+        seed,
+        n: 4,
+        l_min: 1,
+        extra: 6,
+        mask_enable: true,
+        input_stall: 10,
+        read_stall: 10,
+        emitters: 6,
+        background: 0.001,
+        quantile: 0.99,
+        edge: 0.2,
+        hold: 0.7,
+        trim: 0.0,
+    };
+    let spec = SceneSpec {
+        width: w,
+        height: h,
+        planes: 240,
+        background: p.background,
+        emitters: p.emitters,
+        peak: 0.6,
+        mean_on: 40.0,
+        mean_off: 30.0,
+        edge_fraction: p.edge,
+        dip: 0.05,
+        hot: vec![(7, 7)],
+        hot_rate: 0.3,
+    };
+    let planes = generate(&spec, seed);
+    let mut total = Coverage::default();
+    for end_trim in [0, p.n - 1] {
+        let mut case = case_of(c, planes.clone(), vec![(7, 7)], &p, Source::Replay);
+        case.end_trim = end_trim;
+        total.add(&check(c, &case).unwrap_or_else(|e| panic!("{e}")));
+    }
+    assert!(
+        total.cut_segments > 0 && total.truncated_blinks > 0,
+        "END_TRIM corners: {total}"
+    );
+    total.add(&empty_first_segment(c));
+    total
+}
+
+/// A blink that crosses T_int at plane 0 with L_max = N: its first segment
+/// is cut at N − 1, before its first plane has left the window, and sums
+/// nothing (its counts read as zero; MASKED from the hot pixel in its ROI:
+/// the aggregator sweeps a segment's ROI in its opening plane even when it
+/// sums nothing); its continuations, the drop and the stream end follow.
+/// (A dropped segment can sum nothing only if it drops before plane N,
+/// which H, non-decreasing before plane N, never does.)
+fn empty_first_segment(c: &mut Cosim) -> Coverage {
+    let (w, h) = (c.spec.width, c.spec.height);
+    let n = 6;
+    let hot = vec![(21, 13)];
+    let planes: Vec<BitPlane> = (0..40)
+        .map(|t| {
+            BitPlane::from_fn(w, h, |x, y| {
+                t < 20 && (18..23).contains(&x) && (10..15).contains(&y)
+            })
+        })
+        .collect();
+    let mut total = Coverage::default();
+    for end_trim in [0, n - 1] {
+        let mut case = Case {
+            hot: hot.clone(),
+            mask_enable: true,
+            end_trim,
+            ..Case::replay(n, 1, 1, n, planes.clone())
+        };
+        // T_int: the blob's H at plane 0, so that it crosses at once.
+        let mut model = Pipeline::new(c.model_config(&case).unwrap()).unwrap();
+        model.push_plane(&planes[0]).unwrap();
+        case.threshold = model.filtered().iter().copied().max().unwrap();
+        let records =
+            smartagg_model::pipeline::run(c.model_config(&case).unwrap(), planes.clone()).unwrap();
+        assert!(
+            records.iter().any(|r| matches!(r, Record::Blink(b)
+                if b.planes_summed == 0 && b.flags & flags::MASKED != 0)),
+            "END_TRIM {end_trim}: no empty MASKED Blink: {records:#?}"
+        );
+        let cov = check(c, &case).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            cov.empty_blinks > 0 && cov.cut_segments > 0,
+            "END_TRIM {end_trim}: {cov}"
+        );
+        total.add(&cov);
+    }
+    total
 }
 
 fn run_configuration(config: Config, seed: u64) -> Coverage {
@@ -282,6 +397,7 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     total.add(&directed(c, seed ^ 1, false));
     total.add(&directed(c, seed ^ 2, true));
     total.add(&burst(c, seed ^ 3));
+    total.add(&trim_corners(c, seed ^ 4));
     println!("{}: {total}", config.name());
     assert!(total.planes >= 6_000, "{total}");
     assert!(total.confirmed_blinks > 0, "confirmed blinks: {total}");
@@ -290,6 +406,8 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     assert!(total.slot_exhaustion > 0, "slot exhaustion: {total}");
     assert!(total.output_fifo_full > 0, "output FIFO full: {total}");
     assert!(total.edge_rois > 0, "edge ROIs: {total}");
+    assert!(total.cut_segments > 0, "cut segments: {total}");
+    assert!(total.truncated_blinks > 0, "truncated blinks: {total}");
     if ddr {
         assert!(
             total.refresh_collisions > 0,
@@ -332,6 +450,7 @@ fn sensor_port_equals_the_model() {
         edge: 0.3,
         // Hysteresis through the sensor port too.
         hold: 0.6,
+        trim: 0.5,
     };
     let (planes, hot) = scene(REDUCED.0, REDUCED.1, 600, &p);
     let case = case_of(&c, planes, hot, &p, Source::Sensor);
@@ -353,8 +472,8 @@ fn full_planes() -> usize {
 }
 
 /// The full field with the shipped design's defaults (the field design:
-/// N, T_open, T_hold < T_open, r_assoc, L_min = 1): hysteresis on the
-/// whole sensor.
+/// N, T_open, T_hold < T_open, END_TRIM = ⌊N/2⌋, r_assoc, L_min = 1):
+/// hysteresis and the trimmed sums on the whole sensor.
 #[test]
 fn spcimager150_full_field_equals_the_model() {
     let design =
@@ -378,6 +497,7 @@ fn spcimager150_full_field_equals_the_model() {
         quantile: 0.999,
         edge: 0.1,
         hold: 1.0,
+        trim: 0.5,
     };
     let (planes, hot) = scene(FULL.0, FULL.1, full_planes(), &p);
     let case = Case {
@@ -391,9 +511,10 @@ fn spcimager150_full_field_equals_the_model() {
     let cov = check(&mut c, &case).unwrap_or_else(|e| panic!("{e}"));
     let wpp = (FULL.0 * FULL.1 / smartagg_sim::designs::P) as f64;
     println!(
-        "full field (T_open {}, T_hold {}, r_assoc {}): {cov}; {:.0} clocks per plane ({} words per plane)",
+        "full field (T_open {}, T_hold {}, END_TRIM {}, r_assoc {}): {cov}; {:.0} clocks per plane ({} words per plane)",
         case.threshold,
         case.hold(),
+        case.end_trim,
         design.config.r_assoc,
         cov.cycles as f64 / cov.planes as f64,
         wpp

@@ -5,8 +5,9 @@
 //! skipped at random), so a bit-plane takes ≈ W·H/P / 0.9 ≈ 5,300 clocks
 //! (W·H/P = 4,800). The registers and the association radius are the
 //! shipped design's defaults, the field design's (`smartagg_hdl::configs::
-//! Design`: N, T_open, T_hold < T_open, r_assoc, L_min = 1), so the
-//! hysteresis of the full field is what runs. Prints the
+//! Design`: N, T_open, T_hold < T_open, END_TRIM = ⌊N/2⌋, r_assoc,
+//! L_min = 1), so the hysteresis and the trimmed sums of the full field
+//! are what runs. Prints the
 //! coverage counters, clocks per bit-plane and simulated cycles per second
 //! (speed is printed, never asserted).
 
@@ -32,6 +33,12 @@ fn spcimager150_full_field_2000_planes_at_near_a_word_per_clock_equals_the_model
         "the field design has hysteresis: T_hold {} < T_open {}",
         design.threshold_hold,
         design.threshold_int
+    );
+    assert!(
+        design.end_trim > 0 && design.end_trim == design.n_window / 2,
+        "the field design trims the sums to t_e: END_TRIM {} of N {}",
+        design.end_trim,
+        design.n_window
     );
     let spec = DesignSpec::new(Config::Spcimager150, w, h)
         .and_then(|s| s.with_r_assoc(design.config.r_assoc))

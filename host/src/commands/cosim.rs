@@ -107,6 +107,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         n,
         threshold: 1,
         threshold_hold: None,
+        // The field design's choice: sum to the estimated end t_e.
+        end_trim: n / 2,
         l_min: 3,
         l_max: n + 100,
         planes,
@@ -134,8 +136,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match c.check(&case)? {
         Ok(cov) => {
             println!(
-                "match: {} packets compared byte for byte over {} bit-planes (N {n}, T_int {}, L_min {}, L_max {})",
-                cov.packets, cov.planes, case.threshold, case.l_min, case.l_max
+                "match: {} packets compared byte for byte over {} bit-planes (N {n}, T_int {}, END_TRIM {}, L_min {}, L_max {})",
+                cov.packets, cov.planes, case.threshold, case.end_trim, case.l_min, case.l_max
             );
             if cov.records_lost > 0 {
                 println!(

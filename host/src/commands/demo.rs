@@ -178,6 +178,7 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
     let case = Case {
         seed,
         threshold_hold: Some(cfg.threshold_hold),
+        end_trim: cfg.end_trim,
         ..Case::replay(
             cfg.n_window,
             cfg.threshold_int,
