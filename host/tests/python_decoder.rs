@@ -425,7 +425,11 @@ fn python_decoder_equals_the_host_decoder() {
             .flat_map(|(_, b)| b.clone())
             .collect();
         assert!(!all.is_empty());
-        note(&same_output(&format!("all vectors {old}"), &all, dir.path()));
+        note(&same_output(
+            &format!("all vectors {old}"),
+            &all,
+            dir.path(),
+        ));
     }
 
     let mut rng = ChaCha8Rng::seed_from_u64(0x5A_2026);

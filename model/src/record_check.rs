@@ -354,7 +354,10 @@ mod tests {
         };
         assert_eq!(check_blink(&c, &v2, Some(60)), Ok(()));
         assert!(check_blink(&c, &start(), Some(60)).is_err());
-        let cut2 = BlinkRecord { flags: flags::CUT, ..blink() };
+        let cut2 = BlinkRecord {
+            flags: flags::CUT,
+            ..blink()
+        };
         assert_eq!(check_blink(&cut2, &v2, None), Ok(()));
         let e = BlinkRecord {
             flags: flags::CONTINUATION | flags::TRUNCATED,

@@ -1587,13 +1587,20 @@ fn older_version_vectors_still_decode() {
                 d.packets.into_iter().map(|p| (p.seq, p.record)).collect();
             assert_eq!(got, want, "{dir}/{file}");
             assert_eq!(d.stats.malformed + d.stats.newer_version, 0, "{dir}/{file}");
-            assert_eq!(d.stats.lost_in_transport, packets[0].0 as u64, "{dir}/{file}");
+            assert_eq!(
+                d.stats.lost_in_transport, packets[0].0 as u64,
+                "{dir}/{file}"
+            );
             if !matches!(want[0].1, Record::Start(_)) && want.len() == 1 {
                 let now = encode(&want[0].1, want[0].0);
                 assert_eq!(bytes.len(), now.len(), "{dir}/{file}");
                 assert_eq!(bytes[2], version);
                 assert_eq!(now[2], VERSION);
-                assert_eq!(bytes[3..bytes.len() - 4], now[3..now.len() - 4], "{dir}/{file}");
+                assert_eq!(
+                    bytes[3..bytes.len() - 4],
+                    now[3..now.len() - 4],
+                    "{dir}/{file}"
+                );
             }
         }
     }

@@ -87,7 +87,11 @@ fn record_is_emitted_at_its_completion_plane() {
         let mut p = Pipeline::new(c).unwrap();
         for (t, plane) in planes.iter().enumerate() {
             let out = p.push_plane(plane).unwrap();
-            assert_eq!(out.len(), usize::from(t == at), "end_trim {end_trim}, plane {t}: {out:?}");
+            assert_eq!(
+                out.len(),
+                usize::from(t == at),
+                "end_trim {end_trim}, plane {t}: {out:?}"
+            );
             if let Some(Record::Blink(b)) = out.first() {
                 // [t_cross − N, t_drop − end_trim] = [7, 32 − end_trim].
                 assert_eq!(b.planes_summed, summed);

@@ -67,7 +67,9 @@ fn a_continuation_is_evaluated_at_t_cross_always_confirmed_and_completes_after_i
 fn a_first_segment_confirms_at_l_min_and_completes_after_its_last_plane() {
     // N = 6, L_min = 2: on at 1, below at 2 and 3: t_drop = 2, confirmed
     // (2 − 0 ≥ 2), detected at 3, completed at 2 + 6 − end_trim.
-    let on = [true, true, false, false, false, false, false, false, false, false];
+    let on = [
+        true, true, false, false, false, false, false, false, false, false,
+    ];
     for (end_trim, at, summed) in [(0, 8, 3), (3, 5, 0), (5, 3, 0)] {
         let mut tr = BlinkTracker::new(1, 6, end_trim, 2, 100, 1);
         let done = drive(&mut tr, &on);

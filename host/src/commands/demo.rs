@@ -591,12 +591,8 @@ fn analyse(
         if !loc.status.is_ok() {
             continue;
         }
-        let summed =
-            smartagg_model::record_check::summed_planes_by(rec, n_window, Some(end_trim));
-        let (t0, t1) = (
-            summed.start as f64 * period_s,
-            summed.end as f64 * period_s,
-        );
+        let summed = smartagg_model::record_check::summed_planes_by(rec, n_window, Some(end_trim));
+        let (t0, t1) = (summed.start as f64 * period_s, summed.end as f64 * period_s);
         let best = truth
             .iter()
             .enumerate()
