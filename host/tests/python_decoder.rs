@@ -149,6 +149,7 @@ fn random_packets(rng: &mut ChaCha8Rng) -> Vec<Vec<u8>> {
         n_window: rng.gen(),
         threshold_int: rng.gen(),
         threshold_hold: rng.gen(),
+        end_trim: Some(rng.gen()),
         l_min: rng.gen(),
         l_max: rng.gen(),
         r_assoc: rng.gen(),

@@ -975,6 +975,7 @@ mod tests {
             n_window: 108,
             threshold_int: 100,
             threshold_hold: 100,
+            end_trim: Some(0),
             l_min: 1,
             l_max: 10_000,
             r_assoc: 1,
