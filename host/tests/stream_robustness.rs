@@ -146,15 +146,15 @@ fn as_version(bytes: &[u8], version: u8) -> Vec<u8> {
 #[test]
 fn a_stream_of_a_newer_format_version_says_so() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("v3.rois");
-    let newer = as_version(&stream(), 3);
+    let input = dir.path().join("v4.rois");
+    let newer = as_version(&stream(), 4);
     std::fs::write(&input, &newer).unwrap();
     let out = dir.path().join("out.rois");
     for extra in [&[][..], &["--allow-loss"][..]] {
         let o = download(&input, &out, extra);
         let t = text(&o);
         assert_eq!(o.status.code(), Some(2), "{t}");
-        assert!(t.contains(&newer_version_message(3)), "{t}");
+        assert!(t.contains(&newer_version_message(4)), "{t}");
         assert!(
             t.contains("8 packets could not be read; update smartagg"),
             "{t}"
@@ -170,25 +170,25 @@ fn a_stream_of_a_newer_format_version_says_so() {
         );
     }
 
-    // One newer packet inside a version-2 stream, before its stream-end
+    // One newer packet inside a version-3 stream, before its stream-end
     // record: skipped and named.
     let mut mixed = stream();
-    let v3 = as_version(&stream(), 3);
-    let first_len = 14 + u16::from_le_bytes([v3[8], v3[9]]) as usize;
+    let v4 = as_version(&stream(), 4);
+    let first_len = 14 + u16::from_le_bytes([v4[8], v4[9]]) as usize;
     let end_at = mixed.len() - (14 + 48);
-    mixed.splice(end_at..end_at, v3[..first_len].iter().copied());
+    mixed.splice(end_at..end_at, v4[..first_len].iter().copied());
     std::fs::write(&input, &mixed).unwrap();
     let o = download(&input, &out, &[]);
     let t = text(&o);
     assert_eq!(o.status.code(), Some(2), "{t}");
-    assert!(t.contains(&newer_version_message(3)), "{t}");
+    assert!(t.contains(&newer_version_message(4)), "{t}");
     assert!(
-        t.contains("1 packets of a format version newer than 2 skipped"),
+        t.contains("1 packets of a format version newer than 3 skipped"),
         "{t}"
     );
     let o = download(&input, &out, &["--allow-loss"]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
-    assert!(text(&o).contains("WARNING: stream format version 3 is newer"));
+    assert!(text(&o).contains("WARNING: stream format version 4 is newer"));
 }
 
 #[test]
