@@ -16,7 +16,7 @@ mod transport;
 /// each molecule blinks on (spatial Gaussian filter, rolling sum over N
 /// bit-planes, a threshold derived from photon statistics), sums only the
 /// bit-planes of that blink into one small image (ROI) per blink, and localises
-/// the molecule in it. Presets: spcimager, spcimager-projected, emccd, scmos.
+/// the molecule in it. Presets: spcimager, spcimager-projected, spad512s, emccd, scmos.
 #[derive(Parser, Debug)]
 #[command(name = "smartagg", version, about, long_about)]
 struct Cli {

@@ -27,7 +27,7 @@ pub enum DetectionMode {
 /// overridden.
 #[derive(clap::Args, Debug, Clone)]
 pub struct PipelineArgs {
-    /// Camera preset whose statistics set N, T and the kernel (spcimager, spcimager-projected).
+    /// Camera preset whose statistics set N, T and the kernel (spcimager, spcimager-projected, spad512s).
     #[arg(long, default_value = "spcimager")]
     pub preset: String,
     /// Objective magnification: 150 or 60.

@@ -5,13 +5,17 @@
 //! delayed stream serves the rolling count (stage 1) and the ROI sums
 //! (stage 6), which add the planes from `t_cross − N` on as they leave.
 
+use crate::hot_pixel_mask::HotPixelMask;
 use crate::plane::BitPlane;
 use std::collections::VecDeque;
 
-/// A first-in first-out line of the last N bit-planes.
+/// A first-in first-out line of the last N bit-planes, plus the one that
+/// has just left (`B_{t−N}`, read by the rolling count and the ROI sums),
+/// whose memory the next push reuses: no plane is allocated per push.
 #[derive(Debug, Clone)]
 pub struct DelayLine {
     n: usize,
+    /// `B_{t−N} … B_t` once full (N + 1 planes); `B_0 … B_t` before.
     planes: VecDeque<BitPlane>,
     zero: BitPlane,
 }
@@ -29,11 +33,31 @@ impl DelayLine {
 
     /// Pushes `B_t` and returns `B_{t−N}` (zero for `t < N`).
     pub fn push(&mut self, plane: BitPlane) -> BitPlane {
-        self.planes.push_back(plane);
-        if self.planes.len() > self.n {
-            self.planes.pop_front().expect("non-empty")
+        self.push_masked(&plane, None);
+        self.delayed().clone()
+    }
+
+    /// Pushes a copy of `B_t`, with the pixels of `mask` forced to 0 where a
+    /// mask is given, into the memory of the plane that leaves;
+    /// [`DelayLine::delayed`] is then `B_{t−N}`.
+    pub fn push_masked(&mut self, plane: &BitPlane, mask: Option<&HotPixelMask>) {
+        if self.planes.len() == self.n + 1 {
+            let mut buf = self.planes.pop_front().expect("full");
+            buf.copy_masked(plane, mask);
+            self.planes.push_back(buf);
         } else {
-            self.zero.clone()
+            let mut buf = self.zero.clone();
+            buf.copy_masked(plane, mask);
+            self.planes.push_back(buf);
+        }
+    }
+
+    /// `B_{t−N}` after `B_t` went in (zero for `t < N`).
+    pub fn delayed(&self) -> &BitPlane {
+        if self.planes.len() == self.n + 1 {
+            &self.planes[0]
+        } else {
+            &self.zero
         }
     }
 
@@ -46,11 +70,10 @@ impl DelayLine {
     /// `B_{t−N+1+i}` after `B_t` went in; zero where that plane precedes the stream.
     /// Used to complete the ROI sums at stream end.
     pub fn peek(&self, i: usize) -> &BitPlane {
-        let missing = self.n - self.planes.len();
-        if i < missing {
-            &self.zero
-        } else {
-            &self.planes[i - missing]
+        // planes[j] is B_{t+1−len+j}: B_{t−N+1+i} is at j = i + len − N.
+        match (i + self.planes.len()).checked_sub(self.n) {
+            Some(j) if j < self.planes.len() => &self.planes[j],
+            _ => &self.zero,
         }
     }
 }
@@ -77,6 +100,28 @@ mod tests {
         // After B_7 went in, the next three outputs are B_5, B_6, B_7.
         assert_eq!(d.peek(0), &planes[5]);
         assert_eq!(d.peek(2), &planes[7]);
+    }
+
+    #[test]
+    fn pushes_reuse_the_plane_that_left_and_apply_the_mask() {
+        let (mask, _) = HotPixelMask::from_pixels(70, 2, &[(3, 0), (66, 1)]);
+        let mut d = DelayLine::new(2, 70, 2);
+        let planes: Vec<BitPlane> = (0..6u64)
+            .map(|t| BitPlane::from_fn(70, 2, |x, y| !(x + y + t as usize).is_multiple_of(3)))
+            .collect();
+        for (t, p) in planes.iter().enumerate() {
+            d.push_masked(p, Some(&mask));
+            assert_eq!(d.newest(), &mask.apply(p));
+            if t >= 2 {
+                assert_eq!(d.delayed(), &mask.apply(&planes[t - 2]));
+            } else {
+                assert_eq!(d.delayed().count_ones(), 0);
+            }
+        }
+        // A plane of another size replaces the buffer instead of copying into it.
+        let mut small = BitPlane::zeros(3, 1);
+        small.copy_masked(&planes[0], None);
+        assert_eq!(small, planes[0]);
     }
 
     #[test]

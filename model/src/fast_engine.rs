@@ -32,6 +32,7 @@ use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
 use crate::record::Record;
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 /// Above this fraction of changed pixels a plane is filtered densely (a
 /// change costs k² scattered adds, a dense pass about 2k per pixel).
@@ -632,18 +633,87 @@ impl FrontEnd for ReplayFrontEnd {
 }
 
 /// A time chunk of the stream on its way to a worker: its planes and the
-/// (up to N) planes before it, oldest first.
+/// (up to N) planes before it, oldest first, as ranges of earlier chunks
+/// (shared with the jobs that had them, not copied: at N ≈ 1,000 planes of
+/// 512×512 a copy would cost more than the filtering).
 struct Job {
     index: usize,
-    history: Vec<BitPlane>,
-    planes: Vec<BitPlane>,
+    history: Vec<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)>,
+    planes: Arc<Vec<BitPlane>>,
 }
 
 /// A chunk back from a worker, with stages 1–4 of each of its planes.
 struct Done {
     index: usize,
+    planes: Arc<Vec<BitPlane>>,
+    fronts: Vec<PlaneFront>,
+}
+
+/// The time chunk [`run_parallel`] is best given for a window of `n_window`
+/// planes: every chunk re-reads the N planes before it to warm its counts
+/// up, so a chunk of 4N or more keeps that below a quarter of its work; 512
+/// at least, so that short windows still hand out chunks of useful size.
+pub fn default_chunk(n_window: u32) -> usize {
+    (4 * n_window as usize).max(512)
+}
+
+/// Stages 1–4 of planes from stream start, kept with the planes so that
+/// stages 5–7 can run alone on them ([`FrontResults::replay_back_end`]): how
+/// `smartagg bench aggregate` measures the sequential back end, the serial
+/// part of [`run_parallel`].
+#[derive(Debug, Clone)]
+pub struct FrontResults {
+    cfg: PipelineConfig,
     planes: Vec<BitPlane>,
     fronts: Vec<PlaneFront>,
+}
+
+impl FrontResults {
+    /// Stages 1–4 (the fast front end) of `planes`, from stream start.
+    pub fn compute(cfg: &PipelineConfig, planes: &[BitPlane]) -> FrontResults {
+        let planes: Vec<BitPlane> = match &cfg.hot_mask {
+            Some(m) => planes.iter().map(|p| m.apply(p)).collect(),
+            None => planes.to_vec(),
+        };
+        FrontResults {
+            cfg: cfg.clone(),
+            fronts: chunk_fronts(cfg, &[], &planes),
+            planes,
+        }
+    }
+
+    /// Planes held.
+    pub fn len(&self) -> usize {
+        self.planes.len()
+    }
+
+    /// Whether no plane is held.
+    pub fn is_empty(&self) -> bool {
+        self.planes.is_empty()
+    }
+
+    /// Stages 5–7 alone — the tracker, the ROI sums and the records — on the
+    /// planes and their stages 1–4: the records of the whole stream (start
+    /// to end), the same as [`fast_pipeline`]'s on the same planes.
+    pub fn replay_back_end(self) -> Result<Vec<Record>, PipelineError> {
+        let cfg = self.cfg;
+        cfg.validate()?;
+        let mut back = Pipeline::with_front_end(
+            cfg.clone(),
+            ReplayFrontEnd {
+                width: cfg.width,
+                height: cfg.height,
+                queue: self.fronts.into(),
+                ..Default::default()
+            },
+        )?;
+        let mut out = vec![back.start_record()];
+        for p in &self.planes {
+            out.extend(back.push_plane(p)?);
+        }
+        out.extend(back.finish());
+        Ok(out)
+    }
 }
 
 /// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
@@ -704,7 +774,8 @@ where
         let reader_cfg = cfg.clone();
         let reader = scope.spawn(move || -> Result<(), ParallelError<E>> {
             let mut planes = planes;
-            let mut history: VecDeque<BitPlane> = VecDeque::with_capacity(n);
+            let mut history: VecDeque<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)> =
+                VecDeque::new();
             let (w, h) = (reader_cfg.width, reader_cfg.height);
             for index in 0.. {
                 let mut batch = Vec::with_capacity(chunk);
@@ -732,12 +803,20 @@ where
                     break;
                 }
                 let full = batch.len() == chunk;
-                let job_history: Vec<BitPlane> = history.iter().cloned().collect();
-                for p in batch.iter().skip(batch.len().saturating_sub(n)) {
-                    if history.len() == n {
+                let batch = Arc::new(batch);
+                let job_history: Vec<_> = history.iter().cloned().collect();
+                // The last N planes read: ranges of this and earlier chunks.
+                history.push_back((batch.clone(), 0..batch.len()));
+                let held: usize = history.iter().map(|(_, r)| r.len()).sum();
+                let mut excess = held.saturating_sub(n);
+                while excess > 0 {
+                    let front = history.front_mut().expect("planes beyond N are held");
+                    let drop = excess.min(front.1.len());
+                    front.1.start += drop;
+                    excess -= drop;
+                    if front.1.is_empty() {
                         history.pop_front();
                     }
-                    history.push_back(p.clone());
                 }
                 let job = Job {
                     index,
@@ -758,7 +837,12 @@ where
                     Err(_) => return,
                 };
                 let Ok(job) = job else { return };
-                let fronts = chunk_fronts(worker_cfg, &job.history, &job.planes);
+                let history: Vec<&BitPlane> = job
+                    .history
+                    .iter()
+                    .flat_map(|(c, r)| c[r.clone()].iter())
+                    .collect();
+                let fronts = chunk_fronts(worker_cfg, &history, &job.planes);
                 let done = Done {
                     index: job.index,
                     planes: job.planes,
@@ -778,7 +862,7 @@ where
             early.insert(done.index, done);
             while let Some(d) = early.remove(&next) {
                 back.front_end_mut().queue.extend(d.fronts);
-                for plane in &d.planes {
+                for plane in d.planes.iter() {
                     match back.push_plane(plane) {
                         Ok(records) => records.into_iter().for_each(&mut sink),
                         Err(e) => {
@@ -810,7 +894,7 @@ where
 /// stream start (earlier planes are zero).
 fn chunk_fronts(
     cfg: &PipelineConfig,
-    history: &[BitPlane],
+    history: &[&BitPlane],
     planes: &[BitPlane],
 ) -> Vec<PlaneFront> {
     let n = cfg.n_window as usize;
@@ -819,12 +903,12 @@ fn chunk_fronts(
     // Plane i of the chunk is at h + i in `history ++ planes`.
     let get = |j: usize| -> &BitPlane {
         if j < h {
-            &history[j]
+            history[j]
         } else {
             &planes[j - h]
         }
     };
-    let mut fe = FastFrontEnd::warmed_up(cfg, history.iter());
+    let mut fe = FastFrontEnd::warmed_up(cfg, history.iter().copied());
     planes
         .iter()
         .enumerate()

@@ -66,6 +66,12 @@ impl HotPixelMask {
             && self.masked[y as usize * self.width + x as usize]
     }
 
+    /// The mask as raster-order 64-bit words (pixel i at bit `i % 64` of
+    /// word `i / 64`; 1 = masked), as [`BitPlane::words`] lays out a plane.
+    pub fn words(&self) -> &[u64] {
+        self.masked.as_raw_slice()
+    }
+
     /// Number of masked pixels.
     pub fn count(&self) -> usize {
         self.masked.count_ones()

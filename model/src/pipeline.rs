@@ -255,14 +255,11 @@ impl<F: FrontEnd> Pipeline<F> {
         }
         let t = self.planes;
 
-        // Stages 0–4.
-        let live = match &self.cfg.hot_mask {
-            Some(m) => m.apply(plane),
-            None => plane.clone(),
-        };
-        // The delay line keeps `B_t`; read it back rather than copy it.
-        let delayed = self.delay.push(live);
-        self.front.push(self.delay.newest(), &delayed);
+        // Stages 0–4. The delay line keeps the masked `B_t` and `B_{t−N}`;
+        // both are read from it rather than copied.
+        self.delay.push_masked(plane, self.cfg.hot_mask.as_ref());
+        let delayed = self.delay.delayed();
+        self.front.push(self.delay.newest(), delayed);
 
         // Stage 5a: tracks live at the end of t−1.
         let front = &self.front;
@@ -281,7 +278,7 @@ impl<F: FrontEnd> Pipeline<F> {
         // Stage 6.
         for slot in 0..self.cfg.slots {
             if self.tracker.sums_delayed(slot, t) {
-                self.rois.add(slot, &delayed);
+                self.rois.add(slot, delayed);
             }
         }
 

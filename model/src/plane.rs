@@ -103,7 +103,22 @@ impl BitPlane {
             return 0;
         }
         let start = y as usize * self.width + lo as usize;
-        let bits: u64 = self.bits[start..start + (hi - lo) as usize].load_le();
+        let n = (hi - lo) as usize;
+        let bits: u64 = if self.bits.as_bitptr().bit().into_inner() == 0 {
+            // Whole words (bitvec's generic load costs as much as the ROI sums).
+            let words = self.bits.as_raw_slice();
+            let (w, b) = (start / 64, start % 64);
+            let mut v = words[w] >> b;
+            if b + n > 64 {
+                v |= words[w + 1] << (64 - b);
+            }
+            if n < 64 {
+                v &= (1u64 << n) - 1;
+            }
+            v
+        } else {
+            self.bits[start..start + n].load_le()
+        };
         bits << (lo - x0)
     }
 
@@ -133,6 +148,34 @@ impl BitPlane {
     /// Mutable raster-order bits.
     pub fn bits_mut(&mut self) -> &mut BitSlice<u64, Lsb0> {
         &mut self.bits
+    }
+
+    /// Makes this plane a copy of `src`, with the pixels of `mask` forced to
+    /// 0 where a mask is given, reusing this plane's memory when the sizes
+    /// agree (the delay line recycles the plane that left it).
+    pub fn copy_masked(
+        &mut self,
+        src: &BitPlane,
+        mask: Option<&crate::hot_pixel_mask::HotPixelMask>,
+    ) {
+        let aligned = |p: &BitPlane| p.bits.as_bitptr().bit().into_inner() == 0;
+        if (self.width, self.height) == (src.width, src.height) && aligned(self) && aligned(src) {
+            let dst = self.bits.as_raw_mut_slice();
+            let from = src.bits.as_raw_slice();
+            match mask {
+                None => dst.copy_from_slice(from),
+                Some(m) => {
+                    for ((d, &s), &k) in dst.iter_mut().zip(from).zip(m.words()) {
+                        *d = s & !k;
+                    }
+                }
+            }
+        } else {
+            *self = match mask {
+                Some(m) => m.apply(src),
+                None => src.clone(),
+            };
+        }
     }
 
     /// Number of pixels that read 1.

@@ -2,7 +2,9 @@
 
 use proptest::prelude::*;
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::fast_engine::{fast_pipeline, run_parallel, FastFrontEnd, ParallelError};
+use smartagg_model::fast_engine::{
+    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, ParallelError,
+};
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd, PipelineError};
 use smartagg_model::plane::BitPlane;
@@ -102,13 +104,24 @@ fn spcimager_like_field_matches_golden_single_and_parallel() {
     );
     let fast = run_with(fast_pipeline(cfg.clone()).unwrap(), planes.clone()).unwrap();
     assert_eq!(fast, golden);
-    for (threads, chunk) in [(1, 900), (2, 100), (3, 37), (2, 1)] {
+    for (threads, chunk) in [(1, 900), (2, 100), (3, 37), (2, 1), (2, 250)] {
         assert_eq!(
             parallel(cfg.clone(), planes.clone(), threads, chunk),
             golden,
             "threads {threads} chunk {chunk}"
         );
     }
+    // Stages 5–7 alone on precomputed stages 1–4: the same records.
+    let fronts = FrontResults::compute(&cfg, &planes);
+    assert_eq!(fronts.len(), planes.len());
+    assert_eq!(fronts.replay_back_end().unwrap(), golden);
+}
+
+#[test]
+fn the_default_chunk_covers_the_warm_up() {
+    assert_eq!(default_chunk(18), 512);
+    assert_eq!(default_chunk(109), 512);
+    assert_eq!(default_chunk(1009), 4036);
 }
 
 #[test]

@@ -60,7 +60,7 @@ impl StudyName {
         match self {
             StudyName::SmartVsFixed => "SPCIMAGER: smart vs fixed aggregation",
             StudyName::FutureSpad => "Current vs projected SPAD",
-            StudyName::Cameras => "Projected SPAD (smart) vs EMCCD and sCMOS",
+            StudyName::Cameras => "Projected SPAD and SPAD512S (smart) vs EMCCD and sCMOS",
             StudyName::Objective => "150x vs 60x objective (smart aggregation)",
             StudyName::HotPixels => "Hot pixels: ignored vs interpolated (SPCIMAGER, 50 ms on)",
             StudyName::Localizers => {
@@ -361,6 +361,7 @@ impl Config {
         let (key, label) = match preset {
             PresetName::Spcimager => (format!("spcimager-{objective}x"), "SPCIMAGER"),
             PresetName::SpcimagerProjected => (format!("projected-{objective}x"), "projected SPAD"),
+            PresetName::Spad512s => (format!("spad512s-{objective}x"), "SPAD512S"),
             PresetName::Emccd => (format!("emccd-{objective}x"), "EMCCD"),
             PresetName::Scmos => (format!("scmos-{objective}x"), "sCMOS"),
         };
@@ -376,7 +377,7 @@ impl Config {
     pub fn is_spad(&self) -> bool {
         matches!(
             self.preset,
-            PresetName::Spcimager | PresetName::SpcimagerProjected
+            PresetName::Spcimager | PresetName::SpcimagerProjected | PresetName::Spad512s
         )
     }
 }
@@ -507,13 +508,19 @@ impl Plan {
             ),
             StudyName::Cameras => (
                 Axis::BlinkMs,
-                vec![prj150, Config::new(Emccd, 150), Config::new(Scmos, 150)],
+                vec![
+                    prj150,
+                    Config::new(Spad512s, 150),
+                    Config::new(Emccd, 150),
+                    Config::new(Scmos, 150),
+                ],
                 vec![
                     (0, Smart),
-                    (1, Frames),
-                    (1, FramesMerged),
+                    (1, Smart),
                     (2, Frames),
                     (2, FramesMerged),
+                    (3, Frames),
+                    (3, FramesMerged),
                 ],
             ),
             StudyName::Objective => (
@@ -661,6 +668,12 @@ impl Plan {
                 ratio(
                     "sCMOS / projected smart",
                     "scmos-150x/frames",
+                    "projected-150x/smart",
+                    None,
+                ),
+                ratio(
+                    "SPAD512S smart / projected smart",
+                    "spad512s-150x/smart",
                     "projected-150x/smart",
                     None,
                 ),

@@ -4,7 +4,7 @@ use crate::output::AtomicFile;
 use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
 use anyhow::Context;
-use smartagg_model::fast_engine::{fast_pipeline, run_parallel};
+use smartagg_model::fast_engine::{default_chunk, fast_pipeline, run_parallel};
 use smartagg_model::packet::Encoder;
 use smartagg_model::pipeline::{FrontEnd, Pipeline};
 use smartagg_model::record::Record;
@@ -105,13 +105,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let pb = progress.clone();
             let planes = reader.inspect(move |_| pb.inc(1));
             let mut failed: Option<anyhow::Error> = None;
-            run_parallel(cfg.clone(), planes, threads, 512, |r| {
-                if failed.is_none() {
-                    if let Err(e) = write_record(r, &mut summary) {
-                        failed = Some(e);
+            run_parallel(
+                cfg.clone(),
+                planes,
+                threads,
+                default_chunk(cfg.n_window),
+                |r| {
+                    if failed.is_none() {
+                        if let Err(e) = write_record(r, &mut summary) {
+                            failed = Some(e);
+                        }
                     }
-                }
-            })
+                },
+            )
             .map_err(|e| anyhow::anyhow!("{e}"))?;
             if let Some(e) = failed {
                 return Err(e);

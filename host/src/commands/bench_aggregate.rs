@@ -1,14 +1,18 @@
 //! `smartagg bench aggregate`: golden and fast engines side by side on the
 //! same simulated bit-planes, at typical SMLM density and a dense worst case.
-//! Prints planes/s and Mpixel/s (wall clock) and planes per CPU-second (the
+//! Prints planes/s and Gpixel/s (wall clock) and planes per CPU-second (the
 //! rate one free core would give: the machine may be shared), checks that the
-//! bytes are identical, and gives the 1- vs T-thread speed-up. With
+//! bytes are identical, times stages 1–4 and 5–7 alone, and runs the chunked
+//! engine's scaling curve (1, 2, 4, … threads) with the speed-up over one
+//! thread; then the same for the SPAD512S class camera. With
 //! `--stream` it streams `--planes` planes through the fast engine and prints
 //! the resident memory as it goes, to show that it stays flat.
 
 use crate::setup::{self, PipelineArgs};
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::fast_engine::{fast_pipeline, run_parallel, FastFrontEnd};
+use smartagg_model::fast_engine::{
+    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults,
+};
 use smartagg_model::packetiser::Packetiser;
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::pipeline::FrontEnd;
@@ -18,9 +22,6 @@ use smartagg_model::record::Record;
 use smartagg_scene::scene::{Blinking, Layout, OnTime, Scene};
 use smartagg_scene::spad::SpadSimulator;
 use std::time::Instant;
-
-/// Planes per time chunk of the parallel engine (as `smartagg aggregate`).
-const CHUNK: usize = 512;
 
 /// Arguments of `smartagg bench aggregate`.
 #[derive(clap::Args, Debug)]
@@ -33,7 +34,7 @@ pub struct Args {
     /// Planes for the (slow) golden engine.
     #[arg(long, default_value_t = 300)]
     pub golden_planes: usize,
-    /// Worker threads of the multi-threaded run, 1..=1024 (default: all cores; more than the cores oversubscribe them, as asked).
+    /// Most worker threads: the scaling curve runs 1, 2, 4, … up to this, 1..=1024 (default: all cores; more than the cores oversubscribe them, as asked). With `--stream`: the workers.
     #[arg(long, value_parser = crate::setup::thread_count)]
     pub threads: Option<usize>,
     /// Field width (default: the sensor).
@@ -83,7 +84,7 @@ fn parallel(
         cfg.clone(),
         planes.iter().cloned().map(Ok),
         threads,
-        CHUNK,
+        default_chunk(cfg.n_window),
         |r| out.push(r),
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -141,25 +142,61 @@ impl Timing {
     }
 }
 
+/// The thread counts of the scaling curve: 1, 2, 4, … up to `max`, and
+/// `max` itself.
+fn thread_curve(max: usize) -> Vec<usize> {
+    let mut t: Vec<usize> = std::iter::successors(Some(1usize), |&t| t.checked_mul(2))
+        .take_while(|&t| t < max)
+        .collect();
+    t.push(max.max(1));
+    t
+}
+
+/// One preset's field, configured as `aggregate` would be.
+struct Case {
+    preset: Preset,
+    cfg: PipelineConfig,
+    width: u32,
+    height: u32,
+}
+
+impl Case {
+    fn new(
+        pipeline: &PipelineArgs,
+        width: Option<u32>,
+        height: Option<u32>,
+    ) -> anyhow::Result<Case> {
+        let preset = Preset::new(PresetName::parse(&pipeline.preset)?, pipeline.objective)?;
+        let (sw, sh) = preset.camera.size();
+        let (width, height) = (width.unwrap_or(sw), height.unwrap_or(sh));
+        let period_ns = (preset.period_s() * 1e9).round() as u64;
+        let cfg = setup::pipeline_config(pipeline, width, height, period_ns)?;
+        Ok(Case {
+            preset,
+            cfg,
+            width,
+            height,
+        })
+    }
+
+    fn typical(&self) -> Scene {
+        Scene::smlm(&self.preset).with_field(self.width, self.height)
+    }
+}
+
 /// Runs the benchmark.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let preset = Preset::new(
-        PresetName::parse(&args.pipeline.preset)?,
-        args.pipeline.objective,
-    )?;
-    let (sw, sh) = preset.camera.size();
-    let (w, h) = (args.width.unwrap_or(sw), args.height.unwrap_or(sh));
-    let cfg = setup::pipeline_config(&args.pipeline, w, h, 100_000)?;
-    println!("{}", setup::describe(&cfg));
+    let case = Case::new(&args.pipeline, args.width, args.height)?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let threads = args.threads.unwrap_or(cores).max(1);
     println!(
         "load average at start: {} ({cores} cores)",
         load_average().unwrap_or_else(|| "unknown".into())
     );
-    let typical = Scene::smlm(&preset).with_field(w, h);
+    println!("{}", setup::describe(&case.cfg));
+    let typical = case.typical();
     if args.stream {
-        return stream(&preset, &typical, &cfg, &args, threads);
+        return stream(&case.preset, &typical, &case.cfg, &args, threads);
     }
     let dense = Scene {
         layout: Layout::Random {
@@ -172,135 +209,196 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..typical.clone()
     };
     let planes_n = usize::try_from(args.planes)?.max(args.golden_planes).max(1);
-    println!(
-        "{:<8} {:<20} {:>7} {:>10} {:>9} {:>11} {:>8} {:>8}",
-        "scene", "engine", "planes", "planes/s", "Mpixel/s", "planes/CPUs", "vs gold", "bytes"
-    );
-    let mpix = |rate: f64| rate * (w as f64 * h as f64) / 1e6;
-    for (name, scene) in [("typical", &typical), ("dense", &dense)] {
-        let planes = simulate(&preset, scene, planes_n, args.seed)?;
-        let on = scene.expected_on(&preset.camera).unwrap_or(0.0);
-        let gp = &planes[..args.golden_planes.min(planes.len())];
-        let t = Timing::start();
-        let golden = run_with(Pipeline::new(cfg.clone())?, gp.iter().cloned())?;
-        let (golden_rate, golden_cpu) = t.rates(gp.len());
-        let golden_bytes = bytes_of(&golden)?;
-        let row = |engine: &str, n: usize, (rate, cpu): (f64, Option<f64>), bytes: usize| {
-            println!(
-                "{:<8} {:<20} {:>7} {:>10.0} {:>9.1} {:>11} {:>7.1}x {:>8}",
-                name,
-                engine,
-                n,
-                rate,
-                mpix(rate),
-                cpu.map_or("-".into(), |c| format!("{c:.0}")),
-                rate / golden_rate,
-                bytes
-            );
-        };
-        row(
-            "golden",
-            gp.len(),
-            (golden_rate, golden_cpu),
-            golden_bytes.len(),
-        );
-        // The fast engines on the golden planes: bytes must be identical.
-        let fast_same = run_with(fast_pipeline(cfg.clone())?, gp.iter().cloned())?;
-        let par_same = parallel(&cfg, gp, threads.max(2))?;
-        if bytes_of(&fast_same)? != golden_bytes || bytes_of(&par_same)? != golden_bytes {
-            anyhow::bail!(
-                "the fast engine's bytes differ from the golden model's on the {name} scene"
-            );
-        }
-        // Stages 1–4 alone, to show where the time goes (and what AVX2 adds).
-        let zero = BitPlane::zeros(w as usize, h as usize);
-        let n = cfg.n_window as usize;
-        let simd = FastFrontEnd::new(&cfg).uses_avx2();
-        for (label, portable) in [("stages 1-4", false), ("stages 1-4 portable", true)] {
-            if portable && !simd {
-                continue;
-            }
-            let t = Timing::start();
-            let mut fe = FastFrontEnd::new(&cfg);
-            if portable {
-                fe = fe.portable();
-            }
-            for (i, p) in planes.iter().enumerate() {
-                fe.push(p, if i >= n { &planes[i - n] } else { &zero });
-            }
-            let rates = t.rates(planes.len());
-            let label = if simd && !portable {
-                format!("{label} avx2")
-            } else {
-                label.to_string()
-            };
-            row(&label, planes.len(), rates, 0);
-            if !portable {
-                println!(
-                    "{:<8} {} of {} planes filtered densely (more than 1/8 of the pixels changed)",
-                    "",
-                    fe.dense_planes(),
-                    planes.len()
-                );
-            }
-        }
-        let t = Timing::start();
-        let fast = run_with(fast_pipeline(cfg.clone())?, planes.iter().cloned())?;
-        let single = t.rates(planes.len());
-        row(
-            "fast, 1 thread",
-            planes.len(),
-            single,
-            bytes_of(&fast)?.len(),
-        );
-        // Chunked runs: x1 overlaps one worker with the reader and the
-        // sequential back end; xT adds workers.
-        let mut chunked = vec![(0, single.0)];
-        for th in [1, threads]
-            .into_iter()
-            .collect::<std::collections::BTreeSet<_>>()
-        {
-            let t = Timing::start();
-            let par = parallel(&cfg, &planes, th)?;
-            let rates = t.rates(planes.len());
-            if par != fast {
-                anyhow::bail!("parallel run ({th} threads) differs from the single-threaded one");
-            }
-            row(
-                &format!("fast, chunked x{th}"),
-                planes.len(),
-                rates,
-                bytes_of(&par)?.len(),
-            );
-            chunked.push((th, rates.0));
-        }
-        if let Some(&(tn, many)) = chunked.last() {
-            println!(
-                "{:<8} speed-up, chunked x{tn} over the single-threaded fast engine (wall, same run): {:.2}x",
-                "",
-                many / single.0
-            );
-        }
-        let blinks = fast
-            .iter()
-            .filter(|r| matches!(r, Record::Blink(_)))
-            .count();
-        let end = fast.iter().rev().find_map(|r| match r {
-            Record::End(e) => Some(e.clone()),
-            _ => None,
-        });
-        println!(
-            "{:<8} about {:.1} molecules on at a time; {} blinks; unconfirmed {}, dropped candidates {}; golden bytes identical: yes",
-            "",
-            on,
-            blinks,
-            end.as_ref().map_or(0, |e| e.unconfirmed),
-            end.as_ref().map_or(0, |e| e.dropped_candidates)
-        );
+    header();
+    measure(&case, "typical", &typical, planes_n, &args, threads)?;
+    measure(&case, "dense", &dense, planes_n, &args, threads)?;
+    // The SPAD512S class camera in the same run (the camera this engine must
+    // one day keep up with in real time), on its whole field, unless it was
+    // the preset measured above.
+    if case.preset.name != PresetName::Spad512s {
+        // 32 slots (the SPCImager gateware's) drop most candidates of the
+        // ~160 molecules on at once over its field: give the software engine
+        // room for them (5 sd above the mean number on, plus 16 for
+        // background tracks; at most the stream's 255).
+        let mut spad = Case::new(
+            &PipelineArgs {
+                preset: PresetName::Spad512s.as_str().into(),
+                ..Default::default()
+            },
+            None,
+            None,
+        )?;
+        let on = spad
+            .typical()
+            .expected_on(&spad.preset.camera)
+            .unwrap_or(0.0);
+        spad.cfg.slots = ((on + 5.0 * on.sqrt()).ceil() as usize + 16).clamp(spad.cfg.slots, 255);
+        spad.cfg.validate()?;
+        println!();
+        println!("{}", setup::describe(&spad.cfg));
+        header();
+        measure(&spad, "spad512s", &spad.typical(), planes_n, &args, threads)?;
     }
     println!(
-        "(real time for the SPCImager: 10,000 planes/s; planes/CPUs = planes per CPU-second of all threads; load average now {})",
+        "(real time: 10,000 planes/s for the SPCImager, 100,000 for the SPAD512S; planes/CPUs = planes per CPU-second of all threads; vs 1 thr = over the single-threaded fast engine in the same run; load average now {})",
         load_average().unwrap_or_else(|| "unknown".into())
+    );
+    Ok(())
+}
+
+fn header() {
+    println!(
+        "{:<8} {:<20} {:>7} {:>10} {:>9} {:>11} {:>8} {:>8} {:>8}",
+        "scene",
+        "engine",
+        "planes",
+        "planes/s",
+        "Gpixel/s",
+        "planes/CPUs",
+        "vs gold",
+        "vs 1 thr",
+        "bytes"
+    );
+}
+
+/// Every engine on one scene: golden, stages 1–4 alone, stages 5–7 alone,
+/// the fast engine on one thread, and the chunked engine's scaling curve.
+fn measure(
+    case: &Case,
+    name: &str,
+    scene: &Scene,
+    planes_n: usize,
+    args: &Args,
+    threads: usize,
+) -> anyhow::Result<()> {
+    let cfg = &case.cfg;
+    let (w, h) = (case.width, case.height);
+    let planes = simulate(&case.preset, scene, planes_n, args.seed)?;
+    let on = scene.expected_on(&case.preset.camera).unwrap_or(0.0);
+    let gp = &planes[..args.golden_planes.min(planes.len())];
+    let t = Timing::start();
+    let golden = run_with(Pipeline::new(cfg.clone())?, gp.iter().cloned())?;
+    let (golden_rate, golden_cpu) = t.rates(gp.len());
+    let golden_bytes = bytes_of(&golden)?;
+    let gpix = |rate: f64| rate * (w as f64 * h as f64) / 1e9;
+    let mut single_rate: Option<f64> = None;
+    let row = |engine: &str,
+               n: usize,
+               (rate, cpu): (f64, Option<f64>),
+               bytes: usize,
+               single: Option<f64>| {
+        println!(
+            "{:<8} {:<20} {:>7} {:>10.0} {:>9.3} {:>11} {:>7.1}x {:>8} {:>8}",
+            name,
+            engine,
+            n,
+            rate,
+            gpix(rate),
+            cpu.map_or("-".into(), |c| format!("{c:.0}")),
+            rate / golden_rate,
+            single.map_or("-".into(), |s| format!("{:.2}x", rate / s)),
+            bytes
+        );
+    };
+    row(
+        "golden",
+        gp.len(),
+        (golden_rate, golden_cpu),
+        golden_bytes.len(),
+        None,
+    );
+    // The fast engines on the golden planes: bytes must be identical.
+    let fast_same = run_with(fast_pipeline(cfg.clone())?, gp.iter().cloned())?;
+    let par_same = parallel(cfg, gp, threads.max(2))?;
+    if bytes_of(&fast_same)? != golden_bytes || bytes_of(&par_same)? != golden_bytes {
+        anyhow::bail!("the fast engine's bytes differ from the golden model's on the {name} scene");
+    }
+    // Stages 1–4 alone, to show where the time goes (and what AVX2 adds).
+    let zero = BitPlane::zeros(w as usize, h as usize);
+    let n = cfg.n_window as usize;
+    let simd = FastFrontEnd::new(cfg).uses_avx2();
+    for (label, portable) in [("stages 1-4", false), ("stages 1-4 portable", true)] {
+        if portable && !simd {
+            continue;
+        }
+        let t = Timing::start();
+        let mut fe = FastFrontEnd::new(cfg);
+        if portable {
+            fe = fe.portable();
+        }
+        for (i, p) in planes.iter().enumerate() {
+            fe.push(p, if i >= n { &planes[i - n] } else { &zero });
+        }
+        let rates = t.rates(planes.len());
+        let label = if simd && !portable {
+            format!("{label} avx2")
+        } else {
+            label.to_string()
+        };
+        row(&label, planes.len(), rates, 0, None);
+        if !portable {
+            println!(
+                "{:<8} {} of {} planes filtered densely (more than 1/8 of the pixels changed)",
+                "",
+                fe.dense_planes(),
+                planes.len()
+            );
+        }
+    }
+    let t = Timing::start();
+    let fast = run_with(fast_pipeline(cfg.clone())?, planes.iter().cloned())?;
+    let single = t.rates(planes.len());
+    single_rate.get_or_insert(single.0);
+    row(
+        "fast, 1 thread",
+        planes.len(),
+        single,
+        bytes_of(&fast)?.len(),
+        single_rate,
+    );
+    // Stages 5–7 alone (the sequential back end of the chunked engine, the
+    // serial part of its scaling): the ceiling of any thread count.
+    let fronts = FrontResults::compute(cfg, &planes);
+    let t = Timing::start();
+    let back = fronts.replay_back_end()?;
+    let rates = t.rates(planes.len());
+    if back != fast {
+        anyhow::bail!("stages 5-7 replayed alone differ from the fast engine on the {name} scene");
+    }
+    row("stages 5-7 alone", planes.len(), rates, 0, single_rate);
+    // The scaling curve: one worker overlaps the reader and the back end;
+    // more workers share the chunks.
+    for th in thread_curve(threads) {
+        let t = Timing::start();
+        let par = parallel(cfg, &planes, th)?;
+        let rates = t.rates(planes.len());
+        if par != fast {
+            anyhow::bail!("parallel run ({th} threads) differs from the single-threaded one");
+        }
+        row(
+            &format!("fast, chunked x{th}"),
+            planes.len(),
+            rates,
+            bytes_of(&par)?.len(),
+            single_rate,
+        );
+    }
+    let blinks = fast
+        .iter()
+        .filter(|r| matches!(r, Record::Blink(_)))
+        .count();
+    let end = fast.iter().rev().find_map(|r| match r {
+        Record::End(e) => Some(e.clone()),
+        _ => None,
+    });
+    println!(
+        "{:<8} about {:.1} molecules on at a time; {} blinks; unconfirmed {}, dropped candidates {}; golden bytes identical: yes; chunks of {} planes",
+        "",
+        on,
+        blinks,
+        end.as_ref().map_or(0, |e| e.unconfirmed),
+        end.as_ref().map_or(0, |e| e.dropped_candidates),
+        default_chunk(cfg.n_window)
     );
     Ok(())
 }
@@ -317,8 +415,9 @@ fn stream(
     let t = Timing::start();
     let pool = simulate(preset, scene, pool_len, args.seed)?;
     println!(
-        "pool of {pool_len} simulated planes in {:.1} s; streaming {planes} planes through the fast engine on {threads} threads (chunks of {CHUNK})",
-        t.wall.elapsed().as_secs_f64()
+        "pool of {pool_len} simulated planes in {:.1} s; streaming {planes} planes through the fast engine on {threads} threads (chunks of {})",
+        t.wall.elapsed().as_secs_f64(),
+        default_chunk(cfg.n_window)
     );
     let t = Timing::start();
     let report_every = (planes / 10).max(1);
@@ -352,13 +451,19 @@ fn stream(
         }
         Some(Ok::<_, std::convert::Infallible>(plane))
     });
-    run_parallel(cfg.clone(), src, threads, CHUNK, |r| {
-        records += 1;
-        buf.clear();
-        if packetiser.push(&r, &mut buf).is_ok() {
-            bytes += buf.len();
-        }
-    })
+    run_parallel(
+        cfg.clone(),
+        src,
+        threads,
+        default_chunk(cfg.n_window),
+        |r| {
+            records += 1;
+            buf.clear();
+            if packetiser.push(&r, &mut buf).is_ok() {
+                bytes += buf.len();
+            }
+        },
+    )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     println!(
         "{records} records, {bytes} bytes of packets; planes counted when read, so the rate includes the replay copy; load average now {}",

@@ -12,7 +12,7 @@ use smartagg_scene::{Layout, Scene, SpadSimulator};
 /// Arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// SPAD preset: spcimager or spcimager-projected.
+    /// SPAD preset: spcimager, spcimager-projected or spad512s.
     #[arg(long, default_value = "spcimager")]
     pub preset: String,
     /// Objective magnification (150 or 60).
@@ -47,7 +47,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let name = PresetName::parse(&a.preset)?;
     let p = Preset::new(name, a.objective)?;
     let Camera::Spad(cam) = &p.camera else {
-        bail!("`bench simulate` measures the SPAD bit-plane simulator: use --preset spcimager or spcimager-projected");
+        bail!("`bench simulate` measures the SPAD bit-plane simulator: use --preset spcimager, spcimager-projected or spad512s");
     };
     if a.planes == 0 {
         bail!("invalid parameter `--planes` = 0");

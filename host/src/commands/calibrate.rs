@@ -86,7 +86,9 @@ pub struct Args {
 
 fn preset_camera(name: &str) -> anyhow::Result<CameraArg> {
     Ok(match PresetName::parse(name)? {
-        PresetName::Spcimager | PresetName::SpcimagerProjected => CameraArg::Spad,
+        PresetName::Spcimager | PresetName::SpcimagerProjected | PresetName::Spad512s => {
+            CameraArg::Spad
+        }
         PresetName::Emccd => CameraArg::Emccd,
         PresetName::Scmos => CameraArg::Scmos,
     })

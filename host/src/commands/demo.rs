@@ -717,10 +717,11 @@ fn report(
     );
     let _ = writeln!(
         s,
-        "Pipeline (the field design, `smartagg aggregate`'s defaults): window N = {} planes, a track opens at T_int = {} and holds down to T_hold = {}, r_assoc = {}, kernel {:?}, L_min = {}, ROI {}x{}.\n",
+        "Pipeline (the field design, `smartagg aggregate`'s defaults): window N = {} planes, a track opens at T_int = {} and holds down to T_hold = {}, a blink sums the bit-planes [t_cross − N, t_drop − {}] (to its estimated end), r_assoc = {}, kernel {:?}, L_min = {}, ROI {}x{}.\n",
         cfg.n_window,
         cfg.threshold_int,
         cfg.threshold_hold,
+        cfg.end_trim,
         cfg.r_assoc,
         cfg.kernel,
         cfg.l_min,

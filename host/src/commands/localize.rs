@@ -113,7 +113,7 @@ pub struct Args {
     /// Sample-plane pixel size, nm [default: from --preset, else from the stream's sidecar FILE.rois.json].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.1, 1e6, "nm"))]
     pub pixel_nm: Option<f64>,
-    /// Camera preset (spcimager, spcimager-projected, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
+    /// Camera preset (spcimager, spcimager-projected, spad512s, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
     #[arg(long)]
     pub preset: Option<String>,
     /// Objective magnification of the preset (150 or 60).

@@ -14,7 +14,7 @@ use smartagg_model::stats::Detection;
 /// Arguments of `smartagg params`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Camera preset: spcimager or spcimager-projected (bit-plane cameras).
+    /// Camera preset: spcimager, spcimager-projected or spad512s (bit-plane cameras).
     #[arg(long, default_value = "spcimager")]
     pub preset: String,
     /// Objective magnification: 150 or 60.

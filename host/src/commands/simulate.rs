@@ -62,7 +62,7 @@ pub enum Order {
 /// Arguments.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Camera preset: spcimager, spcimager-projected, emccd, scmos.
+    /// Camera preset: spcimager, spcimager-projected, spad512s, emccd, scmos.
     #[arg(long)]
     pub preset: String,
     /// What the camera looks at.
