@@ -51,6 +51,7 @@ pub mod delay_line_ddr;
 pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
+pub mod lint_waivers;
 pub mod lut_levels;
 pub mod packetiser;
 pub mod pipeline;

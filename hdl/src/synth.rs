@@ -46,30 +46,6 @@ pub enum ToolError {
     Levels(#[from] crate::lut_levels::LevelsError),
 }
 
-/// Verilator warnings waived for rust-hdl's generated code, each for a
-/// reason that does not hide a design error:
-/// * `WIDTH`: rust-hdl writes every literal as 32 bits (`x = 32'h0`,
-///   `cur_x != 32'h0`) and casts as `(x & N'hmask)`, so operand widths differ
-///   by construction; the widths that matter are fixed by the Rust types, and
-///   the simulation tests check the values against the model.
-/// * `UNUSEDSIGNAL`: outputs a parent does not read (the tags of the top and
-///   bottom candidate windows duplicate the middle one's; the word index after
-///   the counter; unused bits of packed FIFO entries).
-/// * `DECLFILENAME`: one generated file holds every module.
-/// * `UNUSEDPARAM`: rust-hdl declares the `localparam`s of a state enum in
-///   every module that holds a signal of that type, also where only the
-///   register is passed on.
-/// * `PINCONNECTEMPTY`: outputs of the vendor black boxes (the MIG's
-///   `c3_clk0`/`c3_rst0` and FIFO counts, the pipes' `ep_blockstrobe`) that
-///   the top does not use are left unconnected on purpose.
-pub const VERILATOR_WAIVERS: &[&str] = &[
-    "-Wno-WIDTH",
-    "-Wno-UNUSEDSIGNAL",
-    "-Wno-DECLFILENAME",
-    "-Wno-UNUSEDPARAM",
-    "-Wno-PINCONNECTEMPTY",
-];
-
 fn write_file(dir: &Path, name: &str, text: &str) -> Result<PathBuf, ToolError> {
     std::fs::create_dir_all(dir).map_err(|source| ToolError::Io {
         path: dir.to_path_buf(),
@@ -108,20 +84,37 @@ fn run(tool: &'static str, cmd: &mut Command) -> Result<String, ToolError> {
     }
 }
 
-/// Runs `verilator --lint-only -Wall` (with [`VERILATOR_WAIVERS`]) on the
-/// Verilog, top module `top`, in `dir`. Returns the tool's output.
+/// Runs `verilator --lint-only -Wall --top-module top top.vlt top.v` in
+/// `dir`: the Verilog as `top.v` beside its configuration file
+/// ([`crate::lint_waivers::verilator_config`], the very `top.vlt` that
+/// `smartagg hdl generate` writes), no other waiver. Any warning fails, also
+/// one Verilator would only print. Returns the tool's output.
 pub fn verilator_lint(verilog: &str, dir: &Path) -> Result<String, ToolError> {
-    let file = write_file(dir, "top.v", verilog)?;
-    run(
+    write_file(dir, crate::lint_waivers::VERILOG_FILE, verilog)?;
+    write_file(
+        dir,
+        crate::lint_waivers::VLT_FILE,
+        &crate::lint_waivers::verilator_config(verilog),
+    )?;
+    let out = run(
         "verilator",
         Command::new("verilator")
+            .current_dir(dir)
             .arg("--lint-only")
             .arg("-Wall")
-            .args(VERILATOR_WAIVERS)
             .arg("--top-module")
             .arg("top")
-            .arg(&file),
-    )
+            .arg(crate::lint_waivers::VLT_FILE)
+            .arg(crate::lint_waivers::VERILOG_FILE),
+    )?;
+    if out.contains("%Warning") {
+        return Err(ToolError::Failed {
+            tool: "verilator",
+            code: Some(0),
+            output: out,
+        });
+    }
+    Ok(out)
 }
 
 /// Cell counts of a yosys `synth_xilinx -family xc6s` run.

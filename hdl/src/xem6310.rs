@@ -115,7 +115,7 @@ module smartagg_mig(
     input wire c3_p0_rd_clk, input wire c3_p0_rd_en, output wire [31:0] c3_p0_rd_data,
     output wire c3_p0_rd_full, output wire c3_p0_rd_empty, output wire [6:0] c3_p0_rd_count,
     output wire c3_p0_rd_overflow, output wire c3_p0_rd_error);
-assign {mcb3_dram_a, mcb3_dram_ba, mcb3_dram_ras_n, mcb3_dram_cas_n, mcb3_dram_we_n} = 21'h0;
+assign {mcb3_dram_a, mcb3_dram_ba, mcb3_dram_ras_n, mcb3_dram_cas_n, mcb3_dram_we_n} = 19'h0;
 assign {mcb3_dram_odt, mcb3_dram_cke, mcb3_dram_dm, mcb3_dram_udm, mcb3_dram_ck, mcb3_dram_ck_n} = 6'h0;
 assign {c3_calib_done, c3_clk0, c3_rst0, c3_p0_cmd_empty, c3_p0_cmd_full} = 5'h0;
 assign {c3_p0_wr_full, c3_p0_wr_empty, c3_p0_wr_count, c3_p0_wr_underrun, c3_p0_wr_error} = 11'h0;

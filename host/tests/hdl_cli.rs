@@ -1,5 +1,5 @@
-//! `smartagg hdl`: generate writes the design's Verilog, hash, UCF and ISE
-//! script; the UCF places every port of the generated top; resources runs
+//! `smartagg hdl`: generate writes the design's Verilog, hash, Verilator
+//! configuration (`top.vlt`), UCF and ISE script; the UCF places every port of the generated top; resources runs
 //! yosys on a given file (a small one here) and reports its hash.
 
 use smartagg_hdl::configs::text_hash;
@@ -89,6 +89,17 @@ fn check_generate(preset: &str, part: &str, delay_line: &str, mig: bool) {
         stdout.contains(part) && stdout.contains(delay_line),
         "{stdout}"
     );
+    // The Verilator configuration beside it: the waivers of that very text,
+    // each on named lines.
+    let vlt = read(&out, "top.vlt");
+    assert_eq!(vlt, smartagg_hdl::lint_waivers::verilator_config(&v));
+    assert!(vlt.starts_with("`verilator_config\n"), "{vlt}");
+    assert!(vlt.contains("lint_off -rule WIDTH -file \"*top.v\" -lines "));
+    assert!(vlt
+        .lines()
+        .filter(|l| l.starts_with("lint_off"))
+        .all(|l| l.contains(" -lines ")));
+    assert!(stdout.contains("top.vlt"), "{stdout}");
     // The UCF places every bit of every top port, once, on distinct pins,
     // and nothing else.
     let ucf = read(&out, "xem6310.ucf");

@@ -2,7 +2,9 @@
 //! (`smartagg_hdl::configs`).
 //!
 //! * `hdl generate` writes the design's Verilog (`top.v`, its hash in
-//!   `top.v.hash`), the XEM6310 constraints (`xem6310.ucf`)
+//!   `top.v.hash`), its Verilator configuration (`top.vlt`: the waivers of
+//!   rust-hdl's idioms, line by line, so that `verilator --lint-only -Wall
+//!   --top-module top top.vlt top.v` is clean), the XEM6310 constraints (`xem6310.ucf`)
 //!   and an ISE 14.7 project script (`build.tcl`, run with `xtclsh`) that
 //!   adds them beside Opal Kelly's FrontPanel HDL and the MIG DDR2 core,
 //!   which are proprietary and supplied by the user.
@@ -14,6 +16,7 @@
 use anyhow::{bail, Context};
 use serde::Serialize;
 use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind, DEVICES};
+use smartagg_hdl::lint_waivers::{verilator_config, VLT_FILE};
 use smartagg_hdl::synth::{yosys_resources, Resources, YOSYS_SCRIPT};
 use smartagg_model::params::PresetName;
 use std::path::{Path, PathBuf};
@@ -22,7 +25,7 @@ use std::time::Instant;
 /// `smartagg hdl` subcommands.
 #[derive(clap::Subcommand, Debug)]
 pub enum Command {
-    /// Write a design's Verilog, its UCF and an ISE 14.7 (xtclsh) project script.
+    /// Write a design's Verilog, its Verilator lint waivers, its UCF and an ISE 14.7 (xtclsh) project script.
     Generate(GenerateArgs),
     /// Synthesise a design with yosys for the Spartan-6 and report its resources.
     Resources(ResourcesArgs),
@@ -157,6 +160,7 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
         .with_context(|| format!("creating the output directory {}", a.out.display()))?;
     write(&a.out.join("top.v"), &v)?;
     write(&a.out.join("top.v.hash"), &format!("{hash}  top.v\n"))?;
+    write(&a.out.join(VLT_FILE), &verilator_config(&v))?;
     write(&a.out.join("xem6310.ucf"), d.ucf())?;
     write(&a.out.join("build.tcl"), &build_tcl(&d, &hash))?;
     println!(
@@ -174,7 +178,7 @@ fn generate(a: GenerateArgs) -> anyhow::Result<()> {
         d.config.roi_size
     );
     println!(
-        "wrote {} ({} bytes), top.v.hash, xem6310.ucf, build.tcl",
+        "wrote {} ({} bytes), top.v.hash, top.vlt, xem6310.ucf, build.tcl",
         a.out.join("top.v").display(),
         v.len()
     );
