@@ -9,8 +9,9 @@
 #   yosys: synthesis figures (`smartagg hdl resources`) and its tests
 #   python3: the second packet decoder, tools/rois.py, and its test (host/tests/python_decoder.rs)
 #   libusb-1.0-0-dev: the USB bulk transport
+#   shellcheck: the lint of the Slurm scripts in tools/slurm (host/tests/slurm.rs)
 set -euo pipefail
-PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make yosys libusb-1.0-0-dev python3)
+PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make yosys libusb-1.0-0-dev python3 shellcheck)
 missing=()
 for p in "${PKGS[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -61,9 +61,9 @@ pub struct PipelineArgs {
     /// Planes a track must stay on to be confirmed (default 1, both designs).
     #[arg(long)]
     pub l_min: Option<u32>,
-    /// Planes after which a long blink is cut into a new segment.
-    #[arg(long, default_value_t = smartagg_model::config::DEFAULT_L_MAX)]
-    pub l_max: u32,
+    /// Planes after which a long blink is cut into a new segment (default: one second of bit-planes with `--detection field`, 10,000 for the SPCImager; 10,000 with `paper`).
+    #[arg(long)]
+    pub l_max: Option<u32>,
     /// Tracking slots M.
     #[arg(long, default_value_t = smartagg_model::config::DEFAULT_SLOTS)]
     pub slots: usize,
@@ -102,7 +102,7 @@ impl PipelineArgs {
         note(self.threshold_hold.is_some(), "--threshold-hold");
         note(self.end_trim.is_some(), "--end-trim");
         note(self.l_min.is_some(), "--l-min");
-        note(self.l_max != d.l_max, "--l-max");
+        note(self.l_max.is_some(), "--l-max");
         note(self.slots != d.slots, "--slots");
         note(self.roi.is_some(), "--roi");
         note(self.r_assoc.is_some(), "--r-assoc");
@@ -125,7 +125,7 @@ impl Default for PipelineArgs {
             threshold_hold: None,
             end_trim: None,
             l_min: None,
-            l_max: smartagg_model::config::DEFAULT_L_MAX,
+            l_max: None,
             slots: smartagg_model::config::DEFAULT_SLOTS,
             roi: None,
             r_assoc: None,
@@ -247,15 +247,16 @@ pub fn pipeline_config(
     if let Some(l) = args.l_min {
         cfg.l_min = l;
     }
-    if args.l_max < n.max(cfg.l_min) {
+    let l_max = args.l_max.unwrap_or(cfg.l_max);
+    if l_max < n.max(cfg.l_min) {
         bail!(
             "--l-max {} planes is shorter than the window N = {n} (and L_min = {}): a blink is cut into segments of L_max planes, give at least {}",
-            args.l_max,
+            l_max,
             cfg.l_min,
             n.max(cfg.l_min)
         );
     }
-    cfg.l_max = args.l_max;
+    cfg.l_max = l_max;
     cfg.slots = args.slots;
     if let Some(r) = args.r_assoc {
         cfg.r_assoc = r;

@@ -147,8 +147,11 @@ pub struct FieldDesign {
 impl FieldDesign {
     /// Sets the design's detection in `cfg`, the one place that maps a
     /// design onto a pipeline (`smartagg aggregate`, the studies, the shipped
-    /// gateware designs): `T_int = T_open`, `T_hold`, `r_assoc`, `L_min`
-    /// (`L_max` raised to it if needed) and `end_trim`. Fails when a
+    /// gateware designs): `T_int = T_open`, `T_hold`, `r_assoc`, `L_min`,
+    /// `end_trim`, and `L_max` raised to one second of bit-planes (and to
+    /// `L_min`) if it is shorter: a blink is cut after a second whatever the
+    /// plane rate (10,000 planes for the SPCImager, 100,000 for a SPAD512S,
+    /// whose 10,000 planes would cut its 100 ms blinks). Fails when a
     /// threshold does not fit the pipeline's 32 bits.
     pub fn apply(&self, cfg: &mut PipelineConfig) -> Result<(), ConfigError> {
         let t32 = |field: &'static str, v: u64| {
@@ -162,7 +165,8 @@ impl FieldDesign {
         cfg.threshold_hold = t32("threshold_hold", self.threshold_hold)?;
         cfg.r_assoc = self.r_assoc;
         cfg.l_min = self.l_min;
-        cfg.l_max = cfg.l_max.max(self.l_min);
+        let one_second = self.plane_rate_hz.round().clamp(1.0, 1e9) as u32;
+        cfg.l_max = cfg.l_max.max(self.l_min).max(one_second);
         cfg.end_trim = self.end_trim;
         Ok(())
     }
@@ -361,6 +365,30 @@ mod tests {
                 .r_assoc,
             1
         );
+    }
+
+    #[test]
+    fn a_blink_is_cut_after_one_second_whatever_the_plane_rate() {
+        let det = spcimager(150);
+        let mut cfg = PipelineConfig::new(
+            320,
+            240,
+            det.n_window,
+            det.kernel_weights.clone(),
+            det.kernel_shift,
+            1,
+        );
+        design(&det, 320, 240, 10_000.0, 1.0)
+            .unwrap()
+            .apply(&mut cfg)
+            .unwrap();
+        assert_eq!(cfg.l_max, 10_000);
+        design(&det, 320, 240, 100_000.0, 1.0)
+            .unwrap()
+            .apply(&mut cfg)
+            .unwrap();
+        assert_eq!(cfg.l_max, 100_000);
+        assert!(cfg.validate().is_ok());
     }
 
     #[test]
