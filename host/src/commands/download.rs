@@ -328,7 +328,7 @@ mod tests {
             n_window: Some(40),
             threshold_int: None,
             l_min: Some(2),
-            l_max: 500,
+            l_max: Some(500),
             slots: 16,
             ..PipelineArgs::default()
         };
