@@ -554,3 +554,44 @@ fn options_are_checked_where_they_are_parsed() {
     }
     assert!(!Path::new(&out).exists());
 }
+
+#[test]
+fn bench_aggregate_prints_the_scaling_curve_and_the_serial_ceiling() {
+    // A small SPAD512S field, so that the debug build runs it quickly: the
+    // golden check, stages 1-4 and 5-7 alone, and the curve 1, 2, 3 threads.
+    let out = ok(&[
+        "bench",
+        "aggregate",
+        "--preset",
+        "spad512s",
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--planes",
+        "300",
+        "--golden-planes",
+        "40",
+        "--threads",
+        "3",
+        "--scene",
+        "typical",
+    ]);
+    for row in [
+        "stages 5-7 alone",
+        "fast, chunked x1 ",
+        "fast, chunked x2 ",
+        "fast, chunked x3 ",
+    ] {
+        assert!(out.contains(row), "no `{row}` row:\n{out}");
+    }
+    assert!(
+        out.contains("Gpixel/s") && out.contains("vs 1 thr"),
+        "{out}"
+    );
+    assert!(out.contains("golden bytes identical: yes"), "{out}");
+    // The dense scene was not asked for.
+    assert!(!out.contains("\ndense "), "{out}");
+    let e = err(&["bench", "aggregate", "--scene", "sparse"]);
+    assert!(e.contains("typical") && e.contains("spad512s"), "{e}");
+}

@@ -118,6 +118,17 @@ impl FastFrontEnd {
         window: impl IntoIterator<Item = &'a BitPlane>,
     ) -> FastFrontEnd {
         let mut fe = FastFrontEnd::new(cfg);
+        fe.rewarm(window);
+        fe
+    }
+
+    /// Starts again mid-stream in this front end's own memory, as
+    /// [`FastFrontEnd::warmed_up`] does in new memory: a worker of
+    /// [`run_parallel`] keeps one front end for all its chunks, so that no
+    /// chunk maps and unmaps a megabyte of fresh pages.
+    pub fn rewarm<'a>(&mut self, window: impl IntoIterator<Item = &'a BitPlane>) {
+        let fe = self;
+        fe.counts.fill(0);
         let total = fe.width * fe.height;
         for plane in window {
             // Only the ones count: iterate set bits, word by word.
@@ -134,7 +145,6 @@ impl FastFrontEnd {
         }
         fe.recompute_dense();
         fe.scan::<false>();
-        fe
     }
 
     /// The same front end without the AVX2 build: the portable code, on any
@@ -677,7 +687,7 @@ impl FrontResults {
         };
         FrontResults {
             cfg: cfg.clone(),
-            fronts: chunk_fronts(cfg, &[], &planes),
+            fronts: chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes),
             planes,
         }
     }
@@ -777,33 +787,53 @@ where
             let mut history: VecDeque<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)> =
                 VecDeque::new();
             let (w, h) = (reader_cfg.width, reader_cfg.height);
+            // Every chunk read, while anyone holds it: a chunk only the pool
+            // holds is filled again in place, so that planes are not
+            // allocated here and freed in bursts by another thread (on some
+            // machines the heap then returns its pages and every chunk
+            // faults them in again).
+            let mut pool: Vec<Arc<Vec<BitPlane>>> = Vec::new();
             for index in 0.. {
-                let mut batch = Vec::with_capacity(chunk);
-                for _ in 0..chunk {
+                let mut batch = pool
+                    .iter()
+                    .position(|c| Arc::strong_count(c) == 1)
+                    .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
+                    .unwrap_or_default();
+                let mut filled = 0;
+                while filled < chunk {
                     match planes.next() {
                         // A plane of another size never reaches a worker.
                         Some(Ok(p)) if (p.width(), p.height()) != (w, h) => {
                             return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
-                                plane: (index * chunk + batch.len()) as u64,
+                                plane: (index * chunk + filled) as u64,
                                 got_w: p.width(),
                                 got_h: p.height(),
                                 want_w: w,
                                 want_h: h,
                             }));
                         }
-                        Some(Ok(p)) => batch.push(match &reader_cfg.hot_mask {
-                            Some(m) => m.apply(&p),
-                            None => p,
-                        }),
+                        Some(Ok(p)) => {
+                            let mask = reader_cfg.hot_mask.as_ref();
+                            match batch.get_mut(filled) {
+                                Some(buf) => buf.copy_masked(&p, mask),
+                                None => batch.push(match mask {
+                                    Some(m) => m.apply(&p),
+                                    None => p,
+                                }),
+                            }
+                            filled += 1;
+                        }
                         Some(Err(e)) => return Err(ParallelError::Source(e)),
                         None => break,
                     }
                 }
+                batch.truncate(filled);
                 if batch.is_empty() {
                     break;
                 }
                 let full = batch.len() == chunk;
                 let batch = Arc::new(batch);
+                pool.push(batch.clone());
                 let job_history: Vec<_> = history.iter().cloned().collect();
                 // The last N planes read: ranges of this and earlier chunks.
                 history.push_back((batch.clone(), 0..batch.len()));
@@ -831,25 +861,28 @@ where
         });
         for _ in 0..threads {
             let (rx, tx) = (job_rx.clone(), done_tx.clone());
-            scope.spawn(move || loop {
-                let job = match rx.lock() {
-                    Ok(rx) => rx.recv(),
-                    Err(_) => return,
-                };
-                let Ok(job) = job else { return };
-                let history: Vec<&BitPlane> = job
-                    .history
-                    .iter()
-                    .flat_map(|(c, r)| c[r.clone()].iter())
-                    .collect();
-                let fronts = chunk_fronts(worker_cfg, &history, &job.planes);
-                let done = Done {
-                    index: job.index,
-                    planes: job.planes,
-                    fronts,
-                };
-                if tx.send(done).is_err() {
-                    return;
+            scope.spawn(move || {
+                let mut fe = FastFrontEnd::new(worker_cfg);
+                loop {
+                    let job = match rx.lock() {
+                        Ok(rx) => rx.recv(),
+                        Err(_) => return,
+                    };
+                    let Ok(job) = job else { return };
+                    let history: Vec<&BitPlane> = job
+                        .history
+                        .iter()
+                        .flat_map(|(c, r)| c[r.clone()].iter())
+                        .collect();
+                    let fronts = chunk_fronts(&mut fe, worker_cfg, &history, &job.planes);
+                    let done = Done {
+                        index: job.index,
+                        planes: job.planes,
+                        fronts,
+                    };
+                    if tx.send(done).is_err() {
+                        return;
+                    }
                 }
             });
         }
@@ -893,6 +926,7 @@ where
 /// planes before it, oldest first: all N of them, or every plane since
 /// stream start (earlier planes are zero).
 fn chunk_fronts(
+    fe: &mut FastFrontEnd,
     cfg: &PipelineConfig,
     history: &[&BitPlane],
     planes: &[BitPlane],
@@ -908,7 +942,7 @@ fn chunk_fronts(
             &planes[j - h]
         }
     };
-    let mut fe = FastFrontEnd::warmed_up(cfg, history.iter().copied());
+    fe.rewarm(history.iter().copied());
     planes
         .iter()
         .enumerate()

@@ -55,6 +55,26 @@ pub struct Args {
     /// Planes simulated for the `--stream` pool.
     #[arg(long, default_value_t = 1024)]
     pub pool: usize,
+    /// Scenes to measure, comma-separated (default: all three).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "typical,dense,spad512s"
+    )]
+    pub scene: Vec<BenchScene>,
+}
+
+/// A scene of `smartagg bench aggregate`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchScene {
+    /// The preset's field at typical SMLM density.
+    Typical,
+    /// The preset's field at 500 molecules/µm², 30 ms blinks: a worst case.
+    Dense,
+    /// The SPAD512S class camera's whole field at typical SMLM density
+    /// (skipped when the preset is the SPAD512S: `typical` is that).
+    Spad512s,
 }
 
 fn simulate(
@@ -210,12 +230,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let planes_n = usize::try_from(args.planes)?.max(args.golden_planes).max(1);
     header();
-    measure(&case, "typical", &typical, planes_n, &args, threads)?;
-    measure(&case, "dense", &dense, planes_n, &args, threads)?;
+    if args.scene.contains(&BenchScene::Typical) {
+        measure(&case, "typical", &typical, planes_n, &args, threads)?;
+    }
+    if args.scene.contains(&BenchScene::Dense) {
+        measure(&case, "dense", &dense, planes_n, &args, threads)?;
+    }
     // The SPAD512S class camera in the same run (the camera this engine must
     // one day keep up with in real time), on its whole field, unless it was
     // the preset measured above.
-    if case.preset.name != PresetName::Spad512s {
+    if case.preset.name != PresetName::Spad512s && args.scene.contains(&BenchScene::Spad512s) {
         // 32 slots (the SPCImager gateware's) drop most candidates of the
         // ~160 molecules on at once over its field: give the software engine
         // room for them (5 sd above the mean number on, plus 16 for
