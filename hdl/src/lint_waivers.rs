@@ -391,34 +391,17 @@ endmodule
         let c = verilator_config(v);
         assert!(c.starts_with("`verilator_config\n"), "{c}");
         let has = |s: &str| c.lines().any(|l| l == s);
-        assert!(
-            has(r#"lint_off -rule DECLFILENAME -file "*top.v" -lines 2"#),
-            "{c}"
-        );
-        assert!(
-            has(r#"lint_off -rule DECLFILENAME -file "*top.v" -lines 4"#),
-            "{c}"
-        );
-        assert!(
-            has(r#"lint_off -rule UNUSEDSIGNAL -file "*top.v" -lines 2-3"#),
-            "{c}"
-        );
-        assert!(
-            has(r#"lint_off -rule UNUSEDSIGNAL -file "*top.v" -lines 6"#),
-            "{c}"
-        );
-        assert!(
-            has(r#"lint_off -rule UNUSEDPARAM -file "*top.v" -lines 8"#),
-            "{c}"
-        );
-        assert!(
-            has(r#"lint_off -rule WIDTH -file "*top.v" -lines 8-9"#),
-            "{c}"
-        );
-        assert!(
-            has(r#"lint_off -rule PINCONNECTEMPTY -file "*top.v" -lines 14"#),
-            "{c}"
-        );
+        for want in [
+            r#"lint_off -rule DECLFILENAME -file "*top.v" -lines 2"#,
+            r#"lint_off -rule DECLFILENAME -file "*top.v" -lines 4"#,
+            r#"lint_off -rule UNUSEDSIGNAL -file "*top.v" -lines 2-3"#,
+            r#"lint_off -rule UNUSEDSIGNAL -file "*top.v" -lines 6"#,
+            r#"lint_off -rule UNUSEDPARAM -file "*top.v" -lines 8"#,
+            r#"lint_off -rule WIDTH -file "*top.v" -lines 8-9"#,
+            r#"lint_off -rule PINCONNECTEMPTY -file "*top.v" -lines 14"#,
+        ] {
+            assert!(has(want), "no `{want}` in\n{c}");
+        }
         // A width mismatch without a literal is not waived; nothing is
         // waived for a whole file.
         assert!(!c.contains("-lines 12"), "{c}");
