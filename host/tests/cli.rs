@@ -578,6 +578,7 @@ fn bench_aggregate_prints_the_scaling_curve_and_the_serial_ceiling() {
         "typical",
     ]);
     for row in [
+        "stages 1-4 portable",
         "stages 5-7 alone",
         "fast, chunked x1 ",
         "fast, chunked x2 ",

@@ -34,6 +34,60 @@ use crate::record::Record;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
+/// The instruction sets [`FastFrontEnd`] is compiled for; the fastest one
+/// the CPU reports is used, and each gives the same H, candidates and
+/// above-threshold pixels (the tests run all of them on the CPUs that have
+/// them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Isa {
+    /// Plain Rust, on any CPU (the compiler's own vectorisation).
+    Portable,
+    /// x86-64 AVX2: explicit 8-lane compares in the threshold scan.
+    Avx2,
+    /// x86-64 AVX-512F on top of AVX2: each kernel row of a changed pixel's
+    /// `±K` is one masked 16-lane add (kernels up to 15 wide).
+    Avx512,
+}
+
+impl Isa {
+    /// The fastest instruction set this CPU runs.
+    pub fn detect() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f")
+                && std::arch::is_x86_feature_detected!("avx2")
+            {
+                return Isa::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Isa::Avx2;
+            }
+        }
+        Isa::Portable
+    }
+
+    /// The name printed by `smartagg bench aggregate`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Isa::Portable => "portable",
+            Isa::Avx2 => "avx2",
+            Isa::Avx512 => "avx512",
+        }
+    }
+
+    /// Every instruction set up to `self`, slowest first.
+    pub fn up_to(self) -> impl Iterator<Item = Isa> {
+        [Isa::Portable, Isa::Avx2, Isa::Avx512]
+            .into_iter()
+            .filter(move |&i| i <= self)
+    }
+}
+
+/// `Isa` as a const generic parameter of the compiled variants.
+const PORTABLE: u8 = 0;
+const AVX2: u8 = 1;
+const AVX512: u8 = 2;
+
 /// Above this fraction of changed pixels a plane is filtered densely (a
 /// change costs k² scattered adds, a dense pass about 2k per pixel).
 const DENSE_FRACTION: usize = 8;
@@ -66,8 +120,8 @@ pub struct FastFrontEnd {
     /// Raster indices with H ≥ T_hold, ascending.
     above: Vec<u32>,
     candidates: Vec<Candidate>,
-    /// AVX2 is available: the same code is compiled once more with it.
-    avx2: bool,
+    /// The instruction set the pushes run (the same code compiled for it).
+    isa: Isa,
     /// Planes filtered densely (too many changed pixels for the sparse path).
     dense_planes: u64,
 }
@@ -86,10 +140,6 @@ impl FastFrontEnd {
             }
         }
         let kernel_minus = kernel_plus.iter().map(|w| w.wrapping_neg()).collect();
-        #[cfg(target_arch = "x86_64")]
-        let avx2 = std::arch::is_x86_feature_detected!("avx2");
-        #[cfg(not(target_arch = "x86_64"))]
-        let avx2 = false;
         FastFrontEnd {
             width: cfg.width,
             height: cfg.height,
@@ -106,7 +156,7 @@ impl FastFrontEnd {
             horiz: vec![0; cfg.width * cfg.height],
             above: Vec::new(),
             candidates: Vec::new(),
-            avx2,
+            isa: Isa::detect(),
             dense_planes: 0,
         }
     }
@@ -144,19 +194,30 @@ impl FastFrontEnd {
             }
         }
         fe.recompute_dense();
-        fe.scan::<false>();
+        fe.scan::<PORTABLE>();
     }
 
     /// The same front end without the AVX2 build: the portable code, on any
     /// CPU (for testing it where AVX2 exists, and for comparing speeds).
-    pub fn portable(mut self) -> FastFrontEnd {
-        self.avx2 = false;
+    pub fn portable(self) -> FastFrontEnd {
+        self.with_isa(Isa::Portable)
+    }
+
+    /// The same front end running `isa`'s build, or the CPU's best if it
+    /// lacks `isa` (for testing each build, and for comparing speeds).
+    pub fn with_isa(mut self, isa: Isa) -> FastFrontEnd {
+        self.isa = isa.min(Isa::detect());
         self
     }
 
-    /// Whether pushes run the AVX2 build of the front end.
+    /// The instruction set the pushes run.
+    pub fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// Whether pushes run an AVX2 (or AVX-512) build of the front end.
     pub fn uses_avx2(&self) -> bool {
-        self.avx2
+        self.isa >= Isa::Avx2
     }
 
     /// Planes so far whose H was recomputed densely, because more than an
@@ -221,7 +282,7 @@ impl FastFrontEnd {
 
     /// Stages 1–2 and 3–4 for one plane, given as raw words.
     #[inline(always)]
-    fn push_words<const AVX2: bool>(&mut self, live: &[u64], delayed: &[u64]) {
+    fn push_words<const ISA: u8>(&mut self, live: &[u64], delayed: &[u64]) {
         let total = self.width * self.height;
         let words = total.div_ceil(64).min(live.len()).min(delayed.len());
         // Bits past the field in the last word are unspecified: mask them.
@@ -256,35 +317,60 @@ impl FastFrontEnd {
             self.dense_planes += 1;
         } else {
             match self.k1.len() {
-                1 => self.sparse::<1>(live, delayed, words, last_mask),
-                3 => self.sparse::<3>(live, delayed, words, last_mask),
-                5 => self.sparse::<5>(live, delayed, words, last_mask),
-                7 => self.sparse::<7>(live, delayed, words, last_mask),
-                9 => self.sparse::<9>(live, delayed, words, last_mask),
-                11 => self.sparse::<11>(live, delayed, words, last_mask),
-                13 => self.sparse::<13>(live, delayed, words, last_mask),
-                15 => self.sparse::<15>(live, delayed, words, last_mask),
-                _ => self.sparse::<0>(live, delayed, words, last_mask),
+                1 => self.sparse::<1, ISA>(live, delayed, words, last_mask),
+                3 => self.sparse::<3, ISA>(live, delayed, words, last_mask),
+                5 => self.sparse::<5, ISA>(live, delayed, words, last_mask),
+                7 => self.sparse::<7, ISA>(live, delayed, words, last_mask),
+                9 => self.sparse::<9, ISA>(live, delayed, words, last_mask),
+                11 => self.sparse::<11, ISA>(live, delayed, words, last_mask),
+                13 => self.sparse::<13, ISA>(live, delayed, words, last_mask),
+                15 => self.sparse::<15, ISA>(live, delayed, words, last_mask),
+                _ => self.sparse::<0, ISA>(live, delayed, words, last_mask),
             }
         }
-        self.scan::<AVX2>();
+        self.scan::<ISA>();
     }
 
     /// Adds `±K` around every pixel whose bit entering the window differs
     /// from the bit leaving it. `K` is the kernel length (0: any length).
     #[inline(always)]
-    fn sparse<const K: usize>(
+    fn sparse<const K: usize, const ISA: u8>(
         &mut self,
         live: &[u64],
         delayed: &[u64],
         words: usize,
         last_mask: u64,
     ) {
-        let (width, stride, k) = (self.width, self.stride, self.k1.len());
+        let (width, height, stride, k) = (self.width, self.height, self.stride, self.k1.len());
         let (pad, half) = (self.pad, self.half);
-        let filtered = &mut self.filtered[..];
+        // Every footprint lies inside `filtered`: its top-left cell is at
+        // most ((h − 1 + pad − half)·stride + w − 1 + pad − half) and it
+        // spans k rows and k columns, so its last cell is at most
+        // (h + pad + half − 1)·stride + w + pad + half − 1 < stride·(h + 2·pad)
+        // (pad ≥ half). The raw row pointers below rely on it.
+        assert!(pad >= half && K <= k && self.filtered.len() >= stride * (height + 2 * pad));
+        assert!(self.kernel_plus.len() == k * k && self.kernel_minus.len() == k * k);
+        let filtered = self.filtered.as_mut_ptr();
         let counts = &mut self.counts[..];
+        #[cfg(target_arch = "x86_64")]
+        let rows512 = if ISA == AVX512 && K > 0 && K <= 16 {
+            // SAFETY: AVX512 is the ISA only inside `push_words_avx512`,
+            // which runs only when the CPU reports AVX-512F.
+            Some(unsafe { Rows512::<K>::new(&self.kernel_plus, &self.kernel_minus) })
+        } else {
+            None
+        };
+        // Position of each word's first pixel, stepped from word to word (no
+        // division per word).
+        let (mut wy, mut wx) = (0usize, 0usize);
         for wi in 0..words {
+            if wi > 0 {
+                wx += 64;
+                while wx >= width {
+                    wx -= width;
+                    wy += 1;
+                }
+            }
             let (a, b) = (live[wi], delayed[wi]);
             let mut d = a ^ b;
             if wi + 1 == words {
@@ -293,11 +379,8 @@ impl FastFrontEnd {
             if d == 0 {
                 continue;
             }
-            // Position of the word's first pixel; later pixels by stepping
-            // (one division per word, not per pixel).
             let first = wi * 64;
-            let (mut y, mut x) = (first / width, first % width);
-            let mut at = first;
+            let (mut y, mut x, mut at) = (wy, wx, first);
             while d != 0 {
                 let bit = d.trailing_zeros() as usize;
                 d &= d - 1;
@@ -311,28 +394,38 @@ impl FastFrontEnd {
                 let plus = (a >> bit) & 1 == 1;
                 let c = &mut counts[idx];
                 *c = if plus { *c + 1 } else { *c - 1 };
+                debug_assert!(x < width && y < height);
+                // The footprint's top-left cell in the haloed layout.
+                let base = (y + pad - half) * stride + x + pad - half;
+                #[cfg(target_arch = "x86_64")]
+                if let Some(rows) = &rows512 {
+                    // SAFETY: the footprint is inside `filtered` (above), and
+                    // `rows` exists only with AVX-512F.
+                    unsafe { rows.add(filtered.add(base), stride, plus) };
+                    continue;
+                }
                 let weights = if plus {
                     &self.kernel_plus[..]
                 } else {
                     &self.kernel_minus[..]
                 };
-                // The footprint's top-left cell in the haloed layout.
-                let base = (y + pad - half) * stride + x + pad - half;
                 if K == 0 {
                     for dy in 0..k {
-                        let row = &mut filtered[base + dy * stride..base + dy * stride + k];
+                        // SAFETY: row dy of the footprint is inside `filtered`.
+                        let row = unsafe {
+                            std::slice::from_raw_parts_mut(filtered.add(base + dy * stride), k)
+                        };
                         for (f, &wk) in row.iter_mut().zip(&weights[dy * k..(dy + 1) * k]) {
                             *f = f.wrapping_add(wk);
                         }
                     }
                 } else {
-                    for dy in 0..K {
-                        let row: &mut [u32; K] = (&mut filtered
-                            [base + dy * stride..base + dy * stride + K])
-                            .try_into()
-                            .expect("K cells");
-                        let wk: &[u32; K] =
-                            weights[dy * K..(dy + 1) * K].try_into().expect("K weights");
+                    let weights: &[[u32; K]] = weights.as_chunks::<K>().0;
+                    for (dy, wk) in weights.iter().enumerate() {
+                        // SAFETY: row dy of the footprint is K cells inside
+                        // `filtered`, and u32 cells are aligned as [u32; K].
+                        let row =
+                            unsafe { &mut *filtered.add(base + dy * stride).cast::<[u32; K]>() };
                         add_row::<K>(row, wk);
                     }
                 }
@@ -342,14 +435,14 @@ impl FastFrontEnd {
 
     /// Stages 3–4: the pixels at or above the hold level and the candidates
     /// (at or above the open level) among them, in raster order, in one
-    /// pass. Rows whose maximum is below the hold level are skipped whole;
-    /// in the others, eight pixels at a time are compared with the hold level
-    /// and with their eight neighbours (the zeroed ring stands for the
-    /// outside of the field: an above-threshold pixel beats 0, which is the
-    /// same as ignoring those neighbours); the few maxima found are then
-    /// compared with the open level.
+    /// pass. Thirty-two pixels whose maximum is below the hold level are
+    /// skipped at once; in the others, eight pixels at a time are compared
+    /// with the hold level and with their eight neighbours (the zeroed ring
+    /// stands for the outside of the field: an above-threshold pixel beats
+    /// 0, which is the same as ignoring those neighbours); the few maxima
+    /// found are then compared with the open level.
     #[inline(always)]
-    fn scan<const AVX2: bool>(&mut self) {
+    fn scan<const ISA: u8>(&mut self) {
         self.above.clear();
         self.candidates.clear();
         let (w, h, s, pad) = (self.width, self.height, self.stride, self.pad);
@@ -377,46 +470,70 @@ impl FastFrontEnd {
                 & (v >= f[c + s])
                 & (v >= f[c + s + 1])
         };
-        for y in 0..h {
-            let c0 = (pad + y) * s + pad;
-            if row_max(&f[c0..c0 + w]) < thr {
-                continue;
-            }
-            let mut x0 = 0;
-            while x0 + 8 <= w {
-                #[cfg(target_arch = "x86_64")]
-                let (above, mut cands) = if AVX2 {
-                    // SAFETY: AVX2 is true only inside `push_words_avx2`,
-                    // which runs only when the CPU reports AVX2.
-                    unsafe { block8_avx2(f, c0 + x0, s, thr) }
-                } else {
-                    block8(f, c0 + x0, s, thr)
-                };
-                #[cfg(not(target_arch = "x86_64"))]
-                let (above, mut cands) = block8(f, c0 + x0, s, thr);
-                if open > thr {
-                    let mut bits = cands;
-                    while bits != 0 {
-                        let l = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        if f[c0 + x0 + l] < open {
-                            cands &= !(1 << l);
-                        }
+        let above = &mut self.above;
+        let candidates = &mut self.candidates;
+        // Eight pixels from x0 of row y (c0: the row's first cell).
+        let block = |above: &mut Vec<u32>,
+                     candidates: &mut Vec<Candidate>,
+                     y: usize,
+                     c0: usize,
+                     x0: usize| {
+            #[cfg(target_arch = "x86_64")]
+            let (ab, mut cands) = if ISA >= AVX2 {
+                // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2` and
+                // `push_words_avx512`, which run only when the CPU has AVX2.
+                unsafe { block8_avx2(f, c0 + x0, s, thr) }
+            } else {
+                block8(f, c0 + x0, s, thr)
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let (ab, mut cands) = block8(f, c0 + x0, s, thr);
+            if open > thr {
+                let mut bits = cands;
+                while bits != 0 {
+                    let l = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if f[c0 + x0 + l] < open {
+                        cands &= !(1 << l);
                     }
                 }
-                push_bits(&mut self.above, above, y * w + x0, |i| i as u32);
-                push_bits(&mut self.candidates, cands, x0, |x| Candidate {
-                    x: x as u16,
-                    y: y as u16,
-                });
+            }
+            push_bits(above, ab, y * w + x0, |i| i as u32);
+            push_bits(candidates, cands, x0, |x| Candidate {
+                x: x as u16,
+                y: y as u16,
+            });
+        };
+        for y in 0..h {
+            let c0 = (pad + y) * s + pad;
+            let mut x0 = 0;
+            while x0 + 32 <= w {
+                #[cfg(target_arch = "x86_64")]
+                let below = if ISA >= AVX2 {
+                    // SAFETY: as for `block8_avx2` above.
+                    unsafe { below32_avx2(f, c0 + x0, thr) }
+                } else {
+                    below32(f, c0 + x0, thr)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let below = below32(f, c0 + x0, thr);
+                if !below {
+                    for b in 0..4 {
+                        block(above, candidates, y, c0, x0 + 8 * b);
+                    }
+                }
+                x0 += 32;
+            }
+            while x0 + 8 <= w {
+                block(above, candidates, y, c0, x0);
                 x0 += 8;
             }
             for x in x0..w {
                 let c = c0 + x;
                 if f[c] >= thr {
-                    self.above.push((y * w + x) as u32);
+                    above.push((y * w + x) as u32);
                     if f[c] >= open && is_max(c) {
-                        self.candidates.push(Candidate {
+                        candidates.push(Candidate {
                             x: x as u16,
                             y: y as u16,
                         });
@@ -431,20 +548,30 @@ impl FastFrontEnd {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn push_words_avx2(&mut self, live: &[u64], delayed: &[u64]) {
-        self.push_words::<true>(live, delayed);
+        self.push_words::<AVX2>(live, delayed);
+    }
+
+    /// [`FastFrontEnd::push_words`] compiled for AVX-512F (masked 16-lane
+    /// kernel rows in the sparse update) and AVX2 (the scan).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f")]
+    fn push_words_avx512(&mut self, live: &[u64], delayed: &[u64]) {
+        self.push_words::<AVX512>(live, delayed);
     }
 }
 
 impl FrontEnd for FastFrontEnd {
     fn push(&mut self, live: &BitPlane, delayed: &BitPlane) {
         let (lw, dw) = (live.words(), delayed.words());
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is set only when the CPU reports AVX2.
-            unsafe { self.push_words_avx2(lw, dw) };
-            return;
+        match self.isa {
+            // SAFETY: `isa` is never above what `Isa::detect` found.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { self.push_words_avx512(lw, dw) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { self.push_words_avx2(lw, dw) },
+            _ => self.push_words::<PORTABLE>(lw, dw),
         }
-        self.push_words::<false>(lw, dw);
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
@@ -578,18 +705,98 @@ fn push_bits<T>(out: &mut Vec<T>, mut bits: u32, offset: usize, make: impl Fn(us
     }
 }
 
-/// The maximum of a row: eight lane-wise maxima, reduced once.
+/// Whether all 32 cells from `c` are below `thr`: four lane-wise maxima,
+/// reduced once.
 #[inline(always)]
-fn row_max(row: &[u32]) -> u32 {
-    let mut lanes = [0u32; 8];
-    let mut blocks = row.chunks_exact(8);
-    for b in &mut blocks {
+fn below32(f: &[u32], c: usize, thr: u32) -> bool {
+    let g: &[u32; 32] = f[c..c + 32].try_into().expect("32 cells");
+    let mut m = [0u32; 8];
+    for b in 0..4 {
         for l in 0..8 {
-            lanes[l] = lanes[l].max(b[l]);
+            m[l] = m[l].max(g[8 * b + l]);
         }
     }
-    let tail = blocks.remainder().iter().fold(0, |m, &v| m.max(v));
-    lanes.iter().fold(tail, |m, &v| m.max(v))
+    m.iter().fold(0, |a, &v| a.max(v)) < thr
+}
+
+/// [`below32`] with AVX2 unsigned maxima and one compare.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn below32_avx2(f: &[u32], c: usize, thr: u32) -> bool {
+    use std::arch::x86_64::*;
+    let g: &[u32; 32] = f[c..c + 32].try_into().expect("32 cells");
+    if thr == 0 {
+        return false;
+    }
+    let p = g.as_ptr().cast::<__m256i>();
+    // SAFETY: `g` is 32 u32 = four unaligned 32-byte loads.
+    let (a, b, c, d) = unsafe {
+        (
+            _mm256_loadu_si256(p),
+            _mm256_loadu_si256(p.add(1)),
+            _mm256_loadu_si256(p.add(2)),
+            _mm256_loadu_si256(p.add(3)),
+        )
+    };
+    let m = _mm256_max_epu32(_mm256_max_epu32(a, b), _mm256_max_epu32(c, d));
+    // Every lane < thr ⇔ max(lane, thr − 1) = thr − 1.
+    let t = _mm256_set1_epi32((thr - 1) as i32);
+    _mm256_movemask_epi8(_mm256_cmpeq_epi32(_mm256_max_epu32(m, t), t)) == -1
+}
+
+/// The `±K` rows of a kernel up to 16 wide as AVX-512 registers: a changed
+/// pixel's footprint is then K masked 16-lane read-add-writes.
+#[cfg(target_arch = "x86_64")]
+struct Rows512<const K: usize> {
+    plus: [std::arch::x86_64::__m512i; K],
+    minus: [std::arch::x86_64::__m512i; K],
+    mask: std::arch::x86_64::__mmask16,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<const K: usize> Rows512<K> {
+    /// From `K`'s rows (`K·K` weights each, row-major).
+    #[target_feature(enable = "avx512f")]
+    fn new(plus: &[u32], minus: &[u32]) -> Rows512<K> {
+        use std::arch::x86_64::*;
+        assert!(K <= 16 && plus.len() >= K * K && minus.len() >= K * K);
+        let mut rows = Rows512 {
+            plus: [_mm512_setzero_si512(); K],
+            minus: [_mm512_setzero_si512(); K],
+            mask: ((1u32 << K) - 1) as u16,
+        };
+        for dy in 0..K {
+            let (mut p, mut m) = ([0u32; 16], [0u32; 16]);
+            p[..K].copy_from_slice(&plus[dy * K..(dy + 1) * K]);
+            m[..K].copy_from_slice(&minus[dy * K..(dy + 1) * K]);
+            // SAFETY: 16 u32 = one unaligned 64-byte load each.
+            unsafe {
+                rows.plus[dy] = _mm512_loadu_si512(p.as_ptr().cast());
+                rows.minus[dy] = _mm512_loadu_si512(m.as_ptr().cast());
+            }
+        }
+        rows
+    }
+
+    /// Adds `+K` (or `−K`) to the K×K cells from `p`, rows `stride` apart.
+    ///
+    /// # Safety
+    /// The K rows of K cells from `p` must be inside one allocation, and the
+    /// CPU must have AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn add(&self, p: *mut u32, stride: usize, plus: bool) {
+        use std::arch::x86_64::*;
+        let w = if plus { &self.plus } else { &self.minus };
+        for (dy, &wk) in w.iter().enumerate() {
+            // SAFETY: the caller's contract; masked-off lanes are not touched.
+            unsafe {
+                let r = p.add(dy * stride).cast::<i32>();
+                let v = _mm512_maskz_loadu_epi32(self.mask, r);
+                _mm512_mask_storeu_epi32(r, self.mask, _mm512_add_epi32(v, wk));
+            }
+        }
+    }
 }
 
 /// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.
@@ -719,7 +926,7 @@ impl FrontResults {
         )?;
         let mut out = vec![back.start_record()];
         for p in &self.planes {
-            out.extend(back.push_plane(p)?);
+            out.extend(back.push_masked_plane(p)?);
         }
         out.extend(back.finish());
         Ok(out)
@@ -896,7 +1103,7 @@ where
             while let Some(d) = early.remove(&next) {
                 back.front_end_mut().queue.extend(d.fronts);
                 for plane in d.planes.iter() {
-                    match back.push_plane(plane) {
+                    match back.push_masked_plane(plane) {
                         Ok(records) => records.into_iter().for_each(&mut sink),
                         Err(e) => {
                             result = Err(ParallelError::Pipeline(e));

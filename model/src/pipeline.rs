@@ -237,6 +237,18 @@ impl<F: FrontEnd> Pipeline<F> {
 
     /// Processes bit-plane `t = planes()` and returns the records completed by it.
     pub fn push_plane(&mut self, plane: &BitPlane) -> Result<Vec<Record>, PipelineError> {
+        self.push(plane, true)
+    }
+
+    /// [`Pipeline::push_plane`] for a plane whose hot pixels the caller has
+    /// already forced to 0 with this configuration's mask (the parallel
+    /// engine's reader does it once per plane): the same records, without
+    /// masking the plane a second time.
+    pub fn push_masked_plane(&mut self, plane: &BitPlane) -> Result<Vec<Record>, PipelineError> {
+        self.push(plane, false)
+    }
+
+    fn push(&mut self, plane: &BitPlane, mask_it: bool) -> Result<Vec<Record>, PipelineError> {
         if self.finished {
             return Err(PipelineError::Finished);
         }
@@ -257,7 +269,12 @@ impl<F: FrontEnd> Pipeline<F> {
 
         // Stages 0–4. The delay line keeps the masked `B_t` and `B_{t−N}`;
         // both are read from it rather than copied.
-        self.delay.push_masked(plane, self.cfg.hot_mask.as_ref());
+        let mask = if mask_it {
+            self.cfg.hot_mask.as_ref()
+        } else {
+            None
+        };
+        self.delay.push_masked(plane, mask);
         let delayed = self.delay.delayed();
         self.front.push(self.delay.newest(), delayed);
 

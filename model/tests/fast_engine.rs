@@ -3,7 +3,7 @@
 use proptest::prelude::*;
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::fast_engine::{
-    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, ParallelError,
+    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa, ParallelError,
 };
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd, PipelineError};
@@ -115,6 +115,51 @@ fn spcimager_like_field_matches_golden_single_and_parallel() {
     let fronts = FrontResults::compute(&cfg, &planes);
     assert_eq!(fronts.len(), planes.len());
     assert_eq!(fronts.replay_back_end().unwrap(), golden);
+}
+
+/// The parallel engine and the replay mask each plane once, in the reader
+/// (or `FrontResults::compute`), and hand the back end planes already
+/// masked: the records stay the golden ones, and the back end's
+/// `push_masked_plane` really does not mask again.
+#[test]
+fn hot_pixels_are_masked_once_and_the_records_stay_golden() {
+    let mut cfg = spcimager_like(64, 48, 108);
+    let mut planes = scene(11, 64, 48, 700, 12, 0.0118, 0.05);
+    // A hot pixel, on in every plane, in the middle of the field.
+    for p in &mut planes {
+        p.set(30, 20, true);
+    }
+    let (mask, _) = HotPixelMask::from_pixels(64, 48, &[(30, 20)]);
+    cfg.hot_mask = Some(mask.clone());
+    let golden = run(cfg.clone(), planes.clone()).unwrap();
+    for (threads, chunk) in [(1, 700), (2, 64), (3, 1)] {
+        assert_eq!(
+            parallel(cfg.clone(), planes.clone(), threads, chunk),
+            golden
+        );
+    }
+    assert_eq!(
+        FrontResults::compute(&cfg, &planes)
+            .replay_back_end()
+            .unwrap(),
+        golden
+    );
+
+    // `push_masked_plane` on planes masked by the caller = `push_plane`.
+    let masked: Vec<BitPlane> = planes.iter().map(|p| mask.apply(p)).collect();
+    let mut by_caller = fast_pipeline(cfg.clone()).unwrap();
+    let mut by_pipeline = fast_pipeline(cfg.clone()).unwrap();
+    let mut unmasked = fast_pipeline(cfg).unwrap();
+    let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
+    for (raw, m) in planes.iter().zip(&masked) {
+        a.extend(by_caller.push_masked_plane(m).unwrap());
+        b.extend(by_pipeline.push_plane(raw).unwrap());
+        c.extend(unmasked.push_masked_plane(raw).unwrap());
+    }
+    assert_eq!(a, b);
+    // The raw planes through `push_masked_plane` keep the hot pixel's
+    // bits: the rolling counts, hence the records, differ.
+    assert_ne!(c, b, "push_masked_plane must not mask the plane itself");
 }
 
 #[test]
@@ -271,17 +316,30 @@ proptest! {
         let stream = random_planes(seed, w, h, planes, p_max);
         let mut golden = GoldenFrontEnd::new(&cfg);
         let mut fast = FastFrontEnd::new(&cfg);
-        let mut portable = FastFrontEnd::new(&cfg).portable();
-        prop_assert!(!portable.uses_avx2());
+        prop_assert_eq!(fast.isa(), Isa::detect());
+        // Every slower build this CPU runs (portable; AVX2 where AVX-512 is used).
+        let mut slower: Vec<FastFrontEnd> = Isa::detect()
+            .up_to()
+            .filter(|&i| i < Isa::detect())
+            .map(|i| FastFrontEnd::new(&cfg).with_isa(i))
+            .collect();
+        prop_assert!(!FastFrontEnd::new(&cfg).portable().uses_avx2());
         let zero = BitPlane::zeros(w, h);
         for t in 0..planes {
             let delayed = if t >= n as usize { &stream[t - n as usize] } else { &zero };
             golden.push(&stream[t], delayed);
             fast.push(&stream[t], delayed);
-            portable.push(&stream[t], delayed);
-            prop_assert_eq!(portable.above(), fast.above());
-            prop_assert_eq!(portable.candidates(), fast.candidates());
-            prop_assert_eq!(portable.dense_planes(), fast.dense_planes());
+            for other in &mut slower {
+                other.push(&stream[t], delayed);
+                prop_assert_eq!(other.above(), fast.above(), "{:?}", other.isa());
+                prop_assert_eq!(other.candidates(), fast.candidates(), "{:?}", other.isa());
+                prop_assert_eq!(other.dense_planes(), fast.dense_planes());
+                for y in 0..h {
+                    for x in 0..w {
+                        prop_assert_eq!(other.filtered_at(x, y), fast.filtered_at(x, y));
+                    }
+                }
+            }
             for y in 0..h {
                 for x in 0..w {
                     prop_assert_eq!(fast.count_at(x, y), golden.counts()[y * w + x], "S at ({}, {}) plane {}", x, y, t);

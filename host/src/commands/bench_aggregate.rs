@@ -11,7 +11,7 @@
 use crate::setup::{self, PipelineArgs};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::fast_engine::{
-    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults,
+    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa,
 };
 use smartagg_model::packetiser::Packetiser;
 use smartagg_model::params::{Camera, Preset, PresetName};
@@ -337,30 +337,26 @@ fn measure(
     if bytes_of(&fast_same)? != golden_bytes || bytes_of(&par_same)? != golden_bytes {
         anyhow::bail!("the fast engine's bytes differ from the golden model's on the {name} scene");
     }
-    // Stages 1–4 alone, to show where the time goes (and what AVX2 adds).
+    // Stages 1–4 alone, to show where the time goes (and what each
+    // instruction set adds): the build the engine runs first, then the slower ones.
     let zero = BitPlane::zeros(w as usize, h as usize);
     let n = cfg.n_window as usize;
-    let simd = FastFrontEnd::new(cfg).uses_avx2();
-    for (label, portable) in [("stages 1-4", false), ("stages 1-4 portable", true)] {
-        if portable && !simd {
-            continue;
-        }
+    let best = Isa::detect();
+    for isa in best.up_to().collect::<Vec<_>>().into_iter().rev() {
         let t = Timing::start();
-        let mut fe = FastFrontEnd::new(cfg);
-        if portable {
-            fe = fe.portable();
-        }
+        let mut fe = FastFrontEnd::new(cfg).with_isa(isa);
         for (i, p) in planes.iter().enumerate() {
             fe.push(p, if i >= n { &planes[i - n] } else { &zero });
         }
         let rates = t.rates(planes.len());
-        let label = if simd && !portable {
-            format!("{label} avx2")
-        } else {
-            label.to_string()
-        };
-        row(&label, planes.len(), rates, 0, None);
-        if !portable {
+        row(
+            &format!("stages 1-4 {}", isa.as_str()),
+            planes.len(),
+            rates,
+            0,
+            None,
+        );
+        if isa == best {
             println!(
                 "{:<8} {} of {} planes filtered densely (more than 1/8 of the pixels changed)",
                 "",
