@@ -472,38 +472,6 @@ impl FastFrontEnd {
         };
         let above = &mut self.above;
         let candidates = &mut self.candidates;
-        // Eight pixels from x0 of row y (c0: the row's first cell).
-        let block = |above: &mut Vec<u32>,
-                     candidates: &mut Vec<Candidate>,
-                     y: usize,
-                     c0: usize,
-                     x0: usize| {
-            #[cfg(target_arch = "x86_64")]
-            let (ab, mut cands) = if ISA >= AVX2 {
-                // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2` and
-                // `push_words_avx512`, which run only when the CPU has AVX2.
-                unsafe { block8_avx2(f, c0 + x0, s, thr) }
-            } else {
-                block8(f, c0 + x0, s, thr)
-            };
-            #[cfg(not(target_arch = "x86_64"))]
-            let (ab, mut cands) = block8(f, c0 + x0, s, thr);
-            if open > thr {
-                let mut bits = cands;
-                while bits != 0 {
-                    let l = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    if f[c0 + x0 + l] < open {
-                        cands &= !(1 << l);
-                    }
-                }
-            }
-            push_bits(above, ab, y * w + x0, |i| i as u32);
-            push_bits(candidates, cands, x0, |x| Candidate {
-                x: x as u16,
-                y: y as u16,
-            });
-        };
         for y in 0..h {
             let c0 = (pad + y) * s + pad;
             let mut x0 = 0;
@@ -519,13 +487,14 @@ impl FastFrontEnd {
                 let below = below32(f, c0 + x0, thr);
                 if !below {
                     for b in 0..4 {
-                        block(above, candidates, y, c0, x0 + 8 * b);
+                        let at = x0 + 8 * b;
+                        scan_block::<ISA>(f, above, candidates, (y, w, s), c0, at, (thr, open));
                     }
                 }
                 x0 += 32;
             }
             while x0 + 8 <= w {
-                block(above, candidates, y, c0, x0);
+                scan_block::<ISA>(f, above, candidates, (y, w, s), c0, x0, (thr, open));
                 x0 += 8;
             }
             for x in x0..w {
@@ -612,6 +581,48 @@ fn add_row<const K: usize>(row: &mut [u32; K], w: &[u32; K]) {
         row[i] = row[i].wrapping_add(w[i]);
         i += 1;
     }
+}
+
+/// Stages 3–4 for the eight pixels from `x0` of row `y` (`c0`: the row's
+/// first cell in the haloed H, `w` the field's width, `s` the stride):
+/// appends those at or above `thr` (hold) to `above`, and the local maxima
+/// at or above `open` to `candidates`. A function, not a closure, so that it
+/// is inlined into each instruction set's build with its compares.
+#[inline(always)]
+fn scan_block<const ISA: u8>(
+    f: &[u32],
+    above: &mut Vec<u32>,
+    candidates: &mut Vec<Candidate>,
+    (y, w, s): (usize, usize, usize),
+    c0: usize,
+    x0: usize,
+    (thr, open): (u32, u32),
+) {
+    #[cfg(target_arch = "x86_64")]
+    let (ab, mut cands) = if ISA >= AVX2 {
+        // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2` and
+        // `push_words_avx512`, which run only when the CPU has AVX2.
+        unsafe { block8_avx2(f, c0 + x0, s, thr) }
+    } else {
+        block8(f, c0 + x0, s, thr)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let (ab, mut cands) = block8(f, c0 + x0, s, thr);
+    if open > thr {
+        let mut bits = cands;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if f[c0 + x0 + l] < open {
+                cands &= !(1 << l);
+            }
+        }
+    }
+    push_bits(above, ab, y * w + x0, |i| i as u32);
+    push_bits(candidates, cands, x0, |x| Candidate {
+        x: x as u16,
+        y: y as u16,
+    });
 }
 
 /// Eight pixels from cell `c` of the haloed H (row stride `s`): the bit
