@@ -104,7 +104,7 @@ fn main() {
     for (k, threads) in [1usize, 2].into_iter().enumerate() {
         let t = Watch::start();
         let mut r = 0;
-        run_parallel::<(), _, _>(
+        run_parallel::<(), _, _, _>(
             cfg.clone(),
             stream.iter().cloned().map(Ok),
             threads,

@@ -947,7 +947,8 @@ impl FrontResults {
 /// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
 /// calling `sink` with every record in stream order (start record first,
 /// stream-end record last). Errors from the plane source stop the run and are
-/// returned.
+/// returned. The source gives planes or references to them (the reader
+/// copies each into a chunk it recycles).
 ///
 /// A reader thread pulls the planes (decoding or simulating them) and masks
 /// hot pixels; each worker takes the next chunk as soon as it is free (no
@@ -955,7 +956,7 @@ impl FrontResults {
 /// runs the sequential stages 5–7 on the chunks in stream order. At most
 /// `3·threads + 1` chunks are in flight, so memory is bounded by
 /// `(3·threads + 1)·chunk + threads·N` planes, whatever the stream's length.
-pub fn run_parallel<E, I, S>(
+pub fn run_parallel<E, P, I, S>(
     cfg: PipelineConfig,
     planes: I,
     threads: usize,
@@ -964,7 +965,8 @@ pub fn run_parallel<E, I, S>(
 ) -> Result<(), ParallelError<E>>
 where
     E: Send,
-    I: Iterator<Item = Result<BitPlane, E>> + Send,
+    P: std::borrow::Borrow<BitPlane> + Send,
+    I: Iterator<Item = Result<P, E>> + Send,
     S: FnMut(Record),
 {
     cfg.validate()
@@ -1021,7 +1023,8 @@ where
                 while filled < chunk {
                     match planes.next() {
                         // A plane of another size never reaches a worker.
-                        Some(Ok(p)) if (p.width(), p.height()) != (w, h) => {
+                        Some(Ok(p)) if (p.borrow().width(), p.borrow().height()) != (w, h) => {
+                            let p = p.borrow();
                             return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
                                 plane: (index * chunk + filled) as u64,
                                 got_w: p.width(),
@@ -1031,12 +1034,12 @@ where
                             }));
                         }
                         Some(Ok(p)) => {
-                            let mask = reader_cfg.hot_mask.as_ref();
+                            let (p, mask) = (p.borrow(), reader_cfg.hot_mask.as_ref());
                             match batch.get_mut(filled) {
-                                Some(buf) => buf.copy_masked(&p, mask),
+                                Some(buf) => buf.copy_masked(p, mask),
                                 None => batch.push(match mask {
-                                    Some(m) => m.apply(&p),
-                                    None => p,
+                                    Some(m) => m.apply(p),
+                                    None => p.clone(),
                                 }),
                             }
                             filled += 1;

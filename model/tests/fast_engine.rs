@@ -68,7 +68,7 @@ fn parallel(
     chunk: usize,
 ) -> Vec<Record> {
     let mut out = Vec::new();
-    run_parallel::<(), _, _>(cfg, planes.into_iter().map(Ok), threads, chunk, |r| {
+    run_parallel::<(), _, _, _>(cfg, planes.into_iter().map(Ok), threads, chunk, |r| {
         out.push(r)
     })
     .unwrap();

@@ -94,15 +94,18 @@ fn bytes_of(records: &[Record]) -> anyhow::Result<Vec<u8>> {
     Ok(smartagg_model::packetiser::encode_stream(records)?)
 }
 
+/// The chunked engine on `len` planes: `planes` over and over (lent, not
+/// copied: the reader copies each plane once, as from a decoder).
 fn parallel(
     cfg: &PipelineConfig,
     planes: &[BitPlane],
+    len: usize,
     threads: usize,
 ) -> anyhow::Result<Vec<Record>> {
     let mut out = Vec::new();
-    run_parallel::<std::convert::Infallible, _, _>(
+    run_parallel::<std::convert::Infallible, _, _, _>(
         cfg.clone(),
-        planes.iter().cloned().map(Ok),
+        planes.iter().cycle().take(len).map(Ok),
         threads,
         default_chunk(cfg.n_window),
         |r| out.push(r),
@@ -333,7 +336,7 @@ fn measure(
     );
     // The fast engines on the golden planes: bytes must be identical.
     let fast_same = run_with(fast_pipeline(cfg.clone())?, gp.iter().cloned())?;
-    let par_same = parallel(cfg, gp, threads.max(2))?;
+    let par_same = parallel(cfg, gp, gp.len(), threads.max(2))?;
     if bytes_of(&fast_same)? != golden_bytes || bytes_of(&par_same)? != golden_bytes {
         anyhow::bail!("the fast engine's bytes differ from the golden model's on the {name} scene");
     }
@@ -387,17 +390,38 @@ fn measure(
     }
     row("stages 5-7 alone", planes.len(), rates, 0, single_rate);
     // The scaling curve: one worker overlaps the reader and the back end;
-    // more workers share the chunks.
+    // more workers share the chunks. Every worker needs several chunks, or
+    // the curve measures the stream's end, where workers wait for the last
+    // chunks: the simulated planes are streamed again from the start until
+    // each of the most workers has had four chunks.
+    let chunk = default_chunk(cfg.n_window);
+    let len = planes.len().max(4 * threads * chunk);
+    if len > planes.len() {
+        println!(
+            "{:<8} the curve streams {len} planes: the {} simulated, repeated ({} chunks of {chunk} for {threads} threads)",
+            "",
+            planes.len(),
+            len.div_ceil(chunk)
+        );
+    }
+    let mut first: Option<Vec<Record>> = None;
     for th in thread_curve(threads) {
         let t = Timing::start();
-        let par = parallel(cfg, &planes, th)?;
-        let rates = t.rates(planes.len());
-        if par != fast {
+        let par = parallel(cfg, &planes, len, th)?;
+        let rates = t.rates(len);
+        // The same planes as the single-threaded engine's, or the first
+        // run's of the repeated stream.
+        let want = if len == planes.len() {
+            &fast
+        } else {
+            first.get_or_insert_with(|| par.clone())
+        };
+        if &par != want {
             anyhow::bail!("parallel run ({th} threads) differs from the single-threaded one");
         }
         row(
             &format!("fast, chunked x{th}"),
-            planes.len(),
+            len,
             rates,
             bytes_of(&par)?.len(),
             single_rate,
@@ -455,7 +479,7 @@ fn stream(
         if done == planes {
             return None;
         }
-        let plane = pool[(done % pool_len as u64) as usize].clone();
+        let plane = &pool[(done % pool_len as u64) as usize];
         done += 1;
         if done.is_multiple_of(report_every) {
             let (rate, cpu) = t.rates(done as usize);
