@@ -134,10 +134,10 @@ pub fn figure_rgb(
         })?;
         let (tw, th) = (tw as usize, th as usize);
         // Centred over the bar, kept inside the image; left out if too big.
-        let centre = (rect[0] + rect[2]) / 2;
-        let cx = centre.clamp(margin + tw / 2, w.saturating_sub(margin + tw / 2).max(1));
         let bottom = rect[1].saturating_sub(thick);
         if tw + 2 * margin <= w && bottom >= th + margin / 2 {
+            // tw + 2·margin ≤ w, so the clamp's bounds are ordered.
+            let cx = ((rect[0] + rect[2]) / 2).clamp(margin + tw / 2, w - margin - tw / 2);
             area.draw_text(&label, &style, (cx as i32, bottom as i32))
                 .map_err(|e| anyhow::anyhow!("drawing the scale bar's label: {e}"))?;
             font_px = font;
@@ -270,6 +270,13 @@ mod tests {
             partial > 20,
             "{partial} grey label pixels: no anti-aliasing"
         );
+        // Images too small for the label, or for the bar, still render.
+        for (w, h) in [(60, 40), (25, 300), (3, 3), (1, 1)] {
+            let (_, bar) = figure_rgb(&image(w, h, 10.0), &opts).unwrap();
+            if let Some(b) = bar {
+                assert!(b.rect[2] <= w && b.rect[3] <= h, "{w}x{h}: {b:?}");
+            }
+        }
         // Without a bar the image is the density alone.
         let (plain, none) = figure_rgb(
             &img,
