@@ -10,8 +10,10 @@
 #   python3: the second packet decoder, tools/rois.py, and its test (host/tests/python_decoder.rs)
 #   libusb-1.0-0-dev: the USB bulk transport
 #   shellcheck: the lint of the Slurm scripts in tools/slurm (host/tests/slurm.rs)
+#   libhdf5-dev: Picasso HDF5 tables (`localize --out x.hdf5`, `render x.hdf5`; the hdf5-metno crate links it)
+#   python3-h5py, python3-yaml: reading them back as Picasso does (host/tests/picasso.rs)
 set -euo pipefail
-PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make yosys libusb-1.0-0-dev python3 shellcheck)
+PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make yosys libusb-1.0-0-dev python3 shellcheck libhdf5-dev python3-h5py python3-yaml)
 missing=()
 for p in "${PKGS[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

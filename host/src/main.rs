@@ -5,7 +5,9 @@ use clap::{Parser, Subcommand};
 
 mod calibration;
 mod commands;
+mod figure;
 mod output;
+mod picasso;
 mod setup;
 mod stream_info;
 mod transport;

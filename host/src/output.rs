@@ -89,6 +89,12 @@ impl AtomicFile {
         })
     }
 
+    /// Where the file is being written (for writers that open a path
+    /// themselves, as the HDF5 library does).
+    pub fn path(&self) -> &Path {
+        self.tmp.path()
+    }
+
     /// Makes the file durable and renames it onto the target.
     pub fn commit(self) -> anyhow::Result<()> {
         let target = self.target;

@@ -223,23 +223,29 @@ pub struct ScaleBar {
     pub label_drawn: bool,
 }
 
+/// The density shown as full scale: the `(100 − saturate)`th percentile of
+/// the non-empty pixels (1 for an empty image), so that `saturate` percent
+/// of them saturate.
+pub fn display_max(data: &[f32], saturate_percent: f64) -> Result<f32, LocalizeError> {
+    check_option("saturate", saturate_percent, 0.0, 100.0)?;
+    let mut nonzero: Vec<f32> = data
+        .iter()
+        .copied()
+        .filter(|&v| v > 0.0 && v.is_finite())
+        .collect();
+    if nonzero.is_empty() {
+        return Ok(1.0);
+    }
+    let q = 1.0 - saturate_percent / 100.0;
+    let k = ((nonzero.len() as f64 - 1.0) * q).round() as usize;
+    let k = k.min(nonzero.len() - 1);
+    let (_, v, _) = nonzero.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    Ok(if *v > 0.0 { *v } else { 1.0 })
+}
+
 /// 8-bit grey pixels of the image with a scale bar, ready for PNG.
 pub fn to_gray8(img: &Image, saturate_percent: f64) -> Result<(Vec<u8>, ScaleBar), LocalizeError> {
-    check_option("saturate", saturate_percent, 0.0, 100.0)?;
-    let mut nonzero: Vec<f32> = img.data.iter().copied().filter(|&v| v > 0.0).collect();
-    let vmax = if nonzero.is_empty() {
-        1.0
-    } else {
-        let q = 1.0 - saturate_percent / 100.0;
-        let k = ((nonzero.len() as f64 - 1.0) * q).round() as usize;
-        let k = k.min(nonzero.len() - 1);
-        let (_, v, _) = nonzero.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-        if *v > 0.0 {
-            *v
-        } else {
-            1.0
-        }
-    };
+    let vmax = display_max(&img.data, saturate_percent)?;
     let mut px: Vec<u8> = img
         .data
         .iter()

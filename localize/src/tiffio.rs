@@ -174,6 +174,37 @@ pub fn write_f32<W: Write + Seek>(
         .map_err(|e| tiff_err("output image", e))
 }
 
+/// Writes a 32-bit float greyscale image with its pixel size in the form
+/// ImageJ/Fiji read (`ij/io/TiffDecoder`, `FileOpener`): XResolution =
+/// YResolution = pixels per nm, ResolutionUnit none, and an ImageDescription
+/// starting `ImageJ=` with `unit=nm`, so that Fiji shows nm and measures in
+/// them. The values are the image's own (e.g. localisations per pixel).
+pub fn write_f32_calibrated<W: Write + Seek>(
+    writer: W,
+    width: usize,
+    height: usize,
+    data: &[f32],
+    pixel_nm: f64,
+) -> Result<(), LocalizeError> {
+    crate::error::check_option("pixel-nm", pixel_nm, 1e-3, 1e6)?;
+    let err = |e| tiff_err("output image", e);
+    let mut enc = TiffEncoder::new(writer).map_err(err)?;
+    let mut image = enc
+        .new_image::<colortype::Gray32Float>(width as u32, height as u32)
+        .map_err(err)?;
+    // 1/pixel_nm as a rational of 1e-3 nm steps (fits u32 over the range).
+    let per_nm = tiff::encoder::Rational {
+        n: 1000,
+        d: (pixel_nm * 1000.0).round().max(1.0) as u32,
+    };
+    image.resolution(tiff::tags::ResolutionUnit::None, per_nm);
+    image
+        .encoder()
+        .write_tag(tiff::tags::Tag::ImageDescription, "ImageJ=1.11a\nunit=nm\n")
+        .map_err(err)?;
+    image.write_data(data).map_err(err)
+}
+
 /// Creates a file for one of the writers above.
 pub fn create(path: &Path) -> Result<BufWriter<File>, LocalizeError> {
     Ok(BufWriter::new(File::create(path)?))

@@ -504,7 +504,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ropts.width = (side / ropts.pixel_nm).ceil() as usize;
     ropts.height = ropts.width;
     let (image, _) = render::render(&points, &ropts)?;
-    let (png_bytes, _) = render::to_png(&image, 0.5)?;
+    let (png_bytes, _) = crate::figure::figure_png(
+        &image,
+        &crate::figure::FigureOptions {
+            colormap: crate::figure::Colormap::Gray,
+            saturate: 0.5,
+            scale_bar: true,
+        },
+    )?;
     crate::output::write_atomic(&png, &png_bytes)?;
     timing.add(
         "write outputs",

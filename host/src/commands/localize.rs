@@ -1,5 +1,7 @@
 //! `smartagg localize`: molecule positions from blink-ROI packets (`.rois`)
-//! or from a TIFF stack of frames, written as a ThunderSTORM CSV table.
+//! or from a TIFF stack of frames, written as a ThunderSTORM CSV table
+//! (`--out x.csv`) or as Picasso HDF5 with its YAML sidecar (`--out
+//! x.hdf5` or `.h5`; [`crate::picasso`] says how the columns map).
 //!
 //! * **ROI packets** (from `smartagg aggregate` or `download`): each blink
 //!   record is fitted where it is; position = ROI origin + fitted position,
@@ -104,7 +106,7 @@ pub enum LayoutArg {
 pub struct Args {
     /// Blink-ROI packet stream (.rois) or TIFF stack of frames (.tif).
     pub input: PathBuf,
-    /// Output table (ThunderSTORM CSV).
+    /// Output table, format from the extension: .csv (ThunderSTORM), .hdf5 or .h5 (Picasso, with its .yaml sidecar beside it).
     #[arg(long)]
     pub out: PathBuf,
     /// Estimator.
@@ -265,9 +267,53 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     pool.install(|| run_in_pool(args))
 }
 
+/// Format of the output table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum OutFormat {
+    /// ThunderSTORM CSV.
+    Csv,
+    /// Picasso HDF5 and its YAML sidecar.
+    Picasso,
+}
+
+/// The output format from the extension of `--out`.
+fn out_format(out: &Path) -> anyhow::Result<OutFormat> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "csv" => Ok(OutFormat::Csv),
+        "hdf5" | "h5" => Ok(OutFormat::Picasso),
+        _ => bail!(
+            "--out {}: the format comes from the extension: .csv (ThunderSTORM) or .hdf5/.h5 (Picasso)",
+            out.display()
+        ),
+    }
+}
+
+/// Size and time extent of what was localised, for Picasso's metadata.
+struct Extent {
+    width: u32,
+    height: u32,
+    frames: u64,
+    data_type: String,
+    /// Rows are blink records (else frames of a stack).
+    blinks: bool,
+}
+
 fn run_in_pool(args: Args) -> anyhow::Result<()> {
     let s = setup(&args)?;
     crate::output::refuse_overwriting(&args.out, &[&args.input])?;
+    let format = out_format(&args.out)?;
+    if format == OutFormat::Picasso {
+        let yaml = crate::picasso::sidecar_path(&args.out);
+        crate::output::refuse_overwriting(&yaml, &[&args.input])?;
+        if args.export_tiff.as_ref() == Some(&yaml) {
+            bail!("--export-tiff is {}, the sidecar of --out", yaml.display());
+        }
+    }
     if let Some(tiff) = &args.export_tiff {
         crate::output::refuse_overwriting(tiff, &[&args.input])?;
         if tiff == &args.out {
@@ -278,7 +324,7 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
         }
     }
     let started = Instant::now();
-    let (mut table, fits) = if is_tiff(&args.input)? {
+    let (mut table, fits, extent) = if is_tiff(&args.input)? {
         localize_tiff(&args, &s)?
     } else {
         localize_rois(&args, &s)?
@@ -292,19 +338,52 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
     if args.drop_failed {
         table.rows.retain(|r| r.status.is_ok());
     }
-    let mut w = std::io::BufWriter::new(AtomicFile::create(&args.out)?);
-    table
-        .write_csv(&mut w)
-        .with_context(|| format!("writing {}", args.out.display()))?;
-    w.into_inner()
-        .map_err(|e| e.into_error())
-        .with_context(|| format!("writing {}", args.out.display()))?
-        .commit()?;
+    let written = Instant::now();
+    match format {
+        OutFormat::Csv => {
+            let mut w = std::io::BufWriter::new(AtomicFile::create(&args.out)?);
+            table
+                .write_csv(&mut w)
+                .with_context(|| format!("writing {}", args.out.display()))?;
+            w.into_inner()
+                .map_err(|e| e.into_error())
+                .with_context(|| format!("writing {}", args.out.display()))?
+                .commit()?;
+        }
+        OutFormat::Picasso => {
+            let meta = crate::picasso::PicassoMeta {
+                width: extent.width,
+                height: extent.height,
+                frames: extent.frames,
+                pixel_nm: s.pixel_nm,
+                input: args.input.display().to_string(),
+                data_type: extent.data_type,
+                estimator: format!("{:?}", args.estimator).to_lowercase(),
+                blinks: extent.blinks,
+            };
+            crate::picasso::write(&args.out, &table, &meta)?;
+            if failed > 0 && !args.drop_failed {
+                eprintln!(
+                    "note: Picasso draws every row: its {failed} failed fits are flagged in the fit_status column (filter fit_status = 0 in Picasso Filter, or localize with --drop-failed)"
+                );
+            }
+        }
+    }
+    let write_s = written.elapsed().as_secs_f64();
     let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
-        "{} localisations written to {} ({}); {} failed fits {}; {} fits in {:.2} s ({:.0} fits/s)",
+        "{} localisations written to {}{} in {:.3} s ({}); {} failed fits {}; {} fits in {:.2} s ({:.0} fits/s)",
         table.rows.len(),
         args.out.display(),
+        if format == OutFormat::Picasso {
+            format!(
+                " and {}",
+                crate::picasso::sidecar_path(&args.out).display()
+            )
+        } else {
+            String::new()
+        },
+        write_s,
         summary.join(", "),
         failed,
         if args.drop_failed {
@@ -317,6 +396,29 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
         fits as f64 / seconds.max(1e-9)
     );
     Ok(())
+}
+
+/// numpy's name of a TIFF's sample type (first page), as Picasso's movie
+/// loaders write it in `Data Type`; "unknown" if the tags do not say.
+fn tiff_data_type(path: &Path) -> String {
+    use tiff::tags::Tag;
+    let Ok(mut d) = std::fs::File::open(path)
+        .map_err(|_| ())
+        .and_then(|f| tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|_| ()))
+    else {
+        return "unknown".into();
+    };
+    let bits = match d.colortype() {
+        Ok(tiff::ColorType::Gray(b)) => b,
+        _ => return "unknown".into(),
+    };
+    // SampleFormat: 1 unsigned (the default), 2 signed, 3 IEEE float.
+    let kind = match d.find_tag_unsigned::<u16>(Tag::SampleFormat) {
+        Ok(Some(2)) => "int",
+        Ok(Some(3)) => "float",
+        _ => "uint",
+    };
+    format!("{kind}{bits}")
 }
 
 /// True for a TIFF (by magic number; a missing file is an error).
@@ -341,6 +443,8 @@ pub struct StreamContent {
     pub problems: Vec<String>,
     /// Empty segments (continuations cut on their last plane): nothing to fit.
     pub empty_segments: usize,
+    /// Bit-planes of the stream, from its last StreamEnd.
+    pub planes: Option<u64>,
 }
 
 /// Reads and checks a packet stream: prints the decoder's loss accounting,
@@ -453,6 +557,7 @@ pub fn read_stream(path: &Path) -> anyhow::Result<StreamContent> {
         rois,
         problems,
         empty_segments,
+        planes,
     })
 }
 
@@ -466,12 +571,13 @@ struct SpadMaps {
     hot: Vec<bool>,
 }
 
-fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
+fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize, Extent)> {
     let StreamContent {
         start,
         rois,
         problems,
         empty_segments,
+        planes,
     } = read_stream(&args.input)?;
     if !problems.is_empty() {
         if !args.allow_loss || rois.is_empty() {
@@ -567,6 +673,27 @@ fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
         export_tiff(path, &rois, args.export_layout, sensor)?;
     }
     let n = rows.len();
+    // The sensor: the stream's, else its sidecar's, else what the ROIs reach.
+    let (width, height) = match (&start, &s.sidecar) {
+        (Some(st), _) => (u32::from(st.width), u32::from(st.height)),
+        (None, Some(info)) => (info.width, info.height),
+        (None, None) => rois.iter().fold((1, 1), |(w, h), r| {
+            let side = i64::from(r.roi_size);
+            (
+                w.max((i64::from(r.roi_x0()) + side).clamp(1, u32::MAX as i64) as u32),
+                h.max((i64::from(r.roi_y0()) + side).clamp(1, u32::MAX as i64) as u32),
+            )
+        }),
+    };
+    // Picasso's frame of a blink is its start plane: the time axis is planes.
+    let last = rois.iter().map(|r| r.t_e.max(r.t_s)).max().unwrap_or(0);
+    let extent = Extent {
+        width,
+        height,
+        frames: planes.unwrap_or(0).max(last.max(0) as u64 + 1),
+        data_type: "uint32".into(),
+        blinks: true,
+    };
     Ok((
         LocTable {
             extra_columns: vec![
@@ -579,6 +706,7 @@ fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
             rows,
         },
         n,
+        extent,
     ))
 }
 
@@ -774,7 +902,7 @@ fn export_tiff(
     Ok(())
 }
 
-fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
+fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize, Extent)> {
     let est = args.estimator.estimator();
     if args.export_tiff.is_some() {
         bail!("--export-tiff applies to blink-ROI packet input");
@@ -809,6 +937,7 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
         r.clamp(7, 21)
     });
     let stack = tiffio::open_stack(&args.input)?;
+    let mut size = (0, 0);
     let mut rows = Vec::new();
     let mut frames = 0u64;
     let mut candidates = 0usize;
@@ -835,6 +964,7 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
     for frame in stack {
         let mut frame = frame?;
         frames += 1;
+        size = (frame.width, frame.height);
         if pipeline.is_none() {
             pipeline = Some(frame_pipeline(
                 args,
@@ -896,7 +1026,14 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize)> {
         table.rows = merged;
         table.merged = true;
     }
-    Ok((table, fits))
+    let extent = Extent {
+        width: size.0.min(u32::MAX as usize) as u32,
+        height: size.1.min(u32::MAX as usize) as u32,
+        frames,
+        data_type: tiff_data_type(&args.input),
+        blinks: false,
+    };
+    Ok((table, fits, extent))
 }
 
 #[allow(clippy::too_many_arguments)]
