@@ -26,7 +26,11 @@ fn ok(args: &[&str]) -> String {
 fn err(args: &[&str]) -> String {
     let out = smartagg(args);
     assert!(!out.status.success(), "smartagg {args:?} should fail");
-    assert_eq!(out.status.code(), Some(2), "an error, not a crash: {args:?}");
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "an error, not a crash: {args:?}"
+    );
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
@@ -105,7 +109,12 @@ fn rcc_recovers_the_simulated_drift() {
     let said = ok(&["drift", &locs, "--out", &out, "--frame-s", "1e-4"]);
     assert!(said.contains("RCC: 10 segments"), "{said}");
     let traj = p(dir.path(), "corrected.drift.csv");
-    assert!(std::fs::metadata(p(dir.path(), "corrected.drift.png")).unwrap().len() > 1000);
+    assert!(
+        std::fs::metadata(p(dir.path(), "corrected.drift.png"))
+            .unwrap()
+            .len()
+            > 1000
+    );
 
     // The truth's drift, blink by blink, at the middle of each blink.
     let (th, truth) = read_csv(&format!("{rec}.truth.csv"));
@@ -130,7 +139,11 @@ fn rcc_recovers_the_simulated_drift() {
         let i = true_drift.partition_point(|d| d.0 < t);
         let j = [i.saturating_sub(1), i.min(true_drift.len() - 1)]
             .into_iter()
-            .min_by(|&a, &b| (true_drift[a].0 - t).abs().total_cmp(&(true_drift[b].0 - t).abs()))
+            .min_by(|&a, &b| {
+                (true_drift[a].0 - t)
+                    .abs()
+                    .total_cmp(&(true_drift[b].0 - t).abs())
+            })
             .unwrap();
         (true_drift[j].1, true_drift[j].2)
     };
@@ -151,7 +164,10 @@ fn rcc_recovers_the_simulated_drift() {
     // ≈ 12·√(2/100) ≈ 1.7 nm per axis, ≈ 2.4 nm in 2-D; 6 nm is 2.5 times
     // that. Uncorrected, the drift itself spreads by tens of nm.
     assert!(before > 25.0, "uncorrected drift RMS {before:.1} nm");
-    assert!(rms < 6.0, "residual drift {rms:.2} nm (uncorrected {before:.1} nm)");
+    assert!(
+        rms < 6.0,
+        "residual drift {rms:.2} nm (uncorrected {before:.1} nm)"
+    );
 
     // The corrected table: the same rows and columns, only x and y moved.
     let (h0, r0) = read_csv(&locs);
@@ -206,5 +222,8 @@ fn bad_tables_and_options_are_refused_before_writing() {
     assert!(err(&["drift", &still, "--out", &out, "--pixel-nm", "0"]).contains("bin"));
     assert!(err(&["drift", &still, "--out", &out, "--frame-s", "nan"]).contains("--frame-s"));
     assert!(err(&["drift", &still, "--out", &out, "--segment-s", "5"]).contains("--frame-s"));
-    assert!(!Path::new(&out).exists(), "nothing written by a refused run");
+    assert!(
+        !Path::new(&out).exists(),
+        "nothing written by a refused run"
+    );
 }

@@ -38,8 +38,8 @@ pub struct Args {
     /// Simulated acquisition, s (10,000 bit-planes per second).
     #[arg(long, default_value_t = 600.0)]
     pub seconds: f64,
-    /// Field side, pixels (53.3 nm at 150x).
-    #[arg(long, default_value_t = 32)]
+    /// Field side, pixels (53.3 nm at 150x; the demo's field).
+    #[arg(long, default_value_t = 48)]
     pub field: u32,
     /// Rulers per µm².
     #[arg(long, default_value_t = 2.0)]

@@ -201,11 +201,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Method::Fiducials => drift::fiducials(&points, &opts),
     }
     .with_context(|| {
-        format!(
-            "{}: drift correction ({:?})",
-            args.table.display(),
-            args.method
-        )
+        let m = format!("{:?}", args.method).to_lowercase();
+        format!("{}: drift correction ({m})", args.table.display())
     })?;
 
     let corrected = rewrite(&text, &table, cx, cy, |r| est.at(time(r)))
@@ -217,7 +214,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // that does not exist stops the run with nothing written.
     let mut files = vec![
         (AtomicFile::create(&args.out)?, corrected, &args.out),
-        (AtomicFile::create(&trajectory)?, csv.into_bytes(), &trajectory),
+        (
+            AtomicFile::create(&trajectory)?,
+            csv.into_bytes(),
+            &trajectory,
+        ),
     ];
     match png {
         Ok(bytes) => files.push((AtomicFile::create(&plot)?, bytes, &plot)),

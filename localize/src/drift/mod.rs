@@ -253,12 +253,12 @@ impl DriftEstimate {
     }
 }
 
+/// Segment time bounds and the points of each segment.
+pub(crate) type Segments = (Vec<(f64, f64)>, Vec<Vec<DriftPoint>>);
+
 /// The usable points split into segments of equal duration: the segments'
 /// time bounds and the points of each. Errors name what is missing.
-pub(crate) fn split(
-    points: &[DriftPoint],
-    opts: &DriftOptions,
-) -> Result<(Vec<(f64, f64)>, Vec<Vec<DriftPoint>>), DriftError> {
+pub(crate) fn split(points: &[DriftPoint], opts: &DriftOptions) -> Result<Segments, DriftError> {
     opts.validate()?;
     let usable: Vec<DriftPoint> = points
         .iter()

@@ -31,7 +31,7 @@ fn fft_size(n: usize) -> usize {
     loop {
         let mut r = m;
         for f in [2, 3, 5] {
-            while r % f == 0 {
+            while r.is_multiple_of(f) {
                 r /= f;
             }
         }
@@ -348,15 +348,12 @@ pub fn rcc(points: &[DriftPoint], opts: &DriftOptions) -> Result<DriftEstimate, 
     })?;
     // Drop the worst pair while it is beyond the threshold and the rest
     // still connects every segment.
-    loop {
-        let Some((worst, r)) = pairs
-            .iter()
-            .enumerate()
-            .map(|(n, p)| (n, residual(p, &d)))
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-        else {
-            break;
-        };
+    while let Some((worst, r)) = pairs
+        .iter()
+        .enumerate()
+        .map(|(n, p)| (n, residual(p, &d)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    {
         if r <= opts.reject_nm {
             break;
         }
