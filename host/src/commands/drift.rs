@@ -178,7 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let points: Vec<DriftPoint> = table
         .rows
         .iter()
-        .filter(|r| status.map_or(true, |c| r[c] == 0.0))
+        .filter(|r| status.is_none_or(|c| r[c] == 0.0))
         .map(|r| DriftPoint {
             t: time(r),
             x_nm: r[cx],
