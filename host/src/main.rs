@@ -46,6 +46,8 @@ enum Command {
     Download(commands::download::Args),
     /// What a blink-ROI packet stream (.rois) holds: a summary, or every record as JSON lines (--json).
     Inspect(commands::inspect::Args),
+    /// Estimate and remove stage drift from a localisation table (RCC or fiducials); trajectory CSV and plot.
+    Drift(commands::drift::Args),
     /// Render a localisation table as a super-resolution image (normalised Gaussians).
     Render(commands::render::Args),
     /// Calibrate a camera from its own recordings: DCR map, hot pixels, PRNU (SPAD); offset, gain, read noise (EMCCD, sCMOS).
@@ -68,6 +70,8 @@ enum BenchCommand {
     Localize(commands::bench_localize::Args),
     /// Planes/s of the golden and fast aggregation engines side by side.
     Aggregate(commands::bench_aggregate::Args),
+    /// Drift correction on a simulated nanoruler acquisition: residual drift, marker spread, ruler spacing.
+    Drift(commands::bench_drift::Args),
     /// Blinks made by background alone against L_min: measured, beside the analytic bound.
     FalseBlinks(commands::bench_false_blinks::Args),
 }
@@ -82,6 +86,7 @@ fn main() {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Localize(a) => commands::localize::run(a),
         Command::Render(a) => commands::render::run(a),
+        Command::Drift(a) => commands::drift::run(a),
         Command::Calibrate(a) => commands::calibrate::run(a),
         Command::Download(a) => commands::download::run(a),
         Command::Inspect(a) => commands::inspect::run(a),
@@ -91,6 +96,7 @@ fn main() {
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),
+        Command::Bench(BenchCommand::Drift(a)) => commands::bench_drift::run(a),
         Command::Bench(BenchCommand::FalseBlinks(a)) => commands::bench_false_blinks::run(a),
     };
     if let Err(e) = result {

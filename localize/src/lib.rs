@@ -15,6 +15,8 @@
 //! * Frames ([`frames`]): B-spline wavelet filter, threshold, 8-neighbour
 //!   local maxima, ROI fits; [`merge`] joins localisations of consecutive
 //!   frames within 40 nm (the paper's merging).
+//! * [`drift`]: stage-drift correction by redundant cross-correlation (RCC)
+//!   or fiducials.
 //! * Exchange: ThunderSTORM CSV ([`table`]), TIFF stacks ([`tiffio`]),
 //!   normalised-Gaussian rendering to PNG with a scale bar ([`render`]).
 //! * [`synth`]: simulated ROIs and frames with known truth.
@@ -34,6 +36,7 @@
 pub mod bench;
 pub mod centroid;
 pub mod crlb;
+pub mod drift;
 pub mod erf;
 pub mod error;
 pub(crate) mod fastmath;

@@ -143,6 +143,12 @@ impl LocTable {
     }
 }
 
+/// `v` with `digits` decimals, trailing zeros trimmed, as the tables write
+/// it (a non-finite value is written as 0).
+pub fn format_decimal(v: f64, digits: usize) -> String {
+    num(v, digits)
+}
+
 /// A finite number with `digits` decimals, trailing zeros trimmed. Values
 /// reaching here are finite (fits are sanitised); anything else is written as
 /// 0 so that no NaN can enter a table.

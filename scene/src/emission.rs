@@ -22,6 +22,7 @@
 
 use rand::Rng;
 
+use crate::drift::DriftTrajectory;
 use crate::psf::AxisProfile;
 use crate::sampling::poisson;
 use crate::timeline::Timeline;
@@ -72,6 +73,13 @@ impl Emission {
         }
     }
 
+    /// Images every blink with `drift` from now on (footprints already built
+    /// are dropped so that none keeps the old position).
+    pub(crate) fn set_drift(&mut self, drift: DriftTrajectory) {
+        self.timeline.set_drift(drift);
+        self.cache.clear();
+    }
+
     /// Samples the molecule detections of the exposure window `[t0, t1)`:
     /// calls `hit(pixel, n)` with `n ≥ 1` detected photons (raster index; a
     /// pixel may be hit more than once) and updates the ground truth. `eff` is the
@@ -103,9 +111,9 @@ impl Emission {
             let fp = match old_iter.peek() {
                 Some((i, _)) if *i == idx => old_iter.next().expect("peeked").1,
                 _ => {
-                    let b = &self.timeline.blinks[idx];
-                    let x = AxisProfile::new(b.x_nm / self.pixel_nm, self.sigma_px, self.width);
-                    let y = AxisProfile::new(b.y_nm / self.pixel_nm, self.sigma_px, self.height);
+                    let (x_nm, y_nm) = self.timeline.blinks[idx].imaged_nm();
+                    let x = AxisProfile::new(x_nm / self.pixel_nm, self.sigma_px, self.width);
+                    let y = AxisProfile::new(y_nm / self.pixel_nm, self.sigma_px, self.height);
                     let frac = x.total() * y.total();
                     Footprint { x, y, frac }
                 }

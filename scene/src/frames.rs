@@ -185,6 +185,12 @@ impl EmccdSimulator {
         self.emission.timeline.population()
     }
 
+    /// Images every blink with the stage drift `drift` (call it before the
+    /// first plane or frame: blinks already imaged keep their photons).
+    pub fn set_drift(&mut self, drift: crate::drift::DriftTrajectory) {
+        self.emission.set_drift(drift);
+    }
+
     /// Ground truth of every blink started so far.
     pub fn truth(&self) -> &[BlinkTruth] {
         &self.emission.timeline.blinks
@@ -467,6 +473,12 @@ impl ScmosSimulator {
     /// The emitters of the layout (see [`crate::SpadSimulator::emitters`]).
     pub fn emitters(&self) -> &[Position] {
         self.emission.timeline.population()
+    }
+
+    /// Images every blink with the stage drift `drift` (call it before the
+    /// first plane or frame: blinks already imaged keep their photons).
+    pub fn set_drift(&mut self, drift: crate::drift::DriftTrajectory) {
+        self.emission.set_drift(drift);
     }
 
     /// Ground truth of every blink started so far.

@@ -13,6 +13,7 @@
 //!   per call, exact pile-up, PRNU, DRNU and hot pixels, fast enough for
 //!   the SPCImager's own 10,000 planes/s;
 //! * [`frames`]: the EMCCD and sCMOS cameras, one frame of ADU per call;
+//! * [`drift`]: stage drift, a smooth trajectory added to every position;
 //! * [`truth`]: the ground truth, one row per blink, and its CSV file;
 //! * [`tiff`]: u16 frame stacks as multi-page TIFF (ImageJ/Fiji open them as stacks).
 //!
@@ -26,13 +27,14 @@
 //!
 //! ## Random streams
 //!
-//! One seed drives four independent ChaCha8 streams: 0 camera maps (PRNU,
+//! One seed drives five independent ChaCha8 streams: 0 camera maps (PRNU,
 //! DRNU, hot pixels, sCMOS offsets…), 1 emitter layout, 2 blinking, 3 photon
-//! and noise sampling. The blink timeline therefore depends only on the scene
+//! and noise sampling, 4 a random stage drift. The blink timeline therefore depends only on the scene
 //! and the seed, not on the camera: the same seed gives the same molecules to
 //! a SPAD and an EMCCD simulation of the same field in nm.
 
 pub mod bench;
+pub mod drift;
 pub mod frames;
 pub mod psf;
 pub mod scene;
@@ -44,6 +46,7 @@ mod emission;
 mod sampling;
 mod timeline;
 
+pub use drift::DriftTrajectory;
 pub use frames::{EmccdSimulator, Frame, ScmosMaps, ScmosNonUniformity, ScmosSimulator};
 pub use scene::{Blinking, ExplicitBlink, Layout, OnTime, Position, Scene};
 pub use spad::{SpadMaps, SpadSimulator};

@@ -13,6 +13,8 @@ pub(crate) const STREAM_LAYOUT: u64 = 1;
 pub(crate) const STREAM_BLINKING: u64 = 2;
 /// Random stream of photons and noise.
 pub(crate) const STREAM_PHOTONS: u64 = 3;
+/// Random stream of the stage drift (a random trajectory only).
+pub(crate) const STREAM_DRIFT: u64 = 4;
 
 /// The ChaCha8 stream `stream` of `seed`.
 pub(crate) fn rng_stream(seed: u64, stream: u64) -> ChaCha8Rng {

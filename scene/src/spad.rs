@@ -451,6 +451,12 @@ impl SpadSimulator {
         self.planes as f64 * self.camera.plane_period_s
     }
 
+    /// Images every blink with the stage drift `drift` (call it before the
+    /// first plane or frame: blinks already imaged keep their photons).
+    pub fn set_drift(&mut self, drift: crate::drift::DriftTrajectory) {
+        self.emission.set_drift(drift);
+    }
+
     /// Ground truth of every blink started so far; photon counts cover the
     /// planes simulated so far.
     pub fn truth(&self) -> &[BlinkTruth] {

@@ -8,6 +8,7 @@ use std::collections::BinaryHeap;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::drift::DriftTrajectory;
 use crate::sampling::{
     exponential, poisson, rng_stream, unit_gamma, STREAM_BLINKING, STREAM_LAYOUT,
 };
@@ -74,6 +75,8 @@ pub(crate) struct Timeline {
     pub(crate) blinks: Vec<BlinkTruth>,
     /// Indices of blinks that may still overlap a future window, ascending.
     open: Vec<usize>,
+    /// Stage drift the blinks are imaged with.
+    drift: DriftTrajectory,
 }
 
 fn sample_duration(rng: &mut ChaCha8Rng, on: OnTime) -> f64 {
@@ -194,6 +197,8 @@ impl Timeline {
                         on_exposed_s: 0.0,
                         photons_emitted: 0,
                         photons_detected: 0,
+                        drift_x_nm: 0.0,
+                        drift_y_nm: 0.0,
                     });
                 }
                 Mode::Independent {
@@ -220,6 +225,7 @@ impl Timeline {
             intensity_cv: scene.intensity_cv,
             blinks,
             open,
+            drift: DriftTrajectory::none(),
         }
     }
 
@@ -229,7 +235,17 @@ impl Timeline {
         &self.population
     }
 
+    /// Images every blink, past and future, with `drift` (blinks already
+    /// generated are updated).
+    pub(crate) fn set_drift(&mut self, drift: DriftTrajectory) {
+        for b in &mut self.blinks {
+            (b.drift_x_nm, b.drift_y_nm) = drift.at_blink(b.t_on_s, b.t_off_s);
+        }
+        self.drift = drift;
+    }
+
     fn push_blink(&mut self, emitter: u64, pos: Position, t_on: f64, t_off: f64, flux: f64) {
+        let (drift_x_nm, drift_y_nm) = self.drift.at_blink(t_on, t_off);
         self.open.push(self.blinks.len());
         self.blinks.push(BlinkTruth {
             blink: self.blinks.len() as u64,
@@ -242,6 +258,8 @@ impl Timeline {
             on_exposed_s: 0.0,
             photons_emitted: 0,
             photons_detected: 0,
+            drift_x_nm,
+            drift_y_nm,
         });
     }
 

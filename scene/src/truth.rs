@@ -12,6 +12,10 @@
 //! | `on_exposed_s` | time the blink was on while the camera was exposing (within the simulated planes or frames) |
 //! | `photons_emitted` | photons reaching the sensor plane during `on_exposed_s`, inside the field or not |
 //! | `photons_detected` | of those, photons detected in the field (SPAD: detections before pile-up, so two in one pixel and plane count 2 though the pixel reads 1; EMCCD/sCMOS: photo-electrons before gain) |
+//! | `drift_x_nm`, `drift_y_nm` | only in files of a simulation with stage drift: the drift this blink was imaged with, nm (see [`crate::drift`]); the blink appears at `(x_nm + drift_x_nm, y_nm + drift_y_nm)` |
+//!
+//! With stage drift, `x_nm`, `y_nm` stay the emitter's position in the
+//! sample; a simulation without drift writes the ten columns above only.
 
 use std::io::{BufRead, Write};
 
@@ -40,6 +44,10 @@ pub struct BlinkTruth {
     pub photons_emitted: u64,
     /// Photons detected in the field.
     pub photons_detected: u64,
+    /// Stage drift the blink was imaged with, x, nm (0 without drift).
+    pub drift_x_nm: f64,
+    /// Stage drift the blink was imaged with, y, nm (0 without drift).
+    pub drift_y_nm: f64,
 }
 
 impl BlinkTruth {
@@ -47,18 +55,34 @@ impl BlinkTruth {
     pub fn duration_s(&self) -> f64 {
         self.t_off_s - self.t_on_s
     }
+
+    /// Where the blink was imaged: its position plus the stage drift, nm.
+    pub fn imaged_nm(&self) -> (f64, f64) {
+        (self.x_nm + self.drift_x_nm, self.y_nm + self.drift_y_nm)
+    }
 }
 
 /// The CSV header line.
 pub const CSV_HEADER: &str =
     "blink,emitter,x_nm,y_nm,t_on_s,t_off_s,flux_hz,on_exposed_s,photons_emitted,photons_detected";
 
-/// Writes the ground truth as CSV (header line, one row per blink).
+/// The two columns a simulation with stage drift adds after [`CSV_HEADER`]'s.
+pub const DRIFT_COLUMNS: &str = "drift_x_nm,drift_y_nm";
+
+/// Writes the ground truth as CSV (header line, one row per blink); the
+/// drift columns only if some blink was imaged with drift.
 pub fn write_csv<W: Write>(mut w: W, blinks: &[BlinkTruth]) -> Result<(), SceneError> {
-    writeln!(w, "{CSV_HEADER}")?;
+    let drift = blinks
+        .iter()
+        .any(|b| b.drift_x_nm != 0.0 || b.drift_y_nm != 0.0);
+    if drift {
+        writeln!(w, "{CSV_HEADER},{DRIFT_COLUMNS}")?;
+    } else {
+        writeln!(w, "{CSV_HEADER}")?;
+    }
     for b in blinks {
         // `{}` of f64 prints the shortest representation that parses back exactly.
-        writeln!(
+        write!(
             w,
             "{},{},{},{},{},{},{},{},{},{}",
             b.blink,
@@ -72,23 +96,34 @@ pub fn write_csv<W: Write>(mut w: W, blinks: &[BlinkTruth]) -> Result<(), SceneE
             b.photons_emitted,
             b.photons_detected
         )?;
+        if drift {
+            write!(w, ",{},{}", b.drift_x_nm, b.drift_y_nm)?;
+        }
+        writeln!(w)?;
     }
     w.flush()?;
     Ok(())
 }
 
-/// Reads a ground-truth CSV written by [`write_csv`].
+/// Reads a ground-truth CSV written by [`write_csv`] (with or without the
+/// drift columns).
 pub fn read_csv<R: BufRead>(r: R) -> Result<Vec<BlinkTruth>, SceneError> {
     let mut out = Vec::new();
     let mut seen_header = false;
+    let mut fields = 10;
+    let with_drift = format!("{CSV_HEADER},{DRIFT_COLUMNS}");
     for (i, line) in r.lines().enumerate() {
         let line = line?;
         let n = i + 1;
         if n == 1 {
-            if line.trim() != CSV_HEADER {
+            if line.trim() == with_drift {
+                fields = 12;
+            } else if line.trim() != CSV_HEADER {
                 return Err(SceneError::TruthCsv {
                     line: 1,
-                    why: format!("expected the header `{CSV_HEADER}`"),
+                    why: format!(
+                        "expected the header `{CSV_HEADER}` (with `,{DRIFT_COLUMNS}` after a simulation with drift)"
+                    ),
                 });
             }
             seen_header = true;
@@ -98,10 +133,10 @@ pub fn read_csv<R: BufRead>(r: R) -> Result<Vec<BlinkTruth>, SceneError> {
             continue;
         }
         let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 10 {
+        if f.len() != fields {
             return Err(SceneError::TruthCsv {
                 line: n,
-                why: format!("{} fields, expected 10", f.len()),
+                why: format!("{} fields, expected {fields}", f.len()),
             });
         }
         let int = |k: usize| -> Result<u64, SceneError> {
@@ -135,6 +170,8 @@ pub fn read_csv<R: BufRead>(r: R) -> Result<Vec<BlinkTruth>, SceneError> {
             on_exposed_s: real(7)?,
             photons_emitted: int(8)?,
             photons_detected: int(9)?,
+            drift_x_nm: if fields == 12 { real(10)? } else { 0.0 },
+            drift_y_nm: if fields == 12 { real(11)? } else { 0.0 },
         });
     }
     if !seen_header {
@@ -163,11 +200,25 @@ mod tests {
             on_exposed_s: 0.3,
             photons_emitted: 15_000,
             photons_detected: 1_234,
+            drift_x_nm: 0.0,
+            drift_y_nm: 0.0,
         };
         let mut v = Vec::new();
         write_csv(&mut v, std::slice::from_ref(&b)).unwrap();
+        assert!(std::str::from_utf8(&v)
+            .unwrap()
+            .starts_with(&format!("{CSV_HEADER}\n")));
         let back = read_csv(&v[..]).unwrap();
-        assert_eq!(back, vec![b]);
+        assert_eq!(back, vec![b.clone()]);
+        let drifted = BlinkTruth {
+            drift_x_nm: -12.5,
+            drift_y_nm: 3.0e-3,
+            ..b
+        };
+        let mut v = Vec::new();
+        write_csv(&mut v, std::slice::from_ref(&drifted)).unwrap();
+        assert!(std::str::from_utf8(&v).unwrap().contains(DRIFT_COLUMNS));
+        assert_eq!(read_csv(&v[..]).unwrap(), vec![drifted]);
     }
 
     #[test]

@@ -2,6 +2,7 @@
 
 pub mod aggregate;
 pub mod bench_aggregate;
+pub mod bench_drift;
 pub mod bench_false_blinks;
 pub mod bench_localize;
 pub mod bench_simulate;
@@ -9,6 +10,7 @@ pub mod calibrate;
 pub mod cosim;
 pub mod demo;
 pub mod download;
+pub mod drift;
 pub mod hdl;
 pub mod inspect;
 pub mod localize;

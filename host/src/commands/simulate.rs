@@ -5,6 +5,12 @@
 //! truth goes to `PATH.truth.csv` beside it. Everything is reproducible from
 //! `--seed`.
 //!
+//! `--drift-nm A` (a smooth random trajectory reaching A nm from the start)
+//! or `--drift-velocity-nm-s VX,VY` moves the stage during the acquisition:
+//! every blink is imaged at its position plus the drift of its time, and the
+//! truth gains the columns `drift_x_nm`, `drift_y_nm` (see
+//! `smartagg_scene::truth`). Without them nothing changes.
+//!
 //! Every option is checked before anything touches the disk; both outputs
 //! are written beside their targets and renamed into place only once both
 //! are complete, so a failed run leaves any existing file as it was. The
@@ -27,7 +33,8 @@ use smartagg_model::plane::BitPlane;
 use smartagg_model::recording::{pack_plane, plane_bytes, BitOrder, RecordingWriter};
 use smartagg_scene::tiff::TiffStackWriter;
 use smartagg_scene::{
-    truth, Blinking, EmccdSimulator, Frame, Layout, OnTime, Scene, ScmosSimulator, SpadSimulator,
+    truth, Blinking, DriftTrajectory, EmccdSimulator, Frame, Layout, OnTime, Scene, ScmosSimulator,
+    SpadSimulator,
 };
 
 use crate::output::AtomicFile;
@@ -137,6 +144,45 @@ pub struct Tuning {
     /// SPAD: write headerless packed planes instead of a .spad container.
     #[arg(long)]
     pub raw: bool,
+    /// Stage drift: a smooth random trajectory (seeded) whose largest distance
+    /// from the start over the simulated time is this many nm; the truth
+    /// gains the drift of every blink (`drift_x_nm`, `drift_y_nm`).
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        conflicts_with = "drift_velocity_nm_s"
+    )]
+    pub drift_nm: Option<f64>,
+    /// Stage drift: a constant velocity VX,VY in nm/s (e.g. 0.1,-0.05).
+    #[arg(long, value_parser = parse_velocity, allow_negative_numbers = true)]
+    pub drift_velocity_nm_s: Option<(f64, f64)>,
+}
+
+fn parse_velocity(s: &str) -> Result<(f64, f64), String> {
+    let (x, y) = s
+        .split_once(',')
+        .ok_or_else(|| format!("velocity `{s}` is not VX,VY in nm/s (e.g. 0.1,-0.05)"))?;
+    let num = |v: &str| -> Result<f64, String> {
+        v.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("velocity component `{v}` is not a number"))
+    };
+    Ok((num(x)?, num(y)?))
+}
+
+/// The stage drift the arguments ask for over `duration_s` of simulation.
+fn build_drift(t: &Tuning, duration_s: f64, seed: u64) -> anyhow::Result<Option<DriftTrajectory>> {
+    Ok(match (t.drift_nm, t.drift_velocity_nm_s) {
+        (Some(a), _) => Some(
+            DriftTrajectory::random(a, duration_s, seed)
+                .map_err(|e| anyhow::anyhow!("--drift-nm: {e}"))?,
+        ),
+        (None, Some((vx, vy))) => Some(
+            DriftTrajectory::linear(vx, vy)
+                .map_err(|e| anyhow::anyhow!("--drift-velocity-nm-s: {e}"))?,
+        ),
+        (None, None) => None,
+    })
 }
 
 fn parse_field(s: &str) -> Result<(u32, u32), String> {
@@ -368,6 +414,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Camera::Emccd(c) => count(&a, c.frame_period_s, frame_bytes, "frame")?,
         Camera::Scmos(c) => count(&a, c.frame_period_s, frame_bytes, "frame")?,
     };
+    let period_s = match &cam {
+        Camera::Spad(c) => c.plane_period_s,
+        Camera::Emccd(c) => c.frame_period_s,
+        Camera::Scmos(c) => c.frame_period_s,
+    };
+    let drift = build_drift(&a.tuning, n as f64 * period_s, a.seed)?;
     let tp = truth_path(&a.out);
     // Nothing is written to the targets until both files are complete.
     let out_file = AtomicFile::create(&a.out)?;
@@ -386,9 +438,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(on) = scene.expected_on(&cam) {
         println!("expected molecules on at a time: {on:.2}");
     }
+    if let Some(d) = &drift {
+        let (x, y) = d.at(n as f64 * period_s);
+        println!("stage drift: {x:.1}, {y:.1} nm at the end (drift_x_nm, drift_y_nm in the truth)");
+    }
     let (truth_rows, out) = match &cam {
         Camera::Spad(c) => {
             let mut sim = SpadSimulator::new(c, &scene, a.seed)?;
+            if let Some(d) = &drift {
+                sim.set_drift(d.clone());
+            }
             let order = match a.tuning.bit_order {
                 Order::Lsb => BitOrder::LsbFirst,
                 Order::Msb => BitOrder::MsbFirst,
@@ -430,6 +489,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         Camera::Emccd(c) => {
             let mut sim = EmccdSimulator::new(c, &scene, a.seed)?;
+            if let Some(d) = &drift {
+                sim.set_drift(d.clone());
+            }
             let (clipped, out) = write_frames(out, &scene, n, || sim.next_frame())
                 .with_context(|| format!("writing {}", a.out.display()))?;
             report_frames(n, c.frame_period_s, c.exposure_s, clipped, t);
@@ -437,6 +499,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         Camera::Scmos(c) => {
             let mut sim = ScmosSimulator::new(c, &scene, a.seed)?;
+            if let Some(d) = &drift {
+                sim.set_drift(d.clone());
+            }
             let (clipped, out) = write_frames(out, &scene, n, || sim.next_frame())
                 .with_context(|| format!("writing {}", a.out.display()))?;
             report_frames(n, c.frame_period_s, c.exposure_s, clipped, t);
