@@ -604,7 +604,16 @@ fn small_frames_are_localised_and_tiny_ones_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = p(dir.path(), "stack");
     let out = ok(&[
-        "bench", "frames", "--frames", "300", "--threads", "1", "--repeats", "1", "--dir", &d,
+        "bench",
+        "frames",
+        "--frames",
+        "300",
+        "--threads",
+        "1",
+        "--repeats",
+        "1",
+        "--dir",
+        &d,
     ]);
     let row = out
         .lines()
@@ -629,7 +638,16 @@ fn small_frames_are_localised_and_tiny_ones_refused() {
     let rows = std::fs::read_to_string(&table).unwrap().lines().count() - 1;
     assert!((285..=320).contains(&rows), "{rows} localisations");
     let e = err(&[
-        "bench", "frames", "--frames", "5", "--side", "2", "--threads", "1", "--repeats", "1",
+        "bench",
+        "frames",
+        "--frames",
+        "5",
+        "--side",
+        "2",
+        "--threads",
+        "1",
+        "--repeats",
+        "1",
     ]);
     assert!(e.contains("frame 2x2 is smaller than 3x3"), "{e}");
 }

@@ -36,7 +36,9 @@ pub enum LocalizeError {
         expected: usize,
     },
     /// A frame too small for any fit (under 3 × 3 pixels).
-    #[error("frame {width}x{height} is smaller than {side}x{side} pixels, the smallest fitting ROI")]
+    #[error(
+        "frame {width}x{height} is smaller than {side}x{side} pixels, the smallest fitting ROI"
+    )]
     FrameTooSmall {
         /// Frame width.
         width: usize,

@@ -447,10 +447,22 @@ pub fn localize_frame_with(
     }
     // Wavelet planes: V1 = I ⊛ k, V2 = V1 ⊛ k↑2; F1 = I − V1, F2 = V1 − V2.
     bspline_into(
-        &s.filt, width, height, &s.taps_x[0], &s.taps_y[0], &mut s.tmp, &mut s.v1,
+        &s.filt,
+        width,
+        height,
+        &s.taps_x[0],
+        &s.taps_y[0],
+        &mut s.tmp,
+        &mut s.v1,
     );
     bspline_into(
-        &s.v1, width, height, &s.taps_x[1], &s.taps_y[1], &mut s.tmp, &mut s.v2,
+        &s.v1,
+        width,
+        height,
+        &s.taps_x[1],
+        &s.taps_y[1],
+        &mut s.tmp,
+        &mut s.v2,
     );
     // F1 into `tmp`, F2 into `v2`.
     for k in 0..width * height {

@@ -70,7 +70,11 @@ struct LocalizeCli {
     args: localize::Args,
 }
 
-fn write_truth(path: &Path, truth: &[smartagg_localize::crlb::Emitter], pixel_nm: f64) -> anyhow::Result<()> {
+fn write_truth(
+    path: &Path,
+    truth: &[smartagg_localize::crlb::Emitter],
+    pixel_nm: f64,
+) -> anyhow::Result<()> {
     let mut w = std::io::BufWriter::new(crate::output::AtomicFile::create(path)?);
     writeln!(w, "frame,x_px,y_px,x_nm,y_nm,photons,background,sigma_px")?;
     for (i, e) in truth.iter().enumerate() {
@@ -95,7 +99,10 @@ fn write_truth(path: &Path, truth: &[smartagg_localize::crlb::Emitter], pixel_nm
 fn read_table(path: &Path) -> anyhow::Result<Vec<Localization>> {
     let f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let t = CsvTable::read(std::io::BufReader::new(f))?;
-    let col = |name: &str| t.column(&[name]).with_context(|| format!("no {name} column"));
+    let col = |name: &str| {
+        t.column(&[name])
+            .with_context(|| format!("no {name} column"))
+    };
     let (cf, cx, cy, cs) = (
         col("frame")?,
         col("x [nm]")?,
@@ -170,7 +177,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     println!(
         "  {:>7} {:>12} {:>12} {:>8} {:>9} {:>7} {:>9} {:>9} {:>7}",
-        "threads", "spots/s med", "spots/s max", "found", "spurious", "failed", "RMSE px", "CRLB px", "ratio"
+        "threads",
+        "spots/s med",
+        "spots/s max",
+        "found",
+        "spurious",
+        "failed",
+        "RMSE px",
+        "CRLB px",
+        "ratio"
     );
     for &threads in &args.threads {
         let out = dir.join(format!("locs-{threads}.csv"));
