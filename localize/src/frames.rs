@@ -479,7 +479,7 @@ pub fn localize_frame_with(
     );
     let r = p.roi_for(width, height);
     let with_maps = p.read_var.is_some() || p.hot.is_some();
-    if with_maps && s.maps.as_ref().map_or(true, |m| m.side != r) {
+    if with_maps && s.maps.as_ref().is_none_or(|m| m.side != r) {
         s.maps = Some(PixelMaps::uniform(r));
     }
     let opts = if p.read_var.is_some() {

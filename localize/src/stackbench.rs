@@ -147,7 +147,7 @@ pub fn score_stack(
         let (i, em) = em;
         let (dx, dy) = (r.x_nm / pixel_nm - em.x, r.y_nm / pixel_nm - em.y);
         let d2 = dx * dx + dy * dy;
-        if d2 <= radius * radius && best[i].map_or(true, |b| d2 < b.0) {
+        if d2 <= radius * radius && best[i].is_none_or(|b| d2 < b.0) {
             best[i] = Some((d2, dx, dy));
         }
     }
