@@ -152,7 +152,7 @@ pub struct Args {
     /// Frames: sCMOS read noise, e⁻ rms [default: from the preset].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.0, 1e4, "e- rms"))]
     pub read_noise_e: Option<f64>,
-    /// Frames: fitting ROI side, odd [default: 2⌈3σ⌉+1, at least 7].
+    /// Frames: fitting ROI side, odd [default: 2⌈3σ⌉+1, at least 7]; frames smaller than it are fitted with the largest odd side that fits (said once).
     #[arg(long)]
     pub roi: Option<usize>,
     /// Frames: detection threshold in units of the wavelet noise std.
