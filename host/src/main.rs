@@ -68,6 +68,8 @@ enum BenchCommand {
     Simulate(commands::bench_simulate::Args),
     /// Fits/s, RMSE and Cramér–Rao ratio of every estimator on simulated ROIs.
     Localize(commands::bench_localize::Args),
+    /// The frame path end to end (TIFF to CSV) on a simulated one-spot-per-frame stack: spots/s, found, RMSE/CRLB.
+    Frames(commands::bench_frames::Args),
     /// Planes/s of the golden and fast aggregation engines side by side.
     Aggregate(commands::bench_aggregate::Args),
     /// Drift correction on a simulated nanoruler acquisition: residual drift, marker spread, ruler spacing.
@@ -95,6 +97,7 @@ fn main() {
         Command::Hdl(c) => commands::hdl::run(c),
         Command::Bench(BenchCommand::Simulate(a)) => commands::bench_simulate::run(a),
         Command::Bench(BenchCommand::Localize(a)) => commands::bench_localize::run(a),
+        Command::Bench(BenchCommand::Frames(a)) => commands::bench_frames::run(a),
         Command::Bench(BenchCommand::Aggregate(a)) => commands::bench_aggregate::run(a),
         Command::Bench(BenchCommand::Drift(a)) => commands::bench_drift::run(a),
         Command::Bench(BenchCommand::FalseBlinks(a)) => commands::bench_false_blinks::run(a),

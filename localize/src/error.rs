@@ -35,14 +35,16 @@ pub enum LocalizeError {
         /// Values expected.
         expected: usize,
     },
-    /// A frame smaller than the fitting ROI.
-    #[error("frame {width}x{height} is smaller than the {side}x{side} fitting ROI")]
+    /// A frame too small for any fit (under 3 × 3 pixels).
+    #[error(
+        "frame {width}x{height} is smaller than {side}x{side} pixels, the smallest fitting ROI"
+    )]
     FrameTooSmall {
         /// Frame width.
         width: usize,
         /// Frame height.
         height: usize,
-        /// ROI side.
+        /// Smallest ROI side.
         side: usize,
     },
     /// A TIFF file that cannot be read or written.

@@ -49,6 +49,7 @@ pub mod psf;
 pub mod render;
 pub mod roi;
 pub mod spad;
+pub mod stackbench;
 pub mod synth;
 pub mod table;
 pub mod tiffio;

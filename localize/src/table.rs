@@ -116,31 +116,81 @@ impl LocTable {
             header.push(format!("\"{}\"", c.replace('"', "'")));
         }
         writeln!(w, "{}", header.join(","))?;
-        for (i, r) in self.rows.iter().enumerate() {
-            write!(
-                w,
-                "{},{},{},{},{},{},{},{},{},{}",
-                i + 1,
-                r.frame,
-                num(r.x_nm, 3),
-                num(r.y_nm, 3),
-                num(r.sigma_nm, 3),
-                num(r.intensity, 2),
-                num(r.offset, 3),
-                num(r.bkgstd, 3),
-                num(r.uncertainty_nm, 3),
-                r.status.code()
-            )?;
-            if self.merged {
-                write!(w, ",{}", r.detections)?;
-            }
-            for k in 0..self.extra_columns.len() {
-                write!(w, ",{}", num(r.extra.get(k).copied().unwrap_or(0.0), 3))?;
-            }
-            writeln!(w)?;
+        // Rows are formatted in parallel runs (float formatting is most of
+        // the cost of a large table), then written in order.
+        use rayon::prelude::*;
+        const RUN: usize = 4096;
+        let runs: Vec<Vec<u8>> = self
+            .rows
+            .par_chunks(RUN)
+            .enumerate()
+            .map(|(c, rows)| {
+                let mut out = Vec::with_capacity(rows.len() * 96);
+                let mut tmp = String::new();
+                for (k, r) in rows.iter().enumerate() {
+                    self.format_row(c * RUN + k + 1, r, &mut out, &mut tmp);
+                }
+                out
+            })
+            .collect();
+        for run in runs {
+            w.write_all(&run)?;
         }
         Ok(())
     }
+
+    /// Appends row `id` (1-based) to `out`; `tmp` is scratch.
+    fn format_row(&self, id: usize, r: &Localization, out: &mut Vec<u8>, tmp: &mut String) {
+        use std::fmt::Write as _;
+        tmp.clear();
+        let _ = write!(tmp, "{id},{},", r.frame);
+        out.extend_from_slice(tmp.as_bytes());
+        for (v, d) in [
+            (r.x_nm, 3),
+            (r.y_nm, 3),
+            (r.sigma_nm, 3),
+            (r.intensity, 2),
+            (r.offset, 3),
+            (r.bkgstd, 3),
+            (r.uncertainty_nm, 3),
+        ] {
+            push_num(out, tmp, v, d);
+            out.push(b',');
+        }
+        tmp.clear();
+        let _ = write!(tmp, "{}", r.status.code());
+        if self.merged {
+            let _ = write!(tmp, ",{}", r.detections);
+        }
+        out.extend_from_slice(tmp.as_bytes());
+        for k in 0..self.extra_columns.len() {
+            out.push(b',');
+            push_num(out, tmp, r.extra.get(k).copied().unwrap_or(0.0), 3);
+        }
+        out.push(b'\n');
+    }
+}
+
+/// Appends `v` with `digits` decimals, trailing zeros trimmed, to `out`
+/// (`tmp` is scratch). Values reaching here are finite (fits are
+/// sanitised); anything else is written as 0 so that no NaN can enter a
+/// table.
+fn push_num(out: &mut Vec<u8>, tmp: &mut String, v: f64, digits: usize) {
+    use std::fmt::Write as _;
+    if !v.is_finite() {
+        out.push(b'0');
+        return;
+    }
+    tmp.clear();
+    let _ = write!(tmp, "{v:.digits$}");
+    let mut s = tmp.as_str();
+    if s.contains('.') {
+        s = s.trim_end_matches('0').trim_end_matches('.');
+    }
+    if s == "-0" {
+        s = "0";
+    }
+    out.extend_from_slice(s.as_bytes());
 }
 
 /// `v` with `digits` decimals, trailing zeros trimmed, as the tables write
@@ -152,21 +202,11 @@ pub fn format_decimal(v: f64, digits: usize) -> String {
 /// A finite number with `digits` decimals, trailing zeros trimmed. Values
 /// reaching here are finite (fits are sanitised); anything else is written as
 /// 0 so that no NaN can enter a table.
+#[cfg(test)]
 fn num(v: f64, digits: usize) -> String {
-    if !v.is_finite() {
-        return "0".into();
-    }
-    let s = format!("{v:.digits$}");
-    let s = if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
-    };
-    if s == "-0" {
-        "0".into()
-    } else {
-        s
-    }
+    let mut out = Vec::new();
+    push_num(&mut out, &mut String::new(), v, digits);
+    String::from_utf8(out).expect("ASCII")
 }
 
 /// Longest line [`CsvTable::read`] accepts, bytes (a localisation row is

@@ -11,7 +11,7 @@
 
 use crate::error::LocalizeError;
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::io::{BufWriter, Read, Seek, Write};
 use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::encoder::{colortype, TiffEncoder};
@@ -37,9 +37,100 @@ pub struct TiffStack<R: Read + Seek> {
 }
 
 /// Opens a TIFF stack for reading.
-pub fn open_stack(path: &Path) -> Result<TiffStack<BufReader<File>>, LocalizeError> {
+pub fn open_stack(path: &Path) -> Result<TiffStack<SeekBufReader<File>>, LocalizeError> {
     let file = File::open(path).map_err(|e| tiff_err(path.display(), e))?;
-    TiffStack::new(BufReader::new(file), &path.display().to_string())
+    TiffStack::new(SeekBufReader::new(file), &path.display().to_string())
+}
+
+/// A buffered reader that keeps its buffer across seeks that land inside
+/// it. The TIFF decoder seeks to every page's directory and strips, and
+/// `BufReader` drops its buffer on every seek: on a stack of small frames
+/// that was a system call per seek, a fifth of the run time.
+pub struct SeekBufReader<R> {
+    inner: R,
+    buf: Box<[u8]>,
+    /// Offset in `inner` of `buf[0]`; `inner` is positioned at `start + len`.
+    start: u64,
+    len: usize,
+    pos: usize,
+}
+
+impl<R: Read + Seek> SeekBufReader<R> {
+    /// Wraps a reader positioned at its start, with a 256 KiB buffer.
+    pub fn new(inner: R) -> Self {
+        SeekBufReader {
+            inner,
+            buf: vec![0; 256 << 10].into_boxed_slice(),
+            start: 0,
+            len: 0,
+            pos: 0,
+        }
+    }
+}
+
+impl<R: Read + Seek> Read for SeekBufReader<R> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        if self.pos == self.len {
+            if out.len() >= self.buf.len() {
+                // Large reads bypass the buffer.
+                let n = self.inner.read(out)?;
+                self.start += (self.len + n) as u64;
+                self.len = 0;
+                self.pos = 0;
+                return Ok(n);
+            }
+            self.start += self.len as u64;
+            self.len = 0;
+            self.pos = 0;
+            self.len = self.inner.read(&mut self.buf)?;
+        }
+        let n = out.len().min(self.len - self.pos);
+        out[..n].copy_from_slice(&self.buf[self.pos..self.pos + n]);
+        self.pos += n;
+        Ok(n)
+    }
+}
+
+impl<R: Read + Seek> Seek for SeekBufReader<R> {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        use std::io::SeekFrom;
+        let here = self.start + self.pos as u64;
+        let target = match to {
+            SeekFrom::Start(n) => Some(n),
+            SeekFrom::Current(d) => here.checked_add_signed(d),
+            SeekFrom::End(_) => None,
+        };
+        if let Some(t) = target {
+            if t >= self.start && t <= self.start + self.len as u64 {
+                self.pos = (t - self.start) as usize;
+                return Ok(t);
+            }
+        }
+        let to = match (to, target) {
+            (SeekFrom::Current(_), Some(t)) => SeekFrom::Start(t),
+            (SeekFrom::Current(_), None) => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "seek before the start of the file",
+                ))
+            }
+            (other, _) => other,
+        };
+        let t = self.inner.seek(to)?;
+        self.start = t;
+        self.len = 0;
+        self.pos = 0;
+        Ok(t)
+    }
+}
+
+/// "FILE page N", formatted only for an error.
+struct PageName<'a>(&'a str, usize);
+
+impl std::fmt::Display for PageName<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} page {}", self.0, self.1)
+    }
 }
 
 fn tiff_err(name: impl std::fmt::Display, e: impl std::fmt::Display) -> LocalizeError {
@@ -63,7 +154,8 @@ impl<R: Read + Seek> TiffStack<R> {
     }
 
     fn read_page(&mut self) -> Result<Frame, LocalizeError> {
-        let name = format!("{} page {}", self.name, self.page + 1);
+        // Messages name the page; built only when needed.
+        let name = PageName(&self.name, self.page + 1);
         let (w, h) = self.decoder.dimensions().map_err(|e| tiff_err(&name, e))?;
         let ct = self.decoder.colortype().map_err(|e| tiff_err(&name, e))?;
         if !matches!(ct, tiff::ColorType::Gray(_)) {

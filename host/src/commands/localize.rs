@@ -31,7 +31,7 @@ use crate::setup;
 use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
-use smartagg_localize::frames::{localize_frame, Conversion, FramePipeline};
+use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::spad::{fit_binomial, SpadRoi};
 use smartagg_localize::table::{LocTable, Localization};
@@ -154,7 +154,7 @@ pub struct Args {
     /// Frames: sCMOS read noise, e⁻ rms [default: from the preset].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.0, 1e4, "e- rms"))]
     pub read_noise_e: Option<f64>,
-    /// Frames: fitting ROI side, odd [default: 2⌈3σ⌉+1, at least 7].
+    /// Frames: fitting ROI side, odd [default: 2⌈3σ⌉+1, at least 7]; frames smaller than it are fitted with the largest odd side that fits (said once).
     #[arg(long)]
     pub roi: Option<usize>,
     /// Frames: detection threshold in units of the wavelet noise std.
@@ -942,69 +942,73 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize, Ext
     let mut frames = 0u64;
     let mut candidates = 0usize;
     let mut pipeline: Option<FramePipeline> = None;
-    // Frames are read one at a time and fitted in parallel batches.
-    let mut batch = Vec::new();
-    let flush = |batch: &mut Vec<(u64, smartagg_localize::tiffio::Frame)>,
-                 p: &FramePipeline,
-                 rows: &mut Vec<Localization>,
-                 candidates: &mut usize|
-     -> anyhow::Result<()> {
-        let results: Vec<_> = batch
-            .par_iter()
-            .map(|(no, f)| localize_frame(p, &f.data, f.width, f.height, *no))
-            .collect();
-        for r in results {
-            let r = r?;
-            *candidates += r.candidates;
-            rows.extend(r.localizations);
+    // A reader thread decodes batches of frames while the pool fits the
+    // previous batch (decoding is a good part of a small frame's cost).
+    let (tx, rx) = std::sync::mpsc::sync_channel::<anyhow::Result<Vec<_>>>(2);
+    std::thread::scope(|scope| -> anyhow::Result<()> {
+        scope.spawn(move || {
+            let mut batch = Vec::with_capacity(FRAME_BATCH);
+            let mut no = 0u64;
+            for frame in stack {
+                no += 1;
+                match frame {
+                    Ok(f) => batch.push((no, f)),
+                    Err(e) => {
+                        let _ = tx.send(Err(e.into()));
+                        return;
+                    }
+                }
+                if batch.len() == FRAME_BATCH
+                    && tx
+                        .send(Ok(std::mem::replace(
+                            &mut batch,
+                            Vec::with_capacity(FRAME_BATCH),
+                        )))
+                        .is_err()
+                {
+                    return;
+                }
+            }
+            if !batch.is_empty() {
+                let _ = tx.send(Ok(batch));
+            }
+        });
+        for batch in rx {
+            let mut batch = batch?;
+            frames += batch.len() as u64;
+            let first = &batch[0].1;
+            if pipeline.is_none() {
+                size = (first.width, first.height);
+                let p = frame_pipeline(
+                    args,
+                    s,
+                    est,
+                    conversion,
+                    read_noise,
+                    roi,
+                    calibration.as_ref(),
+                    first,
+                )?;
+                let used = p.roi_for(first.width, first.height);
+                if used != roi {
+                    eprintln!(
+                        "frames are {}x{} pixels: fitting {used}x{used} ROIs instead of {roi}x{roi}",
+                        first.width, first.height
+                    );
+                }
+                pipeline = Some(p);
+            }
+            let p = pipeline.as_ref().expect("set above");
+            if let Some(c) = &calibration {
+                for (_, frame) in batch.iter_mut() {
+                    calibrate_frame(c, conversion, frame)?;
+                }
+            }
+            candidates += localize_batch(p, &batch, &mut rows)?;
         }
-        batch.clear();
         Ok(())
-    };
-    for frame in stack {
-        let mut frame = frame?;
-        frames += 1;
-        size = (frame.width, frame.height);
-        if pipeline.is_none() {
-            pipeline = Some(frame_pipeline(
-                args,
-                s,
-                est,
-                conversion,
-                read_noise,
-                roi,
-                calibration.as_ref(),
-                &frame,
-            )?);
-        }
-        let p = pipeline.as_ref().expect("set above");
-        if let Some(c) = &calibration {
-            if (c.width as usize, c.height as usize) != (frame.width, frame.height) {
-                bail!(
-                    "the calibration is {}x{} pixels but the frames are {}x{}",
-                    c.width,
-                    c.height,
-                    frame.width,
-                    frame.height
-                );
-            }
-            // Per-pixel conversion: (ADU − offset) / (ADU per electron).
-            for (k, v) in frame.data.iter_mut().enumerate() {
-                let gain = c
-                    .gain_adu_per_e
-                    .as_ref()
-                    .map_or(1.0 / (conversion.e_per_adu / conversion.em_gain), |g| g[k]);
-                *v = (*v - c.offset_adu[k]) / gain.max(1e-12);
-            }
-        }
-        batch.push((frames, frame));
-        if batch.len() >= 64 {
-            flush(&mut batch, p, &mut rows, &mut candidates)?;
-        }
-    }
-    if let Some(p) = &pipeline {
-        flush(&mut batch, p, &mut rows, &mut candidates)?;
-    } else {
+    })?;
+    if pipeline.is_none() {
         bail!("{} holds no frames", args.input.display());
     }
     let fits = rows.len();
@@ -1034,6 +1038,35 @@ fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize, Ext
         blinks: false,
     };
     Ok((table, fits, extent))
+}
+
+/// Frames per batch handed from the reader to the workers.
+const FRAME_BATCH: usize = 1024;
+
+/// Per-pixel conversion of a frame with a frame calibration:
+/// (ADU − offset) / (ADU per electron).
+fn calibrate_frame(
+    c: &crate::calibration::FrameCalibration,
+    conversion: Conversion,
+    frame: &mut smartagg_localize::tiffio::Frame,
+) -> anyhow::Result<()> {
+    if (c.width as usize, c.height as usize) != (frame.width, frame.height) {
+        bail!(
+            "the calibration is {}x{} pixels but the frames are {}x{}",
+            c.width,
+            c.height,
+            frame.width,
+            frame.height
+        );
+    }
+    for (k, v) in frame.data.iter_mut().enumerate() {
+        let gain = c
+            .gain_adu_per_e
+            .as_ref()
+            .map_or(1.0 / (conversion.e_per_adu / conversion.em_gain), |g| g[k]);
+        *v = (*v - c.offset_adu[k]) / gain.max(1e-12);
+    }
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]

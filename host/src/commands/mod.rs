@@ -4,6 +4,7 @@ pub mod aggregate;
 pub mod bench_aggregate;
 pub mod bench_drift;
 pub mod bench_false_blinks;
+pub mod bench_frames;
 pub mod bench_localize;
 pub mod bench_simulate;
 pub mod calibrate;
