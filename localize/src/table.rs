@@ -196,17 +196,14 @@ fn push_num(out: &mut Vec<u8>, tmp: &mut String, v: f64, digits: usize) {
 /// `v` with `digits` decimals, trailing zeros trimmed, as the tables write
 /// it (a non-finite value is written as 0).
 pub fn format_decimal(v: f64, digits: usize) -> String {
-    num(v, digits)
-}
-
-/// A finite number with `digits` decimals, trailing zeros trimmed. Values
-/// reaching here are finite (fits are sanitised); anything else is written as
-/// 0 so that no NaN can enter a table.
-#[cfg(test)]
-fn num(v: f64, digits: usize) -> String {
     let mut out = Vec::new();
     push_num(&mut out, &mut String::new(), v, digits);
     String::from_utf8(out).expect("ASCII")
+}
+
+#[cfg(test)]
+fn num(v: f64, digits: usize) -> String {
+    format_decimal(v, digits)
 }
 
 /// Longest line [`CsvTable::read`] accepts, bytes (a localisation row is
