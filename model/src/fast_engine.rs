@@ -42,11 +42,11 @@ use std::sync::Arc;
 pub enum Isa {
     /// Plain Rust, on any CPU (the compiler's own vectorisation).
     Portable,
-    /// x86-64 AVX2: explicit 8-lane compares in the threshold scan.
+    /// x86-64 AVX2: explicit 8-lane compares in the threshold scan. (An
+    /// AVX-512 build, each kernel row of a changed pixel one masked 16-lane
+    /// add, was slower on both machines measured: masked stores do not
+    /// forward to the next footprint's loads.)
     Avx2,
-    /// x86-64 AVX-512F on top of AVX2: each kernel row of a changed pixel's
-    /// `±K` is one masked 16-lane add (kernels up to 15 wide).
-    Avx512,
 }
 
 impl Isa {
@@ -54,11 +54,6 @@ impl Isa {
     pub fn detect() -> Isa {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx2")
-            {
-                return Isa::Avx512;
-            }
             if std::arch::is_x86_feature_detected!("avx2") {
                 return Isa::Avx2;
             }
@@ -71,13 +66,12 @@ impl Isa {
         match self {
             Isa::Portable => "portable",
             Isa::Avx2 => "avx2",
-            Isa::Avx512 => "avx512",
         }
     }
 
     /// Every instruction set up to `self`, slowest first.
     pub fn up_to(self) -> impl Iterator<Item = Isa> {
-        [Isa::Portable, Isa::Avx2, Isa::Avx512]
+        [Isa::Portable, Isa::Avx2]
             .into_iter()
             .filter(move |&i| i <= self)
     }
@@ -86,7 +80,6 @@ impl Isa {
 /// `Isa` as a const generic parameter of the compiled variants.
 const PORTABLE: u8 = 0;
 const AVX2: u8 = 1;
-const AVX512: u8 = 2;
 
 /// Above this fraction of changed pixels a plane is filtered densely (a
 /// change costs k² scattered adds, a dense pass about 2k per pixel).
@@ -215,7 +208,7 @@ impl FastFrontEnd {
         self.isa
     }
 
-    /// Whether pushes run an AVX2 (or AVX-512) build of the front end.
+    /// Whether pushes run the AVX2 build of the front end.
     pub fn uses_avx2(&self) -> bool {
         self.isa >= Isa::Avx2
     }
@@ -317,15 +310,15 @@ impl FastFrontEnd {
             self.dense_planes += 1;
         } else {
             match self.k1.len() {
-                1 => self.sparse::<1, ISA>(live, delayed, words, last_mask),
-                3 => self.sparse::<3, ISA>(live, delayed, words, last_mask),
-                5 => self.sparse::<5, ISA>(live, delayed, words, last_mask),
-                7 => self.sparse::<7, ISA>(live, delayed, words, last_mask),
-                9 => self.sparse::<9, ISA>(live, delayed, words, last_mask),
-                11 => self.sparse::<11, ISA>(live, delayed, words, last_mask),
-                13 => self.sparse::<13, ISA>(live, delayed, words, last_mask),
-                15 => self.sparse::<15, ISA>(live, delayed, words, last_mask),
-                _ => self.sparse::<0, ISA>(live, delayed, words, last_mask),
+                1 => self.sparse::<1>(live, delayed, words, last_mask),
+                3 => self.sparse::<3>(live, delayed, words, last_mask),
+                5 => self.sparse::<5>(live, delayed, words, last_mask),
+                7 => self.sparse::<7>(live, delayed, words, last_mask),
+                9 => self.sparse::<9>(live, delayed, words, last_mask),
+                11 => self.sparse::<11>(live, delayed, words, last_mask),
+                13 => self.sparse::<13>(live, delayed, words, last_mask),
+                15 => self.sparse::<15>(live, delayed, words, last_mask),
+                _ => self.sparse::<0>(live, delayed, words, last_mask),
             }
         }
         self.scan::<ISA>();
@@ -334,7 +327,7 @@ impl FastFrontEnd {
     /// Adds `±K` around every pixel whose bit entering the window differs
     /// from the bit leaving it. `K` is the kernel length (0: any length).
     #[inline(always)]
-    fn sparse<const K: usize, const ISA: u8>(
+    fn sparse<const K: usize>(
         &mut self,
         live: &[u64],
         delayed: &[u64],
@@ -352,14 +345,6 @@ impl FastFrontEnd {
         assert!(self.kernel_plus.len() == k * k && self.kernel_minus.len() == k * k);
         let filtered = self.filtered.as_mut_ptr();
         let counts = &mut self.counts[..];
-        #[cfg(target_arch = "x86_64")]
-        let rows512 = if ISA == AVX512 && K > 0 && K <= 16 {
-            // SAFETY: AVX512 is the ISA only inside `push_words_avx512`,
-            // which runs only when the CPU reports AVX-512F.
-            Some(unsafe { Rows512::<K>::new(&self.kernel_plus, &self.kernel_minus) })
-        } else {
-            None
-        };
         // Position of each word's first pixel, stepped from word to word (no
         // division per word).
         let (mut wy, mut wx) = (0usize, 0usize);
@@ -397,13 +382,6 @@ impl FastFrontEnd {
                 debug_assert!(x < width && y < height);
                 // The footprint's top-left cell in the haloed layout.
                 let base = (y + pad - half) * stride + x + pad - half;
-                #[cfg(target_arch = "x86_64")]
-                if let Some(rows) = &rows512 {
-                    // SAFETY: the footprint is inside `filtered` (above), and
-                    // `rows` exists only with AVX-512F.
-                    unsafe { rows.add(filtered.add(base), stride, plus) };
-                    continue;
-                }
                 let weights = if plus {
                     &self.kernel_plus[..]
                 } else {
@@ -519,14 +497,6 @@ impl FastFrontEnd {
     fn push_words_avx2(&mut self, live: &[u64], delayed: &[u64]) {
         self.push_words::<AVX2>(live, delayed);
     }
-
-    /// [`FastFrontEnd::push_words`] compiled for AVX-512F (masked 16-lane
-    /// kernel rows in the sparse update) and AVX2 (the scan).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,avx512f")]
-    fn push_words_avx512(&mut self, live: &[u64], delayed: &[u64]) {
-        self.push_words::<AVX512>(live, delayed);
-    }
 }
 
 impl FrontEnd for FastFrontEnd {
@@ -534,9 +504,6 @@ impl FrontEnd for FastFrontEnd {
         let (lw, dw) = (live.words(), delayed.words());
         match self.isa {
             // SAFETY: `isa` is never above what `Isa::detect` found.
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => unsafe { self.push_words_avx512(lw, dw) },
-            // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 => unsafe { self.push_words_avx2(lw, dw) },
             _ => self.push_words::<PORTABLE>(lw, dw),
@@ -600,8 +567,8 @@ fn scan_block<const ISA: u8>(
 ) {
     #[cfg(target_arch = "x86_64")]
     let (ab, mut cands) = if ISA >= AVX2 {
-        // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2` and
-        // `push_words_avx512`, which run only when the CPU has AVX2.
+        // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2`, which runs
+        // only when the CPU has AVX2.
         unsafe { block8_avx2(f, c0 + x0, s, thr) }
     } else {
         block8(f, c0 + x0, s, thr)
@@ -753,61 +720,6 @@ fn below32_avx2(f: &[u32], c: usize, thr: u32) -> bool {
     // Every lane < thr ⇔ max(lane, thr − 1) = thr − 1.
     let t = _mm256_set1_epi32((thr - 1) as i32);
     _mm256_movemask_epi8(_mm256_cmpeq_epi32(_mm256_max_epu32(m, t), t)) == -1
-}
-
-/// The `±K` rows of a kernel up to 16 wide as AVX-512 registers: a changed
-/// pixel's footprint is then K masked 16-lane read-add-writes.
-#[cfg(target_arch = "x86_64")]
-struct Rows512<const K: usize> {
-    plus: [std::arch::x86_64::__m512i; K],
-    minus: [std::arch::x86_64::__m512i; K],
-    mask: std::arch::x86_64::__mmask16,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl<const K: usize> Rows512<K> {
-    /// From `K`'s rows (`K·K` weights each, row-major).
-    #[target_feature(enable = "avx512f")]
-    fn new(plus: &[u32], minus: &[u32]) -> Rows512<K> {
-        use std::arch::x86_64::*;
-        assert!(K <= 16 && plus.len() >= K * K && minus.len() >= K * K);
-        let mut rows = Rows512 {
-            plus: [_mm512_setzero_si512(); K],
-            minus: [_mm512_setzero_si512(); K],
-            mask: ((1u32 << K) - 1) as u16,
-        };
-        for dy in 0..K {
-            let (mut p, mut m) = ([0u32; 16], [0u32; 16]);
-            p[..K].copy_from_slice(&plus[dy * K..(dy + 1) * K]);
-            m[..K].copy_from_slice(&minus[dy * K..(dy + 1) * K]);
-            // SAFETY: 16 u32 = one unaligned 64-byte load each.
-            unsafe {
-                rows.plus[dy] = _mm512_loadu_si512(p.as_ptr().cast());
-                rows.minus[dy] = _mm512_loadu_si512(m.as_ptr().cast());
-            }
-        }
-        rows
-    }
-
-    /// Adds `+K` (or `−K`) to the K×K cells from `p`, rows `stride` apart.
-    ///
-    /// # Safety
-    /// The K rows of K cells from `p` must be inside one allocation, and the
-    /// CPU must have AVX-512F.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn add(&self, p: *mut u32, stride: usize, plus: bool) {
-        use std::arch::x86_64::*;
-        let w = if plus { &self.plus } else { &self.minus };
-        for (dy, &wk) in w.iter().enumerate() {
-            // SAFETY: the caller's contract; masked-off lanes are not touched.
-            unsafe {
-                let r = p.add(dy * stride).cast::<i32>();
-                let v = _mm512_maskz_loadu_epi32(self.mask, r);
-                _mm512_mask_storeu_epi32(r, self.mask, _mm512_add_epi32(v, wk));
-            }
-        }
-    }
 }
 
 /// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.

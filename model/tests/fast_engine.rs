@@ -317,7 +317,7 @@ proptest! {
         let mut golden = GoldenFrontEnd::new(&cfg);
         let mut fast = FastFrontEnd::new(&cfg);
         prop_assert_eq!(fast.isa(), Isa::detect());
-        // Every slower build this CPU runs (portable; AVX2 where AVX-512 is used).
+        // Every slower build this CPU runs (the portable one where AVX2 is used).
         let mut slower: Vec<FastFrontEnd> = Isa::detect()
             .up_to()
             .filter(|&i| i < Isa::detect())
