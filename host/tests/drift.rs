@@ -3,25 +3,9 @@
 //! estimated trajectory compared with the drift the truth reports.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn smartagg(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smartagg"))
-        .args(args)
-        .output()
-        .expect("the smartagg binary runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = smartagg(args);
-    assert!(
-        out.status.success(),
-        "smartagg {args:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+mod common;
+use common::*;
 
 fn err(args: &[&str]) -> String {
     let out = smartagg(args);
@@ -32,10 +16,6 @@ fn err(args: &[&str]) -> String {
         "an error, not a crash: {args:?}"
     );
     String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_str().unwrap().to_string()
 }
 
 /// A CSV file as a header and rows of fields.

@@ -5,31 +5,9 @@
 use smartagg_hdl::configs::text_hash;
 use std::collections::HashSet;
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn smartagg(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smartagg"))
-        .args(args)
-        .output()
-        .expect("the smartagg binary runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = smartagg(args);
-    assert!(
-        out.status.success(),
-        "smartagg {args:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn err(args: &[&str]) -> String {
-    let out = smartagg(args);
-    assert!(!out.status.success(), "smartagg {args:?} should fail");
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
+mod common;
+use common::*;
 
 fn read(dir: &Path, name: &str) -> String {
     std::fs::read_to_string(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))

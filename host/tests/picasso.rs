@@ -10,35 +10,10 @@
 //! not skip.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn smartagg(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smartagg"))
-        .args(args)
-        .output()
-        .expect("the smartagg binary runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = smartagg(args);
-    assert!(
-        out.status.success(),
-        "smartagg {args:?} failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn err(args: &[&str]) -> String {
-    let out = smartagg(args);
-    assert!(!out.status.success(), "smartagg {args:?} should fail");
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_str().unwrap().to_string()
-}
+mod common;
+use common::*;
 
 /// Reads the HDF5 table and its sidecar as Picasso does and compares them
 /// with the CSV. Prints "rows N kept M" on success.
