@@ -214,18 +214,7 @@ pub fn wavelet(img: &[f64], w: usize, h: usize) -> (Vec<f64>, Vec<f64>) {
 /// Robust standard deviation: 1.4826 × median absolute deviation (0 for an
 /// empty input). Non-finite values are ignored.
 pub fn robust_std(v: &[f64]) -> f64 {
-    let mut a: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if a.is_empty() {
-        return 0.0;
-    }
-    let mid = a.len() / 2;
-    let (_, m, _) = a.select_nth_unstable_by(mid, |x, y| x.total_cmp(y));
-    let med = *m;
-    for x in a.iter_mut() {
-        *x = (*x - med).abs();
-    }
-    let (_, d, _) = a.select_nth_unstable_by(mid, |x, y| x.total_cmp(y));
-    1.4826 * *d
+    robust_std_in(v, &mut Vec::new())
 }
 
 /// 8-neighbour local maxima of `f` at or above `threshold`, raster order.
