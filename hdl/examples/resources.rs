@@ -48,7 +48,7 @@ use smartagg_hdl::pipeline::{
 use smartagg_hdl::roi_aggregator::RoiAggregator;
 use smartagg_hdl::spatial_filter::SpatialFilter;
 use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
-use smartagg_hdl::xem6310::Spcimager150Xem;
+use smartagg_hdl::configs::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};
 
 /// Pixel-integrated Gaussian of width `sigma` over k pixels, scaled to 2^a.
@@ -165,6 +165,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         kernel: k1.clone(),
         kernel_shift: 8,
         dsp_multipliers: smartagg_hdl::configs::XC6SLX45.dsp48a1 as usize,
+        sized_for: None,
     };
     big.validate()?;
     println!("SPCImager 150x: sigma = {sigma:.3} px, k = {k}, k1 = {k1:?} (sum 256)");

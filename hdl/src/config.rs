@@ -83,6 +83,12 @@ pub struct GatewareConfig {
     /// [`crate::spatial_filter::SpatialFilter`]); the rest are shift-and-add
     /// in LUTs. At most the device's slices; 0 for none.
     pub dsp_multipliers: usize,
+    /// The largest field the memories' address widths are sized for
+    /// (`None`: exactly this field). Every memory and counter is bounded by
+    /// this field's own constants, never by a width, so a design sized for
+    /// its sensor's whole field runs any smaller window of it (the
+    /// co-simulation runs the shipped designs on smaller fields this way).
+    pub sized_for: Option<(usize, usize)>,
 }
 
 impl GatewareConfig {
@@ -101,6 +107,7 @@ impl GatewareConfig {
             kernel: cfg.kernel.clone(),
             kernel_shift: cfg.kernel_shift,
             dsp_multipliers: 0,
+            sized_for: None,
         };
         g.validate()?;
         if cfg.n_window > n_max {
@@ -132,6 +139,18 @@ impl GatewareConfig {
                 format!("{}x{}", self.width, self.height),
                 "must fit 16 bits",
             ));
+        }
+        if let Some((w, h)) = self.sized_for {
+            if w < self.width || h < self.height || !w.is_multiple_of(p) {
+                return Err(invalid(
+                    "sized_for",
+                    format!("{w}x{h}"),
+                    format!(
+                        "must be at least the field {}x{} (width a multiple of P = {p})",
+                        self.width, self.height
+                    ),
+                ));
+            }
         }
         if self.kernel.is_empty() || self.kernel.len().is_multiple_of(2) {
             return Err(invalid(
@@ -219,19 +238,32 @@ impl GatewareConfig {
         self.count_bits() + 2 * self.kernel_shift as usize
     }
 
+    /// The field the address widths are sized for: [`GatewareConfig::sized_for`]
+    /// or this field.
+    pub fn address_field(&self) -> (usize, usize) {
+        self.sized_for.unwrap_or((self.width, self.height))
+    }
+
+    /// Words per row and per plane of [`GatewareConfig::address_field`].
+    fn address_words(&self) -> (u64, u64) {
+        let (w, h) = self.address_field();
+        let row = (w / self.pixels_per_clock) as u64;
+        (row, row * h as u64)
+    }
+
     /// Address bits of the counter memory (one word per P pixels).
     pub fn count_addr_bits(&self) -> usize {
-        bits_for(self.words_per_plane() as u64 - 1)
+        bits_for(self.address_words().1 - 1)
     }
 
     /// Address bits of a line buffer (one word per P pixels of a row).
     pub fn line_addr_bits(&self) -> usize {
-        bits_for(self.words_per_row() as u64 - 1)
+        bits_for(self.address_words().0 - 1)
     }
 
     /// Address bits of the block-RAM delay line: N_max planes.
     pub fn delay_addr_bits(&self) -> usize {
-        bits_for(self.n_max as u64 * self.words_per_plane() as u64 - 1)
+        bits_for(self.n_max as u64 * self.address_words().1 - 1)
     }
 
     /// Bits of block RAM the delay line needs: N_max whole bit-planes.
@@ -518,6 +550,40 @@ mod tests {
         assert_eq!(g.line_addr_bits(), 5);
         assert_eq!(bits_for(127), 7);
         assert_eq!(bits_for(0), 1);
+    }
+
+    #[test]
+    fn a_design_sized_for_a_larger_field_keeps_that_fields_address_widths() {
+        let cfg = PipelineConfig::new(96, 72, 20, vec![1, 2, 1], 2, 3);
+        let exact = GatewareConfig::new(&cfg, 16, 24).unwrap();
+        assert_eq!(
+            (exact.count_addr_bits(), exact.line_addr_bits()),
+            (9, 3) // 432 words, 6 per row
+        );
+        let sized = GatewareConfig {
+            sized_for: Some((320, 240)),
+            ..exact.clone()
+        };
+        sized.validate().unwrap();
+        assert_eq!(sized.words_per_plane(), 432);
+        assert_eq!(
+            (
+                sized.count_addr_bits(),
+                sized.line_addr_bits(),
+                sized.delay_addr_bits()
+            ),
+            (13, 5, 17) // 4,800 words, 20 per row, 24 planes
+        );
+        for bad in [(80, 240), (320, 64), (328, 240)] {
+            let e = GatewareConfig {
+                sized_for: Some(bad),
+                ..exact.clone()
+            }
+            .validate()
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("`sized_for`"), "{bad:?}: {e}");
+        }
     }
 
     #[test]

@@ -32,7 +32,7 @@
 
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::front_half::verilog;
-use crate::xem6310::{Xem6310Top, Xem6310TopOnChip};
+use crate::xem6310::{Xem6310Top, Xem6310TopOnChip, XemCore, XemCoreOnChip};
 use smartagg_model::field_design;
 use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};
@@ -209,6 +209,7 @@ impl Design {
             // Every DSP slice of the device is the filter's: nothing else
             // multiplies.
             dsp_multipliers: device.dsp48a1 as usize,
+            sized_for: None,
         };
         let fd = field_design::design(
             &det,
@@ -337,21 +338,52 @@ pub fn on_generation_stack<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     })
 }
 
-/// The XEM6310 top of the SPCImager at 150× (k = 9, N_max = 128, DDR2).
-pub type Spcimager150Xem = crate::xem6310::Spcimager150Xem;
+/// Declares a design's XEM6310 top and its core (the top without the
+/// FrontPanel host interface and the DDR2 pins: what the co-simulation
+/// drives) from one parameter list, so the two cannot differ. Parameters:
+/// those of [`crate::pipeline::PipelineDdr`] (DDR2 designs: P, PAW, CW, CAW,
+/// VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW) or of
+/// [`crate::pipeline::Pipeline`] (block-RAM designs: DAW in place of PAW).
+macro_rules! design_types {
+    ($(#[$doc:meta])* $top:ident = $Top:ident, $core:ident = $Core:ident, [$($p:literal),*]) => {
+        $(#[$doc])*
+        pub type $top = $Top<$($p),*>;
+        $(#[$doc])*
+        ///
+        /// The core: the top's logic without the host interface and the DDR2 pins.
+        pub type $core = $Core<$($p),*>;
+    };
+}
 
-/// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
-pub type Spcimager60Xem = Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12>;
+design_types!(
+    /// The XEM6310 top of the SPCImager at 150× (k = 9, N_max = 128, DDR2).
+    Spcimager150Xem = Xem6310Top,
+    Spcimager150Core = XemCore,
+    [16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12]
+);
 
-/// The XEM6310 top of the projected SPCImager at 150× (k = 9, N_max = 24,
-/// block RAM; for the XEM6310-LX150).
-pub type Projected150Xem =
-    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
+design_types!(
+    /// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
+    Spcimager60Xem = Xem6310Top,
+    Spcimager60Core = XemCore,
+    [16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12]
+);
 
-/// The XEM6310 top of the projected SPCImager at 60× (k = 5, N_max = 24,
-/// block RAM; for the XEM6310-LX150).
-pub type Projected60Xem =
-    Xem6310TopOnChip<16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12>;
+design_types!(
+    /// The XEM6310 top of the projected SPCImager at 150× (k = 9, N_max =
+    /// 24, block RAM; for the XEM6310-LX150).
+    Projected150Xem = Xem6310TopOnChip,
+    Projected150Core = XemCoreOnChip,
+    [16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12]
+);
+
+design_types!(
+    /// The XEM6310 top of the projected SPCImager at 60× (k = 5, N_max =
+    /// 24, block RAM; for the XEM6310-LX150).
+    Projected60Xem = Xem6310TopOnChip,
+    Projected60Core = XemCoreOnChip,
+    [16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12]
+);
 
 /// The core clock: FrontPanel's host-interface clock `okClk`, Hz.
 pub const CLOCK_HZ: f64 = 100.8e6;

@@ -301,6 +301,7 @@ pub fn test_config() -> GatewareConfig {
         kernel: vec![1, 4, 6, 4, 1],
         kernel_shift: 4,
         dsp_multipliers: 0,
+        sized_for: None,
     }
 }
 
@@ -321,6 +322,7 @@ pub fn spcimager150_config() -> GatewareConfig {
         kernel_shift: 8,
         dsp_multipliers: crate::configs::device_for(smartagg_model::params::PresetName::Spcimager)
             .dsp48a1 as usize,
+        sized_for: None,
     }
 }
 

@@ -1399,10 +1399,5 @@ xem_top!(
     ParkedDdr2
 );
 
-/// The XEM6310 top for the SPCImager at 150×
-/// ([`crate::pipeline::spcimager150_back_config`]), DDR2 delay line.
-pub type Spcimager150Xem =
-    Xem6310Top<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
-
 /// A small XEM6310 top ([`crate::pipeline::test_back_config`]) for lint.
 pub type TestXem = Xem6310Top<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;

@@ -12,7 +12,8 @@ use smartagg_hdl::front_half::{
 use smartagg_hdl::lint_waivers::verilator_config;
 use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
 use smartagg_hdl::synth::{verilator_lint, yosys_resources};
-use smartagg_hdl::xem6310::{Spcimager150Xem, TestXem};
+use smartagg_hdl::configs::Spcimager150Xem;
+use smartagg_hdl::xem6310::TestXem;
 
 fn scratch(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("smartagg-hdl-{name}-{}", std::process::id()))

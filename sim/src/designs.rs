@@ -1,24 +1,29 @@
-//! The configurations co-simulated: the generated gateware top (rust-hdl
+//! The configurations co-simulated: the generated gateware (rust-hdl
 //! Verilog) inside a co-simulation wrapper (`cosim`) that adds the DDR2
 //! model and, in debug builds, probe ports on every stage's output.
 //!
-//! Configurations follow `smartagg_hdl::pipeline`'s: SPCImager 150× (DDR2
-//! delay line, N_max = 128, M = 32, 9×9 ROIs), SPCImager 60× (the same
-//! design rules with the model's kernel for the 60× PSF) and the projected
-//! SPCImager 150× (block-RAM delay line, N_max = 24), each on a reduced
-//! 64×32 field, and SPCImager 150× on the full 320×240 field. rust-hdl
-//! widths are type parameters, so each field size is its own type alias
-//! below; [`DesignSpec::back`] computes the configuration and the block's
-//! `new` checks that every width of the alias follows from it.
+//! Every configuration that `smartagg hdl generate` ships
+//! ([`smartagg_hdl::configs::Design`]: the SPCImager and the projected
+//! SPCImager, each at 150× and 60×) is co-simulated as its XEM6310 core
+//! ([`smartagg_hdl::configs::Spcimager150Core`] and its siblings: the
+//! FrontPanel endpoints and the sensor port, with the DDR2 behavioural model
+//! on the MCB port of a DDR2 design, the MCB inputs parked as the top parks
+//! them for a block-RAM one), on its full field or on **any smaller field**
+//! of its sensor ([`DesignSpec::new`]): the same type, its memories' address
+//! widths sized for the whole sensor ([`GatewareConfig::sized_for`]), with
+//! the field's own constants. The demo's design ([`DesignSpec::demo`]) is
+//! the one exception: a pipeline sized for its 48×48 field alone (block-RAM
+//! delay line, M = 16), driven through its word port.
 
 use crate::ddr2::{self, Ddr2Timing};
 use crate::verilator::{BuildOptions, Dir, VerilatorError};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
+use smartagg_hdl::configs::{
+    DelayLineKind, Design, Projected150Core, Projected60Core, Spcimager150Core, Spcimager60Core,
+};
 use smartagg_hdl::front_half::verilog;
 use smartagg_hdl::pipeline::Pipeline;
-use smartagg_hdl::xem6310::XemCore;
-use smartagg_model::kernel::IntegerKernel;
-use smartagg_model::params::{Preset, PresetName};
+use smartagg_model::params::PresetName;
 use std::fmt::Write as _;
 
 /// Errors naming a configuration problem.
@@ -33,7 +38,7 @@ pub enum DesignError {
     /// Verilator or the cache.
     #[error(transparent)]
     Verilator(#[from] VerilatorError),
-    /// No generated type for this field size.
+    /// No design for this configuration or field.
     #[error("no co-simulation configuration for {what}: {why}")]
     Unsupported {
         /// What was asked.
@@ -46,7 +51,7 @@ pub enum DesignError {
     Fault(String),
 }
 
-/// The configurations with a generated gateware.
+/// The configurations `smartagg hdl generate` ships.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Config {
     /// SPCImager, 150× objective (DDR2 delay line).
@@ -55,20 +60,28 @@ pub enum Config {
     Spcimager60,
     /// Projected SPCImager, 150× objective (block-RAM delay line).
     Projected150,
+    /// Projected SPCImager, 60× objective (block-RAM delay line).
+    Projected60,
 }
 
 impl Config {
+    /// Every shipped configuration, in `hdl generate`'s order.
+    pub const ALL: [Config; 4] = [
+        Config::Spcimager150,
+        Config::Spcimager60,
+        Config::Projected150,
+        Config::Projected60,
+    ];
+
     /// The configuration of a preset and objective.
     pub fn for_preset(name: PresetName, objective: u32) -> Result<Config, DesignError> {
-        match (name, objective) {
-            (PresetName::Spcimager, 150) => Ok(Config::Spcimager150),
-            (PresetName::Spcimager, 60) => Ok(Config::Spcimager60),
-            (PresetName::SpcimagerProjected, 150) => Ok(Config::Projected150),
-            _ => Err(DesignError::Unsupported {
+        Config::ALL
+            .into_iter()
+            .find(|c| c.preset_name() == (name, objective))
+            .ok_or_else(|| DesignError::Unsupported {
                 what: format!("{name} at {objective}x"),
-                why: "generated: spcimager 150/60, spcimager-projected 150".into(),
-            }),
-        }
+                why: "generated: spcimager and spcimager-projected, each at 150x and 60x".into(),
+            })
     }
 
     /// Name for reports.
@@ -77,59 +90,24 @@ impl Config {
             Config::Spcimager150 => "spcimager/150x",
             Config::Spcimager60 => "spcimager/60x",
             Config::Projected150 => "spcimager-projected/150x",
+            Config::Projected60 => "spcimager-projected/60x",
         }
     }
 
     /// The preset and objective (the inverse of [`Config::for_preset`]).
-    fn preset_name(self) -> (PresetName, u32) {
+    pub fn preset_name(self) -> (PresetName, u32) {
         match self {
             Config::Spcimager150 => (PresetName::Spcimager, 150),
             Config::Spcimager60 => (PresetName::Spcimager, 60),
             Config::Projected150 => (PresetName::SpcimagerProjected, 150),
+            Config::Projected60 => (PresetName::SpcimagerProjected, 60),
         }
     }
 
-    fn preset(self) -> Result<Preset, DesignError> {
+    /// The shipped design, as `smartagg hdl generate` builds it.
+    pub fn shipped(self) -> Result<Design, DesignError> {
         let (n, o) = self.preset_name();
-        Preset::new(n, o).map_err(|e| DesignError::Model(e.to_string()))
-    }
-
-    /// Largest N of the configuration's design on its full field
-    /// ([`DesignSpec::n_max`] is the generated design's).
-    fn n_max(self) -> u32 {
-        match self {
-            Config::Spcimager150 | Config::Spcimager60 => 128,
-            Config::Projected150 => 24,
-        }
-    }
-
-    /// The kernel k1 and its shift: the hdl's constants for 150× (so the
-    /// design is the one `hdl` generates), the model's kernel for σ at 60×.
-    pub fn kernel(self) -> Result<(Vec<u32>, u8), DesignError> {
-        match self {
-            Config::Spcimager150 | Config::Projected150 => {
-                let f = smartagg_hdl::front_half::spcimager150_config();
-                Ok((f.kernel, f.kernel_shift))
-            }
-            Config::Spcimager60 => {
-                let sigma = self.preset()?.sigma_px();
-                let k = IntegerKernel::default_for(sigma)
-                    .map_err(|e| DesignError::Model(e.to_string()))?;
-                Ok((k.weights, k.shift))
-            }
-        }
-    }
-
-    /// Whether the configuration's delay line is in DDR2 on its full field
-    /// ([`DesignSpec::ddr`] is the generated design's).
-    fn ddr(self) -> bool {
-        !matches!(self, Config::Projected150)
-    }
-
-    /// The filter's DSP multiplies: every DSP slice of the device the
-    /// configuration is generated for (as `smartagg_hdl::configs::Design`).
-    fn dsp_multipliers(self) -> usize {
-        smartagg_hdl::configs::device_for(self.preset_name().0).dsp48a1 as usize
+        Ok(Design::new(n, o)?)
     }
 }
 
@@ -146,9 +124,15 @@ pub struct DesignSpec {
     pub ddr: Ddr2Timing,
     /// Association radius r_assoc (a generation parameter of the tracker).
     pub r_assoc: u32,
+    /// The front half's generation parameters on this field.
+    front: GatewareConfig,
+    /// Where the delay line lives.
+    delay_line: DelayLineKind,
+    /// The demo's pipeline ([`DesignSpec::demo`]) rather than the shipped core.
+    demo: bool,
 }
 
-/// The reduced field of every configuration.
+/// The reduced field of the randomised co-simulation cases.
 pub const REDUCED: (usize, usize) = (64, 32);
 /// The SPCImager's full field.
 pub const FULL: (usize, usize) = (320, 240);
@@ -176,48 +160,80 @@ pub const DEMO_N_MAX: u32 = 112;
 pub const DEMO_SLOTS: usize = 16;
 
 /// Pixels per clock of every configuration (see `smartagg_hdl`'s crate docs).
-pub const P: usize = 16;
+pub const P: usize = smartagg_hdl::configs::PIXELS_PER_CLOCK;
 
-// The generated types. Parameters: those of `smartagg_hdl::pipeline::PipelineDdr`
-// (P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW)
-// and of `Pipeline` (DAW in place of PAW).
-
-/// SPCImager 150× core on 64×32.
-pub type Spcimager150Reduced =
-    XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
-/// SPCImager 60× core on 64×32 (the model's kernel for the 60× PSF:
-/// σ = 0.61 px, k = 5, a = 8; R = 5).
-pub type Spcimager60Reduced = XemCore<16, 9, 8, 7, 16, 24, 2, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12>;
-/// Projected SPCImager 150× pipeline (block-RAM delay line) on 64×32.
-pub type Projected150Reduced =
-    Pipeline<16, 12, 5, 7, 13, 21, 2, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
-/// SPCImager 150× pipeline (block-RAM delay line, M = 16) on the demo's 48×48 field.
+/// SPCImager 150× pipeline (block-RAM delay line, M = 16) on the demo's
+/// 48×48 field. Parameters: those of `smartagg_hdl::pipeline::Pipeline`
+/// (P, DAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW).
 pub type Spcimager150Demo = Pipeline<16, 14, 7, 8, 15, 23, 2, 8, 17, 9, 6, 5, 232, 552, 53, 9, 12>;
-/// SPCImager 150× core on the full 320×240 field.
-pub type Spcimager150Full = XemCore<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
 
 impl DesignSpec {
-    /// A configuration on a field (one of [`REDUCED`] and, for SPCImager
-    /// 150×, [`FULL`]).
+    /// A shipped configuration on a field of its sensor: any `width` ×
+    /// `height` up to the sensor's, the width a multiple of P = 16 and at
+    /// least 2P, the height more than the ROI side (and, for a DDR2 design,
+    /// a plane of whole 32-bit words). The error names these limits.
     pub fn new(config: Config, width: usize, height: usize) -> Result<DesignSpec, DesignError> {
-        let ok = (width, height) == REDUCED
-            || (((width, height) == FULL || (width, height) == DEMO)
-                && config == Config::Spcimager150);
+        let shipped = config.shipped()?;
+        let sensor = &shipped.config.front;
+        let (sw, sh) = (sensor.width, sensor.height);
+        let r = shipped.config.roi_size;
+        let ddr = shipped.delay_line == DelayLineKind::Ddr2;
+        let ok = width.is_multiple_of(P)
+            && (2 * P..=sw).contains(&width)
+            && (r + 1..=sh).contains(&height)
+            && (!ddr || (width * height).is_multiple_of(32));
         if !ok {
             return Err(DesignError::Unsupported {
                 what: format!("{} on {width}x{height}", config.name()),
                 why: format!(
-                    "generated fields: {}x{} for every configuration, {}x{} and {}x{} for spcimager/150x",
-                    REDUCED.0, REDUCED.1, FULL.0, FULL.1, DEMO.0, DEMO.1
+                    "its design is sized for the sensor's {sw}x{sh}: any field with a width that is a multiple of {P} from {} to {sw} and a height from {} to {sh}{}",
+                    2 * P,
+                    r + 1,
+                    if ddr { " (width x height a multiple of 32: whole 32-bit DDR2 words)" } else { "" }
                 ),
             });
         }
+        let sized_for = ((width, height) != (sw, sh)).then_some((sw, sh));
+        let front = GatewareConfig {
+            width,
+            height,
+            sized_for,
+            ..sensor.clone()
+        };
+        front.validate()?;
         Ok(DesignSpec {
             config,
             width,
             height,
             ddr: Ddr2Timing::default(),
             r_assoc: 1,
+            front,
+            delay_line: shipped.delay_line,
+            demo: false,
+        })
+    }
+
+    /// The demo's design: SPCImager 150× on its [`DEMO`] field, sized for
+    /// that field alone ([`DEMO_N_MAX`] planes of block RAM, [`DEMO_SLOTS`]
+    /// slots), the pipeline core driven through its word port.
+    pub fn demo() -> Result<DesignSpec, DesignError> {
+        let front = GatewareConfig {
+            width: DEMO.0,
+            height: DEMO.1,
+            n_max: DEMO_N_MAX,
+            sized_for: None,
+            ..Config::Spcimager150.shipped()?.config.front
+        };
+        front.validate()?;
+        Ok(DesignSpec {
+            config: Config::Spcimager150,
+            width: DEMO.0,
+            height: DEMO.1,
+            ddr: Ddr2Timing::default(),
+            r_assoc: 1,
+            front,
+            delay_line: DelayLineKind::BlockRam,
+            demo: true,
         })
     }
 
@@ -233,25 +249,15 @@ impl DesignSpec {
         Ok(self)
     }
 
-    /// The front half's generation parameters.
+    /// The front half's generation parameters: the shipped design's (kernel,
+    /// N_max, DSP multiplies) on this field.
     pub fn front(&self) -> Result<GatewareConfig, DesignError> {
-        let (kernel, kernel_shift) = self.config.kernel()?;
-        let g = GatewareConfig {
-            width: self.width,
-            height: self.height,
-            pixels_per_clock: P,
-            n_max: self.n_max(),
-            kernel,
-            kernel_shift,
-            dsp_multipliers: self.config.dsp_multipliers(),
-        };
-        g.validate()?;
-        Ok(g)
+        Ok(self.front.clone())
     }
 
     /// The back half's generation parameters, as `hdl`'s
-    /// `spcimager150_back_config` derives them: M = 32, R = k, r_assoc (1
-    /// unless [`DesignSpec::with_r_assoc`]), L_max,max = 65,535.
+    /// [`Design`] derives them: M slots, R = k, r_assoc (1 unless
+    /// [`DesignSpec::with_r_assoc`]), L_max,max = 65,535.
     pub fn back(&self) -> Result<BackHalfConfig, DesignError> {
         let front = self.front()?;
         let mut cfg = smartagg_model::config::PipelineConfig::new(
@@ -265,7 +271,11 @@ impl DesignSpec {
         cfg.slots = self.slots();
         cfg.roi_size = front.kernel.len();
         cfg.r_assoc = self.r_assoc;
-        Ok(BackHalfConfig::new(&cfg, front, 65_535)?)
+        Ok(BackHalfConfig::new(
+            &cfg,
+            front,
+            smartagg_hdl::configs::L_MAX_MAX,
+        )?)
     }
 
     /// Word-address bits of the DDR2 model: N_max slots of a plane's
@@ -276,51 +286,48 @@ impl DesignSpec {
         slot_bits - 2 + smartagg_hdl::config::bits_for(self.n_max() as u64 - 1)
     }
 
-    /// Whether the delay line is in DDR2 and the XEM6310 core is simulated
-    /// (the configuration's, except on the [`DEMO`] field, whose design keeps
-    /// it in block RAM).
+    /// Whether the delay line is in DDR2 (the DDR2 model is verilated beside
+    /// the core).
     pub fn ddr(&self) -> bool {
-        self.config.ddr() && !self.is_demo()
+        self.delay_line == DelayLineKind::Ddr2
+    }
+
+    /// Whether the XEM6310 core is simulated (FrontPanel endpoints and the
+    /// sensor port): every shipped design; not the demo's pipeline.
+    pub fn xem(&self) -> bool {
+        !self.demo
     }
 
     /// Largest N the design supports.
     pub fn n_max(&self) -> u32 {
-        if self.is_demo() {
-            DEMO_N_MAX
-        } else {
-            self.config.n_max()
-        }
+        self.front.n_max
     }
 
-    /// Tracking slots M: 32, the model's default; [`DEMO_SLOTS`] on the demo's field.
+    /// Tracking slots M: the shipped designs' 32; [`DEMO_SLOTS`] for the demo.
     pub fn slots(&self) -> usize {
-        if self.is_demo() {
+        if self.demo {
             DEMO_SLOTS
         } else {
-            32
+            smartagg_hdl::configs::SLOTS
         }
     }
 
-    fn is_demo(&self) -> bool {
-        (self.width, self.height) == DEMO && self.config == Config::Spcimager150
-    }
-
-    /// The Verilog of the generated top (module `top`), as `hdl` writes it.
+    /// The Verilog of the generated core (module `top`), as `hdl` writes
+    /// it: the shipped design's XEM6310 core type, or the demo's pipeline.
     pub fn top_verilog(&self) -> Result<String, DesignError> {
         let b = self.back()?;
-        let field = (self.width, self.height);
-        Ok(match (self.config, field == FULL) {
-            (Config::Spcimager150, _) if field == DEMO => verilog(Spcimager150Demo::new(&b)?),
-            (Config::Spcimager150, false) => verilog(Spcimager150Reduced::new(&b)?),
-            (Config::Spcimager150, true) => verilog(Spcimager150Full::new(&b)?),
-            (Config::Spcimager60, _) => verilog(Spcimager60Reduced::new(&b)?),
-            (Config::Projected150, _) => verilog(Projected150Reduced::new(&b)?),
+        Ok(match self.config {
+            _ if self.demo => verilog(Spcimager150Demo::new(&b)?),
+            Config::Spcimager150 => verilog(Spcimager150Core::new(&b)?),
+            Config::Spcimager60 => verilog(Spcimager60Core::new(&b)?),
+            Config::Projected150 => verilog(Projected150Core::new(&b)?),
+            Config::Projected60 => verilog(Projected60Core::new(&b)?),
         })
     }
 
     /// Prefix of the pipeline's instance path inside the wrapper.
     fn pipe_path(&self) -> &'static str {
-        if self.ddr() {
+        if self.xem() {
             "core.pipe."
         } else {
             "core."
@@ -386,12 +393,14 @@ impl DesignSpec {
         if debug {
             probes.extend(self.probes()?);
         }
-        wrapper(
-            top,
-            self.ddr().then(|| self.ddr_address_bits()),
-            &self.ddr,
-            probes,
-        )
+        let mcb = if self.ddr() {
+            McbPort::Ddr2(self.ddr_address_bits())
+        } else if self.xem() {
+            McbPort::Parked
+        } else {
+            McbPort::Absent
+        };
+        wrapper(top, mcb, &self.ddr, probes)
     }
 
     /// Verilator build options for the wrapper.
@@ -440,14 +449,40 @@ fn decl(dir: &str, width: usize, name: &str) -> String {
     }
 }
 
+/// What the wrapper connects to the core's MCB user port.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum McbPort {
+    /// The DDR2 behavioural model, with this many word-address bits.
+    Ddr2(usize),
+    /// Parked as `Xem6310TopOnChip` parks it (calibrated, never full,
+    /// never a read word): a block-RAM design's core.
+    Parked,
+    /// No MCB port (the demo's pipeline).
+    Absent,
+}
+
+/// The MCB inputs of a parked port and their values, as the on-chip top
+/// ties them.
+const MCB_PARKED: [(&str, &str); 5] = [
+    ("calib_done", "1'b1"),
+    ("cmd_full", "1'b0"),
+    ("wr_full", "1'b0"),
+    ("rd_data", "32'h0"),
+    ("rd_empty", "1'b1"),
+];
+
 /// The `cosim` wrapper around `top`: its ports (with `$` as `_`), the DDR2
-/// model on the MCB port if `ddr_aw` is given, and probe outputs.
+/// model or the parking of the MCB port, and probe outputs.
 fn wrapper(
     top: &str,
-    ddr_aw: Option<usize>,
+    mcb: McbPort,
     timing: &Ddr2Timing,
     probes: Vec<(String, usize, String)>,
 ) -> Result<String, DesignError> {
+    let ddr_aw = match mcb {
+        McbPort::Ddr2(aw) => Some(aw),
+        _ => None,
+    };
     let ports = top_ports(top)?;
     let mut names = Vec::new();
     let mut decls = String::new();
@@ -455,6 +490,14 @@ fn wrapper(
     let mut wires = String::new();
     for (name, dir, width) in &ports {
         let ext = name.replace('$', "_");
+        if mcb == McbPort::Parked && MCB.contains(&name.as_str()) {
+            if let Some((_, v)) = MCB_PARKED.iter().find(|(n, _)| n == name) {
+                conns.push(format!(".{name}({v})"));
+            } else {
+                conns.push(format!(".{name}()"));
+            }
+            continue;
+        }
         if ddr_aw.is_some() && MCB.contains(&name.as_str()) {
             let range = if *width == 1 {
                 String::new()
@@ -595,10 +638,64 @@ mod tests {
     use super::*;
 
     #[test]
+    fn every_shipped_design_is_a_configuration_and_its_full_field_is_the_shipped_generation() {
+        let shipped = Design::all().unwrap();
+        assert_eq!(shipped.len(), Config::ALL.len());
+        for d in shipped {
+            let c = Config::for_preset(d.preset, d.objective).unwrap();
+            let (w, h) = (d.config.front.width, d.config.front.height);
+            let spec = DesignSpec::new(c, w, h)
+                .and_then(|s| s.with_r_assoc(d.config.r_assoc))
+                .unwrap();
+            assert_eq!(spec.back().unwrap(), d.config, "{}", c.name());
+            assert_eq!(spec.ddr(), d.delay_line == DelayLineKind::Ddr2);
+            assert!(spec.xem());
+        }
+        assert!(Config::for_preset(PresetName::Spcimager, 100).is_err());
+    }
+
+    #[test]
+    fn any_field_of_the_sensor_is_a_design_sized_for_the_sensor() {
+        for (c, w, h) in [
+            (Config::Spcimager150, 96, 72),
+            (Config::Spcimager60, 48, 48),
+            (Config::Projected150, 64, 48),
+            (Config::Projected60, 320, 16),
+        ] {
+            let spec = DesignSpec::new(c, w, h).unwrap();
+            let f = spec.front().unwrap();
+            assert_eq!((f.width, f.height), (w, h));
+            assert_eq!(f.address_field(), FULL, "{}", c.name());
+            // The address widths are the sensor's, so the shipped type fits.
+            let full = DesignSpec::new(c, FULL.0, FULL.1).unwrap().front().unwrap();
+            assert_eq!(full.sized_for, None);
+            assert_eq!(f.count_addr_bits(), full.count_addr_bits());
+            assert_eq!(f.line_addr_bits(), full.line_addr_bits());
+            assert_eq!(f.delay_addr_bits(), full.delay_addr_bits());
+            assert!(f.words_per_plane() < full.words_per_plane());
+        }
+        for (c, w, h) in [
+            (Config::Spcimager150, 336, 240),
+            (Config::Spcimager150, 320, 241),
+            (Config::Spcimager150, 100, 72),
+            (Config::Spcimager150, 16, 72),
+            (Config::Spcimager150, 64, 9),
+            // 3 words of 16 pixels × 7 rows: not whole 32-bit DDR2 words.
+            (Config::Spcimager60, 48, 7),
+        ] {
+            let e = DesignSpec::new(c, w, h).unwrap_err().to_string();
+            assert!(
+                e.contains("320x240") && e.contains("multiple of 16"),
+                "{w}x{h}: {e}"
+            );
+        }
+        // A block-RAM design takes a plane of any whole number of P-pixel words.
+        assert!(DesignSpec::new(Config::Projected60, 48, 7).is_ok());
+    }
+
+    #[test]
     fn the_demo_design_generates_with_its_association_radius() {
-        let spec = DesignSpec::new(Config::Spcimager150, DEMO.0, DEMO.1)
-            .and_then(|s| s.with_r_assoc(3))
-            .unwrap();
+        let spec = DesignSpec::demo().and_then(|s| s.with_r_assoc(3)).unwrap();
         let b = spec.back().unwrap();
         assert_eq!(b.r_assoc, 3);
         assert_eq!(b.slots, DEMO_SLOTS);
@@ -618,7 +715,7 @@ mod tests {
         assert!(2 * bits <= smartagg_hdl::configs::XC6SLX45.block_ram_bits());
         let v = spec.top_verilog().unwrap();
         assert!(v.contains("module top"));
-        assert!(DesignSpec::new(Config::Spcimager60, DEMO.0, DEMO.1).is_err());
+        assert!(spec.xem() == false && spec.slots() == DEMO_SLOTS);
         assert!(spec.with_r_assoc(17).is_err());
     }
 }

@@ -1,14 +1,16 @@
 //! The co-simulation harness: one bit-plane stream through the Verilated
 //! gateware and through the golden model, the packet byte streams compared.
 //!
-//! **Host side.** DDR2 configurations are driven as the host drives the
-//! XEM6310 through FrontPanel: RESET, the hot-pixel mask through pipe-in
+//! **Host side.** Every shipped configuration is driven as the host drives
+//! the XEM6310 through FrontPanel: RESET, the hot-pixel mask through pipe-in
 //! 0x81, wire-ins, START, the planes through the block-throttled replay
 //! pipe-in 0x80 (or the sensor port's FIFO), STOP, and the packet stream
 //! read in 16-byte blocks from pipe-out 0xA0, with random host stalls on
-//! both pipes (a stalled reader makes the output FIFO overflow). The
-//! block-RAM configuration (projected SPCImager) is the pipeline itself,
-//! driven word by word with source stalls and output back-pressure.
+//! both pipes (a stalled reader makes the output FIFO overflow). The DDR2
+//! designs run with the DDR2 behavioural model on their MCB port; the
+//! block-RAM designs (projected SPCImager) with the port parked. The demo's
+//! design is the pipeline itself, driven word by word with source stalls
+//! and output back-pressure.
 //!
 //! **Comparison.** With no loss the bytes equal the model's exactly. With
 //! output-FIFO overflow they must be the model's records with exactly the
@@ -464,7 +466,7 @@ impl Cosim {
         let (w, h) = (self.spec.width, self.spec.height);
         // The replay pipe-in brings a word every other clock; the pipeline
         // core takes one a clock while it is ready.
-        let clocks_per_word = if self.spec.ddr() { 2 } else { 1 };
+        let clocks_per_word = if self.spec.xem() { 2 } else { 1 };
         let clocks_per_plane = (clocks_per_word * w * h / crate::designs::P).max(1);
         let planes = (TRAINING_CLOCKS / clocks_per_plane).max(48);
         let n = ((planes / 8) as u32).clamp(8, self.spec.n_max());
@@ -571,7 +573,7 @@ impl Cosim {
             None
         };
         let started = std::time::Instant::now();
-        let mut out = if self.spec.ddr() {
+        let mut out = if self.spec.xem() {
             XemHost::new(model, self, case, probes, mode.vcd)?.run(case)?
         } else {
             BramHost::new(model, self, case, probes, mode.vcd)?.run(case)?
@@ -1093,9 +1095,9 @@ struct XemPorts {
     sensor_word: usize,
     sensor_read: usize,
     wire_out: Vec<usize>,
-    ddr_error: usize,
-    collisions: usize,
-    refreshes: usize,
+    /// The DDR2 model's ports (DDR2 designs): error, refresh collisions,
+    /// refreshes.
+    ddr: Option<[usize; 3]>,
 }
 
 fn vcd_of(vcd: Option<(&Path, u64, u64)>) -> Option<Vcd> {
@@ -1137,9 +1139,15 @@ impl XemHost {
             wire_out: (0..8)
                 .map(|i| port(&format!("wire_out_{i}")))
                 .collect::<Result<_, _>>()?,
-            ddr_error: port("ddr_error")?,
-            collisions: port("ddr_refresh_collisions")?,
-            refreshes: port("ddr_refreshes")?,
+            ddr: if cosim.spec.ddr() {
+                Some([
+                    port("ddr_error")?,
+                    port("ddr_refresh_collisions")?,
+                    port("ddr_refreshes")?,
+                ])
+            } else {
+                None
+            },
         };
         let n = b.ports.len();
         let wpp = cosim.spec.width * cosim.spec.height / crate::designs::P;
@@ -1341,7 +1349,13 @@ impl XemHost {
         if status & (status::FAULT | status::FRAMING_ERROR | status::SENSOR_OVERFLOW) != 0 {
             return Err(HarnessError::Gateware(format!("status {status:#x}")));
         }
-        if self.m.get(self.p.ddr_error) != 0 {
+        let [mut ddr_error, mut collisions, mut refreshes] = [0; 3];
+        if let Some([e, c, r]) = self.p.ddr {
+            ddr_error = self.m.get(e);
+            collisions = self.m.get(c);
+            refreshes = self.m.get(r);
+        }
+        if ddr_error != 0 {
             return Err(HarnessError::Gateware("DDR2 model protocol error".into()));
         }
         let stream_cycles = self.m.cycles - start_cycle;
@@ -1357,8 +1371,8 @@ impl XemHost {
             cycles: self.m.cycles,
             seconds: 0.0,
             status,
-            refresh_collisions: self.m.get(self.p.collisions),
-            refreshes: self.m.get(self.p.refreshes),
+            refresh_collisions: collisions,
+            refreshes,
             overflowed: status & status::OVERFLOWED != 0,
             stage_mismatches: self
                 .probes
@@ -1718,12 +1732,13 @@ pub struct Device {
 }
 
 impl Device {
-    /// Verilates (or loads) a DDR2 configuration and powers it up.
+    /// Verilates (or loads) a shipped configuration's XEM6310 core and
+    /// powers it up.
     pub fn open(spec: DesignSpec) -> Result<Device, HarnessError> {
-        if !spec.ddr() {
+        if !spec.xem() {
             return Err(HarnessError::Design(DesignError::Unsupported {
                 what: format!("{} as a device", spec.config.name()),
-                why: "only the DDR2 configurations are generated with the XEM6310 core".into(),
+                why: "the demo's design is a pipeline without the XEM6310 core".into(),
             }));
         }
         let cosim = Cosim::new(spec)?;

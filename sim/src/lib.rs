@@ -4,10 +4,14 @@
 //! synthesises) is verilated ([`verilator`]), driven from Rust through the
 //! XEM6310 core's FrontPanel endpoint ports (replay pipe-in, mask pipe-in,
 //! packet pipe-out with host stalls, wire-ins, triggers) or its sensor port,
-//! with a behavioural DDR2 controller ([`ddr2`]) verilated beside it (or,
-//! for a design whose delay line is in block RAM, through the pipeline
-//! core's word port, paced by its `ready`), and its
-//! packet bytes compared with the golden model's ([`harness`]). On a
+//! with a behavioural DDR2 controller ([`ddr2`]) verilated beside it for a
+//! DDR2 design and the MCB port parked for a block-RAM one (the demo's
+//! pipeline alone is driven through its word port, paced by its `ready`),
+//! and its packet bytes compared with the golden model's ([`harness`]).
+//! Every configuration that `smartagg hdl generate` ships runs this way, on
+//! its full field (`tests/full_field.rs`, in CI) or on any smaller field of
+//! its sensor, generated and verilated on demand ([`designs::DesignSpec`];
+//! `smartagg cosim --width W --height H`). On a
 //! mismatch a debug build with probes on every stage names the first stage
 //! and bit-plane that differ and writes a VCD around it.
 //!

@@ -1,4 +1,7 @@
-//! The full 320×240 SPCImager 150× field for 2,000 bit-planes, in CI:
+//! Every shipped configuration on its full 320×240 field through its
+//! XEM6310 core, byte for byte against the golden model, in CI.
+//!
+//! The SPCImager 150× field for 2,000 bit-planes:
 //! the Verilated gateware (XEM6310 core, DDR2 delay line) against the
 //! golden model, byte for byte, with the planes fed through the sensor port
 //! at up to a word of P = 16 pixels every clock (10 % of the clocks
@@ -11,7 +14,7 @@
 //! coverage counters, clocks per bit-plane and simulated cycles per second
 //! (speed is printed, never asserted).
 
-use smartagg_hdl::configs::Design;
+use smartagg_hdl::configs::{DelayLineKind, Design};
 use smartagg_model::params::PresetName;
 use smartagg_sim::designs::{Config, DesignSpec, FULL, P};
 use smartagg_sim::harness::{Case, Cosim, Source};
@@ -117,4 +120,105 @@ fn spcimager150_full_field_2000_planes_at_near_a_word_per_clock_equals_the_model
         cpp >= wpp && cpp < source * 1.05 + drain,
         "{cpp:.0} clocks per bit-plane, {wpp} words per bit-plane, {source:.0} at the source's rate, {drain:.0} of drain"
     );
+}
+
+/// A shipped configuration on its full field with its design's register
+/// defaults (the field design's N, T_open, T_hold, END_TRIM, r_assoc;
+/// L_min = 1), `planes` bit-planes of a sparse SMLM scene with two hot
+/// pixels masked, through `source`: the packets must equal the model's byte
+/// for byte. Prints the coverage, clocks per bit-plane and simulated cycles
+/// per second.
+fn shipped_full_field(config: Config, planes: usize, source: Source, seed: u64) {
+    let (w, h) = FULL;
+    let design = config.shipped().expect("the shipped design");
+    assert_eq!(
+        (design.config.front.width, design.config.front.height),
+        FULL,
+        "{}: the sensor's field",
+        config.name()
+    );
+    let spec = DesignSpec::new(config, w, h)
+        .and_then(|s| s.with_r_assoc(design.config.r_assoc))
+        .expect("full-field design");
+    assert_eq!(spec.back().expect("back half"), design.config);
+    assert_eq!(spec.ddr(), design.delay_line == DelayLineKind::Ddr2);
+    let mut c = Cosim::new(spec).expect("verilated full-field design");
+    c.set_sensor_interval(2);
+    let hot = vec![(17, 200), (300, 3)];
+    let scene = SceneSpec {
+        width: w,
+        height: h,
+        planes: planes - QUIET,
+        background: 0.0008,
+        emitters: 40,
+        peak: 0.5,
+        mean_on: 3.0 * design.n_window as f64,
+        mean_off: 4.0 * design.n_window as f64,
+        edge_fraction: 0.15,
+        dip: 0.05,
+        hot: hot.clone(),
+        hot_rate: 0.3,
+    };
+    let mut stream = generate(&scene, seed);
+    stream.extend(generate(
+        &SceneSpec {
+            planes: QUIET,
+            emitters: 0,
+            ..scene.clone()
+        },
+        seed ^ 1,
+    ));
+    let case = Case {
+        hot,
+        mask_enable: true,
+        source,
+        input_stall: 5,
+        read_stall: 20,
+        hold_reads: false,
+        seed,
+        ..Case::design_defaults(&design, stream)
+    };
+    let cov = match c.check(&case).expect("co-simulation ran") {
+        Ok(cov) => cov,
+        Err(m) => panic!("{} full field, {planes} planes: {m}", config.name()),
+    };
+    println!(
+        "{} full field {w}x{h} ({}, N {}, T_open {}, T_hold {}, END_TRIM {}, r_assoc {}), {planes} bit-planes through the {}: {cov}\n  \
+         {:.0} clocks per bit-plane ({} words of P = {P} pixels), {:.3} M simulated clock cycles/s",
+        config.name(),
+        if design.delay_line == DelayLineKind::Ddr2 { "DDR2 delay line" } else { "block-RAM delay line" },
+        case.n,
+        case.threshold,
+        case.hold(),
+        case.end_trim,
+        design.config.r_assoc,
+        match source {
+            Source::Replay => "replay pipe-in",
+            Source::Sensor => "sensor port",
+        },
+        cov.clocks_per_plane(),
+        w * h / P,
+        cov.mcycles_per_second()
+    );
+    assert_eq!(cov.planes as usize, planes);
+    assert!(cov.confirmed_blinks > 0, "confirmed blinks: {cov}");
+    assert!(cov.edge_rois > 0, "edge ROIs: {cov}");
+    if design.delay_line == DelayLineKind::Ddr2 {
+        assert!(cov.refresh_collisions > 0, "DDR2 refresh collisions: {cov}");
+    }
+}
+
+#[test]
+fn spcimager60_full_field_equals_the_model() {
+    shipped_full_field(Config::Spcimager60, 500, Source::Replay, 60);
+}
+
+#[test]
+fn projected150_full_field_equals_the_model() {
+    shipped_full_field(Config::Projected150, 300, Source::Sensor, 150);
+}
+
+#[test]
+fn projected60_full_field_equals_the_model() {
+    shipped_full_field(Config::Projected60, 300, Source::Replay, 61);
 }

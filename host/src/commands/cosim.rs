@@ -25,10 +25,12 @@ pub struct Args {
     /// Scene and host-stall seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Field width (a generated field: 64 for every configuration, 320 for spcimager 150x).
+    /// Field width: any multiple of 16 from 32 up to the sensor's (320);
+    /// the design is generated and verilated for the field on demand, and
+    /// cached (default 64, with height 32).
     #[arg(long, requires = "height")]
     pub width: Option<usize>,
-    /// Field height (32, or 240 with width 320).
+    /// Field height: from the ROI side + 1 up to the sensor's (240).
     #[arg(long, requires = "width")]
     pub height: Option<usize>,
     /// Rolling window N (default: the configuration's N_max, at most 108).
@@ -58,8 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.planes == 0 {
         bail!("--planes must be at least 1");
     }
-    if args.sensor && !spec.ddr() {
-        bail!("--sensor: {} on {w}x{h} is simulated without the XEM6310 core (block-RAM pipeline); its input is the pipeline's word port", config.name());
+    if args.sensor && !spec.xem() {
+        bail!("--sensor: {} on {w}x{h} is simulated without the XEM6310 core; its input is the pipeline's word port", config.name());
     }
     if args.sensor_interval == 0 {
         bail!("--sensor-interval must be at least 1 clock");
@@ -151,7 +153,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "sensor port, a word every {} clock(s)",
                     args.sensor_interval
                 )
-            } else if spec.ddr() {
+            } else if spec.xem() {
                 "replay pipe-in, block-throttled, a word every other clock at most".to_string()
             } else {
                 "the pipeline core's word port, a word on every clock it is ready".to_string()

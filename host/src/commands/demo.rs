@@ -165,10 +165,16 @@ fn gateware_leg(job: GatewareJob) -> anyhow::Result<GatewareLeg> {
         scene,
         cam,
     } = job;
-    use smartagg_sim::designs::{Config, DesignSpec};
+    use smartagg_sim::designs::{DesignSpec, DEMO};
     use smartagg_sim::harness::{Case, Cosim};
     let t = Instant::now();
-    let spec = DesignSpec::new(Config::Spcimager150, field, field)
+    anyhow::ensure!(
+        (field, field) == DEMO,
+        "the demo's gateware is generated for {}x{} pixels, not {field}x{field}",
+        DEMO.0,
+        DEMO.1
+    );
+    let spec = DesignSpec::demo()
         .and_then(|s| s.with_r_assoc(cfg.r_assoc))
         .context("the demo's gateware")?;
     let mut cosim = Cosim::new(spec).context("building the demo's gateware")?;

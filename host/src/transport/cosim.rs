@@ -68,7 +68,7 @@ pub fn open(spec: &str) -> Result<Box<dyn PacketSource>, TransportError> {
         .and_then(|d| d.with_r_assoc(shipped.config.r_assoc))
         .map_err(|e| {
             TransportError::Unavailable(format!(
-                "--source cosim:{spec}: {e}; `smartagg cosim` co-simulates the other configurations on reduced fields"
+                "--source cosim:{spec}: {e}"
             ))
         })?;
     let dev = Device::open(design).map_err(|e| sim_err("building the design", e))?;
