@@ -6,6 +6,7 @@
 # it prints the exact command to run and stops.
 #   pkg-config, libfontconfig1-dev, libfreetype-dev, fonts-dejavu-core: PNG plots
 #   verilator, g++, make: the co-simulation of the generated Verilog
+#   iverilog: the 4-state (Icarus Verilog) run of the XEM6310 core (sim/tests/icarus.rs)
 #   yosys: synthesis figures (`smartagg hdl resources`) and its tests
 #   python3: the second packet decoder, tools/rois.py, and its test (host/tests/python_decoder.rs)
 #   libusb-1.0-0-dev: the USB bulk transport
@@ -13,7 +14,7 @@
 #   libhdf5-dev: Picasso HDF5 tables (`localize --out x.hdf5`, `render x.hdf5`; the hdf5-metno crate links it)
 #   python3-h5py, python3-yaml: reading them back as Picasso does (host/tests/picasso.rs)
 set -euo pipefail
-PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make yosys libusb-1.0-0-dev python3 shellcheck libhdf5-dev python3-h5py python3-yaml)
+PKGS=(pkg-config libfontconfig1-dev libfreetype-dev fonts-dejavu-core verilator g++ make iverilog yosys libusb-1.0-0-dev python3 shellcheck libhdf5-dev python3-h5py python3-yaml)
 missing=()
 for p in "${PKGS[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

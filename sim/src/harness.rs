@@ -1462,7 +1462,7 @@ impl XemHost {
 /// The packet bytes without the pipe-out's end padding: the shortest
 /// prefix (at most 15 zero bytes removed) that decodes cleanly to a stream
 /// ending with StreamEnd.
-fn strip_padding(read: &[u8]) -> Vec<u8> {
+pub fn strip_padding(read: &[u8]) -> Vec<u8> {
     let zeros = read.iter().rev().take(15).take_while(|&&b| b == 0).count();
     for k in (0..=zeros).rev() {
         let cand = &read[..read.len() - k];
