@@ -34,6 +34,7 @@
 
 use smartagg_hdl::blink_tracker::BlinkTracker;
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
+use smartagg_hdl::configs::Spcimager150Xem;
 use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::delay_line_ddr::DelayLineDdr;
@@ -48,7 +49,6 @@ use smartagg_hdl::pipeline::{
 use smartagg_hdl::roi_aggregator::RoiAggregator;
 use smartagg_hdl::spatial_filter::SpatialFilter;
 use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
-use smartagg_hdl::configs::Spcimager150Xem;
 use smartagg_model::params::{Preset, PresetName};
 
 /// Pixel-integrated Gaussian of width `sigma` over k pixels, scaled to 2^a.

@@ -6,13 +6,13 @@
 //! The tools are required: a missing tool fails with an install hint.
 
 use smartagg_hdl::configs::on_generation_stack;
+use smartagg_hdl::configs::Spcimager150Xem;
 use smartagg_hdl::front_half::{
     spcimager150_config, test_front_half_verilog, verilog, Spcimager150FrontHalf,
 };
 use smartagg_hdl::lint_waivers::verilator_config;
 use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
 use smartagg_hdl::synth::{verilator_lint, yosys_resources};
-use smartagg_hdl::configs::Spcimager150Xem;
 use smartagg_hdl::xem6310::TestXem;
 
 fn scratch(name: &str) -> std::path::PathBuf {

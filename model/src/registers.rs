@@ -200,6 +200,102 @@ pub fn kernel_crc(weights: impl IntoIterator<Item = u16>) -> u32 {
     crc32c(&bytes)
 }
 
+/// What the host writes to configure one stream (steps 3 and 4 of the
+/// configuration sequence): the wire-ins and the hot-pixel mask's pipe-in
+/// bytes. The host's `configure` and the co-simulation harness both write
+/// exactly these, so the registers go into the gateware one way only.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StreamRegisters {
+    /// `CONTROL` bit `SOURCE_REPLAY`: bit-planes from pipe-in 0x80.
+    pub source_replay: bool,
+    /// Rolling window N.
+    pub n_window: u32,
+    /// T_int.
+    pub threshold_int: u32,
+    /// T_hold.
+    pub threshold_hold: u32,
+    /// END_TRIM.
+    pub end_trim: u32,
+    /// L_min.
+    pub l_min: u32,
+    /// L_max.
+    pub l_max: u32,
+    /// Bit-plane period, ns.
+    pub plane_period_ns: u32,
+    /// The bytes for pipe-in [`pipe::MASK_IN`] ([`mask_bytes`]); `None`: no
+    /// mask is loaded and `MASK_ENABLE` is clear.
+    pub mask: Option<Vec<u8>>,
+}
+
+impl StreamRegisters {
+    /// The registers of a pipeline configuration (its hot-pixel mask, if
+    /// any, loaded and enabled; planes from the sensor).
+    pub fn of(cfg: &crate::config::PipelineConfig) -> StreamRegisters {
+        StreamRegisters {
+            source_replay: false,
+            n_window: cfg.n_window,
+            threshold_int: cfg.threshold_int,
+            threshold_hold: cfg.threshold_hold,
+            end_trim: cfg.end_trim,
+            l_min: cfg.l_min,
+            l_max: cfg.l_max,
+            plane_period_ns: cfg.plane_period_ns,
+            mask: cfg.hot_mask.as_ref().map(mask_bytes),
+        }
+    }
+
+    /// The `MASKED_PIXELS` value: the pixels the mask's pipe-in bytes mask
+    /// (0 without a mask).
+    pub fn masked_pixels(&self) -> u32 {
+        self.mask.as_deref().map_or(0, masked_pixels_in)
+    }
+
+    /// The wire-in writes (address, value), in address order.
+    pub fn wire_ins(&self) -> [(u8, u32); wire_in::COUNT] {
+        let mut ctl = 0;
+        if self.source_replay {
+            ctl |= control::SOURCE_REPLAY;
+        }
+        if self.mask.is_some() {
+            ctl |= control::MASK_ENABLE;
+        }
+        [
+            (wire_in::CONTROL, ctl),
+            (wire_in::N_WINDOW, self.n_window),
+            (wire_in::THRESHOLD_INT, self.threshold_int),
+            (wire_in::L_MIN, self.l_min),
+            (wire_in::L_MAX, self.l_max),
+            (wire_in::PLANE_PERIOD_NS, self.plane_period_ns),
+            (wire_in::MASKED_PIXELS, self.masked_pixels()),
+            (wire_in::THRESHOLD_HOLD, self.threshold_hold),
+            (wire_in::END_TRIM, self.end_trim),
+        ]
+    }
+}
+
+/// A hot-pixel mask as pipe-in [`pipe::MASK_IN`] takes it: packed like a
+/// bit-plane (W·H bits, raster order, least significant bit first, 1 =
+/// masked), padded to whole bytes.
+pub fn mask_bytes(mask: &crate::hot_pixel_mask::HotPixelMask) -> Vec<u8> {
+    let (w, h) = (mask.width(), mask.height());
+    let mut bytes = vec![0u8; (w * h).div_ceil(8)];
+    for y in 0..h {
+        for x in 0..w {
+            if mask.is_masked(x as i64, y as i64) {
+                let i = y * w + x;
+                bytes[i / 8] |= 1 << (i % 8);
+            }
+        }
+    }
+    bytes
+}
+
+/// How many pixels mask bytes written to pipe-in [`pipe::MASK_IN`] mask: the
+/// set bits (padding is zero).
+pub fn masked_pixels_in(bytes: &[u8]) -> u32 {
+    bytes.iter().map(|b| b.count_ones()).sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -227,5 +323,34 @@ mod tests {
             status::SENSOR_OVERFLOW,
         ];
         assert_eq!(bits.iter().fold(0, |a, b| a | b).count_ones(), 8);
+    }
+
+    #[test]
+    fn stream_registers_write_the_mask_and_its_count() {
+        use crate::config::PipelineConfig;
+        use crate::hot_pixel_mask::HotPixelMask;
+        let mut cfg = PipelineConfig::new(12, 10, 3, vec![1, 2, 1], 2, 8);
+        let plain = StreamRegisters::of(&cfg);
+        assert_eq!(plain.mask, None);
+        assert_eq!(plain.wire_ins()[0], (wire_in::CONTROL, 0));
+        assert_eq!(plain.wire_ins()[6], (wire_in::MASKED_PIXELS, 0));
+        cfg.hot_mask = Some(HotPixelMask::from_pixels(12, 10, &[(0, 0), (11, 9), (3, 4)]).0);
+        let regs = StreamRegisters {
+            source_replay: true,
+            ..StreamRegisters::of(&cfg)
+        };
+        let bytes = regs.mask.clone().unwrap();
+        assert_eq!(bytes.len(), 15);
+        // Pixel (3, 4) is bit 51: byte 6, bit 3; (11, 9) is the last pixel.
+        assert_eq!((bytes[0], bytes[6], bytes[14]), (1, 1 << 3, 1 << 7));
+        let w = regs.wire_ins();
+        for (i, (a, _)) in w.iter().enumerate() {
+            assert_eq!(*a as usize, i);
+        }
+        assert_eq!(w[0].1, control::SOURCE_REPLAY | control::MASK_ENABLE);
+        assert_eq!(w[wire_in::MASKED_PIXELS as usize].1, 3);
+        assert_eq!(w[wire_in::N_WINDOW as usize].1, 3);
+        assert_eq!(w[wire_in::THRESHOLD_INT as usize].1, 8);
+        assert_eq!(masked_pixels_in(&bytes), 3);
     }
 }

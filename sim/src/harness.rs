@@ -3,19 +3,26 @@
 //!
 //! **Host side.** Every shipped configuration is driven as the host drives
 //! the XEM6310 through FrontPanel: RESET, the hot-pixel mask through pipe-in
-//! 0x81, wire-ins, START, the planes through the block-throttled replay
-//! pipe-in 0x80 (or the sensor port's FIFO), STOP, and the packet stream
-//! read in 16-byte blocks from pipe-out 0xA0, with random host stalls on
-//! both pipes (a stalled reader makes the output FIFO overflow). The DDR2
+//! 0x81 (only with MASK_ENABLE), wire-ins, START, the planes through the
+//! block-throttled replay pipe-in 0x80 (or the sensor port's FIFO), STOP,
+//! and the packet stream read in 16-byte blocks from pipe-out 0xA0, with
+//! random host stalls on both pipes (a stalled reader makes the output FIFO
+//! overflow). The wire-ins and the mask bytes are the host's own
+//! ([`StreamRegisters`], which the host's `configure` writes too). The DDR2
 //! designs run with the DDR2 behavioural model on their MCB port; the
 //! block-RAM designs (projected SPCImager) with the port parked. The demo's
 //! design is the pipeline itself, driven word by word with source stalls
 //! and output back-pressure.
 //!
 //! **Comparison.** With no loss the bytes equal the model's exactly. With
-//! output-FIFO overflow they must be the model's records with exactly the
-//! records the Overflow records account for missing, every delivered record
-//! equal to the model's record of the same sequence number (docs/DESIGN.md §3).
+//! output-FIFO overflow the stream is split into packets: every packet but
+//! Overflow byte-identical to the model's packet of the same sequence
+//! number, and every gap covered by exactly one Overflow record with its
+//! exact first number and count ([`compare_lossy`]; docs/DESIGN.md §3). The
+//! StreamStart's MASKED_PIXELS must count the pixels of the mask words
+//! written through pipe-in 0x81. Coverage counts what the gateware
+//! delivered (its packets decoded): every record kind, flag and sequence
+//! wrap.
 //!
 //! **Diagnosis.** On a mismatch the same case runs again on a debug build
 //! whose wrapper exposes every stage's output words (delay line, rolling
@@ -31,9 +38,10 @@ use smartagg_hdl::registers::{control, status, trigger, wire_in, wire_out};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packet::decode_all;
-use smartagg_model::packetiser::encode_stream;
+use smartagg_model::packet::Encoder;
 use smartagg_model::plane::BitPlane;
 use smartagg_model::record::{flags, Record};
+use smartagg_model::registers::StreamRegisters;
 use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -67,7 +75,8 @@ pub struct Case {
     pub l_max: u32,
     /// The bit-planes.
     pub planes: Vec<BitPlane>,
-    /// Hot pixels of the mask (loaded in any case, applied if `mask_enable`).
+    /// Hot pixels of the mask (loaded through pipe-in 0x81 and applied if
+    /// `mask_enable`, as the host sends a mask: [`StreamRegisters`]).
     pub hot: Vec<(usize, usize)>,
     /// MASK_ENABLE.
     pub mask_enable: bool,
@@ -164,6 +173,10 @@ pub struct Outcome {
     pub stage_mismatches: Vec<StageMismatch>,
     /// Calls into the Verilated model and its evaluations.
     pub driver: Counters,
+    /// Pixels the mask words written through pipe-in 0x81 (the block-RAM
+    /// mask's load port) mask, when `MASK_ENABLE` was written; 0 without:
+    /// what the StreamStart's MASKED_PIXELS must say.
+    pub mask_pixels: u32,
 }
 
 /// A pipeline stage with a probe.
@@ -278,6 +291,43 @@ pub struct Coverage {
     /// Blinks that summed no plane (a first segment that ended before its
     /// first plane left the window).
     pub empty_blinks: u64,
+    /// StreamStart records the gateware delivered (its bytes decoded, as
+    /// are all the counters from here to [`Coverage::seq_wraps`]).
+    pub start_records: u64,
+    /// Blink records delivered.
+    pub blink_records: u64,
+    /// Dropped records delivered.
+    pub dropped_records: u64,
+    /// Overflow records delivered.
+    pub overflow_records: u64,
+    /// StreamEnd records delivered.
+    pub end_records: u64,
+    /// Delivered Blinks flagged EDGE.
+    pub flag_edge: u64,
+    /// Delivered Blinks flagged MASKED.
+    pub flag_masked: u64,
+    /// Delivered Blinks flagged TRUNCATED.
+    pub flag_truncated: u64,
+    /// Delivered Blinks flagged CONTINUATION.
+    pub flag_continuation: u64,
+    /// Delivered Blinks flagged PREROLL_CLIPPED.
+    pub flag_preroll_clipped: u64,
+    /// Delivered Blinks cut at L_max (flag CUT).
+    pub lmax_cuts: u64,
+    /// Delivered empty segments (no plane summed) that were cut at L_max
+    /// and continued: the empty segment of a continued blink. (A
+    /// CONTINUATION segment itself always sums a plane under the version-3
+    /// rule, PACKETS.md §8.6; [`Coverage::empty_continuations`] counts any.)
+    pub empty_continued: u64,
+    /// Delivered CONTINUATION segments that summed no plane (0 under the
+    /// version-3 rule).
+    pub empty_continuations: u64,
+    /// Delivered continuations of a cut at the stream's last plane
+    /// (CONTINUATION | TRUNCATED, `t_drop = t_cross − 1`).
+    pub continued_at_last_plane: u64,
+    /// Times the delivered sequence numbers (Overflow ranges included)
+    /// wrapped from 2³² − 1 to 0.
+    pub seq_wraps: u64,
     /// Clock cycles simulated.
     pub cycles: u64,
     /// Clock cycles from START to the end of the stream (of [`Coverage::cycles`]).
@@ -305,6 +355,21 @@ impl Coverage {
         self.cut_segments += o.cut_segments;
         self.truncated_blinks += o.truncated_blinks;
         self.empty_blinks += o.empty_blinks;
+        self.start_records += o.start_records;
+        self.blink_records += o.blink_records;
+        self.dropped_records += o.dropped_records;
+        self.overflow_records += o.overflow_records;
+        self.end_records += o.end_records;
+        self.flag_edge += o.flag_edge;
+        self.flag_masked += o.flag_masked;
+        self.flag_truncated += o.flag_truncated;
+        self.flag_continuation += o.flag_continuation;
+        self.flag_preroll_clipped += o.flag_preroll_clipped;
+        self.lmax_cuts += o.lmax_cuts;
+        self.empty_continued += o.empty_continued;
+        self.empty_continuations += o.empty_continuations;
+        self.continued_at_last_plane += o.continued_at_last_plane;
+        self.seq_wraps += o.seq_wraps;
         self.cycles += o.cycles;
         self.stream_cycles += o.stream_cycles;
         self.seconds += o.seconds;
@@ -331,7 +396,9 @@ impl std::fmt::Display for Coverage {
             f,
             "cases {} planes {} packets {} | confirmed blinks {} bridged dips {} unconfirmed tracks {} \
              slot exhaustion {} output FIFO full {} (records lost {}) DDR2 refresh collisions {} edge ROIs {} \
-             cuts {} truncated {} empty {} | {} cycles in {:.2} s ({:.2} M cycles/s; per clock {:.2} shim calls, {:.2} evals, {:.2} input-combinational passes)",
+             cuts {} truncated {} empty {} | delivered: StreamStart {} Blink {} Dropped {} Overflow {} StreamEnd {}; \
+             EDGE {} MASKED {} TRUNCATED {} CONTINUATION {} PREROLL_CLIPPED {} L_max cuts {} empty continued {} \
+             empty continuations {} continued at the last plane {} sequence wraps {} | {} cycles in {:.2} s ({:.2} M cycles/s; per clock {:.2} shim calls, {:.2} evals, {:.2} input-combinational passes)",
             self.cases,
             self.planes,
             self.packets,
@@ -346,6 +413,21 @@ impl std::fmt::Display for Coverage {
             self.cut_segments,
             self.truncated_blinks,
             self.empty_blinks,
+            self.start_records,
+            self.blink_records,
+            self.dropped_records,
+            self.overflow_records,
+            self.end_records,
+            self.flag_edge,
+            self.flag_masked,
+            self.flag_truncated,
+            self.flag_continuation,
+            self.flag_preroll_clipped,
+            self.lmax_cuts,
+            self.empty_continued,
+            self.empty_continuations,
+            self.continued_at_last_plane,
+            self.seq_wraps,
             self.cycles,
             self.seconds,
             self.cycles as f64 / self.seconds.max(1e-9) / 1e6,
@@ -382,6 +464,10 @@ pub struct Cosim {
     pub vcd_dir: PathBuf,
     trace: Option<PathBuf>,
     sensor_interval: u32,
+    /// Sequence number of the StreamStart (the gateware's `seq_init`).
+    seq_start: u32,
+    /// A wire-in write that replaces the host's (a host bug, for tests).
+    wire_override: Option<(u8, u32)>,
 }
 
 /// How a run goes: which build, probes, VCD window.
@@ -411,6 +497,8 @@ impl Cosim {
                 vcd_dir: PathBuf::new(),
                 trace: None,
                 sensor_interval: 2,
+                seq_start: 0,
+                wire_override: None,
             };
             let case = c.training_case().map_err(|e| e.to_string())?;
             c.run_on(
@@ -435,6 +523,8 @@ impl Cosim {
             vcd_dir,
             trace: None,
             sensor_interval: 2,
+            seq_start: 0,
+            wire_override: None,
         })
     }
 
@@ -453,6 +543,36 @@ impl Cosim {
             vcd_dir,
             trace: None,
             sensor_interval: 2,
+            seq_start: 0,
+            wire_override: None,
+        })
+    }
+
+    /// As [`Cosim::new`] with the gateware's first sequence number (the
+    /// packetiser's `seq_init`, 0 in every shipped design) patched to
+    /// `seq_start` in the generated Verilog, and the model's encoder
+    /// starting there too: sequence numbers that wrap past 2³² − 1 within a
+    /// short stream. A plain build (one compile, no profile, no tracing):
+    /// this Verilog is verilated for the wrap test alone.
+    pub fn with_seq_start(spec: DesignSpec, seq_start: u32) -> Result<Cosim, HarnessError> {
+        let top = patch_seq_init(&spec.top_verilog()?, seq_start)?;
+        let v = spec.cosim_verilog(&top, false)?;
+        let opts = crate::verilator::BuildOptions {
+            profile: false,
+            ..DesignSpec::build_options(false)
+        };
+        let fast = Build::get(&v, &opts).map_err(DesignError::from)?;
+        let vcd_dir = fast.dir.join("vcd");
+        Ok(Cosim {
+            spec,
+            top,
+            fast,
+            debug: None,
+            vcd_dir,
+            trace: None,
+            sensor_interval: 2,
+            seq_start,
+            wire_override: None,
         })
     }
 
@@ -495,32 +615,9 @@ impl Cosim {
         Ok(b)
     }
 
-    /// The model configuration of a case.
+    /// The model configuration of a case ([`model_config`]).
     pub fn model_config(&self, case: &Case) -> Result<PipelineConfig, HarnessError> {
-        let back = self.spec.back()?;
-        let f = &back.front;
-        let mut cfg = PipelineConfig::new(
-            f.width,
-            f.height,
-            case.n,
-            f.kernel.clone(),
-            f.kernel_shift,
-            case.threshold,
-        );
-        cfg.threshold_hold = case.hold();
-        cfg.end_trim = case.end_trim;
-        cfg.slots = back.slots;
-        cfg.roi_size = back.roi_size;
-        cfg.r_assoc = back.r_assoc;
-        cfg.l_min = case.l_min;
-        cfg.l_max = case.l_max;
-        cfg.plane_period_ns = PLANE_PERIOD_NS;
-        if case.mask_enable {
-            cfg.hot_mask = Some(HotPixelMask::from_pixels(f.width, f.height, &case.hot).0);
-        }
-        cfg.validate()
-            .map_err(|e| HarnessError::Model(e.to_string()))?;
-        Ok(cfg)
+        model_config(&self.spec, case)
     }
 
     /// Clocks between the sensor port's words ([`Source::Sensor`], DDR2
@@ -529,6 +626,32 @@ impl Cosim {
     /// W·H/P clocks per bit-plane. (Host stalls skip further opportunities.)
     pub fn set_sensor_interval(&mut self, clocks: u32) {
         self.sensor_interval = clocks.max(1);
+    }
+
+    /// Makes every run write `value` to wire-in `addr` instead of what the
+    /// host's configuration ([`StreamRegisters`]) writes there: a host bug,
+    /// for tests that the harness catches it (`None`: the host's writes).
+    pub fn override_wire_in(&mut self, write: Option<(u8, u32)>) {
+        self.wire_override = write;
+    }
+
+    /// The registers the host writes for a case: the model configuration's
+    /// ([`StreamRegisters::of`], the host's own code), planes from the
+    /// replay pipe-in or the sensor port as the case says.
+    pub fn registers(&self, case: &Case) -> Result<StreamRegisters, HarnessError> {
+        stream_registers(&self.spec, case)
+    }
+
+    /// The model's packet bytes of `records`, numbered from the
+    /// StreamStart's sequence number (0 but for [`Cosim::with_seq_start`]).
+    pub fn encode(&self, records: &[Record]) -> Result<Vec<u8>, HarnessError> {
+        let mut enc = Encoder::starting_at(self.seq_start);
+        let mut out = Vec::new();
+        for r in records {
+            enc.push(r, &mut out)
+                .map_err(|e| HarnessError::Model(e.to_string()))?;
+        }
+        Ok(out)
     }
 
     /// Makes [`Cosim::check`] run the traced debug build and write a VCD
@@ -572,11 +695,20 @@ impl Cosim {
         } else {
             None
         };
+        let mut writes = self.registers(case)?;
+        let mut wire_ins = writes.wire_ins();
+        if let Some((a, v)) = self.wire_override {
+            if let Some(w) = wire_ins.get_mut(a as usize) {
+                w.1 = v;
+            }
+        }
+        // The mask goes in only with MASK_ENABLE, as the host sends it.
+        let mask = writes.mask.take();
         let started = std::time::Instant::now();
         let mut out = if self.spec.xem() {
-            XemHost::new(model, self, case, probes, mode.vcd)?.run(case)?
+            XemHost::new(model, self, case, probes, mode.vcd)?.run(case, &wire_ins, mask)?
         } else {
-            BramHost::new(model, self, case, probes, mode.vcd)?.run(case)?
+            BramHost::new(model, self, case, probes, mode.vcd)?.run(case, &wire_ins, mask)?
         };
         out.seconds = started.elapsed().as_secs_f64();
         Ok(out)
@@ -589,7 +721,7 @@ impl Cosim {
         let cfg = self.model_config(case)?;
         let records = smartagg_model::pipeline::run(cfg, case.planes.clone())
             .map_err(|e| HarnessError::Model(e.to_string()))?;
-        let want = encode_stream(&records).map_err(|e| HarnessError::Model(e.to_string()))?;
+        let want = self.encode(&records)?;
         let out = self.run(case)?;
         let mut cov = coverage_of(&records, case);
         cov.cycles = out.cycles;
@@ -597,6 +729,18 @@ impl Cosim {
         cov.driver = out.driver;
         cov.seconds = out.seconds;
         cov.refresh_collisions = out.refresh_collisions;
+        // The mask's pixel count as the gateware sent it, against the mask
+        // that went in (not against the model, which the registers follow).
+        if let Ok(packets) = split_packets(&out.bytes) {
+            if let Err(detail) = check_masked_pixels(&packets, out.mask_pixels) {
+                return Ok(Err(Mismatch {
+                    stage: Stage::BackHalf,
+                    plane: 0,
+                    detail: format!("registers: {detail}"),
+                    vcd: None,
+                }));
+            }
+        }
         let verdict = if out.bytes == want {
             if out.overflowed {
                 Err("status OVERFLOWED set but every record arrived".to_string())
@@ -604,7 +748,7 @@ impl Cosim {
                 Ok(0)
             }
         } else {
-            compare_lossy(&out.bytes, &records, &want)
+            compare_lossy(&out.bytes, &want)
         };
         match verdict {
             Ok(lost) => {
@@ -612,6 +756,8 @@ impl Cosim {
                     cov.output_fifo_full = 1;
                     cov.records_lost = lost;
                 }
+                let packets = split_packets(&out.bytes).map_err(HarnessError::Gateware)?;
+                cov.add(&delivered_coverage(&packets));
                 Ok(Ok(cov))
             }
             Err(detail) => Ok(Err(self.diagnose(case, &records, detail)?)),
@@ -721,12 +867,53 @@ fn coverage_of(records: &[Record], case: &Case) -> Coverage {
     c
 }
 
-/// Whether `bytes` are the model's records with some missing, every gap
-/// announced by an Overflow record with the exact count, nothing corrupted:
-/// Ok(records lost) or what is wrong.
-pub fn compare_lossy(bytes: &[u8], records: &[Record], want: &[u8]) -> Result<u64, String> {
-    let d = decode_all(bytes);
-    let s = &d.stats;
+/// One packet of a byte stream: its header sequence number, its record and
+/// its bytes (header to CRC).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Framed<'a> {
+    /// Header sequence number (an Overflow's `first_seq`).
+    pub seq: u32,
+    /// The decoded record.
+    pub record: Record,
+    /// The packet's bytes.
+    pub bytes: &'a [u8],
+}
+
+/// Splits a packet stream into its packets, back to back from the first
+/// byte to the last, every one with a valid CRC and payload; or names the
+/// byte at which that fails.
+pub fn split_packets(bytes: &[u8]) -> Result<Vec<Framed<'_>>, String> {
+    use smartagg_model::packet::{decode_frame, CRC_LEN, HEADER_LEN};
+    let mut out = Vec::new();
+    let mut p = 0;
+    while p < bytes.len() {
+        let rest = &bytes[p..];
+        if rest.len() < HEADER_LEN {
+            return Err(format!("byte {p}: {} bytes left, no packet", rest.len()));
+        }
+        let total = HEADER_LEN + u16::from_le_bytes([rest[8], rest[9]]) as usize + CRC_LEN;
+        let frame = rest
+            .get(..total)
+            .ok_or_else(|| format!("byte {p}: a packet of {total} bytes runs past the end"))?;
+        let packet = decode_frame(frame).map_err(|e| format!("byte {p}: {e}"))?;
+        out.push(Framed {
+            seq: packet.seq,
+            record: packet.record,
+            bytes: frame,
+        });
+        p += total;
+    }
+    Ok(out)
+}
+
+/// Whether the gateware's `bytes` are the model's stream `want` with
+/// records lost on the device: split into packets, every packet but
+/// Overflow byte-identical to the model's packet of the same sequence number
+/// (the model's encoding of that record as its own packet), in order, and
+/// every gap covered by exactly one Overflow record with the gap's first
+/// sequence number and count, placed where the gap is (PACKETS.md §5);
+/// nothing else. Ok(records lost) or what is wrong.
+pub fn compare_lossy(bytes: &[u8], want: &[u8]) -> Result<u64, String> {
     let first = bytes.iter().zip(want).position(|(a, b)| a != b);
     let head = format!(
         "byte streams differ ({} bytes vs the model's {}, first difference at byte {:?})",
@@ -734,41 +921,146 @@ pub fn compare_lossy(bytes: &[u8], records: &[Record], want: &[u8]) -> Result<u6
         want.len(),
         first.or(Some(bytes.len().min(want.len())))
     );
-    let bad =
-        s.crc_errors + s.malformed + s.bytes_skipped + s.lost_in_transport + s.truncated_tail_bytes;
-    if bad > 0 {
-        return Err(format!("{head}; corrupt stream: {s:?}"));
+    let got = split_packets(bytes).map_err(|e| format!("{head}; gateware stream: {e}"))?;
+    let model = split_packets(want).map_err(|e| format!("{head}; model stream: {e}"))?;
+    let base = model.first().map_or(0, |p| p.seq);
+    // The model's packet of each sequence number, in order, none Overflow.
+    for (i, m) in model.iter().enumerate() {
+        if matches!(m.record, Record::Overflow(_)) || m.seq != base.wrapping_add(i as u32) {
+            return Err(format!(
+                "{head}; the model's packet {i} is not numbered in order"
+            ));
+        }
     }
-    if s.lost_on_device == 0 {
-        return Err(format!("{head}; no Overflow record accounts for it"));
-    }
-    let mut delivered = 0u64;
-    for p in &d.packets {
-        match &p.record {
-            Record::Overflow(_) => {}
-            r => {
-                if records.get(p.seq as usize) != Some(r) {
+    let index = |seq: u32| seq.wrapping_sub(base) as usize;
+    let mut next = 0usize;
+    let mut lost = 0u64;
+    let mut after_overflow = false;
+    for (k, g) in got.iter().enumerate() {
+        match &g.record {
+            Record::Overflow(o) => {
+                if after_overflow {
+                    return Err(format!("{head}; packet {k}: two Overflow records in a row"));
+                }
+                if index(o.first_seq) != next || o.count == 0 {
                     return Err(format!(
-                        "{head}; record seq {} differs: gateware {r:?}, model {:?}",
-                        p.seq,
-                        records.get(p.seq as usize)
+                        "{head}; packet {k}: Overflow of {} from seq {} where the next record is seq {}",
+                        o.count,
+                        o.first_seq,
+                        base.wrapping_add(next as u32)
                     ));
                 }
-                delivered += 1;
+                next += o.count as usize;
+                lost += o.count as u64;
+                after_overflow = true;
+            }
+            _ => {
+                let i = index(g.seq);
+                if i != next {
+                    return Err(format!(
+                        "{head}; packet {k} has seq {} where seq {} is next (a gap no Overflow record announces, or out of order)",
+                        g.seq,
+                        base.wrapping_add(next as u32)
+                    ));
+                }
+                let m = model.get(i).ok_or_else(|| {
+                    format!(
+                        "{head}; packet {k}: seq {} is past the model's stream",
+                        g.seq
+                    )
+                })?;
+                if g.bytes != m.bytes {
+                    return Err(format!(
+                        "{head}; packet {k} (seq {}) differs from the model's packet: gateware {:?}, model {:?} (bytes {:02x?} vs {:02x?})",
+                        g.seq, g.record, m.record, g.bytes, m.bytes
+                    ));
+                }
+                next += 1;
+                after_overflow = false;
             }
         }
     }
-    if delivered + s.lost_on_device != records.len() as u64 {
+    if next != model.len() || after_overflow {
         return Err(format!(
-            "{head}; {delivered} delivered + {} announced lost != {} model records",
-            s.lost_on_device,
-            records.len()
+            "{head}; the stream accounts for {next} of the model's {} records{}",
+            model.len(),
+            if after_overflow {
+                " and ends with an Overflow record"
+            } else {
+                ""
+            }
         ));
     }
-    if !matches!(d.packets.last().map(|p| &p.record), Some(Record::End(_))) {
-        return Err(format!("{head}; the stream does not end with StreamEnd"));
+    if lost == 0 {
+        return Err(format!("{head}; no Overflow record accounts for it"));
     }
-    Ok(s.lost_on_device)
+    Ok(lost)
+}
+
+/// Counters of what the gateware delivered: its packets (split and decoded
+/// by [`split_packets`]; the `delivered` fields of [`Coverage`]).
+fn delivered_coverage(packets: &[Framed]) -> Coverage {
+    let mut c = Coverage::default();
+    // Sequence numbers unwrapped: each packet's number (an Overflow's
+    // range) follows the previous one's end.
+    let (mut first, mut end) = (None::<u64>, 0u64);
+    for p in packets {
+        let len = match &p.record {
+            Record::Overflow(o) => o.count as u64,
+            _ => 1,
+        };
+        let at = match first {
+            None => {
+                first = Some(p.seq as u64);
+                p.seq as u64
+            }
+            Some(_) => end + (p.seq.wrapping_sub(end as u32)) as u64,
+        };
+        end = at + len;
+        match &p.record {
+            Record::Start(_) => c.start_records += 1,
+            Record::Dropped(_) => c.dropped_records += 1,
+            Record::Overflow(_) => c.overflow_records += 1,
+            Record::End(_) => c.end_records += 1,
+            Record::Blink(b) => {
+                c.blink_records += 1;
+                let has = |f: u8| (b.flags & f != 0) as u64;
+                c.flag_edge += has(flags::EDGE);
+                c.flag_masked += has(flags::MASKED);
+                c.flag_truncated += has(flags::TRUNCATED);
+                c.flag_continuation += has(flags::CONTINUATION);
+                c.flag_preroll_clipped += has(flags::PREROLL_CLIPPED);
+                c.lmax_cuts += has(flags::CUT);
+                let empty = (b.planes_summed == 0) as u64;
+                c.empty_continued += empty * has(flags::CUT);
+                c.empty_continuations += empty * has(flags::CONTINUATION);
+                if b.has(flags::CONTINUATION)
+                    && b.has(flags::TRUNCATED)
+                    && b.t_drop + 1 == b.t_cross
+                {
+                    c.continued_at_last_plane += 1;
+                }
+            }
+        }
+    }
+    if let Some(f) = first {
+        c.seq_wraps = (end.max(f + 1) - 1) / (1 << 32) - f / (1 << 32);
+    }
+    c
+}
+
+/// Whether the StreamStart the gateware sent first says MASKED_PIXELS =
+/// the pixels of the mask loaded through pipe-in 0x81 (0 without
+/// MASK_ENABLE), whatever the registers said.
+fn check_masked_pixels(packets: &[Framed], loaded: u32) -> Result<(), String> {
+    match packets.first().map(|p| &p.record) {
+        Some(Record::Start(s)) if s.masked_pixels == loaded => Ok(()),
+        Some(Record::Start(s)) => Err(format!(
+            "StreamStart says MASKED_PIXELS {} but the mask loaded through pipe-in 0x81 masks {loaded} pixels",
+            s.masked_pixels
+        )),
+        other => Err(format!("the stream does not begin with StreamStart: {other:?}")),
+    }
 }
 
 /// The plane of the first record that differs (its completion plane), for
@@ -1077,6 +1369,8 @@ struct XemHost {
     read_stall: u32,
     hold_reads: bool,
     limit: u64,
+    /// Set bits of the words written to the mask pipe-in.
+    mask_loaded: u32,
 }
 
 struct XemPorts {
@@ -1168,6 +1462,7 @@ impl XemHost {
             read_stall: case.read_stall,
             hold_reads: case.hold_reads,
             limit: 100_000 + (case.planes.len() as u64 + case.n as u64 + 4) * wpp as u64 * 12,
+            mask_loaded: 0,
         };
         let se = h.p.sensor_empty;
         h.sh.set(&mut h.m, se, 1);
@@ -1256,6 +1551,9 @@ impl XemHost {
             }
             for k in 0..4 {
                 let w = block.get(k).copied().unwrap_or(0);
+                if mask {
+                    self.mask_loaded += w.count_ones();
+                }
                 self.sh.set(&mut self.m, write, 1);
                 self.sh.set(&mut self.m, data, w as u64);
                 self.clock();
@@ -1264,15 +1562,18 @@ impl XemHost {
         Ok(())
     }
 
-    fn run(mut self, case: &Case) -> Result<Outcome, HarnessError> {
+    /// Runs a case: RESET, the mask (if the host sends one) through pipe-in
+    /// 0x81, the wire-ins, START, the planes, STOP, the stream read out.
+    fn run(
+        mut self,
+        case: &Case,
+        wire_ins: &[(u8, u32)],
+        mask: Option<Vec<u8>>,
+    ) -> Result<Outcome, HarnessError> {
         self.trigger(trigger::RESET);
-        // The mask, whole blocks (the padding falls past the plane).
-        let (wd, ht) = self.geometry();
-        let (mask, _) = HotPixelMask::from_pixels(wd, ht, &case.hot);
-        let mask_plane = BitPlane::from_fn(wd, ht, |x, y| mask.is_masked(x as i64, y as i64));
-        let mut mw = pipe_words(&[mask_plane]);
-        mw.resize(mw.len().div_ceil(4) * 4, 0);
-        self.write_pipe(true, &mw, 0)?;
+        if let Some(bytes) = mask {
+            self.write_pipe(true, &block_words(&bytes), 0)?;
+        }
         let t0 = self.m.cycles;
         while self.wire_out(wire_out::STATUS) & status::MEM_READY == 0 {
             self.clock();
@@ -1280,30 +1581,19 @@ impl XemHost {
                 return Err(HarnessError::Gateware("DDR2 never calibrated".into()));
             }
         }
-        let ctl = if case.source == Source::Replay {
-            control::SOURCE_REPLAY
-        } else {
-            0
-        } | if case.mask_enable {
-            control::MASK_ENABLE
-        } else {
-            0
-        };
-        let regs = [
-            (wire_in::CONTROL, ctl),
-            (wire_in::N_WINDOW, case.n),
-            (wire_in::THRESHOLD_INT, case.threshold),
-            (wire_in::L_MIN, case.l_min),
-            (wire_in::L_MAX, case.l_max),
-            (wire_in::PLANE_PERIOD_NS, PLANE_PERIOD_NS),
-            (wire_in::MASKED_PIXELS, mask.count() as u32),
-            (wire_in::THRESHOLD_HOLD, case.hold()),
-            (wire_in::END_TRIM, case.end_trim),
-        ];
-        for (a, v) in regs {
-            let i = self.p.wire_in[a as usize];
+        let mut mask_enable = false;
+        for &(a, v) in wire_ins {
+            if a == wire_in::CONTROL {
+                mask_enable = v & control::MASK_ENABLE != 0;
+            }
+            let i = *self
+                .p
+                .wire_in
+                .get(a as usize)
+                .ok_or_else(|| HarnessError::Gateware(format!("no wire-in {a:#04x}")))?;
             self.sh.set(&mut self.m, i, v as u64);
         }
+        let mask_pixels = if mask_enable { self.mask_loaded } else { 0 };
         self.trigger(trigger::START);
         let start_cycle = self.m.cycles;
         let t0 = self.m.cycles;
@@ -1374,6 +1664,7 @@ impl XemHost {
             refresh_collisions: collisions,
             refreshes,
             overflowed: status & status::OVERFLOWED != 0,
+            mask_pixels,
             stage_mismatches: self
                 .probes
                 .as_ref()
@@ -1459,6 +1750,73 @@ impl XemHost {
     }
 }
 
+/// The generated top with the packetiser's first sequence number tied to
+/// `seq_start` instead of 0 (the one assignment `…pkt$seq_init = 32'h0;`).
+pub fn patch_seq_init(top: &str, seq_start: u32) -> Result<String, HarnessError> {
+    let from = "pkt$seq_init = 32'h0;";
+    if top.matches(from).count() != 1 {
+        return Err(HarnessError::Gateware(format!(
+            "the generated top has {} assignments `{from}`, not one",
+            top.matches(from).count()
+        )));
+    }
+    Ok(top.replace(from, &format!("pkt$seq_init = 32'h{seq_start:08x};")))
+}
+
+/// The model configuration of a case on a design: the design's kernel,
+/// slots, ROI side and r_assoc, the case's registers and hot-pixel mask.
+pub fn model_config(spec: &DesignSpec, case: &Case) -> Result<PipelineConfig, HarnessError> {
+    let back = spec.back()?;
+    let f = &back.front;
+    let mut cfg = PipelineConfig::new(
+        f.width,
+        f.height,
+        case.n,
+        f.kernel.clone(),
+        f.kernel_shift,
+        case.threshold,
+    );
+    cfg.threshold_hold = case.hold();
+    cfg.end_trim = case.end_trim;
+    cfg.slots = back.slots;
+    cfg.roi_size = back.roi_size;
+    cfg.r_assoc = back.r_assoc;
+    cfg.l_min = case.l_min;
+    cfg.l_max = case.l_max;
+    cfg.plane_period_ns = PLANE_PERIOD_NS;
+    if case.mask_enable {
+        cfg.hot_mask = Some(HotPixelMask::from_pixels(f.width, f.height, &case.hot).0);
+    }
+    cfg.validate()
+        .map_err(|e| HarnessError::Model(e.to_string()))?;
+    Ok(cfg)
+}
+
+/// The registers the host writes for a case on a design
+/// ([`StreamRegisters::of`] of [`model_config`], the host's own code),
+/// planes from the replay pipe-in or the sensor port as the case says.
+pub fn stream_registers(spec: &DesignSpec, case: &Case) -> Result<StreamRegisters, HarnessError> {
+    Ok(StreamRegisters {
+        source_replay: case.source == Source::Replay,
+        ..StreamRegisters::of(&model_config(spec, case)?)
+    })
+}
+
+/// Pipe-in bytes as 32-bit little-endian words in whole 16-byte blocks
+/// (the end zero-padded), as the block-throttled pipe-ins take them.
+pub fn block_words(bytes: &[u8]) -> Vec<u32> {
+    let mut words: Vec<u32> = bytes
+        .chunks(4)
+        .map(|c| {
+            let mut b = [0u8; 4];
+            b[..c.len()].copy_from_slice(c);
+            u32::from_le_bytes(b)
+        })
+        .collect();
+    words.resize(words.len().div_ceil(4) * 4, 0);
+    words
+}
+
 /// The packet bytes without the pipe-out's end padding: the shortest
 /// prefix (at most 15 zero bytes removed) that decodes cleanly to a stream
 /// ending with StreamEnd.
@@ -1532,37 +1890,56 @@ impl BramHost {
         self.m.tick(1);
     }
 
-    fn run(mut self, case: &Case) -> Result<Outcome, HarnessError> {
+    /// Runs a case: the mask words (zero without a mask) through the load
+    /// port, the registers (the host's wire-ins, by address), start, the
+    /// planes with stalls, stop, the stream popped.
+    fn run(
+        mut self,
+        case: &Case,
+        wire_ins: &[(u8, u32)],
+        mask: Option<Vec<u8>>,
+    ) -> Result<Outcome, HarnessError> {
         let p = crate::designs::P;
         let [load, load_address, load_data] =
             ["load", "load_address", "load_data"].map(|n| self.port(n));
         let (load, load_address, load_data) = (load?, load_address?, load_data?);
-        let (mask, _) = HotPixelMask::from_pixels(self.width, self.height, &case.hot);
+        // The pipe-in's bytes as a plane: pixel i is bit i of the stream.
+        let bytes = mask.unwrap_or_default();
         let mask_plane = BitPlane::from_fn(self.width, self.height, |x, y| {
-            mask.is_masked(x as i64, y as i64)
+            let i = y * self.width + x;
+            bytes.get(i / 8).is_some_and(|b| (b >> (i % 8)) & 1 != 0)
         });
+        let mut loaded = 0;
         for idx in 0..self.wpp {
+            let word = stream_word(&mask_plane, p, idx);
+            loaded += word.count_ones();
             self.sh.set(&mut self.m, load, 1);
             self.sh.set(&mut self.m, load_address, idx as u64);
-            self.sh
-                .set(&mut self.m, load_data, stream_word(&mask_plane, p, idx));
+            self.sh.set(&mut self.m, load_data, word);
             self.clock();
         }
         self.sh.set(&mut self.m, load, 0);
-        for (n, v) in [
-            ("reg_n", case.n as u64),
-            ("reg_threshold", case.threshold as u64),
-            ("reg_threshold_hold", case.hold() as u64),
-            ("reg_end_trim", case.end_trim as u64),
-            ("reg_l_min", case.l_min as u64),
-            ("reg_l_max", case.l_max as u64),
-            ("reg_period", PLANE_PERIOD_NS as u64),
-            ("reg_masked", mask.count() as u64),
-            ("reg_mask_enable", case.mask_enable as u64),
-        ] {
-            let i = self.port(n)?;
-            self.sh.set(&mut self.m, i, v);
+        let mut mask_enable = false;
+        for &(a, v) in wire_ins {
+            let (name, v) = match a {
+                wire_in::CONTROL => {
+                    mask_enable = v & control::MASK_ENABLE != 0;
+                    ("reg_mask_enable", mask_enable as u32)
+                }
+                wire_in::N_WINDOW => ("reg_n", v),
+                wire_in::THRESHOLD_INT => ("reg_threshold", v),
+                wire_in::THRESHOLD_HOLD => ("reg_threshold_hold", v),
+                wire_in::END_TRIM => ("reg_end_trim", v),
+                wire_in::L_MIN => ("reg_l_min", v),
+                wire_in::L_MAX => ("reg_l_max", v),
+                wire_in::PLANE_PERIOD_NS => ("reg_period", v),
+                wire_in::MASKED_PIXELS => ("reg_masked", v),
+                _ => return Err(HarnessError::Gateware(format!("no register {a:#04x}"))),
+            };
+            let i = self.port(name)?;
+            self.sh.set(&mut self.m, i, v as u64);
         }
+        let mask_pixels = if mask_enable { loaded } else { 0 };
         let start = self.port("start")?;
         self.sh.set(&mut self.m, start, 1);
         self.clock();
@@ -1679,6 +2056,7 @@ impl BramHost {
             refresh_collisions: 0,
             refreshes: 0,
             overflowed: self.m.get(overflowed) != 0,
+            mask_pixels,
             stage_mismatches: self
                 .probes
                 .as_ref()
@@ -1777,16 +2155,7 @@ impl Device {
 
     /// Writes the mask pipe-in (whole 16-byte blocks; the end is zero-padded).
     pub fn write_mask(&mut self, bytes: &[u8]) -> Result<(), HarnessError> {
-        let mut words: Vec<u32> = bytes
-            .chunks(4)
-            .map(|c| {
-                let mut b = [0u8; 4];
-                b[..c.len()].copy_from_slice(c);
-                u32::from_le_bytes(b)
-            })
-            .collect();
-        words.resize(words.len().div_ceil(4) * 4, 0);
-        self.host.write_pipe(true, &words, 0)
+        self.host.write_pipe(true, &block_words(bytes), 0)
     }
 
     /// Queues bit-planes for the replay pipe-in (sent while [`Device::run`] runs).
@@ -1838,5 +2207,231 @@ impl Device {
     /// Clocks run.
     pub fn cycles(&self) -> u64 {
         self.host.m.cycles
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use smartagg_model::config::PipelineConfig;
+    use smartagg_model::packet::{crc32c, encode_record, BLINK_FIXED_LEN, HEADER_LEN};
+    use smartagg_model::record::OverflowRecord;
+
+    /// A model stream with a few Blinks: its records and bytes.
+    fn stream() -> (Vec<Record>, Vec<u8>) {
+        let cfg = PipelineConfig::new(24, 12, 3, vec![1, 2, 1], 2, 8);
+        let planes = (0..60).map(|t| {
+            BitPlane::from_fn(24, 12, |x, y| {
+                (t % 12 < 6 && x == 4 + t / 12 * 3 && y == 5) || (t % 12 >= 6 && x == 18 && y == 6)
+            })
+        });
+        let records = smartagg_model::pipeline::run(cfg, planes).unwrap();
+        assert!(
+            records
+                .iter()
+                .filter(|r| matches!(r, Record::Blink(_)))
+                .count()
+                >= 4
+        );
+        let bytes = encode_stream(&records);
+        (records, bytes)
+    }
+
+    fn encode_stream(records: &[Record]) -> Vec<u8> {
+        smartagg_model::packetiser::encode_stream(records).unwrap()
+    }
+
+    /// The packets of `records` (numbered from 0) with records `lost` left
+    /// out and announced by one Overflow record; `replace` swaps in other
+    /// bytes for the packet of one sequence number.
+    fn lossy(
+        records: &[Record],
+        lost: std::ops::Range<u32>,
+        replace: Option<(u32, Vec<u8>)>,
+    ) -> Vec<u8> {
+        let mut out = Vec::new();
+        for (i, r) in records.iter().enumerate() {
+            let seq = i as u32;
+            if seq == lost.start && !lost.is_empty() {
+                let o = Record::Overflow(OverflowRecord {
+                    first_seq: lost.start,
+                    count: lost.len() as u32,
+                });
+                encode_record(&o, lost.start, &mut out).unwrap();
+            }
+            if lost.contains(&seq) {
+                continue;
+            }
+            match &replace {
+                Some((s, b)) if *s == seq => out.extend_from_slice(b),
+                _ => encode_record(r, seq, &mut out).unwrap(),
+            }
+        }
+        out
+    }
+
+    /// A packet re-framed around another payload (length and CRC fixed).
+    fn reframe(packet: &[u8], payload: &[u8]) -> Vec<u8> {
+        let mut p = packet[..HEADER_LEN].to_vec();
+        p[8..10].copy_from_slice(&(payload.len() as u16).to_le_bytes());
+        p.extend_from_slice(payload);
+        let crc = crc32c(&p);
+        p.extend_from_slice(&crc.to_le_bytes());
+        p
+    }
+
+    /// A Rice count block with parameter `k` (PACKETS.md §4).
+    fn rice_block(counts: &[u32], k: u8) -> Vec<u8> {
+        let base = *counts.iter().min().unwrap();
+        let mut out = Vec::new();
+        let mut v = base;
+        loop {
+            let g = (v & 0x7f) as u8;
+            v >>= 7;
+            if v == 0 {
+                out.push(g);
+                break;
+            }
+            out.push(g | 0x80);
+        }
+        out.push(k);
+        let mut bits = Vec::new();
+        for &c in counts {
+            let d = c - base;
+            let q = d >> k;
+            assert!(q < 32, "test counts stay below the escape");
+            bits.extend(std::iter::repeat_n(true, q as usize));
+            bits.push(false);
+            bits.extend((0..k).rev().map(|i| d >> i & 1 != 0));
+        }
+        for chunk in bits.chunks(8) {
+            let mut b = 0u8;
+            for (i, &bit) in chunk.iter().enumerate() {
+                b |= (bit as u8) << (7 - i);
+            }
+            out.push(b);
+        }
+        out
+    }
+
+    #[test]
+    fn compare_lossy_takes_announced_losses_and_refuses_unannounced_ones() {
+        let (records, want) = stream();
+        let n = records.len() as u32;
+        assert_eq!(compare_lossy(&lossy(&records, 2..4, None), &want), Ok(2));
+        // Losses just before StreamEnd.
+        assert_eq!(
+            compare_lossy(&lossy(&records, n - 3..n - 1, None), &want),
+            Ok(2)
+        );
+        // A gap with no Overflow record, a miscounted one, none at all.
+        let mut silent = Vec::new();
+        for (i, r) in records.iter().enumerate() {
+            if i != 2 {
+                encode_record(r, i as u32, &mut silent).unwrap();
+            }
+        }
+        assert!(compare_lossy(&silent, &want).is_err());
+        assert_eq!(compare_lossy(&lossy(&records, 2..5, None), &want), Ok(3));
+        let mut miscounted = Vec::new();
+        for (i, r) in records.iter().enumerate() {
+            if i == 2 {
+                let o = Record::Overflow(OverflowRecord {
+                    first_seq: 2,
+                    count: 3,
+                });
+                encode_record(&o, 2, &mut miscounted).unwrap();
+            }
+            if i != 2 && i != 3 {
+                encode_record(r, i as u32, &mut miscounted).unwrap();
+            }
+        }
+        assert!(compare_lossy(&miscounted, &want).is_err());
+        assert!(
+            compare_lossy(&want, &want).is_err(),
+            "no loss is not a lossy stream"
+        );
+    }
+
+    /// A surviving packet whose bytes differ from the model's but still
+    /// decode with a valid CRC is refused: the same counts Rice-coded with
+    /// another parameter (decoding to the very same record, so a comparison
+    /// of records would pass it), and a count changed and re-encoded.
+    #[test]
+    fn compare_lossy_refuses_a_reencoded_packet_that_still_decodes() {
+        let (records, want) = stream();
+        let packets = split_packets(&want).unwrap();
+        let (i, b) = records
+            .iter()
+            .enumerate()
+            .find_map(|(i, r)| match r {
+                Record::Blink(b) if i > 4 => Some((i, b.clone())),
+                _ => None,
+            })
+            .expect("a Blink after the loss");
+        let model = packets[i].bytes;
+        let fixed = &model[HEADER_LEN..HEADER_LEN + BLINK_FIXED_LEN];
+        let base = *b.counts.iter().min().unwrap();
+        let k = model[HEADER_LEN + BLINK_FIXED_LEN + smartagg_model::rice::varint_len(base)];
+        assert_eq!(
+            k,
+            smartagg_model::rice::choose(&b.counts).1,
+            "the model's k"
+        );
+        // Another Rice parameter: the same record, other bytes.
+        let mut payload = fixed.to_vec();
+        payload.extend(rice_block(&b.counts, k + 1));
+        let recoded = reframe(model, &payload);
+        assert_ne!(recoded, model);
+        let back = smartagg_model::packet::decode_frame(&recoded).expect("it decodes");
+        assert_eq!(back.record, records[i], "the same record");
+        assert_eq!(compare_lossy(&lossy(&records, 1..3, None), &want), Ok(2));
+        let err = compare_lossy(&lossy(&records, 1..3, Some((i as u32, recoded))), &want)
+            .expect_err("a re-encoded packet must be refused");
+        assert!(err.contains(&format!("seq {i}")), "{err}");
+        // A count changed: another record, a valid packet.
+        let mut other = b.clone();
+        other.counts[0] += 1;
+        let mut changed = Vec::new();
+        encode_record(&Record::Blink(other), i as u32, &mut changed).unwrap();
+        assert!(smartagg_model::packet::decode_frame(&changed).is_ok());
+        assert!(compare_lossy(&lossy(&records, 1..3, Some((i as u32, changed))), &want).is_err());
+    }
+
+    #[test]
+    fn delivered_coverage_counts_records_flags_and_wraps() {
+        let (records, _) = stream();
+        let mut bytes = Vec::new();
+        let mut enc = Encoder::starting_at(u32::MAX - 2);
+        for r in &records {
+            enc.push(r, &mut bytes).unwrap();
+        }
+        let packets = split_packets(&bytes).unwrap();
+        let c = delivered_coverage(&packets);
+        assert_eq!((c.start_records, c.end_records, c.seq_wraps), (1, 1, 1));
+        assert_eq!(
+            c.blink_records as usize,
+            records
+                .iter()
+                .filter(|r| matches!(r, Record::Blink(_)))
+                .count()
+        );
+        let plain = delivered_coverage(&split_packets(&want_of(&records)).unwrap());
+        assert_eq!(plain.seq_wraps, 0);
+        // An Overflow whose range crosses the wrap.
+        let mut ovf = Vec::new();
+        encode_record(&records[0], u32::MAX - 1, &mut ovf).unwrap();
+        let o = Record::Overflow(OverflowRecord {
+            first_seq: u32::MAX,
+            count: 3,
+        });
+        encode_record(&o, u32::MAX, &mut ovf).unwrap();
+        encode_record(records.last().unwrap(), 2, &mut ovf).unwrap();
+        let c = delivered_coverage(&split_packets(&ovf).unwrap());
+        assert_eq!((c.overflow_records, c.seq_wraps), (1, 1));
+    }
+
+    fn want_of(records: &[Record]) -> Vec<u8> {
+        encode_stream(records)
     }
 }

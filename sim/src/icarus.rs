@@ -55,13 +55,12 @@
 //! the testbench reports it), and that the bytes are still the model's.
 
 use crate::designs::{DesignError, DesignSpec};
-use crate::harness::{pipe_words, strip_padding, Case, PLANE_PERIOD_NS};
+use crate::harness::{block_words, pipe_words, strip_padding, Case};
 use crate::verilator::{declared_ports, Dir};
-use smartagg_hdl::registers::{control, status, trigger, wire_in, wire_out};
+use smartagg_hdl::registers::{status, trigger, wire_in, wire_out};
 use smartagg_model::config::PipelineConfig;
-use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packetiser::encode_stream;
-use smartagg_model::plane::BitPlane;
+use smartagg_model::registers::StreamRegisters;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -205,39 +204,24 @@ fn cmd(op: u8, a: u8, v: u32) -> u64 {
     (op as u64) << 56 | (a as u64) << 48 | v as u64
 }
 
-/// The model configuration of a case on a design (as the Verilator
-/// harness's `Cosim::model_config` computes it).
+/// The model configuration of a case on a design: the Verilator
+/// harness's ([`crate::harness::model_config`]).
 pub fn model_config(spec: &DesignSpec, case: &Case) -> Result<PipelineConfig, IcarusError> {
-    let back = spec.back()?;
-    let f = &back.front;
-    let mut cfg = PipelineConfig::new(
-        f.width,
-        f.height,
-        case.n,
-        f.kernel.clone(),
-        f.kernel_shift,
-        case.threshold,
-    );
-    cfg.threshold_hold = case.hold();
-    cfg.end_trim = case.end_trim;
-    cfg.slots = back.slots;
-    cfg.roi_size = back.roi_size;
-    cfg.r_assoc = back.r_assoc;
-    cfg.l_min = case.l_min;
-    cfg.l_max = case.l_max;
-    cfg.plane_period_ns = PLANE_PERIOD_NS;
-    if case.mask_enable {
-        cfg.hot_mask = Some(HotPixelMask::from_pixels(f.width, f.height, &case.hot).0);
-    }
-    cfg.validate()
-        .map_err(|e| IcarusError::Model(e.to_string()))?;
-    Ok(cfg)
+    crate::harness::model_config(spec, case).map_err(|e| IcarusError::Model(e.to_string()))
 }
 
 /// The testbench's script for a case (replay source; the case's host
-/// stalls are not played: the host never stalls).
-pub fn commands(spec: &DesignSpec, case: &Case) -> Vec<u64> {
-    let (w, h) = (spec.width, spec.height);
+/// stalls are not played: the host never stalls): the registers and mask
+/// bytes the host writes ([`crate::harness::stream_registers`], the host's
+/// own [`smartagg_model::registers::StreamRegisters`]), the mask only with
+/// MASK_ENABLE, as the host sends it.
+pub fn commands(spec: &DesignSpec, case: &Case) -> Result<Vec<u64>, IcarusError> {
+    let regs = crate::harness::stream_registers(spec, case)
+        .map_err(|e| IcarusError::Model(e.to_string()))?;
+    let regs = StreamRegisters {
+        source_replay: true,
+        ..regs
+    };
     let mut c = vec![cmd(op::TRIGGER, 0, 1 << trigger::RESET)];
     let blocks = |c: &mut Vec<u64>, pipe: u8, words: &[u32]| {
         for block in words.chunks(4) {
@@ -247,27 +231,11 @@ pub fn commands(spec: &DesignSpec, case: &Case) -> Vec<u64> {
             }
         }
     };
-    let (mask, _) = HotPixelMask::from_pixels(w, h, &case.hot);
-    let mask_plane = BitPlane::from_fn(w, h, |x, y| mask.is_masked(x as i64, y as i64));
-    blocks(&mut c, 1, &pipe_words(&[mask_plane]));
+    if let Some(bytes) = &regs.mask {
+        blocks(&mut c, 1, &block_words(bytes));
+    }
     c.push(cmd(op::WAIT, 0, status::MEM_READY));
-    let ctl = control::SOURCE_REPLAY
-        | if case.mask_enable {
-            control::MASK_ENABLE
-        } else {
-            0
-        };
-    for (a, v) in [
-        (wire_in::CONTROL, ctl),
-        (wire_in::N_WINDOW, case.n),
-        (wire_in::THRESHOLD_INT, case.threshold),
-        (wire_in::L_MIN, case.l_min),
-        (wire_in::L_MAX, case.l_max),
-        (wire_in::PLANE_PERIOD_NS, PLANE_PERIOD_NS),
-        (wire_in::MASKED_PIXELS, mask.count() as u32),
-        (wire_in::THRESHOLD_HOLD, case.hold()),
-        (wire_in::END_TRIM, case.end_trim),
-    ] {
+    for (a, v) in regs.wire_ins() {
         c.push(cmd(op::WIRE, a, v));
     }
     c.push(cmd(op::TRIGGER, 0, 1 << trigger::START));
@@ -277,7 +245,7 @@ pub fn commands(spec: &DesignSpec, case: &Case) -> Vec<u64> {
     c.push(cmd(op::TRIGGER, 0, 1 << trigger::STOP));
     c.push(cmd(op::DRAIN, 0, 0));
     c.push(cmd(op::END, 0, 0));
-    c
+    Ok(c)
 }
 
 /// The testbench module `tb` for the wrapper `cosim` in `verilog`: a clock
@@ -573,7 +541,7 @@ pub fn run_verilog(
 ) -> Result<IcarusRun, IcarusError> {
     tool("iverilog")?;
     tool("vvp")?;
-    let cmds = commands(spec, case);
+    let cmds = commands(spec, case)?;
     let wpp = (spec.width * spec.height / crate::designs::P) as u64;
     let limit = 100_000 + (case.planes.len() as u64 + case.n as u64 + 4) * wpp * 12;
     let tb = testbench(verilog, cmds.len(), limit)?;
@@ -709,6 +677,7 @@ pub fn check_verilog(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use smartagg_model::plane::BitPlane;
 
     #[test]
     fn an_x_or_z_byte_is_refused_with_its_offset() {
@@ -733,16 +702,32 @@ mod tests {
     fn the_script_is_the_hosts_sequence() {
         let spec = DesignSpec::new(crate::designs::Config::Spcimager150, 64, 32).unwrap();
         let planes = vec![BitPlane::zeros(64, 32); 3];
-        let case = Case::replay(2, 1, 1, 10, planes);
-        let c = commands(&spec, &case);
-        let ops: Vec<u8> = c.iter().map(|c| (c >> 56) as u8).collect();
-        assert_eq!(c[0], cmd(op::TRIGGER, 0, 1 << trigger::RESET));
-        // 64 mask words and 3·64 plane words, in blocks of four.
-        assert_eq!(
-            ops.iter().filter(|&&o| o == op::BLOCK).count(),
-            (64 + 192) / 4
-        );
-        assert_eq!(ops.iter().filter(|&&o| o == op::DATA).count(), 64 + 192);
-        assert_eq!(&ops[ops.len() - 3..], &[op::TRIGGER, op::DRAIN, op::END]);
+        let plain = Case::replay(2, 1, 1, 10, planes);
+        let masked = Case {
+            hot: vec![(3, 4), (60, 30)],
+            mask_enable: true,
+            ..plain.clone()
+        };
+        for (case, mask_words) in [(plain, 0), (masked, 64)] {
+            let c = commands(&spec, &case).unwrap();
+            let ops: Vec<u8> = c.iter().map(|c| (c >> 56) as u8).collect();
+            assert_eq!(c[0], cmd(op::TRIGGER, 0, 1 << trigger::RESET));
+            // The mask's words (only with MASK_ENABLE) and 3·64 plane
+            // words, in blocks of four.
+            assert_eq!(
+                ops.iter().filter(|&&o| o == op::BLOCK).count(),
+                (mask_words + 192) / 4
+            );
+            assert_eq!(
+                ops.iter().filter(|&&o| o == op::DATA).count(),
+                mask_words + 192
+            );
+            let masked_pixels = c
+                .iter()
+                .find(|&&w| w >> 48 == ((op::WIRE as u64) << 8 | wire_in::MASKED_PIXELS as u64))
+                .map(|w| *w as u32);
+            assert_eq!(masked_pixels, Some(if mask_words > 0 { 2 } else { 0 }));
+            assert_eq!(&ops[ops.len() - 3..], &[op::TRIGGER, op::DRAIN, op::END]);
+        }
     }
 }

@@ -1,12 +1,19 @@
 //! Co-simulation of the generated Verilog against the golden model: random
 //! scenes and registers (proptest, END_TRIM 0 ..= N − 1 included) within
 //! each generated configuration on a reduced 64×32 field, directed cases
-//! for slot exhaustion, output-FIFO overflow and the summation rule's
-//! corners (END_TRIM 0 and N − 1, cuts, the stream end), the sensor port,
-//! and the full 320×240 SPCImager field.
-//! Every case's packet bytes must equal the model's (or, with overflow, be
-//! the model's records with exactly the announced ones missing). Coverage
-//! counters are printed and asserted non-zero per configuration.
+//! for slot exhaustion, output-FIFO overflow, the summation rule's corners
+//! (END_TRIM 0 and N − 1, cuts, the stream end), N = N_max and L_max cuts
+//! on purpose; the sensor port, sequence numbers across the 2³² wrap, a
+//! wrong MASKED_PIXELS count, and the full 320×240 SPCImager field.
+//! Every case's packet bytes must equal the model's (or, with overflow,
+//! every surviving packet the model's packet of its sequence number, every
+//! gap one exact Overflow record). Coverage counters of what the gateware
+//! delivered are printed and asserted non-zero per configuration: each
+//! record kind (Dropped: `burst`; Overflow: `directed` with reads held),
+//! each flag (CONTINUATION, PREROLL_CLIPPED, L_max cuts, the empty
+//! segment continued and the continuation of a cut at the last plane:
+//! `cuts_on_purpose`; EDGE, MASKED, TRUNCATED: random and directed cases);
+//! the sequence wrap in `sequence_numbers_wrap_as_the_model_numbers_them`.
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config as PtConfig, TestCaseError, TestRunner};
@@ -362,6 +369,112 @@ fn empty_first_segment(c: &mut Cosim) -> Coverage {
     total
 }
 
+/// N = N_max, the longest window the design's delay line holds (128 on the
+/// reduced field's DDR2 designs, 24 in the projected design's block RAM;
+/// the random cases stop at N = 40): long blinks over sparse background,
+/// the mask on, host stalls on both pipes.
+fn n_max_case(c: &mut Cosim, seed: u64) -> Coverage {
+    let (w, h) = (c.spec.width, c.spec.height);
+    let n = c.spec.n_max();
+    let p = Params {
+        seed,
+        n,
+        l_min: 2,
+        extra: 40,
+        mask_enable: true,
+        input_stall: 5,
+        read_stall: 10,
+        emitters: 8,
+        background: 0.001,
+        quantile: 0.995,
+        edge: 0.2,
+        hold: 0.8,
+        trim: 0.5,
+    };
+    let spec = SceneSpec {
+        width: w,
+        height: h,
+        planes: n as usize + 200,
+        background: p.background,
+        emitters: p.emitters,
+        peak: 0.5,
+        mean_on: 50.0,
+        mean_off: 80.0,
+        edge_fraction: p.edge,
+        dip: 0.05,
+        hot: vec![(9, 9)],
+        hot_rate: 0.3,
+    };
+    let case = case_of(c, generate(&spec, seed), vec![(9, 9)], &p, Source::Replay);
+    let cov = check(c, &case).unwrap_or_else(|e| panic!("N = N_max = {n}: {e}"));
+    assert!(cov.blink_records > 0, "N = N_max = {n}: no Blink: {cov}");
+    cov
+}
+
+/// L_max cuts on purpose, with END_TRIM 0 and N − 1: N = L_max = 6 and
+/// 36 planes. Blob A is on from plane 0 to the end with a hot pixel in its
+/// ROI (mask on): its first segment is PREROLL_CLIPPED, cut at N − 1 and
+/// empty; it is cut every 6 planes, the last time at the last plane, so
+/// its last continuation is the continuation of a cut at the last plane
+/// (TRUNCATED, `t_drop = t_cross − 1`). Blob B, on in planes 3 ..= 20,
+/// opens at plane 3 < N (PREROLL_CLIPPED, not empty), is cut twice and its
+/// last continuation drops.
+fn cuts_on_purpose(c: &mut Cosim) -> Coverage {
+    let (w, h) = (c.spec.width, c.spec.height);
+    let n = 6;
+    let hot = vec![(21, 13)];
+    let planes = cut_planes(w, h);
+    let mut total = Coverage::default();
+    for end_trim in [0, n - 1] {
+        let mut case = Case {
+            hot: hot.clone(),
+            mask_enable: true,
+            end_trim,
+            input_stall: 10,
+            read_stall: 10,
+            ..Case::replay(n, 1, 1, n, planes.clone())
+        };
+        case.threshold = crossing_at_plane_0(c, &case);
+        let cov = check(c, &case).unwrap_or_else(|e| panic!("END_TRIM {end_trim}: {e}"));
+        assert!(
+            cov.lmax_cuts >= 8
+                && cov.flag_continuation >= 7
+                && cov.empty_continued == 1
+                && cov.continued_at_last_plane == 1
+                && cov.flag_preroll_clipped >= 2
+                && cov.flag_masked >= 6
+                && cov.flag_truncated >= 1,
+            "END_TRIM {end_trim}: {cov}"
+        );
+        // Under the version-3 rule (PACKETS.md §8.6) a continuation sums
+        // from `t_cross − N ≥ 0` to at least `t_cross − 1`: never empty.
+        assert_eq!(cov.empty_continuations, 0, "END_TRIM {end_trim}: {cov}");
+        total.add(&cov);
+    }
+    total
+}
+
+/// The planes of [`cuts_on_purpose`]: two solid 5×5 blobs.
+fn cut_planes(w: usize, h: usize) -> Vec<BitPlane> {
+    (0..36)
+        .map(|t| {
+            BitPlane::from_fn(w, h, |x, y| {
+                let a = (18..23).contains(&x) && (10..15).contains(&y);
+                let b = (3..=20).contains(&t) && (40..45).contains(&x) && (10..15).contains(&y);
+                a || b
+            })
+        })
+        .collect()
+}
+
+/// T_int = the largest H of plane 0: a solid blob on from plane 0 crosses
+/// there, and one that lights up later crosses at its first plane.
+fn crossing_at_plane_0(c: &Cosim, case: &Case) -> u32 {
+    let mut model = Pipeline::new(c.model_config(case).unwrap()).unwrap();
+    model.push_plane(&case.planes[0]).unwrap();
+    model.filtered().iter().copied().max().unwrap()
+}
+
 fn run_configuration(config: Config, seed: u64) -> Coverage {
     let spec = DesignSpec::new(config, REDUCED.0, REDUCED.1).unwrap();
     let (ddr, n_max) = (spec.ddr(), spec.n_max());
@@ -398,6 +511,8 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     total.add(&directed(c, seed ^ 2, true));
     total.add(&burst(c, seed ^ 3));
     total.add(&trim_corners(c, seed ^ 4));
+    total.add(&n_max_case(c, seed ^ 5));
+    total.add(&cuts_on_purpose(c));
     println!("{}: {total}", config.name());
     assert!(total.planes >= 6_000, "{total}");
     assert!(total.confirmed_blinks > 0, "confirmed blinks: {total}");
@@ -408,6 +523,36 @@ fn run_configuration(config: Config, seed: u64) -> Coverage {
     assert!(total.edge_rois > 0, "edge ROIs: {total}");
     assert!(total.cut_segments > 0, "cut segments: {total}");
     assert!(total.truncated_blinks > 0, "truncated blinks: {total}");
+    // What the gateware delivered (its bytes decoded): every record kind
+    // and flag. Sequence wraps: `sequence_numbers_wrap_as_the_model_numbers_them`.
+    for (what, count) in [
+        ("StreamStart records", total.start_records),
+        ("Blink records", total.blink_records),
+        ("Dropped records (burst)", total.dropped_records),
+        ("Overflow records (held reads)", total.overflow_records),
+        ("StreamEnd records", total.end_records),
+        ("EDGE", total.flag_edge),
+        ("MASKED", total.flag_masked),
+        ("TRUNCATED", total.flag_truncated),
+        ("CONTINUATION (cuts on purpose)", total.flag_continuation),
+        (
+            "PREROLL_CLIPPED (cuts on purpose)",
+            total.flag_preroll_clipped,
+        ),
+        ("L_max cuts (cuts on purpose)", total.lmax_cuts),
+        (
+            "empty segments continued (cuts on purpose)",
+            total.empty_continued,
+        ),
+        (
+            "continuations of a cut at the last plane (cuts on purpose)",
+            total.continued_at_last_plane,
+        ),
+    ] {
+        assert!(count > 0, "{}: no {what} delivered: {total}", config.name());
+    }
+    assert_eq!(total.start_records, total.cases, "{total}");
+    assert_eq!(total.end_records, total.cases, "{total}");
     if ddr {
         assert!(
             total.refresh_collisions > 0,
@@ -521,4 +666,94 @@ fn spcimager150_full_field_equals_the_model() {
     );
     assert_eq!(cov.planes as usize, full_planes());
     assert!(cov.confirmed_blinks > 0, "{cov}");
+}
+
+/// Sequence numbers that wrap: the projected design's Verilog with the
+/// packetiser's first number patched to 2³² − 5 (a plain build of its own;
+/// 2³² records cannot be simulated) against the model's encoder starting
+/// there, byte for byte; then with reads held, so that records are lost
+/// and announced by Overflow records numbered across the wrap. The model's
+/// decoder agrees: the wrap is no gap (its only complaint is the stream's
+/// first number, which is not 0).
+#[test]
+fn sequence_numbers_wrap_as_the_model_numbers_them() {
+    use smartagg_model::packet::decode_all;
+    let spec = DesignSpec::new(Config::Projected150, REDUCED.0, REDUCED.1).unwrap();
+    let start = u32::MAX - 4;
+    let mut c = Cosim::with_seq_start(spec, start).unwrap();
+    let (w, h) = (c.spec.width, c.spec.height);
+    let mut case = Case {
+        hot: vec![(21, 13)],
+        mask_enable: true,
+        read_stall: 20,
+        ..Case::replay(6, 1, 1, 6, cut_planes(w, h))
+    };
+    case.threshold = crossing_at_plane_0(&c, &case);
+    let cov = check(&mut c, &case).unwrap_or_else(|e| panic!("{e}"));
+    println!("wrap, no loss: {cov}");
+    assert_eq!((cov.seq_wraps, cov.records_lost), (1, 0), "{cov}");
+    assert!(cov.packets > 6, "{cov}");
+    let out = c.run(&case).unwrap();
+    let d = decode_all(&out.bytes);
+    let seqs: Vec<u32> = d.packets.iter().map(|p| p.seq).collect();
+    assert_eq!(seqs[0], start);
+    assert!(
+        seqs.windows(2).all(|s| s[1] == s[0].wrapping_add(1)),
+        "{seqs:?}"
+    );
+    assert!(seqs.contains(&u32::MAX) && seqs.contains(&0), "{seqs:?}");
+    assert_eq!(
+        (
+            d.stats.out_of_order,
+            d.stats.lost_in_transport,
+            d.stats.lost_on_device
+        ),
+        (1, 0, 0),
+        "{}",
+        d.stats
+    );
+    // Losses across the wrap.
+    let lossy = directed(&mut c, 91, true);
+    println!("wrap, held reads: {lossy}");
+    assert!(
+        lossy.seq_wraps == 1 && lossy.overflow_records > 0 && lossy.records_lost > 0,
+        "{lossy}"
+    );
+}
+
+/// The mask goes in the host's way (the model's `StreamRegisters`, the
+/// host's own code) and the StreamStart's MASKED_PIXELS is checked against
+/// the pixels of the mask words actually written through pipe-in 0x81: a
+/// MASKED_PIXELS register one off (a host bug) is caught and named.
+#[test]
+fn a_wrong_masked_pixels_count_is_caught() {
+    let spec = DesignSpec::new(Config::Spcimager150, REDUCED.0, REDUCED.1).unwrap();
+    let mut c = Cosim::new(spec).unwrap();
+    let (w, h) = (c.spec.width, c.spec.height);
+    let hot = vec![(21, 13), (3, 4), (60, 30)];
+    let mut case = Case {
+        hot: hot.clone(),
+        mask_enable: true,
+        ..Case::replay(6, 1, 1, 6, cut_planes(w, h))
+    };
+    case.threshold = crossing_at_plane_0(&c, &case);
+    let regs = c.registers(&case).unwrap();
+    assert_eq!(regs.masked_pixels(), 3);
+    let cov = check(&mut c, &case).unwrap_or_else(|e| panic!("{e}"));
+    assert!(cov.flag_masked > 0, "{cov}");
+    c.override_wire_in(Some((smartagg_model::registers::wire_in::MASKED_PIXELS, 4)));
+    let m = c
+        .check(&case)
+        .unwrap()
+        .expect_err("a wrong MASKED_PIXELS must be caught");
+    println!("{m}");
+    assert!(
+        m.detail.contains("MASKED_PIXELS 4") && m.detail.contains("masks 3 pixels"),
+        "{m}"
+    );
+    // Without MASK_ENABLE the host sends no mask and the count is 0.
+    c.override_wire_in(None);
+    case.mask_enable = false;
+    assert_eq!(c.registers(&case).unwrap().mask, None);
+    check(&mut c, &case).unwrap_or_else(|e| panic!("{e}"));
 }

@@ -66,11 +66,7 @@ pub fn open(spec: &str) -> Result<Box<dyn PacketSource>, TransportError> {
         .map_err(|e| sim_err("the shipped design", e))?;
     let design = DesignSpec::new(config, FULL.0, FULL.1)
         .and_then(|d| d.with_r_assoc(shipped.config.r_assoc))
-        .map_err(|e| {
-            TransportError::Unavailable(format!(
-                "--source cosim:{spec}: {e}"
-            ))
-        })?;
+        .map_err(|e| TransportError::Unavailable(format!("--source cosim:{spec}: {e}")))?;
     let dev = Device::open(design).map_err(|e| sim_err("building the design", e))?;
     Ok(Box::new(CosimSource {
         dev,

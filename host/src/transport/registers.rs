@@ -33,7 +33,8 @@ use smartagg_model::packet::VERSION as PACKET_VERSION;
 use smartagg_model::record::StreamStart;
 
 pub use smartagg_model::registers::{
-    control, pipe, status, trigger, wire_in, wire_out, PIPE_BLOCK_BYTES, REGISTER_MAP_VERSION,
+    control, pipe, status, trigger, wire_in, wire_out, StreamRegisters, PIPE_BLOCK_BYTES,
+    REGISTER_MAP_VERSION,
 };
 
 /// The vendor control requests of the plain-USB (bulk) firmware, which give
@@ -112,18 +113,10 @@ impl DeviceConfig {
             .map_err(|e| TransportError::Config(e.to_string()))?;
         // validate() bounds every field below to its register width.
         let start = cfg.stream_start();
-        let hot_mask = cfg.hot_mask.as_ref().map(|m| {
-            let mut bytes = vec![0u8; (m.width() * m.height()).div_ceil(8)];
-            for y in 0..m.height() {
-                for x in 0..m.width() {
-                    if m.is_masked(x as i64, y as i64) {
-                        let i = y * m.width() + x;
-                        bytes[i / 8] |= 1 << (i % 8);
-                    }
-                }
-            }
-            bytes
-        });
+        let hot_mask = cfg
+            .hot_mask
+            .as_ref()
+            .map(smartagg_model::registers::mask_bytes);
         Ok(DeviceConfig {
             n_window: start.n_window,
             threshold_int: start.threshold_int,
@@ -165,23 +158,27 @@ impl DeviceConfig {
         }
     }
 
-    /// The wire-in values, in address order.
-    pub fn wire_ins(&self) -> [(u8, u32); wire_in::COUNT] {
-        let mut ctl = 0;
-        if self.hot_mask.is_some() {
-            ctl |= control::MASK_ENABLE;
+    /// The runtime registers and the mask, as the host writes them (the
+    /// model's [`StreamRegisters`], which the co-simulation harness writes
+    /// too; planes from the sensor).
+    pub fn stream_registers(&self) -> StreamRegisters {
+        StreamRegisters {
+            source_replay: false,
+            n_window: self.n_window,
+            threshold_int: self.threshold_int,
+            threshold_hold: self.threshold_hold,
+            end_trim: self.end_trim,
+            l_min: self.l_min,
+            l_max: self.l_max,
+            plane_period_ns: self.plane_period_ns,
+            mask: self.hot_mask.clone(),
         }
-        [
-            (wire_in::CONTROL, ctl),
-            (wire_in::N_WINDOW, self.n_window),
-            (wire_in::THRESHOLD_INT, self.threshold_int),
-            (wire_in::L_MIN, self.l_min),
-            (wire_in::L_MAX, self.l_max),
-            (wire_in::PLANE_PERIOD_NS, self.plane_period_ns),
-            (wire_in::MASKED_PIXELS, self.masked_pixels),
-            (wire_in::THRESHOLD_HOLD, self.threshold_hold),
-            (wire_in::END_TRIM, self.end_trim),
-        ]
+    }
+
+    /// The wire-in values, in address order ([`StreamRegisters::wire_ins`]:
+    /// `MASKED_PIXELS` counts the pixels of the mask bytes written).
+    pub fn wire_ins(&self) -> [(u8, u32); wire_in::COUNT] {
+        self.stream_registers().wire_ins()
     }
 }
 
