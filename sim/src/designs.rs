@@ -715,7 +715,7 @@ mod tests {
         assert!(2 * bits <= smartagg_hdl::configs::XC6SLX45.block_ram_bits());
         let v = spec.top_verilog().unwrap();
         assert!(v.contains("module top"));
-        assert!(spec.xem() == false && spec.slots() == DEMO_SLOTS);
+        assert!(!spec.xem() && spec.slots() == DEMO_SLOTS);
         assert!(spec.with_r_assoc(17).is_err());
     }
 }
