@@ -8,9 +8,9 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{spcimager, Camera, Preset, PresetName, SceneLight, SpadCamera};
 use smartagg_model::recording::{pack_plane, BitOrder, RecordingWriter};
-use smartagg_io::stack::StackWriter;
 use smartagg_scene::{Blinking, Layout, OnTime, Scene, ScmosSimulator, SpadMaps, SpadSimulator};
 
 const W: u32 = 16;

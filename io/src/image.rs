@@ -155,7 +155,10 @@ mod tests {
         assert_eq!((img.width, img.height), (3, 2));
         assert_eq!(img.samples, Samples::F32(f.clone()));
         assert_eq!(
-            tag(&bytes, Tag::ImageDescription).unwrap().into_string().unwrap(),
+            tag(&bytes, Tag::ImageDescription)
+                .unwrap()
+                .into_string()
+                .unwrap(),
             "a map (unit): what"
         );
         let b = vec![0u8, 1, 2, 4, 8, 16];
@@ -176,8 +179,14 @@ mod tests {
         let mut buf = Cursor::new(Vec::new());
         write_f32_calibrated(&mut buf, 2, 2, &[1.0, 2.0, 3.0, 4.0], 12.5).unwrap();
         let bytes = buf.into_inner();
-        let desc = tag(&bytes, Tag::ImageDescription).unwrap().into_string().unwrap();
-        assert!(desc.starts_with("ImageJ=") && desc.contains("unit=nm"), "{desc}");
+        let desc = tag(&bytes, Tag::ImageDescription)
+            .unwrap()
+            .into_string()
+            .unwrap();
+        assert!(
+            desc.starts_with("ImageJ=") && desc.contains("unit=nm"),
+            "{desc}"
+        );
         match tag(&bytes, Tag::XResolution).unwrap() {
             tiff::decoder::ifd::Value::Rational(n, d) => assert_eq!((n, d), (1000, 12_500)),
             v => panic!("{v:?}"),
@@ -191,14 +200,20 @@ mod tests {
         let mut buf = Cursor::new(Vec::new());
         crate::stack::write_stack(&mut buf, 1, 1, &[vec![1], vec![2]]).unwrap();
         let e = read_image(Cursor::new(buf.into_inner()), "two.tif").unwrap_err();
-        assert_eq!(e.to_string(), "two.tif: has more than one page; an image has one");
+        assert_eq!(
+            e.to_string(),
+            "two.tif: has more than one page; an image has one"
+        );
         let e = read_image(Cursor::new(b"II*\0garbage".to_vec()), "g").unwrap_err();
         assert!(e.to_string().starts_with("g: "), "{e}");
         let mut buf = Cursor::new(Vec::new());
         write_f32(&mut buf, 8, 8, &[0.5; 64]).unwrap();
         let bytes = buf.into_inner();
         for cut in 0..bytes.len() {
-            assert!(read_image(Cursor::new(&bytes[..cut]), "cut").is_err(), "cut {cut}");
+            assert!(
+                read_image(Cursor::new(&bytes[..cut]), "cut").is_err(),
+                "cut {cut}"
+            );
         }
     }
 }

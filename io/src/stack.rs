@@ -415,7 +415,10 @@ mod tests {
                     w.write_frame(f).unwrap();
                 }
                 let e = w.write_frame(&[1, 2]).unwrap_err();
-                assert!(matches!(e.kind, ErrorKind::DataSize { found: 2, .. }), "{e}");
+                assert!(
+                    matches!(e.kind, ErrorKind::DataSize { found: 2, .. }),
+                    "{e}"
+                );
                 assert_eq!(w.frames(), 3);
             }
             let mut r = StackReader::new(Cursor::new(buf.into_inner()), "mem").unwrap();
@@ -478,14 +481,20 @@ mod tests {
     #[test]
     fn garbage_and_truncated_files_give_errors_not_panics() {
         let e = StackReader::new(Cursor::new(b"hello, world".to_vec()), "junk").unwrap_err();
-        assert!(e.to_string().starts_with("junk: not a readable TIFF file"), "{e}");
+        assert!(
+            e.to_string().starts_with("junk: not a readable TIFF file"),
+            "{e}"
+        );
         let mut buf = Cursor::new(Vec::new());
         write_stack(&mut buf, 4, 3, &[vec![5; 12], vec![6; 12]]).unwrap();
         let bytes = buf.into_inner();
         for cut in 0..bytes.len() {
             if let Ok(r) = StackReader::new(Cursor::new(bytes[..cut].to_vec()), "cut") {
                 let read: Vec<_> = r.collect();
-                assert!(read.iter().any(Result::is_err) || read.len() < 2, "cut {cut}");
+                assert!(
+                    read.iter().any(Result::is_err) || read.len() < 2,
+                    "cut {cut}"
+                );
             }
         }
         let e = open_stack(Path::new("/nonexistent/absent.tif")).unwrap_err();

@@ -3,11 +3,11 @@
 //! `smartagg-io`'s, tested there).
 
 use rand::SeedableRng;
+use smartagg_localize::export::{roi_pages, RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_frame, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::render::{render, to_png, Point, RenderOptions};
 use smartagg_localize::table::{CsvTable, LocTable, Localization};
-use smartagg_localize::export::{roi_pages, RoiLayout, RoiPage};
 use smartagg_localize::{synth, Estimator, FitOptions, FitStatus, SigmaMode};
 use std::io::Cursor;
 

@@ -6,12 +6,12 @@
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use smartagg_io::stack::Frame;
 use smartagg_localize::frames::{
     localize_batch, localize_frame, Conversion, FramePipeline, MIN_SIDE,
 };
 use smartagg_localize::stackbench::{score_stack, simulate_stack, StackScenario};
 use smartagg_localize::synth::{expected_frame, poisson};
-use smartagg_io::stack::Frame;
 use smartagg_localize::{Estimator, FitOptions, LocalizeError, SigmaMode};
 
 const PIXEL_NM: f64 = 100.0;

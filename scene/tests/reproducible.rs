@@ -1,8 +1,8 @@
 //! Seeds reproduce bit-identical output; different seeds differ.
 
+use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::recording::{BitOrder, RecordingWriter};
-use smartagg_io::stack::StackWriter;
 use smartagg_scene::{truth, EmccdSimulator, Scene, ScmosSimulator, SpadSimulator};
 
 fn spad_bytes(seed: u64) -> (Vec<u8>, Vec<u8>) {

@@ -1124,7 +1124,10 @@ fn tiff_stacks_are_read_page_by_page_and_bad_pages_are_named() {
     let e = read(&stack("mixed.tif", &[(3, 2, false), (4, 4, false)]))
         .unwrap_err()
         .to_string();
-    assert!(e.contains("page 2 is 4x4 pixels, but the first page is 3x2"), "{e}");
+    assert!(
+        e.contains("page 2 is 4x4 pixels, but the first page is 3x2"),
+        "{e}"
+    );
     let e = read(&stack("bytes.tif", &[(3, 2, false), (3, 2, true)]))
         .unwrap_err()
         .to_string();

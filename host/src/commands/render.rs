@@ -207,8 +207,14 @@ fn read_hdf5(args: &Args) -> anyhow::Result<Read> {
 fn tiff_file(target: &Path, img: &Image) -> anyhow::Result<AtomicFile> {
     smartagg_localize::error::check_option("pixel-nm", img.pixel_nm, 1e-3, 1e6)?;
     let mut out = BufWriter::new(AtomicFile::create(target)?);
-    smartagg_io::image::write_f32_calibrated(&mut out, img.width, img.height, &img.data, img.pixel_nm)
-        .with_context(|| format!("writing {}", target.display()))?;
+    smartagg_io::image::write_f32_calibrated(
+        &mut out,
+        img.width,
+        img.height,
+        &img.data,
+        img.pixel_nm,
+    )
+    .with_context(|| format!("writing {}", target.display()))?;
     out.into_inner()
         .map_err(|e| e.into_error())
         .with_context(|| format!("writing {}", target.display()))
@@ -405,7 +411,11 @@ mod tests {
             ..defaults()
         })
         .unwrap();
-        let f = smartagg_io::stack::open_stack(&tif).unwrap().next().unwrap().unwrap();
+        let f = smartagg_io::stack::open_stack(&tif)
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap();
         let total: f64 = f.data.iter().sum();
         assert!((total - 3.0).abs() < 1e-3, "{total}");
     }

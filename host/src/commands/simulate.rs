@@ -25,13 +25,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{
     check_non_negative, check_positive, check_range, fmt_num, Camera, Preset, PresetName,
     MAX_BACKGROUND_PER_UM2_HZ, MAX_FLUX_HZ, MAX_FRAME_PERIOD_S,
 };
 use smartagg_model::plane::BitPlane;
 use smartagg_model::recording::{pack_plane, plane_bytes, BitOrder, RecordingWriter};
-use smartagg_io::stack::StackWriter;
 use smartagg_scene::{
     truth, Blinking, DriftTrajectory, EmccdSimulator, Frame, Layout, OnTime, Scene, ScmosSimulator,
     SpadSimulator,

@@ -31,11 +31,11 @@ use crate::setup;
 use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
+use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::spad::{fit_binomial, SpadRoi};
 use smartagg_localize::table::{LocTable, Localization};
-use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::{
     fit_roi, Estimator, FitOptions, FitStatus, HotPixelMode, NoiseModel, PixelMaps, RoiView,
     SigmaMode,
@@ -750,7 +750,8 @@ mod tests {
             })
             .collect();
         let input = dir.path().join("frames.tif");
-        smartagg_io::stack::write_stack(smartagg_io::stack::create(&input).unwrap(), w, h, &frames).unwrap();
+        smartagg_io::stack::write_stack(smartagg_io::stack::create(&input).unwrap(), w, h, &frames)
+            .unwrap();
         let out = dir.path().join("f.csv");
         let mut a = args(&input, &out);
         a.estimator = EstimatorArg::Mle;
