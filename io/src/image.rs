@@ -92,29 +92,34 @@ pub fn write_described<W: Write + Seek>(
     pixels: Pixels,
     description: &str,
 ) -> Result<(), Error> {
-    let mut enc = TiffEncoder::new(writer).map_err(write_err)?;
     match pixels {
         Pixels::F32(v) => {
-            check_len(OUTPUT, v.len(), width, height)?;
-            let mut img = enc
-                .new_image::<colortype::Gray32Float>(width, height)
-                .map_err(write_err)?;
-            img.encoder()
-                .write_tag(Tag::ImageDescription, description)
-                .map_err(write_err)?;
-            img.write_data(v).map_err(write_err)
+            write_tagged::<colortype::Gray32Float, W>(writer, width, height, v, description)
         }
-        Pixels::U8(v) => {
-            check_len(OUTPUT, v.len(), width, height)?;
-            let mut img = enc
-                .new_image::<colortype::Gray8>(width, height)
-                .map_err(write_err)?;
-            img.encoder()
-                .write_tag(Tag::ImageDescription, description)
-                .map_err(write_err)?;
-            img.write_data(v).map_err(write_err)
-        }
+        Pixels::U8(v) => write_tagged::<colortype::Gray8, W>(writer, width, height, v, description),
     }
+}
+
+/// One page of colour type `C` with an ImageDescription.
+fn write_tagged<C, W>(
+    writer: W,
+    width: u32,
+    height: u32,
+    data: &[C::Inner],
+    description: &str,
+) -> Result<(), Error>
+where
+    C: colortype::ColorType,
+    [C::Inner]: tiff::encoder::TiffValue,
+    W: Write + Seek,
+{
+    check_len(OUTPUT, data.len(), width, height)?;
+    let mut enc = TiffEncoder::new(writer).map_err(write_err)?;
+    let mut img = enc.new_image::<C>(width, height).map_err(write_err)?;
+    img.encoder()
+        .write_tag(Tag::ImageDescription, description)
+        .map_err(write_err)?;
+    img.write_data(data).map_err(write_err)
 }
 
 /// Reads a single-page greyscale image of any sample type (`name` is for
