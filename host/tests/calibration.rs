@@ -8,9 +8,9 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{spcimager, Camera, Preset, PresetName, SceneLight, SpadCamera};
 use smartagg_model::recording::{pack_plane, BitOrder, RecordingWriter};
-use smartagg_scene::tiff::TiffStackWriter;
 use smartagg_scene::{Blinking, Layout, OnTime, Scene, ScmosSimulator, SpadMaps, SpadSimulator};
 
 const W: u32 = 16;
@@ -501,7 +501,7 @@ fn scmos_stacks_give_offset_read_noise_and_gain_maps() {
         let mut sim =
             ScmosSimulator::with_maps(&cam, &empty_scene(&p, W, light), maps.clone(), seed)
                 .unwrap();
-        let mut w = TiffStackWriter::new(std::fs::File::create(&path).unwrap(), W, W).unwrap();
+        let mut w = StackWriter::new(std::fs::File::create(&path).unwrap(), W, W).unwrap();
         for _ in 0..800 {
             w.write_frame(&sim.next_frame().adu).unwrap();
         }

@@ -144,7 +144,7 @@ fn hdf5_table_reads_back_in_picasso_and_renders_as_the_csv() {
     ok(&["render", &csv, "--out", &from_csv]);
     ok(&["render", &h5, "--out", &from_h5]);
     let read = |path: &str| {
-        smartagg_localize::tiffio::open_stack(Path::new(path))
+        smartagg_io::stack::open_stack(Path::new(path))
             .unwrap()
             .next()
             .unwrap()

@@ -81,6 +81,16 @@ pub enum LocalizeError {
     Io(#[from] std::io::Error),
 }
 
+impl From<smartagg_io::Error> for LocalizeError {
+    /// A TIFF failure keeps its file name and what failed.
+    fn from(e: smartagg_io::Error) -> Self {
+        LocalizeError::Tiff {
+            why: e.why(),
+            path: e.name,
+        }
+    }
+}
+
 /// Checks a finite value within `[lo, hi]`, naming the option otherwise.
 pub fn check_option(
     name: &'static str,

@@ -28,7 +28,7 @@ use crate::fit::{fit_roi, Estimator, FitOptions, NoiseModel};
 use crate::roi::{apply_hot_pixels, HotPixelMode, PixelMaps, RoiView};
 use crate::spad::{fit_binomial, SpadRoi};
 use crate::table::Localization;
-use crate::tiffio::Frame;
+use smartagg_io::stack::Frame;
 
 /// ADU → photo-electron conversion.
 #[derive(Clone, Copy, Debug, PartialEq)]

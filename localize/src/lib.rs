@@ -17,7 +17,8 @@
 //!   frames within 40 nm (the paper's merging).
 //! * [`drift`]: stage-drift correction by redundant cross-correlation (RCC)
 //!   or fiducials.
-//! * Exchange: ThunderSTORM CSV ([`table`]), TIFF stacks ([`tiffio`]),
+//! * Exchange: ThunderSTORM CSV ([`table`]), the pages of an ROI export
+//!   ([`export`]; TIFF input and output is `smartagg_io`'s),
 //!   normalised-Gaussian rendering to PNG with a scale bar ([`render`]).
 //! * [`synth`]: simulated ROIs and frames with known truth.
 //!
@@ -39,6 +40,7 @@ pub mod crlb;
 pub mod drift;
 pub mod erf;
 pub mod error;
+pub mod export;
 pub(crate) mod fastmath;
 pub mod fit;
 pub mod frames;
@@ -52,7 +54,6 @@ pub mod spad;
 pub mod stackbench;
 pub mod synth;
 pub mod table;
-pub mod tiffio;
 
 pub use error::LocalizeError;
 pub use fit::{fit_roi, Estimator, Fit, FitOptions, FitStatus, NoiseModel, SigmaMode};

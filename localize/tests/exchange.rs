@@ -1,12 +1,13 @@
 //! Exchange formats and the frame pipeline: ThunderSTORM CSV, merging,
-//! rendering to PNG, TIFF stacks, ROI export, detection in frames.
+//! rendering to PNG, ROI export, detection in frames (TIFF stacks are
+//! `smartagg-io`'s, tested there).
 
 use rand::SeedableRng;
+use smartagg_localize::export::{roi_pages, RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_frame, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::render::{render, to_png, Point, RenderOptions};
 use smartagg_localize::table::{CsvTable, LocTable, Localization};
-use smartagg_localize::tiffio::{roi_pages, write_stack, RoiLayout, RoiPage, TiffStack};
 use smartagg_localize::{synth, Estimator, FitOptions, FitStatus, SigmaMode};
 use std::io::Cursor;
 
@@ -202,44 +203,6 @@ fn rendering_a_tiny_table() {
         },
     ];
     assert!(RenderOptions::covering(&far, 1.0, 2.0).is_err());
-}
-
-#[test]
-fn tiff_round_trip_and_bad_input() {
-    let pages: Vec<Vec<u32>> = (0..3)
-        .map(|p| (0..12).map(|i| (p * 100 + i) as u32).collect())
-        .collect();
-    let mut buf = Cursor::new(Vec::new());
-    assert!(write_stack(&mut buf, 4, 3, &pages).unwrap());
-    let frames: Vec<_> = TiffStack::new(Cursor::new(buf.into_inner()), "mem")
-        .unwrap()
-        .collect::<Result<_, _>>()
-        .unwrap();
-    assert_eq!(frames.len(), 3);
-    for (f, p) in frames.iter().zip(&pages) {
-        assert_eq!((f.width, f.height), (4, 3));
-        assert_eq!(f.data, p.iter().map(|&v| v as f64).collect::<Vec<_>>());
-    }
-    // Counts beyond 16 bits go to 32-bit float pages, exactly.
-    let big = vec![vec![70_000u32, 1, 2, 3]];
-    let mut buf = Cursor::new(Vec::new());
-    assert!(!write_stack(&mut buf, 2, 2, &big).unwrap());
-    let f = TiffStack::new(Cursor::new(buf.into_inner()), "mem")
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap();
-    assert_eq!(f.data[0], 70_000.0);
-    // Not a TIFF: an error, not a panic.
-    assert!(TiffStack::new(Cursor::new(b"hello, world".to_vec()), "junk").is_err());
-    let mut truncated = Cursor::new(Vec::new());
-    write_stack(&mut truncated, 4, 3, &pages).unwrap();
-    let mut bytes = truncated.into_inner();
-    bytes.truncate(bytes.len() / 2);
-    if let Ok(stack) = TiffStack::new(Cursor::new(bytes), "cut") {
-        let results: Vec<_> = stack.collect();
-        assert!(results.iter().any(|r| r.is_err()));
-    }
 }
 
 #[test]

@@ -6,12 +6,12 @@
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use smartagg_io::stack::Frame;
 use smartagg_localize::frames::{
     localize_batch, localize_frame, Conversion, FramePipeline, MIN_SIDE,
 };
 use smartagg_localize::stackbench::{score_stack, simulate_stack, StackScenario};
 use smartagg_localize::synth::{expected_frame, poisson};
-use smartagg_localize::tiffio::Frame;
 use smartagg_localize::{Estimator, FitOptions, LocalizeError, SigmaMode};
 
 const PIXEL_NM: f64 = 100.0;
@@ -159,7 +159,7 @@ fn a_stack_of_small_frames_is_found_near_the_bound() {
 /// mix of seeks (inside and outside its buffer) and reads.
 #[test]
 fn the_seekable_buffer_reads_what_the_file_holds() {
-    use smartagg_localize::tiffio::SeekBufReader;
+    use smartagg_io::stack::SeekBufReader;
     use std::io::{Cursor, Read, Seek, SeekFrom};
     let data: Vec<u8> = (0..700_000u64).map(|i| (i * 7919 % 251) as u8).collect();
     let mut r = SeekBufReader::new(Cursor::new(data.clone()));

@@ -12,10 +12,10 @@
 //! * [`spad`]: the binary SPAD camera, one [`BitPlane`](smartagg_model::plane::BitPlane)
 //!   per call, exact pile-up, PRNU, DRNU and hot pixels, fast enough for
 //!   the SPCImager's own 10,000 planes/s;
-//! * [`frames`]: the EMCCD and sCMOS cameras, one frame of ADU per call;
+//! * [`frames`]: the EMCCD and sCMOS cameras, one frame of ADU per call
+//!   (`smartagg_io::stack::StackWriter` writes them as a TIFF stack);
 //! * [`drift`]: stage drift, a smooth trajectory added to every position;
 //! * [`truth`]: the ground truth, one row per blink, and its CSV file;
-//! * [`tiff`]: u16 frame stacks as multi-page TIFF (ImageJ/Fiji open them as stacks).
 //!
 //! ## Coordinates and time
 //!
@@ -39,7 +39,6 @@ pub mod frames;
 pub mod psf;
 pub mod scene;
 pub mod spad;
-pub mod tiff;
 pub mod truth;
 
 mod emission;
@@ -81,16 +80,6 @@ pub enum SceneError {
         /// Pixels in the maps.
         found: usize,
     },
-    /// A frame of the wrong size given to the TIFF writer.
-    #[error("frame has {found} pixels, the stack is {width}x{height}")]
-    FrameSize {
-        /// Stack width.
-        width: u32,
-        /// Stack height.
-        height: u32,
-        /// Pixels in the frame given.
-        found: usize,
-    },
     /// A ground-truth CSV file that cannot be parsed.
     #[error("ground-truth CSV line {line}: {why}")]
     TruthCsv {
@@ -102,9 +91,6 @@ pub enum SceneError {
     /// Reading or writing a file failed.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
-    /// TIFF encoding or decoding failed.
-    #[error("TIFF error: {0}")]
-    Tiff(#[from] ::tiff::TiffError),
     /// The bit-plane container refused something.
     #[error(transparent)]
     Recording(#[from] RecordingError),

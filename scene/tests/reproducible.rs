@@ -1,8 +1,8 @@
 //! Seeds reproduce bit-identical output; different seeds differ.
 
+use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::recording::{BitOrder, RecordingWriter};
-use smartagg_scene::tiff::TiffStackWriter;
 use smartagg_scene::{truth, EmccdSimulator, Scene, ScmosSimulator, SpadSimulator};
 
 fn spad_bytes(seed: u64) -> (Vec<u8>, Vec<u8>) {
@@ -42,7 +42,7 @@ fn frame_bytes(preset: PresetName, seed: u64) -> (Vec<u8>, Vec<u8>) {
     let p = Preset::new(preset, 150).unwrap();
     let sc = Scene::study(&p, 0.03);
     let mut tif = std::io::Cursor::new(Vec::new());
-    let mut w = TiffStackWriter::new(&mut tif, sc.width, sc.height).unwrap();
+    let mut w = StackWriter::new(&mut tif, sc.width, sc.height).unwrap();
     let truth_rows: Vec<smartagg_scene::BlinkTruth> = match &p.camera {
         Camera::Emccd(c) => {
             let mut sim = EmccdSimulator::new(c, &sc, seed).unwrap();

@@ -5,9 +5,8 @@ use std::io::{BufReader, BufWriter, Write};
 use std::path::{Component, Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use tiff::decoder::{Decoder, DecodingResult};
-use tiff::encoder::{colortype, TiffEncoder};
-use tiff::tags::Tag;
+use smartagg_io::image::Pixels;
+use smartagg_io::Samples;
 
 use super::frames::{FrameCalibration, FrameCamera, FrameSummary};
 use super::spad::{DarkSummary, FlatSummary, HotCriterion};
@@ -428,33 +427,20 @@ fn write_map(
     let path = path.to_path_buf();
     let out =
         std::fs::File::create(&path).map_err(|e| CalibrationError::io(&path, "creating", e))?;
-    let tiff_err = |e: tiff::TiffError| map_err(spec.name, &path, format!("writing: {e}"));
-    let mut enc = TiffEncoder::new(BufWriter::new(out)).map_err(tiff_err)?;
     let desc = format!(
         "smartagg calibration map {} ({}): {}",
         spec.name, spec.unit, spec.description
     );
-    let sample = match data {
+    let f32s: Vec<f32>;
+    let (pixels, sample) = match data {
         Data::F(v) => {
-            let f: Vec<f32> = v.iter().map(|&x| x as f32).collect();
-            let mut img = enc
-                .new_image::<colortype::Gray32Float>(w, h)
-                .map_err(tiff_err)?;
-            img.encoder()
-                .write_tag(Tag::ImageDescription, desc.as_str())
-                .map_err(tiff_err)?;
-            img.write_data(&f).map_err(tiff_err)?;
-            "f32"
+            f32s = v.iter().map(|&x| x as f32).collect();
+            (Pixels::F32(&f32s), "f32")
         }
-        Data::U8(v) => {
-            let mut img = enc.new_image::<colortype::Gray8>(w, h).map_err(tiff_err)?;
-            img.encoder()
-                .write_tag(Tag::ImageDescription, desc.as_str())
-                .map_err(tiff_err)?;
-            img.write_data(v).map_err(tiff_err)?;
-            "u8"
-        }
+        Data::U8(v) => (Pixels::U8(v), "u8"),
     };
+    smartagg_io::image::write_described(BufWriter::new(out), w, h, pixels, &desc)
+        .map_err(|e| map_err(spec.name, &path, e.why()))?;
     Ok(MapEntry {
         file,
         sample: sample.into(),
@@ -690,39 +676,22 @@ fn read_map(
         Err(e) => return Err(CalibrationError::io(&path, "opening", e)),
     };
     let bad = |why: String| map_err(spec.name, &path, why);
-    let mut d =
-        Decoder::new(BufReader::new(file)).map_err(|e| bad(format!("not a readable TIFF: {e}")))?;
-    let (w, h) = d.dimensions().map_err(|e| bad(e.to_string()))?;
+    let img = smartagg_io::image::read_image(BufReader::new(file), &path.display().to_string())
+        .map_err(|e| bad(e.why()))?;
+    let (w, h) = (img.width, img.height);
     if (w, h) != (header.width, header.height) {
         return Err(bad(format!(
             "is {w}x{h} pixels, the calibration is {}x{}",
             header.width, header.height
         )));
     }
-    let values = match (
-        d.read_image()
-            .map_err(|e| bad(format!("unreadable: {e}")))?,
-        spec.range,
-    ) {
-        (DecodingResult::F32(v), r) if r != Range::Flags => {
+    let values = match (img.samples, spec.range) {
+        (Samples::F32(v), r) if r != Range::Flags => {
             MapValues::F(v.into_iter().map(f64::from).collect())
         }
-        (DecodingResult::U8(v), Range::Flags) => MapValues::U8(v),
+        (Samples::U8(v), Range::Flags) => MapValues::U8(v),
         _ => return Err(bad(format!("is not a single-channel {want} TIFF"))),
     };
-    let n = header.width as usize * header.height as usize;
-    let len = match &values {
-        MapValues::F(v) => v.len(),
-        MapValues::U8(v) => v.len(),
-    };
-    if len != n {
-        return Err(bad(format!(
-            "holds {len} samples for {n} pixels (not single-channel)"
-        )));
-    }
-    if d.more_images() {
-        return Err(bad("has more than one page; a map has one".into()));
-    }
     let data = match &values {
         MapValues::F(v) => Data::F(v),
         MapValues::U8(v) => Data::U8(v),

@@ -37,11 +37,9 @@
 //! UNMEASURED: sCMOS pixel with no positive photon-transfer slope (the median
 //! gain is stored).
 
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use tiff::decoder::{Decoder, DecodingResult};
 
 use super::estimate::{mean_sd, median, noise_corrected, robust_sd, Welford};
 use super::{flags, CalibrationError, Provenance};
@@ -97,51 +95,25 @@ impl FrameSource for TiffStack {
 }
 
 fn read_tiff_stack(path: &Path, visit: &mut Visit<'_>) -> Result<u64, CalibrationError> {
-    let file = std::fs::File::open(path).map_err(|e| CalibrationError::io(path, "opening", e))?;
-    let stack_err = |why: String| CalibrationError::Stack {
+    let stack_err = |e: smartagg_io::Error| CalibrationError::Stack {
         path: path.to_path_buf(),
-        why,
+        why: e.why(),
     };
-    let mut d = Decoder::new(BufReader::new(file))
-        .map_err(|e| stack_err(format!("not a readable TIFF file: {e}")))?;
-    let (w, h) = d
-        .dimensions()
-        .map_err(|e| stack_err(format!("page 0: {e}")))?;
-    let mut page = 0u64;
-    loop {
-        let (pw, ph) = d
-            .dimensions()
-            .map_err(|e| stack_err(format!("page {page}: {e}")))?;
-        if (pw, ph) != (w, h) {
-            return Err(stack_err(format!(
-                "page {page} is {pw}x{ph}, page 0 is {w}x{h}"
-            )));
-        }
-        match d
-            .read_image()
-            .map_err(|e| stack_err(format!("page {page}: {e}")))?
-        {
-            DecodingResult::U16(v) if v.len() == w as usize * h as usize => visit(w, h, &v)?,
-            DecodingResult::U16(v) => {
-                return Err(stack_err(format!(
-                    "page {page} holds {} values for {w}x{h} pixels (colour or multi-sample pages are not frames)",
-                    v.len()
-                )))
-            }
-            _ => {
-                return Err(stack_err(format!(
-                    "page {page} is not 16-bit unsigned greyscale (the cameras write u16 ADU)"
-                )))
-            }
-        }
-        page += 1;
-        if !d.more_images() {
-            break;
-        }
-        d.next_image()
-            .map_err(|e| stack_err(format!("page {page}: {e}")))?;
+    let mut stack = match smartagg_io::stack::open_stack(path) {
+        Ok(s) => s,
+        Err(smartagg_io::Error {
+            kind: smartagg_io::ErrorKind::File(e),
+            ..
+        }) => return Err(CalibrationError::io(path, "opening", e)),
+        Err(e) => return Err(stack_err(e)),
+    };
+    let mut pages = 0u64;
+    while let Some(frame) = stack.next_u16() {
+        let f = frame.map_err(stack_err)?;
+        visit(f.width as u32, f.height as u32, &f.data)?;
+        pages += 1;
     }
-    Ok(page)
+    Ok(pages)
 }
 
 /// Choices of the frame calibration.

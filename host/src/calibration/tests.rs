@@ -1124,11 +1124,14 @@ fn tiff_stacks_are_read_page_by_page_and_bad_pages_are_named() {
     let e = read(&stack("mixed.tif", &[(3, 2, false), (4, 4, false)]))
         .unwrap_err()
         .to_string();
-    assert!(e.contains("page 1 is 4x4, page 0 is 3x2"), "{e}");
+    assert!(
+        e.contains("page 2 is 4x4 pixels, but the first page is 3x2"),
+        "{e}"
+    );
     let e = read(&stack("bytes.tif", &[(3, 2, false), (3, 2, true)]))
         .unwrap_err()
         .to_string();
-    assert!(e.contains("page 1 is not 16-bit"), "{e}");
+    assert!(e.contains("page 2 is u8, not u16"), "{e}");
     let text = tmp.path().join("text.tif");
     std::fs::write(&text, "not an image").unwrap();
     let e = read(&super::frames::TiffStack { path: text })

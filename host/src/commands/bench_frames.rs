@@ -15,7 +15,6 @@ use anyhow::Context;
 use clap::Parser;
 use smartagg_localize::stackbench::{score_stack, simulate_stack, StackScenario, StackScore};
 use smartagg_localize::table::{CsvTable, Localization};
-use smartagg_localize::tiffio;
 use smartagg_localize::FitStatus;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -155,7 +154,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let stack = dir.join("spots.tif");
     {
         let mut buf = std::io::Cursor::new(Vec::new());
-        tiffio::write_stack(&mut buf, side, side, &pages)?;
+        smartagg_io::stack::write_stack(&mut buf, side, side, &pages)?;
         let mut w = crate::output::AtomicFile::create(&stack)?;
         w.write_all(buf.get_ref())?;
         w.commit()?;

@@ -27,7 +27,7 @@
 use anyhow::{bail, Context};
 use smartagg_localize::render::{render, Image, Point, RenderOptions, MAX_PIXELS};
 use smartagg_localize::table::CsvTable;
-use smartagg_localize::{tiffio, LocalizeError};
+use smartagg_localize::LocalizeError;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
@@ -205,9 +205,16 @@ fn read_hdf5(args: &Args) -> anyhow::Result<Read> {
 
 /// Writes the density as a calibrated 32-bit float TIFF beside `target`.
 fn tiff_file(target: &Path, img: &Image) -> anyhow::Result<AtomicFile> {
+    smartagg_localize::error::check_option("pixel-nm", img.pixel_nm, 1e-3, 1e6)?;
     let mut out = BufWriter::new(AtomicFile::create(target)?);
-    tiffio::write_f32_calibrated(&mut out, img.width, img.height, &img.data, img.pixel_nm)
-        .with_context(|| format!("writing {}", target.display()))?;
+    smartagg_io::image::write_f32_calibrated(
+        &mut out,
+        img.width,
+        img.height,
+        &img.data,
+        img.pixel_nm,
+    )
+    .with_context(|| format!("writing {}", target.display()))?;
     out.into_inner()
         .map_err(|e| e.into_error())
         .with_context(|| format!("writing {}", target.display()))
@@ -404,7 +411,11 @@ mod tests {
             ..defaults()
         })
         .unwrap();
-        let f = tiffio::open_stack(&tif).unwrap().next().unwrap().unwrap();
+        let f = smartagg_io::stack::open_stack(&tif)
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap();
         let total: f64 = f.data.iter().sum();
         assert!((total - 3.0).abs() < 1e-3, "{total}");
     }

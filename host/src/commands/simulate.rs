@@ -25,13 +25,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{
     check_non_negative, check_positive, check_range, fmt_num, Camera, Preset, PresetName,
     MAX_BACKGROUND_PER_UM2_HZ, MAX_FLUX_HZ, MAX_FRAME_PERIOD_S,
 };
 use smartagg_model::plane::BitPlane;
 use smartagg_model::recording::{pack_plane, plane_bytes, BitOrder, RecordingWriter};
-use smartagg_scene::tiff::TiffStackWriter;
 use smartagg_scene::{
     truth, Blinking, DriftTrajectory, EmccdSimulator, Frame, Layout, OnTime, Scene, ScmosSimulator,
     SpadSimulator,
@@ -541,7 +541,7 @@ fn write_frames<W: Write + std::io::Seek>(
     let mut clipped = 0u64;
     {
         // Borrow the buffer so that it can be flushed (and errors seen) afterwards.
-        let mut w = TiffStackWriter::create(&mut out, scene.width, scene.height, n)?;
+        let mut w = StackWriter::create(&mut out, scene.width, scene.height, n)?;
         for _ in 0..n {
             let f = next();
             clipped += f.clipped as u64;

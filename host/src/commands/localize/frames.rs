@@ -37,7 +37,7 @@ pub(super) fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         let r = 2 * (3.0 * s.sigma_px).ceil() as usize + 1;
         r.clamp(7, 21)
     });
-    let stack = tiffio::open_stack(&args.input)?;
+    let stack = smartagg_io::stack::open_stack(&args.input)?;
     let mut size = (0, 0);
     let mut rows = Vec::new();
     let mut frames = 0u64;
@@ -149,7 +149,7 @@ pub(super) const FRAME_BATCH: usize = 1024;
 pub(super) fn calibrate_frame(
     c: &crate::calibration::FrameCalibration,
     conversion: Conversion,
-    frame: &mut smartagg_localize::tiffio::Frame,
+    frame: &mut smartagg_io::stack::Frame,
 ) -> anyhow::Result<()> {
     if (c.width as usize, c.height as usize) != (frame.width, frame.height) {
         bail!(
@@ -179,7 +179,7 @@ pub(super) fn frame_pipeline(
     read_noise: f64,
     roi: usize,
     calibration: Option<&crate::calibration::FrameCalibration>,
-    first: &smartagg_localize::tiffio::Frame,
+    first: &smartagg_io::stack::Frame,
 ) -> anyhow::Result<FramePipeline> {
     let n = first.width * first.height;
     let scmos = s.opts.noise == NoiseModel::Scmos;

@@ -31,11 +31,11 @@ use crate::setup;
 use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
+use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
 use smartagg_localize::spad::{fit_binomial, SpadRoi};
 use smartagg_localize::table::{LocTable, Localization};
-use smartagg_localize::tiffio::{self, RoiLayout, RoiPage};
 use smartagg_localize::{
     fit_roi, Estimator, FitOptions, FitStatus, HotPixelMode, NoiseModel, PixelMaps, RoiView,
     SigmaMode,
@@ -577,7 +577,7 @@ mod tests {
         let ts = t.column(&["t_start [plane]"]).unwrap();
         assert_eq!(t.rows[0][ts], 946.0);
         // The ROI stack opens as three 9×9 pages.
-        let pages: Vec<_> = tiffio::open_stack(&dir.path().join("rois.tif"))
+        let pages: Vec<_> = smartagg_io::stack::open_stack(&dir.path().join("rois.tif"))
             .unwrap()
             .collect::<Result<_, _>>()
             .unwrap();
@@ -750,7 +750,8 @@ mod tests {
             })
             .collect();
         let input = dir.path().join("frames.tif");
-        tiffio::write_stack(tiffio::create(&input).unwrap(), w, h, &frames).unwrap();
+        smartagg_io::stack::write_stack(smartagg_io::stack::create(&input).unwrap(), w, h, &frames)
+            .unwrap();
         let out = dir.path().join("f.csv");
         let mut a = args(&input, &out);
         a.estimator = EstimatorArg::Mle;

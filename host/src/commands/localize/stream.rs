@@ -424,9 +424,9 @@ pub(super) fn export_tiff(
             RoiLayout::Sensor { width, height }
         }
     };
-    let (w, h, data) = tiffio::roi_pages(&pages, layout);
+    let (w, h, data) = smartagg_localize::export::roi_pages(&pages, layout);
     let mut out = std::io::BufWriter::new(AtomicFile::create(path)?);
-    let bits16 = tiffio::write_stack(&mut out, w, h, &data)
+    let bits16 = smartagg_io::stack::write_stack(&mut out, w, h, &data)
         .with_context(|| format!("writing {}", path.display()))?;
     out.into_inner()
         .map_err(|e| e.into_error())
