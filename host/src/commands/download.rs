@@ -334,9 +334,12 @@ mod tests {
         };
         let cfg = device_config(&args).unwrap();
         assert_eq!((cfg.width, cfg.height), (320, 240));
-        assert_eq!(cfg.n_window, 40);
-        assert_eq!((cfg.l_min, cfg.l_max, cfg.slots), (2, 500, 16));
-        assert_eq!(cfg.plane_period_ns, 100_000);
+        assert_eq!(cfg.registers.n_window, 40);
+        assert_eq!(
+            (cfg.registers.l_min, cfg.registers.l_max, cfg.slots),
+            (2, 500, 16)
+        );
+        assert_eq!(cfg.registers.plane_period_ns, 100_000);
         assert_eq!(
             cfg.kernel.iter().map(|&w| w as u64).sum::<u64>(),
             1 << cfg.kernel_shift

@@ -72,20 +72,10 @@ pub mod vendor {
 /// built with.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DeviceConfig {
-    /// Runtime register: rolling window N.
-    pub n_window: u32,
-    /// Runtime register: integer threshold T_int (opens a track).
-    pub threshold_int: u32,
-    /// Runtime register: integer threshold T_hold (holds a track on).
-    pub threshold_hold: u32,
-    /// Planes between a dropped segment's last summed plane and its t_drop.
-    pub end_trim: u32,
-    /// Runtime register: L_min.
-    pub l_min: u32,
-    /// Runtime register: L_max.
-    pub l_max: u32,
-    /// Runtime register: bit-plane period, ns.
-    pub plane_period_ns: u32,
+    /// The runtime registers and the hot-pixel mask's pipe-in bytes, as
+    /// the host writes them (the model's [`StreamRegisters`], which the
+    /// co-simulation harness writes too; planes from the sensor).
+    pub registers: StreamRegisters,
     /// Generation constant: sensor width.
     pub width: u16,
     /// Generation constant: sensor height.
@@ -100,10 +90,6 @@ pub struct DeviceConfig {
     pub slots: u8,
     /// Generation constant: association radius.
     pub r_assoc: u8,
-    /// Hot-pixel mask packed like a bit-plane (1 = masked), if any.
-    pub hot_mask: Option<Vec<u8>>,
-    /// Number of masked pixels.
-    pub masked_pixels: u32,
 }
 
 impl DeviceConfig {
@@ -113,18 +99,8 @@ impl DeviceConfig {
             .map_err(|e| TransportError::Config(e.to_string()))?;
         // validate() bounds every field below to its register width.
         let start = cfg.stream_start();
-        let hot_mask = cfg
-            .hot_mask
-            .as_ref()
-            .map(smartagg_model::registers::mask_bytes);
         Ok(DeviceConfig {
-            n_window: start.n_window,
-            threshold_int: start.threshold_int,
-            threshold_hold: start.threshold_hold,
-            end_trim: cfg.end_trim,
-            l_min: start.l_min,
-            l_max: start.l_max,
-            plane_period_ns: start.plane_period_ns,
+            registers: StreamRegisters::of(cfg),
             width: start.width,
             height: start.height,
             kernel: start.kernel.clone(),
@@ -132,53 +108,35 @@ impl DeviceConfig {
             roi_size: start.roi_size,
             slots: start.slots,
             r_assoc: start.r_assoc,
-            hot_mask,
-            masked_pixels: start.masked_pixels,
         })
     }
 
     /// The StreamStart record a device configured with this must send first.
     pub fn expected_start(&self) -> StreamStart {
+        let r = &self.registers;
         StreamStart {
             width: self.width,
             height: self.height,
-            n_window: self.n_window,
-            threshold_int: self.threshold_int,
-            threshold_hold: self.threshold_hold,
-            end_trim: Some(self.end_trim),
-            l_min: self.l_min,
-            l_max: self.l_max,
+            n_window: r.n_window,
+            threshold_int: r.threshold_int,
+            threshold_hold: r.threshold_hold,
+            end_trim: Some(r.end_trim),
+            l_min: r.l_min,
+            l_max: r.l_max,
             r_assoc: self.r_assoc,
             slots: self.slots,
             roi_size: self.roi_size,
             kernel_shift: self.kernel_shift,
             kernel: self.kernel.clone(),
-            plane_period_ns: self.plane_period_ns,
-            masked_pixels: self.masked_pixels,
-        }
-    }
-
-    /// The runtime registers and the mask, as the host writes them (the
-    /// model's [`StreamRegisters`], which the co-simulation harness writes
-    /// too; planes from the sensor).
-    pub fn stream_registers(&self) -> StreamRegisters {
-        StreamRegisters {
-            source_replay: false,
-            n_window: self.n_window,
-            threshold_int: self.threshold_int,
-            threshold_hold: self.threshold_hold,
-            end_trim: self.end_trim,
-            l_min: self.l_min,
-            l_max: self.l_max,
-            plane_period_ns: self.plane_period_ns,
-            mask: self.hot_mask.clone(),
+            plane_period_ns: r.plane_period_ns,
+            masked_pixels: r.masked_pixels(),
         }
     }
 
     /// The wire-in values, in address order ([`StreamRegisters::wire_ins`]:
     /// `MASKED_PIXELS` counts the pixels of the mask bytes written).
     pub fn wire_ins(&self) -> [(u8, u32); wire_in::COUNT] {
-        self.stream_registers().wire_ins()
+        self.registers.wire_ins()
     }
 }
 
@@ -346,10 +304,10 @@ pub fn check_generation(dev: &Generation, cfg: &DeviceConfig) -> Vec<String> {
             cfg.r_assoc.to_string(),
         );
     }
-    if cfg.n_window > dev.max_n {
+    if cfg.registers.n_window > dev.max_n {
         diffs.push(format!(
             "window N = {} exceeds the device's delay line ({} planes)",
-            cfg.n_window, dev.max_n
+            cfg.registers.n_window, dev.max_n
         ));
     }
     diffs
@@ -368,7 +326,7 @@ pub fn configure(bus: &mut dyn RegisterBus, cfg: &DeviceConfig) -> Result<(), Tr
         bus.set_wire_in(addr, value)?;
     }
     bus.commit_wire_ins()?;
-    if let Some(mask) = &cfg.hot_mask {
+    if let Some(mask) = &cfg.registers.mask {
         bus.write_pipe_in(pipe::MASK_IN, mask)?;
     }
     Ok(())
@@ -486,7 +444,7 @@ pub(crate) mod tests {
         let p = pipeline();
         let cfg = DeviceConfig::from_pipeline(&p).unwrap();
         assert_eq!(cfg.expected_start(), p.stream_start());
-        assert_eq!(cfg.hot_mask, None);
+        assert_eq!(cfg.registers.mask, None);
         assert_eq!(cfg.wire_ins()[0], (wire_in::CONTROL, 0));
     }
 
