@@ -27,6 +27,22 @@ const QUIET: usize = 40;
 /// Percent of the source's clocks skipped.
 const STALL: u32 = 10;
 
+/// The scene's planes, then [`QUIET`] background-only planes: no track is
+/// left live at STOP (the back half's stream end with many live tracks is
+/// the reduced cases' concern).
+fn with_quiet_end(scene: &SceneSpec, seed: u64) -> Vec<smartagg_model::plane::BitPlane> {
+    let mut planes = generate(scene, seed);
+    planes.extend(generate(
+        &SceneSpec {
+            planes: QUIET,
+            emitters: 0,
+            ..scene.clone()
+        },
+        seed ^ 1,
+    ));
+    planes
+}
+
 #[test]
 fn spcimager150_full_field_2000_planes_at_near_a_word_per_clock_equals_the_model() {
     let (w, h) = FULL;
@@ -69,17 +85,7 @@ fn spcimager150_full_field_2000_planes_at_near_a_word_per_clock_equals_the_model
         hot: hot.clone(),
         hot_rate: 0.3,
     };
-    let mut planes = generate(&scene, seed);
-    // Background only at the end: no track left live at STOP (the back
-    // half's stream end with many live tracks is the reduced cases' concern).
-    planes.extend(generate(
-        &SceneSpec {
-            planes: QUIET,
-            emitters: 0,
-            ..scene.clone()
-        },
-        seed ^ 1,
-    ));
+    let planes = with_quiet_end(&scene, seed);
     let case = Case {
         hot,
         mask_enable: true,
@@ -159,15 +165,7 @@ fn shipped_full_field(config: Config, planes: usize, source: Source, seed: u64) 
         hot: hot.clone(),
         hot_rate: 0.3,
     };
-    let mut stream = generate(&scene, seed);
-    stream.extend(generate(
-        &SceneSpec {
-            planes: QUIET,
-            emitters: 0,
-            ..scene.clone()
-        },
-        seed ^ 1,
-    ));
+    let stream = with_quiet_end(&scene, seed);
     let case = Case {
         hot,
         mask_enable: true,

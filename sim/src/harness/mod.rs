@@ -178,18 +178,30 @@ impl Cosim {
         };
         let fast = Build::get_trained(&v, &DesignSpec::build_options(false), Some(&train))
             .map_err(DesignError::from)?;
+        Ok(Cosim::with_build(spec, top, fast, None, 0))
+    }
+
+    /// A co-simulation of `top` on its verilated builds, the harness's
+    /// defaults otherwise (what every constructor shares).
+    fn with_build(
+        spec: DesignSpec,
+        top: String,
+        fast: Arc<Build>,
+        debug: Option<Arc<Build>>,
+        seq_start: u32,
+    ) -> Cosim {
         let vcd_dir = fast.dir.join("vcd");
-        Ok(Cosim {
+        Cosim {
             spec,
             top,
             fast,
-            debug: None,
+            debug,
             vcd_dir,
             trace: None,
             sensor_interval: 2,
-            seq_start: 0,
+            seq_start,
             wire_override: None,
-        })
+        }
     }
 
     /// As [`Cosim::with_top`], running every case on the debug build (stage
@@ -198,18 +210,7 @@ impl Cosim {
     pub fn with_top_debug(spec: DesignSpec, top: String) -> Result<Cosim, HarnessError> {
         let v = spec.cosim_verilog(&top, true)?;
         let b = Build::get(&v, &DesignSpec::build_options(true)).map_err(DesignError::from)?;
-        let vcd_dir = b.dir.join("vcd");
-        Ok(Cosim {
-            spec,
-            top,
-            fast: b.clone(),
-            debug: Some(b),
-            vcd_dir,
-            trace: None,
-            sensor_interval: 2,
-            seq_start: 0,
-            wire_override: None,
-        })
+        Ok(Cosim::with_build(spec, top, b.clone(), Some(b), 0))
     }
 
     /// As [`Cosim::new`] with the gateware's first sequence number (the
@@ -226,18 +227,7 @@ impl Cosim {
             ..DesignSpec::build_options(false)
         };
         let fast = Build::get(&v, &opts).map_err(DesignError::from)?;
-        let vcd_dir = fast.dir.join("vcd");
-        Ok(Cosim {
-            spec,
-            top,
-            fast,
-            debug: None,
-            vcd_dir,
-            trace: None,
-            sensor_interval: 2,
-            seq_start,
-            wire_override: None,
-        })
+        Ok(Cosim::with_build(spec, top, fast, None, seq_start))
     }
 
     /// The training run of the profile-guided build: what the co-simulation
