@@ -1,5 +1,6 @@
-//! Resource figures from yosys `synth_xilinx -family xc6s`
-//! ([`YOSYS_SCRIPT`]), with the analytic floors (memory bits / 18 Kbit,
+//! Resource figures from yosys `synth_xilinx -family xc6s`, each of
+//! [`MAPPINGS`] on the same prepared design (the script `synth.ys` in each
+//! work folder), with the analytic floors (memory bits / 18 Kbit,
 //! multipliers) and the logic depth between registers; and the throughput
 //! arithmetic of the chosen P. Run one configuration at a time:
 //! `cargo run -p smartagg-hdl --release --example resources -- NAME`
@@ -48,7 +49,7 @@ use smartagg_hdl::pipeline::{
 };
 use smartagg_hdl::roi_aggregator::RoiAggregator;
 use smartagg_hdl::spatial_filter::SpatialFilter;
-use smartagg_hdl::synth::{verilator_lint, yosys_resources, Resources, YOSYS_SCRIPT};
+use smartagg_hdl::synth::{verilator_lint, yosys_resources, Synthesis, MAPPINGS};
 use smartagg_model::params::{Preset, PresetName};
 
 /// Pixel-integrated Gaussian of width `sigma` over k pixels, scaled to 2^a.
@@ -87,57 +88,64 @@ const DEVICES: [(&str, u64, u64, u64, u64); 2] = [
     ("XC6SLX150", 92_152, 184_304, 268, 180),
 ];
 
-fn print(name: &str, r: &Resources) {
+fn print(name: &str, s: &Synthesis) {
     println!(
-        "{name:<34} LUT {:>6}  FF {:>6}  RAMB16 {:>3}  RAMB8 {:>3}  DSP48A1 {:>2}  LUT-RAM {:>5}  CARRY4 {:>5}",
-        r.luts, r.ffs, r.ramb16, r.ramb8, r.dsp48a1, r.lutram, r.carry4
+        "{name:<34} memory {} bits -> floor {} RAMB16; multipliers {} -> floor {} DSP48A1",
+        s.memory_bits,
+        s.ramb16_floor(),
+        s.multipliers,
+        s.multipliers
     );
-    // A RAMB8 is half a RAMB16.
-    let ramb = r.ramb16 as f64 + r.ramb8 as f64 / 2.0;
-    println!(
-        "{:<34} memory {} bits -> floor {} RAMB16 (mapped {:.1}); multipliers {} -> floor {} DSP48A1; logic depth {}",
-        "",
-        r.memory_bits,
-        r.ramb16_floor(),
-        ramb,
-        r.multipliers,
-        r.multipliers,
-        r.logic_depth.map_or("?".to_string(), |d| d.to_string())
-    );
-    if let Some(l) = &r.lut_levels {
+    for n in &s.netlists {
+        let r = &n.resources;
+        // A RAMB8 is half a RAMB16.
+        let ramb = r.ramb16 as f64 + r.ramb8 as f64 / 2.0;
         println!(
-            "{:<34} LUT levels {} (CARRY4, MUXF7/8 count 0); longest carry chain {} CARRY4",
-            "", l.levels, l.carry_chain
-        );
-        let path: Vec<String> = l.path.iter().map(|(t, n)| format!("{t} {n}")).collect();
-        println!(
-            "{:<34} worst path: {} -> {}",
+            "{:<34} {:<6} LUT {:>6} (INV {})  FF {:>6}  RAMB16 {:.1}  DSP48A1 {:>2}  LUT-RAM {:>5}  CARRY4 {:>5}  ltp {}",
             "",
-            l.start,
-            path.join(" -> ")
+            n.mapping.name,
+            r.luts,
+            r.inverters,
+            r.ffs,
+            ramb,
+            r.dsp48a1,
+            r.lutram,
+            r.carry4,
+            r.logic_depth.map_or("?".to_string(), |d| d.to_string())
         );
-        let deep = l.ends_deeper_than(6);
-        println!("{:<34} ends deeper than 6: {}", "", deep.join(", "));
-    }
-    if let Some(l) = &r.unit_levels {
-        let deep = l.ends_deeper_than(6);
-        println!(
-            "{:<34} level-optimal (abc): LUT levels {}, from {}; ends deeper than 6: {}",
-            "",
-            l.levels,
-            l.start,
-            deep.join(", ")
-        );
-    }
-    for (dev, luts, ffs, brams, dsps) in DEVICES {
-        println!(
-            "{:<34} {dev}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",
-            "",
-            100.0 * (r.luts + r.lutram) as f64 / luts as f64,
-            100.0 * r.ffs as f64 / ffs as f64,
-            100.0 * ramb / brams as f64,
-            100.0 * r.dsp48a1 as f64 / dsps as f64
-        );
+        if let Some(l) = &r.lut_levels {
+            let path: Vec<String> = l.path.iter().map(|(t, n)| format!("{t} {n}")).collect();
+            println!(
+                "{:<34} {:<6} LUT levels {} (ends per level {:?}); longest carry chain {} CARRY4; worst path: {} -> {}",
+                "",
+                "",
+                l.levels,
+                l.ends_per_level(),
+                l.carry_chain,
+                l.start,
+                path.join(" -> ")
+            );
+            let deep = l.ends_deeper_than(6);
+            if !deep.is_empty() {
+                println!(
+                    "{:<34} {:<6} ends deeper than 6: {}",
+                    "",
+                    "",
+                    deep.join(", ")
+                );
+            }
+        }
+        for (dev, luts, ffs, brams, dsps) in DEVICES {
+            println!(
+                "{:<34} {:<6} {dev}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",
+                "",
+                "",
+                100.0 * (r.luts + r.lutram) as f64 / luts as f64,
+                100.0 * r.ffs as f64 / ffs as f64,
+                100.0 * ramb / brams as f64,
+                100.0 * r.dsp48a1 as f64 / dsps as f64
+            );
+        }
     }
 }
 
@@ -181,7 +189,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         clock_hz * 1e-6,
         100.0 * (1.0 - busy)
     );
-    println!("yosys script: {YOSYS_SCRIPT}");
+    println!(
+        "yosys: synth_xilinx -family xc6s -flatten, LUT mappings {}; each work folder under {} keeps its synth.ys",
+        MAPPINGS.map(|m| m.name).join(", "),
+        std::env::temp_dir().join("smartagg-hdl-resources").display()
+    );
     let dir = std::env::temp_dir().join("smartagg-hdl-resources");
     let args: Vec<String> = std::env::args().skip(1).collect();
     let want = |name: &str| args.is_empty() || args.iter().any(|a| a == name);
@@ -210,7 +222,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             continue;
         }
         let t0 = std::time::Instant::now();
-        let r = yosys_resources(&v, &dir.join(&name))?;
+        let r = yosys_resources(&v, &dir.join(&name), &MAPPINGS)?;
         println!("{name}: yosys {:.0} s", t0.elapsed().as_secs_f64());
         print(&name, &r);
     }
@@ -219,12 +231,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if want("test") {
         let small = test_config();
-        let r = yosys_resources(&verilog(TestFrontHalf::new(&small)?), &dir.join("test"))?;
+        let r = yosys_resources(
+            &verilog(TestFrontHalf::new(&small)?),
+            &dir.join("test"),
+            &MAPPINGS,
+        )?;
         print("test config (16x6, P 4, k 5, N_max 7)", &r);
     }
     if want("pipe") {
         let cfg = test_back_config(4, 3, 1)?;
-        let r = yosys_resources(&verilog(TestPipeline::new(&cfg)?), &dir.join("pipe"))?;
+        let r = yosys_resources(
+            &verilog(TestPipeline::new(&cfg)?),
+            &dir.join("pipe"),
+            &MAPPINGS,
+        )?;
         print("test pipeline (16x6, M 4, R 3)", &r);
     }
     if want("back150") || want("tracker150") || want("agg150") || want("pkt150") {
@@ -260,7 +280,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if args.iter().any(|a| a == key) {
                 let v = gen(&cfg)?;
                 let t0 = std::time::Instant::now();
-                let r = yosys_resources(&v, &dir.join(key))?;
+                let r = yosys_resources(&v, &dir.join(key), &MAPPINGS)?;
                 println!("{key}: yosys {:.0} s", t0.elapsed().as_secs_f64());
                 print(title, &r);
             }
@@ -270,6 +290,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(
             &verilog(Spcimager150FrontHalf::new(&big)?),
             &dir.join("spc150"),
+            &MAPPINGS,
         )?;
         print("SPCImager 150x front half (no DL)", &r);
     }
@@ -277,6 +298,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(
             &verilog(SpatialFilter::<8, 16, 24, 5>::new(&big)?),
             &dir.join("filter150"),
+            &MAPPINGS,
         )?;
         print("SPCImager 150x spatial filter", &r);
     }
@@ -284,6 +306,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(
             &verilog(HotPixelMask::<16, 13>::new(&big)?),
             &dir.join("mask150"),
+            &MAPPINGS,
         )?;
         print("SPCImager 150x hot-pixel mask", &r);
     }
@@ -302,6 +325,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(
             &verilog(DelayLine::<16, 17, 5>::new(&dl)?),
             &dir.join("dl24"),
+            &MAPPINGS,
         )?;
         print("BRAM delay line 320x240, N_max 24", &r);
     }
@@ -310,12 +334,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(
             &verilog(DelayLineDdr::<16, 8, 9>::new(&cfg.front)?),
             &dir.join("ddr150"),
+            &MAPPINGS,
         )?;
         print("SPCImager 150x DDR2 delay line", &r);
     }
     if want("xem150") {
         let cfg = spcimager150_back_config()?;
-        let r = yosys_resources(&verilog(Spcimager150Xem::new(&cfg)?), &dir.join("xem150"))?;
+        let r = yosys_resources(
+            &verilog(Spcimager150Xem::new(&cfg)?),
+            &dir.join("xem150"),
+            &MAPPINGS,
+        )?;
         print("XEM6310 top, SPCImager 150x, DDR2", &r);
     }
     if want("proj150") {
@@ -323,6 +352,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = yosys_resources(
             &verilog(Projected150Pipeline::new(&cfg)?),
             &dir.join("proj150"),
+            &MAPPINGS,
         )?;
         print("pipeline, projected 150x, BRAM DL 24", &r);
     }

@@ -62,6 +62,19 @@ pub struct LutLevels {
 }
 
 impl LutLevels {
+    /// How many groups of path ends ([`LutLevels::ends`]) have their
+    /// deepest path at each depth: element d counts those at d LUT levels,
+    /// from 0 to [`LutLevels::levels`].
+    pub fn ends_per_level(&self) -> Vec<usize> {
+        let mut counts = vec![0; self.levels as usize + 1];
+        for (_, d) in &self.ends {
+            if let Some(c) = counts.get_mut(*d as usize) {
+                *c += 1;
+            }
+        }
+        counts
+    }
+
     /// The path ends deeper than `levels`, deepest first, as
     /// `"name depth"`.
     pub fn ends_deeper_than(&self, levels: u32) -> Vec<String> {
@@ -521,6 +534,11 @@ mod tests {
             [("d".into(), 3), ("r".into(), 3), ("e".into(), 2)]
         );
         assert_eq!(r.ends_deeper_than(2), ["d 3", "r 3"]);
+        // Ends per depth 0..=3: e at 2, d and r at 3, and whatever else ends.
+        let per = r.ends_per_level();
+        assert_eq!(per.len(), 4);
+        assert_eq!(per.iter().sum::<usize>(), r.ends.len());
+        assert_eq!((per[2] >= 1, per[3]), (true, 2));
         // And where each end's deepest path comes from.
         let path = |end: &str| {
             let (from, cells) = &r.end_paths[end];

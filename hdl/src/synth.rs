@@ -117,11 +117,118 @@ pub fn verilator_lint(verilog: &str, dir: &Path) -> Result<String, ToolError> {
     Ok(out)
 }
 
-/// Cell counts of a yosys `synth_xilinx -family xc6s` run.
+/// One LUT mapping of the prepared netlist: the yosys commands that take
+/// [`PREPARE`]'s design (`design -load prepared`) to a mapped Spartan-6
+/// netlist. Every mapping starts from the same design, so their figures
+/// differ only by how the LUTs were mapped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Mapping {
+    /// Short name (`abc-d7`, `abc`, `abc9`), used in reports and file names.
+    pub name: &'static str,
+    /// What the mapping optimises, one line.
+    pub about: &'static str,
+    /// The yosys commands, one per line.
+    pub commands: &'static str,
+}
+
+/// yosys commands shared by every mapping: read the Verilog, count the
+/// memory bits and multipliers of the flattened design (the analytic
+/// floors), then `synth_xilinx -family xc6s -flatten` up to its LUT mapping,
+/// saved as `prepared`.
+pub const PREPARE: &str = "read_verilog top.v
+hierarchy -top top
+proc
+flatten
+stat
+synth_xilinx -family xc6s -top top -flatten -run :map_luts
+design -save prepared";
+
+/// The mapping whose figures are quoted: `synth_xilinx`'s own `map_luts`,
+/// `finalize` and `check` steps for the xc6s (6-input LUTs, MUXF7/8), with
+/// one change, the ABC script: its default (`dch -f; if; mfs2`) with `if`
+/// given a delay target of 7 LUT levels (`-D 7`: the LUT library's unit
+/// delay) and more cuts and area-recovery rounds (`-C 24 -F 4 -A 6`). The
+/// classic mapping's `if` recovers area only under the fewest levels it can
+/// reach; one more level frees most of the LUTs that depth costs.
+pub const ABC_D7: Mapping = Mapping {
+    name: "abc-d7",
+    about: "classic abc, at most 7 LUT levels, area recovered under that bound",
+    commands: "opt_expr -mux_undef -noclkinv
+abc -luts 2:2,3,6:5,10,20 -script +strash;&get,-n;&fraig,-x;&put;scorr;dc2;dretime;strash;dch,-f;if,-D,7,-C,24,-F,4,-A,6;mfs2
+clean
+techmap -map +/xilinx/ff_map.v
+xilinx_srl -fixed -minlen 3
+techmap -map +/xilinx/lut_map.v -map +/xilinx/cells_map.v -D LUT_WIDTH=6
+xilinx_dffopt
+opt_lut_ins -tech xilinx
+clkbufmap -buf BUFG O:I
+clean
+hierarchy -check",
+};
+
+/// `synth_xilinx`'s own classic `abc` mapping: unit delay per LUT, each cone
+/// between registers and carry chains mapped to its fewest levels, area
+/// recovered only under that depth.
+pub const ABC: Mapping = Mapping {
+    name: "abc",
+    about: "synth_xilinx's classic abc: the fewest LUT levels",
+    commands: "synth_xilinx -family xc6s -top top -flatten -run map_luts:",
+};
+
+/// `synth_xilinx -abc9`: yosys' delay-driven flow (for the xc6s with the
+/// xc7's timing model, as yosys warns). It maps for delay against the
+/// design's critical *delay* (set by the long carry chains), then recovers
+/// area on every path with slack, so its levels stretch up to that delay.
+/// (`-abc9` changes `map_ffs`, the flip-flop mapping that precedes it.)
+pub const ABC9: Mapping = Mapping {
+    name: "abc9",
+    about: "synth_xilinx -abc9: delay-driven, paths stretched up to the critical delay",
+    commands: "techmap -map +/xilinx/ff_map.v
+synth_xilinx -family xc6s -top top -flatten -abc9 -run map_luts:",
+};
+
+/// The mappings `yosys_resources` runs, the quoted one first.
+pub const MAPPINGS: [Mapping; 3] = [ABC_D7, ABC, ABC9];
+
+/// At most this many LUT levels between registers, in the netlist whose
+/// LUTs are counted (issue #39: ≤ 80 % of the LX45's LUTs *and* ≤ 7 levels,
+/// one netlist).
+pub const LUT_LEVELS_TARGET: u32 = 7;
+
+/// The whole yosys script of [`yosys_resources`], run as `yosys -s
+/// synth.ys` in a folder holding `top.v`: [`PREPARE`], then for each
+/// mapping `design -load prepared`, its commands, its cell counts
+/// (`stat-NAME.txt`), its netlist as JSON (`netlist-NAME.json`, measured in
+/// LUT levels by [`crate::lut_levels`]) and yosys' own longest path through
+/// the combinational cells, every cell counted (`ltp-NAME.txt`; flip-flops,
+/// shift registers, block RAMs, DSP slices, buffers and the black boxes
+/// deleted first, so that paths start and end at them).
+pub fn yosys_script(mappings: &[Mapping]) -> String {
+    let mut s = format!("{PREPARE}\n");
+    for m in mappings {
+        s += &format!(
+            "# {name}: {about}\ndesign -load prepared\n{commands}\n\
+             tee -q -o stat-{name}.txt stat -tech xilinx\n\
+             write_json netlist-{name}.json\n\
+             delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig\n\
+             tee -q -o ltp-{name}.txt ltp\n",
+            name = m.name,
+            about = m.about,
+            commands = m.commands
+        );
+    }
+    s
+}
+
+/// Cell counts and depth of one mapped netlist.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Resources {
-    /// Look-up tables (LUT1..LUT6).
+    /// Look-up tables: LUT1..LUT6 and the inverters ([`Resources::inverters`]).
     pub luts: u64,
+    /// Inverters (`INV`) the mapping left, counted in [`Resources::luts`]:
+    /// each takes a LUT (most drive a carry chain's select input, which on
+    /// a Spartan-6 only its slice's LUT can drive).
+    pub inverters: u64,
     /// Flip-flops (FD*).
     pub ffs: u64,
     /// 18-Kbit block RAMs.
@@ -136,35 +243,51 @@ pub struct Resources {
     pub lutram: u64,
     /// Carry chains (CARRY4).
     pub carry4: u64,
-    /// Bits of the design's memories before mapping (yosys `stat` after
-    /// `proc; flatten`): with [`Resources::ramb16_floor`], the analytic floor.
-    pub memory_bits: u64,
-    /// Multipliers (`$mul` cells) before mapping: the floor of DSP slices
-    /// (the spatial filter's multiplies that its configuration gives DSP
-    /// slices; the others are shifts and adds).
-    pub multipliers: u64,
     /// Longest path between registers, memories, black boxes and ports in
     /// cells of the mapped netlist (LUTs, MUXF7/8, CARRY4, LUT-RAM reads and
     /// inverters each count 1): yosys `ltp` once the sequential cells, block
     /// RAMs, buffers and black boxes are deleted; a proxy for timing.
     pub logic_depth: Option<u64>,
     /// Longest register-to-register path in LUT levels (CARRY4 and MUXF7/8
-    /// count 0, LUT-RAM reads 1), the longest carry chain and the worst
-    /// path's cells: [`crate::lut_levels`] on the mapped netlist.
+    /// count 0, LUT-RAM reads 1), the longest carry chain, the worst
+    /// path's cells and every path end's depth: [`crate::lut_levels`] on the
+    /// mapped netlist.
     pub lut_levels: Option<crate::lut_levels::LutLevels>,
-    /// The same, on the same Verilog mapped by the classic `abc`
-    /// ([`LEVELS_SCRIPT`]): unit delay per LUT, each cone between registers
-    /// and carry chains mapped to its fewest levels. `abc9` instead stretches
-    /// every path with slack against its critical *delay* (set by the long
-    /// carry chains) into chains of small LUTs, so its levels say what it
-    /// allowed, not what the logic needs; the ≤ 6 target is read here.
-    pub unit_levels: Option<crate::lut_levels::LutLevels>,
 }
 
-impl Resources {
-    /// 18-Kbit block RAMs needed at the least for [`Resources::memory_bits`].
+/// A mapping and the figures of its netlist.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Netlist {
+    /// How its LUTs were mapped.
+    pub mapping: Mapping,
+    /// Its cells and depth.
+    pub resources: Resources,
+}
+
+/// What [`yosys_resources`] measured: the Verilog's floors and one
+/// [`Netlist`] per mapping, in [`MAPPINGS`]' order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Synthesis {
+    /// Bits of the design's memories before mapping (yosys `stat` after
+    /// `proc; flatten`): with [`Synthesis::ramb16_floor`], the analytic floor.
+    pub memory_bits: u64,
+    /// Multipliers (`$mul` cells) before mapping: the floor of DSP slices
+    /// (the spatial filter's multiplies that its configuration gives DSP
+    /// slices; the others are shifts and adds).
+    pub multipliers: u64,
+    /// One mapped netlist per mapping.
+    pub netlists: Vec<Netlist>,
+}
+
+impl Synthesis {
+    /// 18-Kbit block RAMs needed at the least for [`Synthesis::memory_bits`].
     pub fn ramb16_floor(&self) -> u64 {
         self.memory_bits.div_ceil(18 * 1024)
+    }
+
+    /// The netlist of the mapping named `name`.
+    pub fn netlist(&self, name: &str) -> Option<&Netlist> {
+        self.netlists.iter().find(|n| n.mapping.name == name)
     }
 }
 
@@ -180,44 +303,19 @@ pub fn lut_ram_luts(cell: &str) -> Option<u64> {
     })
 }
 
-/// Parses a log of [`YOSYS_SCRIPT`]: the cells of the last `stat` table, the
-/// memory bits and multipliers of the first, the `ltp` path length.
-pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
-    let start = log
-        .rfind("Printing statistics")
+/// Parses the output of `stat -tech xilinx` (the last statistics table in
+/// `text`) into cell counts, and an `ltp` line (`length=N`) if there is one.
+pub fn parse_cells(text: &str) -> Result<Resources, ToolError> {
+    let start = text
+        .rfind("Number of cells:")
         .ok_or(ToolError::NoStatistics)?;
-    let mut r = Resources::default();
-    let first = log.find("Printing statistics").unwrap_or(start);
-    if first < start {
-        for line in log[first..start].lines() {
-            let line = line.trim();
-            let number = |prefix: &str| {
-                line.strip_prefix(prefix)
-                    .and_then(|rest| rest.trim().parse::<u64>().ok())
-            };
-            if let Some(n) = number("Number of memory bits:") {
-                r.memory_bits += n;
-            }
-            if let Some(n) = number("$mul") {
-                r.multipliers += n;
-            }
-        }
-    }
-    r.logic_depth = log.rfind("Longest topological path in").and_then(|i| {
-        let rest = &log[i..];
-        let at = rest.find("length=")? + "length=".len();
-        let digits: String = rest[at..]
-            .chars()
-            .take_while(|c| c.is_ascii_digit())
-            .collect();
-        digits.parse().ok()
-    });
-    let end = log[start..]
-        .find("Longest topological path")
-        .map_or(log.len(), |e| start + e);
-    for line in log[start..end].lines() {
+    let mut r = Resources {
+        logic_depth: parse_ltp(text),
+        ..Resources::default()
+    };
+    for line in text[start..].lines().skip(1) {
         let mut parts = line.split_whitespace();
-        let (Some(name), Some(count)) = (parts.next(), parts.next()) else {
+        let (Some(name), Some(count), None) = (parts.next(), parts.next(), parts.next()) else {
             continue;
         };
         let Ok(n) = count.parse::<u64>() else {
@@ -225,6 +323,10 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
         };
         match name {
             n_ if n_.starts_with("LUT") => r.luts += n,
+            "INV" => {
+                r.luts += n;
+                r.inverters += n;
+            }
             n_ if n_.starts_with("FD") => r.ffs += n,
             "RAMB16BWER" => r.ramb16 += n,
             "RAMB8BWER" => r.ramb8 += n,
@@ -236,95 +338,121 @@ pub fn parse_yosys_stat(log: &str) -> Result<Resources, ToolError> {
     Ok(r)
 }
 
-/// The yosys command used for the resource figures: memory bits and
-/// multipliers of the flattened design, Spartan-6 synthesis, cell counts,
-/// the mapped netlist as JSON (`netlist.json`, measured in LUT levels by
-/// [`crate::lut_levels`]), then yosys' own longest path through the
-/// combinational cells, every cell counted (flip-flops, shift registers,
-/// block RAMs, buffers and the black boxes deleted first, so that paths
-/// start and end at them).
-///
-/// LUT mapping by `abc9` (yosys' delay-driven flow) rather than the
-/// classic `abc`: fewer LUTs on the same Verilog; its levels stretch up to
-/// its critical delay, so the depth is also read from [`LEVELS_SCRIPT`]'s
-/// mapping ([`Resources::unit_levels`]). Neither maps
-/// the one flat netlist of a whole top steadily: a rewrite that changes no
-/// logic can move the count by ±7 % (figures in `hdl/RESOURCES.md`).
-pub const YOSYS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; stat; \
-     synth_xilinx -family xc6s -top top -flatten -abc9; stat; write_json netlist.json; \
-     delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig; ltp";
+/// The length of yosys `ltp`'s longest path in `text`, if it has one.
+pub fn parse_ltp(text: &str) -> Option<u64> {
+    let i = text.rfind("Longest topological path in")?;
+    let rest = &text[i..];
+    let at = rest.find("length=")? + "length=".len();
+    let digits: String = rest[at..]
+        .chars()
+        .take_while(|c| c.is_ascii_digit())
+        .collect();
+    digits.parse().ok()
+}
 
-/// The yosys command whose mapping [`Resources::unit_levels`] measures:
-/// Spartan-6 synthesis with the classic `abc` LUT mapping, the netlist as
-/// JSON (`levels.json`).
-pub const LEVELS_SCRIPT: &str = "read_verilog top.v; hierarchy -top top; proc; flatten; \
-     synth_xilinx -family xc6s -top top -flatten; write_json levels.json";
-
-/// Synthesises the Verilog for the Spartan-6 with yosys in `dir` and returns
-/// the cell counts (the log is left in `dir/yosys.log`), and the LUT levels
-/// of both mappings: [`YOSYS_SCRIPT`] and, in a second yosys run beside it,
-/// [`LEVELS_SCRIPT`] (log `dir/levels.log`; the deepest path into every
-/// end deeper than 5 levels of that mapping in `dir/levels-paths.txt`).
-pub fn yosys_resources(verilog: &str, dir: &Path) -> Result<Resources, ToolError> {
-    write_file(dir, "top.v", verilog)?;
-    let yosys = |log: &str, script: &str| {
-        run(
-            "yosys",
-            Command::new("yosys")
-                .current_dir(dir)
-                .arg("-q")
-                .arg("-l")
-                .arg(log)
-                .arg("-p")
-                .arg(script),
-        )
-    };
-    let (main, unit) = std::thread::scope(|s| {
-        let unit = s.spawn(|| yosys("levels.log", LEVELS_SCRIPT));
-        let main = yosys("yosys.log", YOSYS_SCRIPT);
-        (main, unit.join())
-    });
-    let log = main?;
-    unit.unwrap_or_else(|p| std::panic::resume_unwind(p))?;
-    let full = std::fs::read_to_string(dir.join("yosys.log")).unwrap_or(log);
-    let mut r = parse_yosys_stat(&full)?;
-    // The netlist of a whole design is hundreds of MB; the figures are kept.
-    let levels = |name: &str| -> Result<crate::lut_levels::LutLevels, ToolError> {
-        let netlist = dir.join(name);
-        let json = std::fs::read_to_string(&netlist).map_err(|source| ToolError::Io {
-            path: netlist.clone(),
-            source,
-        })?;
-        let _ = std::fs::remove_file(&netlist);
-        Ok(crate::lut_levels::lut_levels(&json, "top")?)
-    };
-    r.lut_levels = Some(levels("netlist.json")?);
-    let unit = levels("levels.json")?;
-    // Where each deep end's path comes from, for the pipelining work list.
-    let mut report = String::new();
-    for (end, d) in unit.ends.iter().filter(|(_, d)| *d > 5) {
-        if let Some((from, cells)) = unit.end_paths.get(end) {
-            report += &format!("{d} {end} <- {from}: {}\n", cells.join(" > "));
+/// The memory bits and multipliers of the first statistics table of a
+/// yosys log ([`PREPARE`]'s `stat` of the flattened design).
+pub fn parse_floors(log: &str) -> Result<(u64, u64), ToolError> {
+    let first = log
+        .find("Printing statistics")
+        .ok_or(ToolError::NoStatistics)?;
+    let end = log[first + 1..]
+        .find("Printing statistics")
+        .map_or(log.len(), |e| first + 1 + e);
+    let (mut bits, mut muls) = (0, 0);
+    for line in log[first..end].lines() {
+        let line = line.trim();
+        let number = |prefix: &str| {
+            line.strip_prefix(prefix)
+                .and_then(|rest| rest.trim().parse::<u64>().ok())
+        };
+        if let Some(n) = number("Number of memory bits:") {
+            bits += n;
+        }
+        if let Some(n) = number("$mul") {
+            muls += n;
         }
     }
-    write_file(dir, "levels-paths.txt", &report)?;
-    r.unit_levels = Some(unit);
-    Ok(r)
+    Ok((bits, muls))
+}
+
+/// Synthesises the Verilog for the Spartan-6 with yosys in `dir`: writes
+/// `top.v` and the script ([`yosys_script`] of `mappings`) as `synth.ys`,
+/// runs `yosys -s synth.ys` (log `yosys.log`), and measures every mapped
+/// netlist (removed once measured: a whole top's is hundreds of MB). For
+/// each mapping, the deepest path into every end deeper than 5 LUT levels
+/// is written to `levels-paths-NAME.txt`: the pipelining work list.
+pub fn yosys_resources(
+    verilog: &str,
+    dir: &Path,
+    mappings: &[Mapping],
+) -> Result<Synthesis, ToolError> {
+    write_file(dir, "top.v", verilog)?;
+    write_file(dir, "synth.ys", &yosys_script(mappings))?;
+    let out = run(
+        "yosys",
+        Command::new("yosys")
+            .current_dir(dir)
+            .arg("-q")
+            .arg("-l")
+            .arg("yosys.log")
+            .arg("-s")
+            .arg("synth.ys"),
+    )?;
+    let read = |name: &str| {
+        let path = dir.join(name);
+        std::fs::read_to_string(&path).map_err(|source| ToolError::Io { path, source })
+    };
+    let log = read("yosys.log").unwrap_or(out);
+    let (memory_bits, multipliers) = parse_floors(&log)?;
+    let mut netlists = Vec::new();
+    for m in mappings {
+        let mut r = parse_cells(&read(&format!("stat-{}.txt", m.name))?)?;
+        r.logic_depth = parse_ltp(&read(&format!("ltp-{}.txt", m.name))?);
+        let json_name = format!("netlist-{}.json", m.name);
+        let json = read(&json_name)?;
+        let _ = std::fs::remove_file(dir.join(&json_name));
+        let levels = crate::lut_levels::lut_levels(&json, "top")?;
+        drop(json);
+        let mut report = String::new();
+        for (end, d) in levels.ends.iter().filter(|(_, d)| *d > 5) {
+            if let Some((from, cells)) = levels.end_paths.get(end) {
+                report += &format!("{d} {end} <- {from}: {}\n", cells.join(" > "));
+            }
+        }
+        write_file(dir, &format!("levels-paths-{}.txt", m.name), &report)?;
+        r.lut_levels = Some(levels);
+        netlists.push(Netlist {
+            mapping: *m,
+            resources: r,
+        });
+    }
+    Ok(Synthesis {
+        memory_bits,
+        multipliers,
+        netlists,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The shape of the two `stat` tables and the `ltp` line of a yosys log.
+    /// The shape of `stat`'s table after `proc; flatten` in a log.
     const LOG: &str = "\
 Printing statistics.
    Number of memory bits:       4096
      $mul                          2
 Printing statistics.
+   Number of memory bits:       9999
+";
+
+    /// The shape of a `stat -tech xilinx` table and an `ltp` line.
+    const STAT: &str = "\
    Number of cells:              100
      CARRY4                        3
      FDRE                         20
+     INV                           4
      LUT2                         10
      LUT6                          5
      RAM32M                        2
@@ -332,18 +460,48 @@ Printing statistics.
      SRL16E                        3
      RAMB16BWER                    1
      RAMB8BWER                     2
+   Estimated number of LCs:       19
 Longest topological path in top (length=7):
 ";
 
     #[test]
-    fn lut_ram_is_counted_in_the_luts_it_occupies() {
-        let r = parse_yosys_stat(LOG).unwrap();
-        assert_eq!(r.luts, 15);
+    fn lut_ram_and_inverters_are_counted_in_the_luts_they_occupy() {
+        let r = parse_cells(STAT).unwrap();
+        assert_eq!(r.luts, 19);
+        assert_eq!(r.inverters, 4);
         // 2 RAM32M × 4 + 1 RAM64X1D × 2 + 3 SRL16E × 1.
         assert_eq!(r.lutram, 13);
         assert_eq!((r.ffs, r.carry4, r.ramb16, r.ramb8), (20, 3, 1, 2));
-        assert_eq!((r.memory_bits, r.multipliers), (4096, 2));
         assert_eq!(r.logic_depth, Some(7));
         assert_eq!(lut_ram_luts("LUT6"), None);
+        assert!(parse_cells("no table").is_err());
+    }
+
+    #[test]
+    fn the_floors_come_from_the_first_table() {
+        assert_eq!(parse_floors(LOG).unwrap(), (4096, 2));
+        assert!(parse_floors("").is_err());
+    }
+
+    #[test]
+    fn the_script_maps_the_prepared_design_once_per_mapping() {
+        let s = yosys_script(&MAPPINGS);
+        assert!(s.starts_with(PREPARE));
+        assert_eq!(s.matches("design -load prepared").count(), MAPPINGS.len());
+        for m in MAPPINGS {
+            for file in ["stat", "netlist", "ltp"] {
+                assert!(
+                    s.contains(&format!("{file}-{}.", m.name)),
+                    "{file} {}",
+                    m.name
+                );
+            }
+        }
+        // The bounded mapping asks ABC for the target depth.
+        assert!(ABC_D7
+            .commands
+            .contains(&format!("if,-D,{LUT_LEVELS_TARGET},")));
+        // No command line ends in `;` (yosys would split it there).
+        assert!(s.lines().all(|l| !l.trim_end().ends_with(';')));
     }
 }

@@ -12,7 +12,9 @@ use smartagg_hdl::front_half::{
 };
 use smartagg_hdl::lint_waivers::verilator_config;
 use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
-use smartagg_hdl::synth::{verilator_lint, yosys_resources};
+use smartagg_hdl::synth::{
+    verilator_lint, yosys_resources, yosys_script, LUT_LEVELS_TARGET, MAPPINGS,
+};
 use smartagg_hdl::xem6310::TestXem;
 
 fn scratch(name: &str) -> std::path::PathBuf {
@@ -44,34 +46,70 @@ fn spcimager_150x_verilog_passes_verilator_lint() {
 fn yosys_maps_the_test_front_half_to_spartan6() {
     let v = test_front_half_verilog().unwrap();
     let dir = scratch("yosys");
-    let r = yosys_resources(&v, &dir).unwrap_or_else(|e| panic!("{e}"));
-    eprintln!("{r:?}");
+    let s = yosys_resources(&v, &dir, &MAPPINGS).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("{s:?}");
+    // The script that made the figures is left beside them.
+    let script = std::fs::read_to_string(dir.join("synth.ys")).unwrap();
+    assert_eq!(script, yosys_script(&MAPPINGS));
     let _ = std::fs::remove_dir_all(dir);
     // The delay line alone is 7 x 96 bits of memory; no multiplier.
-    assert!(r.memory_bits >= 7 * 96, "{r:?}");
-    assert_eq!(r.multipliers, 0, "{r:?}");
-    assert!(r.logic_depth.is_some_and(|d| d > 2 && d < 100), "{r:?}");
-    // LUT levels never exceed the cells yosys counts on the longest path.
-    let l = r.lut_levels.as_ref().expect("LUT levels");
+    assert!(s.memory_bits >= 7 * 96, "{s:?}");
+    assert_eq!(s.multipliers, 0, "{s:?}");
+    let names: Vec<&str> = s.netlists.iter().map(|n| n.mapping.name).collect();
+    assert_eq!(names, ["abc-d7", "abc", "abc9"]);
+    for n in &s.netlists {
+        let r = &n.resources;
+        let name = n.mapping.name;
+        assert!(
+            r.logic_depth.is_some_and(|d| d > 2 && d < 100),
+            "{name} {r:?}"
+        );
+        // LUT levels never exceed the cells yosys counts on the longest path.
+        let l = r.lut_levels.as_ref().expect("LUT levels");
+        assert!(
+            l.levels >= 1 && u64::from(l.levels) <= r.logic_depth.unwrap(),
+            "{name} {r:?}"
+        );
+        assert!(!l.path.is_empty(), "{name} {r:?}");
+        assert_eq!(l.ends.first().map(|e| e.1), Some(l.levels), "{name} {r:?}");
+        assert_eq!(
+            l.ends_per_level().iter().sum::<usize>(),
+            l.ends.len(),
+            "{name}"
+        );
+        // The test configuration gives the filter no DSP slice: every
+        // multiply is shift-and-add.
+        assert_eq!(r.dsp48a1, 0, "{name} {r:?}");
+        // The delay line (7 planes x 96 bits) and the counter memory are
+        // memories, not flip-flops.
+        assert!(r.ramb8 + r.ramb16 + r.lutram > 0, "{name} {r:?}");
+        assert!(r.luts > 100 && r.ffs > 100, "{name} {r:?}");
+        assert!(r.inverters <= r.luts, "{name} {r:?}");
+    }
+    // The same prepared design under every mapping: the same flip-flops
+    // and memories; only the LUTs differ.
+    let first = &s.netlists[0].resources;
+    for n in &s.netlists[1..] {
+        assert_eq!(n.resources.ffs, first.ffs, "{}", n.mapping.name);
+        assert_eq!(
+            (n.resources.ramb16, n.resources.ramb8),
+            (first.ramb16, first.ramb8),
+            "{}",
+            n.mapping.name
+        );
+    }
+    // The bounded mapping keeps to its target wherever the level-optimal
+    // one can.
+    let levels = |name: &str| {
+        s.netlist(name)
+            .and_then(|n| n.resources.lut_levels.as_ref())
+            .map(|l| l.levels)
+            .unwrap()
+    };
     assert!(
-        l.levels >= 1 && u64::from(l.levels) <= r.logic_depth.unwrap(),
-        "{r:?}"
+        levels("abc-d7") <= LUT_LEVELS_TARGET.max(levels("abc")),
+        "{s:?}"
     );
-    assert!(!l.path.is_empty(), "{r:?}");
-    // The level-optimal mapping of the same Verilog: a depth as well, and
-    // its deepest end is the path's.
-    let u = r
-        .unit_levels
-        .as_ref()
-        .expect("levels of the classic mapping");
-    assert!(u.levels >= 1, "{r:?}");
-    assert_eq!(u.ends.first().map(|e| e.1), Some(u.levels), "{r:?}");
-    // The test configuration gives the filter no DSP slice: every multiply
-    // is shift-and-add.
-    assert_eq!(r.dsp48a1, 0, "{r:?}");
-    // The delay line (7 planes x 96 bits) and the counter memory are memories, not flip-flops.
-    assert!(r.ramb8 + r.ramb16 + r.lutram > 0, "{r:?}");
-    assert!(r.luts > 100 && r.ffs > 100, "{r:?}");
 }
 
 /// The bits of the top module's ports: `name` for one bit, `name[i]` for

@@ -175,19 +175,32 @@ fn resources_synthesises_the_given_file_and_reports_its_hash() {
     assert_eq!(j["verilog_crc64"], text_hash(SMALL));
     assert_eq!(j["memory_bits"], 32 * 8);
     assert_eq!(j["ramb16_floor"], 1);
-    assert!(j["luts"].as_u64().unwrap() >= 8, "{j}");
-    assert!(j["ffs"].as_u64().unwrap() >= 16, "{j}");
-    let depth = j["logic_depth"].as_u64().unwrap();
-    assert!((1..20).contains(&depth), "{j}");
-    let levels = j["lut_levels"].as_u64().unwrap();
-    assert!(levels >= 1 && levels <= depth, "{j}");
-    // The level-optimal mapping reads a depth too, never above yosys' count.
-    let unit = j["lut_levels_abc"].as_u64().unwrap();
-    assert!(unit >= 1 && unit <= depth, "{j}");
-    assert!(!j["worst_path_abc"].as_array().unwrap().is_empty(), "{j}");
-    let devices = j["devices"].as_array().unwrap();
-    assert_eq!(devices[0]["device"], "XC6SLX45");
-    assert_eq!(devices[0]["fits"], true);
+    assert_eq!(j["lut_levels_target"], 7);
+    // One entry per mapping, each measured on its own netlist; the script
+    // that made them is in the report.
+    let maps = j["mappings"].as_array().unwrap();
+    let names: Vec<&str> = maps
+        .iter()
+        .map(|m| m["mapping"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["abc-d7", "abc", "abc9"], "{j}");
+    let script = j["yosys_script"].as_str().unwrap();
+    for m in maps {
+        assert!(script.contains(&format!("netlist-{}.json", m["mapping"].as_str().unwrap())));
+        assert!(m["luts"].as_u64().unwrap() >= 8, "{m}");
+        assert!(m["ffs"].as_u64().unwrap() >= 16, "{m}");
+        let depth = m["logic_depth"].as_u64().unwrap();
+        assert!((1..20).contains(&depth), "{m}");
+        let levels = m["lut_levels"].as_u64().unwrap();
+        assert!(levels >= 1 && levels <= depth, "{m}");
+        let per = m["ends_per_level"].as_array().unwrap();
+        assert_eq!(per.len() as u64, levels + 1, "{m}");
+        assert!(!m["worst_path"].as_array().unwrap().is_empty(), "{m}");
+        let devices = m["devices"].as_array().unwrap();
+        assert_eq!(devices[0]["device"], "XC6SLX45");
+        assert_eq!(devices[0]["fits"], true);
+        assert_eq!(devices[0]["fits_within_levels"], levels <= 7, "{m}");
+    }
     // A file without a `top` module is refused by name.
     let bad = dir.path().join("bad.v");
     std::fs::write(&bad, "module other(); endmodule\n").unwrap();

@@ -9,15 +9,20 @@
 //!   adds them beside Opal Kelly's FrontPanel HDL and the MIG DDR2 core,
 //!   which are proprietary and supplied by the user.
 //! * `hdl resources` synthesises the same Verilog text with yosys
-//!   `synth_xilinx -family xc6s` and reports LUT, FF, block RAM and DSP use
-//!   against the XC6SLX45 and XC6SLX150, beside the analytic floors, the
-//!   logic depth between registers and the throughput arithmetic.
+//!   `synth_xilinx -family xc6s -flatten`, maps the prepared design's LUTs
+//!   three ways (`smartagg_hdl::synth::MAPPINGS`) and reports, for each
+//!   mapped netlist, LUT, FF, block RAM and DSP use against the XC6SLX45
+//!   and XC6SLX150 and its depth in LUT levels, beside the analytic floors
+//!   and the throughput arithmetic, and the yosys script that reproduces
+//!   them.
 
 use anyhow::{bail, Context};
 use serde::Serialize;
 use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind, DEVICES};
 use smartagg_hdl::lint_waivers::{verilator_config, VLT_FILE};
-use smartagg_hdl::synth::{yosys_resources, Resources, YOSYS_SCRIPT};
+use smartagg_hdl::synth::{
+    yosys_resources, yosys_script, Netlist, Synthesis, LUT_LEVELS_TARGET, MAPPINGS,
+};
 use smartagg_model::params::PresetName;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -58,7 +63,7 @@ pub struct ResourcesArgs {
     /// `hdl generate`) instead of generating the preset's design.
     #[arg(long, conflicts_with = "preset")]
     pub verilog: Option<PathBuf>,
-    /// Directory for yosys's files (`top.v`, `yosys.log`; default: a temporary one, removed).
+    /// Directory for yosys's files (`top.v`, `synth.ys`, `yosys.log`, the deepest paths of each mapping; default: a temporary one, removed).
     #[arg(long)]
     pub work: Option<PathBuf>,
     /// Print JSON instead of the summary.
@@ -202,6 +207,8 @@ struct DeviceUse {
     dsp_percent: f64,
     /// LUT ≤ 80 %, FF, block RAM and DSP ≤ 100 %.
     fits: bool,
+    /// Fits, and at most `LUT_LEVELS_TARGET` LUT levels: both in this netlist.
+    fits_within_levels: bool,
 }
 
 #[derive(Serialize)]
@@ -215,40 +222,55 @@ struct Throughput {
     headroom_percent: f64,
 }
 
+/// The figures of one mapped netlist: every count and depth of one row
+/// comes from the same cells.
 #[derive(Serialize)]
-struct Report {
-    design: String,
-    verilog_crc64: String,
-    verilog_bytes: usize,
-    yosys_seconds: f64,
-    yosys_script: &'static str,
+struct MappingReport {
+    mapping: &'static str,
+    about: &'static str,
+    /// LUT1–LUT6 and inverters.
     luts: u64,
+    inverters: u64,
     lut_ram: u64,
     ffs: u64,
     ramb16: u64,
     ramb8: u64,
     dsp48a1: u64,
     carry4: u64,
-    memory_bits: u64,
-    ramb16_floor: u64,
-    multipliers: u64,
     logic_depth: Option<u64>,
     lut_levels: Option<u32>,
     carry_chain: Option<u32>,
+    /// Groups of path ends whose deepest path has 0, 1, … LUT levels.
+    ends_per_level: Vec<usize>,
+    /// The worst path: its start, then its cells.
     worst_path: Vec<String>,
-    /// LUT levels of the level-optimal (classic `abc`) mapping of the same
-    /// Verilog: the figure for the ≤ 6 target.
-    lut_levels_abc: Option<u32>,
-    worst_path_abc: Vec<String>,
-    /// Path ends deeper than 6 levels in that mapping, deepest first (at
-    /// most 40): the work list for pipelining.
-    deep_ends_abc: Vec<(String, u32)>,
+    /// Path ends deeper than the target, deepest first (at most 40).
+    deep_ends: Vec<(String, u32)>,
     devices: Vec<DeviceUse>,
+}
+
+#[derive(Serialize)]
+struct Report {
+    design: String,
+    verilog_crc64: String,
+    verilog_bytes: usize,
+    yosys_seconds: f64,
+    /// The whole yosys script (`yosys -s synth.ys` beside `top.v`).
+    yosys_script: String,
+    lut_levels_target: u32,
+    memory_bits: u64,
+    ramb16_floor: u64,
+    multipliers: u64,
+    /// One entry per mapping of the same prepared design, the quoted one first.
+    mappings: Vec<MappingReport>,
     throughput: Option<Throughput>,
 }
 
-fn report(name: String, v: &str, r: &Resources, seconds: f64, d: Option<&Design>) -> Report {
+fn mapping_report(n: &Netlist) -> MappingReport {
+    let r = &n.resources;
+    let levels = r.lut_levels.as_ref();
     let ramb = r.ramb16 as f64 + r.ramb8 as f64 / 2.0;
+    let shallow = levels.is_some_and(|l| l.levels <= LUT_LEVELS_TARGET);
     let devices = DEVICES
         .iter()
         .map(|dev| {
@@ -257,19 +279,58 @@ fn report(name: String, v: &str, r: &Resources, seconds: f64, d: Option<&Design>
             let ff_percent = pct(r.ffs as f64, dev.ffs);
             let block_ram_percent = pct(ramb, dev.ramb16);
             let dsp_percent = pct(r.dsp48a1 as f64, dev.dsp48a1);
+            let fits = lut_percent <= 80.0
+                && ff_percent <= 100.0
+                && block_ram_percent <= 100.0
+                && dsp_percent <= 100.0;
             DeviceUse {
                 device: dev.name,
                 lut_percent,
                 ff_percent,
                 block_ram_percent,
                 dsp_percent,
-                fits: lut_percent <= 80.0
-                    && ff_percent <= 100.0
-                    && block_ram_percent <= 100.0
-                    && dsp_percent <= 100.0,
+                fits,
+                fits_within_levels: fits && shallow,
             }
         })
         .collect();
+    MappingReport {
+        mapping: n.mapping.name,
+        about: n.mapping.about,
+        luts: r.luts,
+        inverters: r.inverters,
+        lut_ram: r.lutram,
+        ffs: r.ffs,
+        ramb16: r.ramb16,
+        ramb8: r.ramb8,
+        dsp48a1: r.dsp48a1,
+        carry4: r.carry4,
+        logic_depth: r.logic_depth,
+        lut_levels: levels.map(|l| l.levels),
+        carry_chain: levels.map(|l| l.carry_chain),
+        ends_per_level: levels.map(|l| l.ends_per_level()).unwrap_or_default(),
+        worst_path: levels
+            .map(|l| {
+                std::iter::once(l.start.clone())
+                    .chain(l.path.iter().map(|(t, n)| format!("{t} {n}")))
+                    .collect()
+            })
+            .unwrap_or_default(),
+        deep_ends: levels
+            .map(|l| {
+                l.ends
+                    .iter()
+                    .filter(|(_, d)| *d > LUT_LEVELS_TARGET)
+                    .take(40)
+                    .cloned()
+                    .collect()
+            })
+            .unwrap_or_default(),
+        devices,
+    }
+}
+
+fn report(name: String, v: &str, s: &Synthesis, seconds: f64, d: Option<&Design>) -> Report {
     let throughput = d.map(|d| {
         let t = d.throughput();
         Throughput {
@@ -287,48 +348,12 @@ fn report(name: String, v: &str, r: &Resources, seconds: f64, d: Option<&Design>
         verilog_crc64: text_hash(v),
         verilog_bytes: v.len(),
         yosys_seconds: seconds,
-        yosys_script: YOSYS_SCRIPT,
-        luts: r.luts,
-        lut_ram: r.lutram,
-        ffs: r.ffs,
-        ramb16: r.ramb16,
-        ramb8: r.ramb8,
-        dsp48a1: r.dsp48a1,
-        carry4: r.carry4,
-        memory_bits: r.memory_bits,
-        ramb16_floor: r.ramb16_floor(),
-        multipliers: r.multipliers,
-        logic_depth: r.logic_depth,
-        lut_levels: r.lut_levels.as_ref().map(|l| l.levels),
-        carry_chain: r.lut_levels.as_ref().map(|l| l.carry_chain),
-        worst_path: r
-            .lut_levels
-            .as_ref()
-            .map(|l| l.path.iter().map(|(t, n)| format!("{t} {n}")).collect())
-            .unwrap_or_default(),
-        lut_levels_abc: r.unit_levels.as_ref().map(|l| l.levels),
-        worst_path_abc: r
-            .unit_levels
-            .as_ref()
-            .map(|l| {
-                std::iter::once(l.start.clone())
-                    .chain(l.path.iter().map(|(t, n)| format!("{t} {n}")))
-                    .collect()
-            })
-            .unwrap_or_default(),
-        deep_ends_abc: r
-            .unit_levels
-            .as_ref()
-            .map(|l| {
-                l.ends
-                    .iter()
-                    .filter(|(_, d)| *d > 6)
-                    .take(40)
-                    .cloned()
-                    .collect()
-            })
-            .unwrap_or_default(),
-        devices,
+        yosys_script: yosys_script(&MAPPINGS),
+        lut_levels_target: LUT_LEVELS_TARGET,
+        memory_bits: s.memory_bits,
+        ramb16_floor: s.ramb16_floor(),
+        multipliers: s.multipliers,
+        mappings: s.netlists.iter().map(mapping_report).collect(),
         throughput,
     }
 }
@@ -362,76 +387,108 @@ fn resources(a: ResourcesArgs) -> anyhow::Result<()> {
     };
     if !a.json {
         println!(
-            "{name}: Verilog CRC-64/XZ {} ({} bytes); yosys synth_xilinx -family xc6s in {} ...",
+            "{name}: Verilog CRC-64/XZ {} ({} bytes); yosys synth_xilinx -family xc6s -flatten, \
+             then {} LUT mappings of the same prepared design, in {} ...",
             text_hash(&v),
             v.len(),
+            MAPPINGS.len(),
             dir.display()
         );
     }
     let t0 = Instant::now();
-    let result = yosys_resources(&v, &dir);
+    let result = yosys_resources(&v, &dir, &MAPPINGS);
     let seconds = t0.elapsed().as_secs_f64();
     if temporary {
         let _ = std::fs::remove_dir_all(&dir);
     }
-    let r = result?;
-    let rep = report(name, &v, &r, seconds, d.as_ref());
+    let s = result?;
+    let rep = report(name, &v, &s, seconds, d.as_ref());
     if a.json {
         println!("{}", serde_json::to_string_pretty(&rep)?);
         return Ok(());
     }
+    print_report(&rep, d.as_ref(), &dir, temporary);
+    Ok(())
+}
+
+fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
     println!(
-        "yosys {:.0} s: LUT {} (+{} as LUT RAM or shift registers), FF {}, RAMB16 {}, RAMB8 {}, DSP48A1 {}, CARRY4 {}",
-        rep.yosys_seconds, rep.luts, rep.lut_ram, rep.ffs, rep.ramb16, rep.ramb8, rep.dsp48a1, rep.carry4
+        "yosys {:.0} s; floors: {} memory bits -> {} RAMB16; {} multipliers -> {} DSP48A1",
+        rep.yosys_seconds, rep.memory_bits, rep.ramb16_floor, rep.multipliers, rep.multipliers
     );
     println!(
-        "floors: {} memory bits -> {} RAMB16 (mapped {:.1}); {} multipliers -> {} DSP48A1",
-        rep.memory_bits,
-        rep.ramb16_floor,
-        rep.ramb16 as f64 + rep.ramb8 as f64 / 2.0,
-        rep.multipliers,
-        rep.multipliers
+        "one row per netlist (its LUTs, RAM, DSP and depth all measured on the same cells; \
+         LUT = LUT1-6 + INV; levels: CARRY4 and MUXF7/8 count 0):"
     );
-    let unknown = |x: Option<u32>| x.map_or("unknown".into(), |x| x.to_string());
+    let lx45 = |m: &MappingReport| m.devices.first().map_or(f64::NAN, |u| u.lut_percent);
     println!(
-        "logic depth between registers: {} LUT levels mapped level-optimally by the classic abc \
-         (target <= 6; CARRY4 and MUXF7/8 count 0); {} as abc9 mapped it (paths stretched up to \
-         its critical delay); longest carry chain {} CARRY4; yosys ltp {} cells",
-        unknown(rep.lut_levels_abc),
-        unknown(rep.lut_levels),
-        unknown(rep.carry_chain),
-        rep.logic_depth.map_or("unknown".into(), |x| x.to_string())
+        "{:<8} {:>7} {:>5} {:>8} {:>7} {:>7} {:>4} {:>6} {:>6} {:>7}  ends per level (0, 1, ...)",
+        "mapping", "LUT", "INV", "LUT RAM", "% LX45", "FF", "DSP", "RAMB16", "CARRY4", "levels"
     );
-    if !rep.worst_path_abc.is_empty() {
-        println!("worst path (abc): {}", rep.worst_path_abc.join(" -> "));
-    }
-    if !rep.deep_ends_abc.is_empty() {
-        let ends: Vec<String> = rep
-            .deep_ends_abc
-            .iter()
-            .map(|(n, d)| format!("{n} {d}"))
-            .collect();
-        println!("path ends deeper than 6 (abc): {}", ends.join(", "));
-    }
-    if !rep.worst_path.is_empty() {
-        println!("worst path (abc9): {}", rep.worst_path.join(" -> "));
-    }
-    for u in &rep.devices {
+    let unknown = |x: Option<u32>| x.map_or("?".into(), |x| x.to_string());
+    for m in &rep.mappings {
         println!(
-            "{:<10} LUT {:5.1} %  FF {:5.1} %  block RAM {:5.1} %  DSP {:5.1} %  -> {}",
-            u.device,
-            u.lut_percent,
-            u.ff_percent,
-            u.block_ram_percent,
-            u.dsp_percent,
-            if u.fits {
-                "fits (LUT <= 80 %)"
-            } else {
-                "does NOT fit (LUT <= 80 %, others <= 100 %)"
-            }
+            "{:<8} {:>7} {:>5} {:>8} {:>6.1}% {:>7} {:>4} {:>6.1} {:>6} {:>7}  {}",
+            m.mapping,
+            m.luts,
+            m.inverters,
+            m.lut_ram,
+            lx45(m),
+            m.ffs,
+            m.dsp48a1,
+            m.ramb16 as f64 + m.ramb8 as f64 / 2.0,
+            m.carry4,
+            unknown(m.lut_levels),
+            m.ends_per_level
+                .iter()
+                .map(|c| c.to_string())
+                .collect::<Vec<_>>()
+                .join(" ")
         );
     }
-    if let (Some(t), Some(d)) = (&rep.throughput, &d) {
+    for m in &rep.mappings {
+        println!("{}: {}", m.mapping, m.about);
+        println!(
+            "  longest carry chain {} CARRY4; yosys ltp {} cells; worst path: {}",
+            unknown(m.carry_chain),
+            m.logic_depth.map_or("?".into(), |x| x.to_string()),
+            m.worst_path.join(" -> ")
+        );
+        if !m.deep_ends.is_empty() {
+            let ends: Vec<String> = m
+                .deep_ends
+                .iter()
+                .map(|(n, d)| format!("{n} {d}"))
+                .collect();
+            println!(
+                "  path ends deeper than {}: {}",
+                rep.lut_levels_target,
+                ends.join(", ")
+            );
+        }
+        for u in &m.devices {
+            println!(
+                "  {:<10} LUT {:5.1} %  FF {:5.1} %  block RAM {:5.1} %  DSP {:5.1} %  -> {}",
+                u.device,
+                u.lut_percent,
+                u.ff_percent,
+                u.block_ram_percent,
+                u.dsp_percent,
+                match (u.fits, u.fits_within_levels) {
+                    (true, true) => format!(
+                        "fits (LUT <= 80 %) within {} LUT levels",
+                        rep.lut_levels_target
+                    ),
+                    (true, false) => format!(
+                        "fits (LUT <= 80 %) but deeper than {} LUT levels",
+                        rep.lut_levels_target
+                    ),
+                    _ => "does NOT fit (LUT <= 80 %, others <= 100 %)".into(),
+                }
+            );
+        }
+    }
+    if let (Some(t), Some(d)) = (&rep.throughput, d) {
         println!(
             "throughput: P = {}, {:.1} MHz, {} words/plane: {:.0} planes/s keep the core {:.1} % busy; DDR2 refresh {:.1} %; headroom {:.1} % (target >= 25 %); design for the {}",
             t.pixels_per_clock,
@@ -444,5 +501,14 @@ fn resources(a: ResourcesArgs) -> anyhow::Result<()> {
             d.device.name
         );
     }
-    Ok(())
+    if temporary {
+        println!("yosys script (run `yosys -s synth.ys` in a folder holding top.v to reproduce every figure):");
+        println!("{}", rep.yosys_script);
+    } else {
+        println!(
+            "yosys script: {} (`yosys -s synth.ys` there reproduces every figure); per mapping, \
+             the deepest paths in levels-paths-NAME.txt",
+            dir.join("synth.ys").display()
+        );
+    }
 }
