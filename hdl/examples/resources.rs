@@ -39,6 +39,7 @@ use smartagg_hdl::configs::Spcimager150Xem;
 use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::delay_line_ddr::DelayLineDdr;
+use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
 use smartagg_hdl::packetiser::Packetiser;
@@ -81,12 +82,6 @@ fn kernel(sigma: f64, k: usize, a: u8) -> Vec<u32> {
 
 /// Verilog of one block of a back-half configuration.
 type BlockVerilog = fn(&BackHalfConfig) -> Result<String, GatewareError>;
-
-/// (name, LUT6, FF, RAMB16, DSP48A1) of the two devices.
-const DEVICES: [(&str, u64, u64, u64, u64); 2] = [
-    ("XC6SLX45", 27_288, 54_576, 116, 58),
-    ("XC6SLX150", 92_152, 184_304, 268, 180),
-];
 
 fn print(name: &str, s: &Synthesis) {
     println!(
@@ -135,15 +130,16 @@ fn print(name: &str, s: &Synthesis) {
                 );
             }
         }
-        for (dev, luts, ffs, brams, dsps) in DEVICES {
+        for dev in DEVICES {
             println!(
-                "{:<34} {:<6} {dev}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",
+                "{:<34} {:<6} {}: LUT {:.1} %  FF {:.1} %  RAMB16 {:.1} %  DSP {:.1} %",
                 "",
                 "",
-                100.0 * (r.luts + r.lutram) as f64 / luts as f64,
-                100.0 * r.ffs as f64 / ffs as f64,
-                100.0 * ramb / brams as f64,
-                100.0 * r.dsp48a1 as f64 / dsps as f64
+                dev.name,
+                100.0 * (r.luts + r.lutram) as f64 / dev.luts as f64,
+                100.0 * r.ffs as f64 / dev.ffs as f64,
+                100.0 * ramb / dev.ramb16 as f64,
+                100.0 * r.dsp48a1 as f64 / dev.dsp48a1 as f64
             );
         }
     }
@@ -172,7 +168,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         n_max: 128,
         kernel: k1.clone(),
         kernel_shift: 8,
-        dsp_multipliers: smartagg_hdl::configs::XC6SLX45.dsp48a1 as usize,
+        dsp_multipliers: smartagg_hdl::device::XC6SLX45.dsp48a1 as usize,
         sized_for: None,
     };
     big.validate()?;

@@ -153,7 +153,7 @@
 //! then StreamEnd.
 
 use crate::bram::{Bram, RamStyle};
-use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
+use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
@@ -173,10 +173,6 @@ pub const AGE_BITS: usize = 18;
 /// anchors, windows and ROI view are most of the tracker's registers).
 /// (`update` writes the width as the literal 10, like [`AGE_BITS`].)
 pub const COORD_BITS: usize = 10;
-
-/// The most tracking slots M the tracker holds: each per-slot flag is one
-/// register of `MAX_SLOTS` bits (see "Registers" in the module doc).
-pub const MAX_SLOTS: usize = 32;
 
 /// Offsets of the fields of a slot's `geo` word (one 64-bit register per
 /// slot): the anchor, the window's two word columns and its last row, and

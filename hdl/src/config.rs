@@ -18,6 +18,11 @@
 use smartagg_model::config::{ConfigError, PipelineConfig};
 use thiserror::Error;
 
+/// The most tracking slots M the blink tracker holds: each per-slot flag is
+/// one register of `MAX_SLOTS` bits (see "Registers" in
+/// [`crate::blink_tracker`]'s module doc).
+pub const MAX_SLOTS: usize = 32;
+
 /// A configuration the gateware cannot be generated for; names what is wrong.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum GatewareError {
@@ -315,7 +320,7 @@ impl GatewareConfig {
 pub struct BackHalfConfig {
     /// The front half (sensor size, P, N_max, kernel).
     pub front: GatewareConfig,
-    /// Tracking slots M (1..=[`crate::blink_tracker::MAX_SLOTS`]: the
+    /// Tracking slots M (1..=[`MAX_SLOTS`]: the
     /// tracker and the aggregator keep one bit per slot of each flag in one
     /// register).
     pub slots: usize,
@@ -382,7 +387,7 @@ impl BackHalfConfig {
                 "the back half needs a power of two (word and lane of a column by shifts)",
             ));
         }
-        let max_slots = crate::blink_tracker::MAX_SLOTS;
+        let max_slots = MAX_SLOTS;
         if self.slots == 0 || self.slots > max_slots {
             return Err(invalid(
                 "slots",

@@ -320,7 +320,7 @@ pub fn spcimager150_config() -> GatewareConfig {
         n_max: 128,
         kernel: vec![2, 10, 29, 54, 66, 54, 29, 10, 2],
         kernel_shift: 8,
-        dsp_multipliers: crate::configs::device_for(smartagg_model::params::PresetName::Spcimager)
+        dsp_multipliers: crate::device::device_for(smartagg_model::params::PresetName::Spcimager)
             .dsp48a1 as usize,
         sized_for: None,
     }

@@ -41,6 +41,7 @@
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
+pub mod bench;
 pub mod blink_tracker;
 pub mod bram;
 pub mod candidates;
@@ -48,6 +49,7 @@ pub mod config;
 pub mod configs;
 pub mod delay_line;
 pub mod delay_line_ddr;
+pub mod device;
 pub mod fifo;
 pub mod front_half;
 pub mod hot_pixel_mask;
@@ -59,7 +61,6 @@ pub mod registers;
 pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod schedule;
-pub mod sim;
 pub mod spatial_filter;
 pub mod stream;
 pub mod synth;

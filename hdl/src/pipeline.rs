@@ -1646,7 +1646,7 @@ pub fn spcimager150_back_config() -> Result<BackHalfConfig, GatewareError> {
 pub fn projected150_back_config() -> Result<BackHalfConfig, GatewareError> {
     let front = GatewareConfig {
         n_max: 24,
-        dsp_multipliers: crate::configs::device_for(
+        dsp_multipliers: crate::device::device_for(
             smartagg_model::params::PresetName::SpcimagerProjected,
         )
         .dsp48a1 as usize,

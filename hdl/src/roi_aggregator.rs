@@ -56,8 +56,9 @@
 //! clocks: its walk, and its replays after openings):
 //! [`BackHalfConfig::default_row_slack`].
 
-use crate::blink_tracker::{COORD_BITS, MAX_SLOTS};
+use crate::blink_tracker::COORD_BITS;
 use crate::bram::{Bram, RamStyle};
+use crate::config::MAX_SLOTS;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::spatial_filter::ConstMul;

@@ -19,9 +19,9 @@ use proptest::prelude::*;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::blink_tracker::{record_kind, shadow, BlinkTracker, COORD_BITS};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig};
-use smartagg_hdl::sim::{settle, Bench};
 use smartagg_model::blink_tracker::{BlinkTracker as Model, Completed, Slot};
 use smartagg_model::candidates::{find, Candidate};
 use smartagg_model::config::PipelineConfig;
@@ -781,7 +781,7 @@ fn tracker_refuses_a_field_its_coordinates_cannot_hold() {
 /// itself builds a tracker.
 #[test]
 fn tracker_refuses_more_slots_than_its_flags_hold() {
-    use smartagg_hdl::blink_tracker::MAX_SLOTS;
+    use smartagg_hdl::config::MAX_SLOTS;
     let config = |slots: usize| {
         let mut mcfg = PipelineConfig::new(W, H, 4, vec![1, 2, 1], 2, THR);
         mcfg.slots = slots;

@@ -4,7 +4,8 @@
 //! `top.vlt` (all four are linted by `tests/verilog.rs` and by `cargo run -p
 //! smartagg-hdl --release --example resources -- lint`).
 
-use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind, XC6SLX150, XC6SLX45};
+use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind};
+use smartagg_hdl::device::{XC6SLX150, XC6SLX45};
 use smartagg_hdl::synth::verilator_lint;
 use smartagg_model::field_design;
 use smartagg_model::params::{Preset, PresetName};

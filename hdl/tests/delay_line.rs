@@ -6,9 +6,9 @@
 mod common;
 
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line::DelayLine;
-use smartagg_hdl::sim::{Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine as ModelDelayLine;
 
@@ -54,13 +54,13 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
             u.flush.next = t == planes + n_drain;
             u.side.next = ((sent as u64 * 7) & 15).to_bits();
             u.live.next = if t < planes {
-                common::word(&stream[t], P, idx).to_bits()
+                stream[t].stream_word(P, idx).to_bits()
             } else {
                 0.into()
             };
             sent += 1;
         }
-        smartagg_hdl::sim::settle(u);
+        smartagg_hdl::bench::settle(u);
         if u.out_valid.val() && u.out_drain.val() {
             assert!(u.out_flush.val(), "drain words are flush downstream");
             got_drain.push(u.out_delayed.val().to_u64());
@@ -86,7 +86,7 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
         for idx in 0..wpp {
             assert_eq!(
                 got_drain[j * wpp + idx],
-                common::word(plane, P, idx),
+                plane.stream_word(P, idx),
                 "drain plane {j} word {idx}, N = {n}"
             );
         }
@@ -100,12 +100,12 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
             );
             assert_eq!(
                 got_live[k],
-                common::word(&stream[t], P, idx),
+                stream[t].stream_word(P, idx),
                 "live, plane {t} word {idx}"
             );
             assert_eq!(
                 got_delayed[k],
-                common::word(&expected[t], P, idx),
+                expected[t].stream_word(P, idx),
                 "B_(t-N), plane {t} word {idx}, N = {n}"
             );
         }

@@ -7,9 +7,9 @@
 mod common;
 
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line_ddr::{DelayLineDdr, McbModel};
-use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine as ModelDelayLine;
 use smartagg_model::plane::BitPlane;
@@ -104,7 +104,7 @@ fn run_stream(
             u.drain.next = t >= planes && t < stored;
             u.flush.next = t == stored;
             u.live.next = if t < planes {
-                common::word(&stream[t], P, idx).to_bits()
+                stream[t].stream_word(P, idx).to_bits()
             } else {
                 0.into()
             };
@@ -128,7 +128,7 @@ fn run_stream(
             for idx in 0..wpp {
                 assert_eq!(
                     got[t * wpp + idx],
-                    common::word(plane, P, idx),
+                    plane.stream_word(P, idx),
                     "B_(t-N), plane {t} word {idx}, N = {n}"
                 );
             }

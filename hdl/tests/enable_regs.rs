@@ -6,7 +6,7 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::sim::{settle, Bench};
+use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::stream::EnableRegs;
 
 #[test]

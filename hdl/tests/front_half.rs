@@ -10,8 +10,8 @@ mod common;
 use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::front_half::{test_config, TestFrontHalf};
-use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::candidates::{find, Candidate};
 use smartagg_model::delay_line::DelayLine;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
@@ -63,7 +63,7 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     for idx in 0..wpp {
         bench.uut.load.next = true;
         bench.uut.load_address.next = (idx as u64).to_bits();
-        bench.uut.load_data.next = common::word(&mask_plane, p, idx).to_bits();
+        bench.uut.load_data.next = mask_plane.stream_word(p, idx).to_bits();
         bench.tick();
     }
     bench.uut.load.next = false;
@@ -82,7 +82,7 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
             u.sop.next = idx == 0;
             u.flush.next = t == planes;
             u.live.next = if t < planes {
-                common::word(&raw[t], p, idx).to_bits()
+                raw[t].stream_word(p, idx).to_bits()
             } else {
                 0.into()
             };

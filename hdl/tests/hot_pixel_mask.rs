@@ -5,9 +5,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
-use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask as ModelMask;
 use smartagg_model::plane::BitPlane;
@@ -33,7 +33,7 @@ fn hot_pixel_mask_equals_model() {
     for idx in 0..wpp {
         bench.uut.load.next = true;
         bench.uut.load_address.next = (idx as u64).to_bits();
-        bench.uut.load_data.next = common::word(&mask_plane, P, idx).to_bits();
+        bench.uut.load_data.next = mask_plane.stream_word(P, idx).to_bits();
         bench.tick();
     }
     bench.uut.load.next = false;
@@ -51,7 +51,7 @@ fn hot_pixel_mask_equals_model() {
             u.flush.next = false;
             // The MASK_ENABLE register: on for even planes, off for odd ones.
             u.enable.next = (sent / wpp).is_multiple_of(2);
-            u.live.next = common::word(&planes[sent / wpp], P, sent % wpp).to_bits();
+            u.live.next = planes[sent / wpp].stream_word(P, sent % wpp).to_bits();
             sent += 1;
         }
         settle(u);
@@ -71,13 +71,13 @@ fn hot_pixel_mask_equals_model() {
         };
         for idx in 0..wpp {
             let want_mask = if enabled {
-                common::word(&mask_plane, P, idx)
+                mask_plane.stream_word(P, idx)
             } else {
                 0
             };
             assert_eq!(
                 got[t * wpp + idx],
-                (common::word(&want, P, idx), want_mask),
+                (want.stream_word(P, idx), want_mask),
                 "plane {t} word {idx}"
             );
         }

@@ -11,9 +11,9 @@ mod common;
 use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::delay_line_ddr::McbModel;
 use smartagg_hdl::pipeline::{test_back_config, TestPipeline, TestPipelineDdr};
-use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packetiser::encode_stream;
@@ -118,7 +118,7 @@ fn gateware_paced(
     for idx in 0..wpp {
         b.uut.load.next = true;
         b.uut.load_address.next = (idx as u64).to_bits();
-        b.uut.load_data.next = common::word(&mask_plane, P, idx).to_bits();
+        b.uut.load_data.next = mask_plane.stream_word(P, idx).to_bits();
         b.tick();
     }
     b.uut.load.next = false;
@@ -142,7 +142,7 @@ fn gateware_paced(
         if offer {
             let (t, idx) = (sent / wpp, sent % wpp);
             u.in_sop.next = idx == 0;
-            u.in_live.next = common::word(&s.planes[t], P, idx).to_bits();
+            u.in_live.next = s.planes[t].stream_word(P, idx).to_bits();
             sent += 1;
         }
         u.stop.next = sent == total;
@@ -211,7 +211,7 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
     for idx in 0..wpp {
         b.uut.load.next = true;
         b.uut.load_address.next = (idx as u64).to_bits();
-        b.uut.load_data.next = common::word(&mask_plane, P, idx).to_bits();
+        b.uut.load_data.next = mask_plane.stream_word(P, idx).to_bits();
         step(&mut b, &mut mcb);
         b.tick();
         mcb.tick();
@@ -255,7 +255,7 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
         if offer {
             let (t, idx) = (sent / wpp, sent % wpp);
             u.in_sop.next = idx == 0;
-            u.in_live.next = common::word(&s.planes[t], P, idx).to_bits();
+            u.in_live.next = s.planes[t].stream_word(P, idx).to_bits();
             sent += 1;
         }
         u.stop.next = sent == total;

@@ -13,10 +13,10 @@ mod common;
 use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::blink_tracker::{record_kind, BlinkTracker};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig};
 use smartagg_hdl::roi_aggregator::{BankPool, RoiAggregator};
-use smartagg_hdl::sim::{settle, Bench};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
@@ -76,7 +76,7 @@ fn planes(rng: &mut rand_chacha::ChaCha8Rng, n: usize, spots: usize, bg: f64) ->
 }
 
 fn word(plane: &BitPlane, x: usize, y: usize) -> u64 {
-    (0..P).fold(0, |a, i| a | ((plane.get(x * P + i, y) as u64) << i))
+    plane.stream_word(P, y * plane.width() / P + x)
 }
 
 /// The registers of a run.

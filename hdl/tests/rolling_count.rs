@@ -6,9 +6,9 @@
 mod common;
 
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::rolling_count::RollingCount;
-use smartagg_hdl::sim::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine;
 use smartagg_model::plane::BitPlane;
@@ -60,8 +60,8 @@ fn run_stream(bench: &mut Bench<Dut>, n: usize, seed: u64, planes: usize, flush_
             u.x.next = ((idx % wpr) as u64).to_bits();
             u.y.next = ((idx / wpr) as u64).to_bits();
             u.idx.next = (idx as u64).to_bits();
-            u.live.next = common::word(live, P, idx).to_bits();
-            u.delayed.next = common::word(del, P, idx).to_bits();
+            u.live.next = live.stream_word(P, idx).to_bits();
+            u.delayed.next = del.stream_word(P, idx).to_bits();
             sent += 1;
         }
         settle(u);

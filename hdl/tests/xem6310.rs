@@ -10,34 +10,20 @@
 mod common;
 
 use rust_hdl::prelude::*;
+use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::delay_line_ddr::McbModel;
 use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::registers::{self, control, status, wire_in, wire_out};
-use smartagg_hdl::sim::{settle, Bench};
 use smartagg_hdl::xem6310::{TestXemCore, TestXemCoreOnChip};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packetiser::encode_stream;
 use smartagg_model::pipeline::run;
 use smartagg_model::plane::BitPlane;
+use smartagg_model::registers::replay_words;
 
 const W: usize = 16;
 const H: usize = 6;
-
-/// Little-endian 32-bit words of planes packed pixel i in bit i.
-fn pipe_words(planes: &[BitPlane]) -> Vec<u32> {
-    let bits: Vec<bool> = planes
-        .iter()
-        .flat_map(|p| p.bits().iter().by_vals().collect::<Vec<_>>())
-        .collect();
-    bits.chunks(32)
-        .map(|c| {
-            c.iter()
-                .enumerate()
-                .fold(0u32, |a, (i, &b)| a | (b as u32) << i)
-        })
-        .collect()
-}
 
 /// The host's session through the endpoints of an XEM6310 core type
 /// (`$ddr2`: its delay line is in the DDR2, on the behavioural MCB; else
@@ -201,7 +187,7 @@ macro_rules! through_the_endpoints {
 
                 host.trigger(registers::trigger::RESET);
                 let mask_plane = BitPlane::from_fn(W, H, |x, y| mask.is_masked(x as i64, y as i64));
-                let mut mw = pipe_words(&[mask_plane]);
+                let mut mw = replay_words(&[mask_plane]);
                 mw.resize(4, 0); // one whole block; the padding falls past the plane
                 host.write_pipe(true, &mw);
                 // START at once: it waits for the mask and the memory itself.
@@ -239,7 +225,7 @@ macro_rules! through_the_endpoints {
                     clocks += 1;
                     assert!(clocks < 1_000, "never RUNNING");
                 }
-                host.write_pipe(false, &pipe_words(&planes));
+                host.write_pipe(false, &replay_words(&planes));
                 host.trigger(registers::trigger::STOP);
                 let mut cycles = 0;
                 while host.wire_out(wire_out::STATUS) & status::ENDED == 0

@@ -145,6 +145,18 @@ impl BitPlane {
         self.bits.as_raw_slice()
     }
 
+    /// Stream word `idx` as the gateware's pixel port takes it: the `p`
+    /// pixels `idx·p … idx·p + p − 1` in raster order, pixel `idx·p + i` in
+    /// bit i.
+    ///
+    /// # Panics
+    /// If `p` is not in 1..=64 or the word runs past the plane (a
+    /// programming error: a stream word never straddles planes).
+    pub fn stream_word(&self, p: usize, idx: usize) -> u64 {
+        assert!((1..=64).contains(&p), "stream words of 1 to 64 pixels");
+        self.bits[idx * p..(idx + 1) * p].load_le::<u64>()
+    }
+
     /// Mutable raster-order bits.
     pub fn bits_mut(&mut self) -> &mut BitSlice<u64, Lsb0> {
         &mut self.bits

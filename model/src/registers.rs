@@ -290,6 +290,30 @@ pub fn mask_bytes(mask: &crate::hot_pixel_mask::HotPixelMask) -> Vec<u8> {
     bytes
 }
 
+/// Bit-planes as pipe-in [`pipe::REPLAY_IN`] takes them: each plane's W·H
+/// bits in raster order, least significant bit first, padded to whole
+/// bytes ([`crate::recording::pack_plane`]), planes back to back.
+pub fn replay_bytes(planes: &[crate::plane::BitPlane]) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    for p in planes {
+        crate::recording::pack_plane(p, crate::recording::BitOrder::LsbFirst, &mut bytes);
+    }
+    bytes
+}
+
+/// [`replay_bytes`] as the pipe's 32-bit little-endian words, the last one
+/// zero-padded.
+pub fn replay_words(planes: &[crate::plane::BitPlane]) -> Vec<u32> {
+    replay_bytes(planes)
+        .chunks(4)
+        .map(|c| {
+            let mut b = [0u8; 4];
+            b[..c.len()].copy_from_slice(c);
+            u32::from_le_bytes(b)
+        })
+        .collect()
+}
+
 /// How many pixels mask bytes written to pipe-in [`pipe::MASK_IN`] mask: the
 /// set bits (padding is zero).
 pub fn masked_pixels_in(bytes: &[u8]) -> u32 {
@@ -299,6 +323,23 @@ pub fn masked_pixels_in(bytes: &[u8]) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn replay_words_pack_pixel_i_in_bit_i() {
+        use crate::plane::BitPlane;
+        // Two 16×2 planes: 32 bits each, one word each.
+        let a = BitPlane::from_fn(16, 2, |x, y| (x, y) == (0, 0) || (x, y) == (15, 1));
+        let b = BitPlane::from_fn(16, 2, |x, y| (x, y) == (3, 0));
+        assert_eq!(replay_words(&[a.clone(), b]), [1 | 1 << 31, 1 << 3]);
+        // A plane of 8×1 pixels is one byte: the word is zero-padded.
+        let c = BitPlane::from_fn(8, 1, |x, _| x == 7);
+        assert_eq!(replay_bytes(&[c.clone()]), [0x80]);
+        assert_eq!(replay_words(&[c]), [0x80]);
+        // Stream words of the same plane, P = 4 and P = 16.
+        assert_eq!(a.stream_word(4, 0), 1);
+        assert_eq!(a.stream_word(4, 7), 1 << 3);
+        assert_eq!(a.stream_word(16, 1), 1 << 15);
+    }
 
     #[test]
     fn words_follow_the_table() {

@@ -712,7 +712,7 @@ mod tests {
             full.n_window
         );
         let bits = (DEMO.0 * DEMO.1) as u64 * DEMO_N_MAX as u64;
-        assert!(2 * bits <= smartagg_hdl::configs::XC6SLX45.block_ram_bits());
+        assert!(2 * bits <= smartagg_hdl::device::XC6SLX45.block_ram_bits());
         let v = spec.top_verilog().unwrap();
         assert!(v.contains("module top"));
         assert!(!spec.xem() && spec.slots() == DEMO_SLOTS);

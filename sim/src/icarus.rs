@@ -55,11 +55,12 @@
 //! the testbench reports it), and that the bytes are still the model's.
 
 use crate::designs::{DesignError, DesignSpec};
-use crate::harness::{block_words, pipe_words, strip_padding, Case};
+use crate::harness::{block_words, strip_padding, Case};
 use crate::verilator::{declared_ports, Dir};
 use smartagg_hdl::registers::{status, trigger, wire_in, wire_out};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::packetiser::encode_stream;
+use smartagg_model::registers::replay_words;
 use smartagg_model::registers::StreamRegisters;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -241,7 +242,7 @@ pub fn commands(spec: &DesignSpec, case: &Case) -> Result<Vec<u64>, IcarusError>
     c.push(cmd(op::TRIGGER, 0, 1 << trigger::START));
     c.push(cmd(op::MARK, 0, 0));
     c.push(cmd(op::WAIT, 0, status::RUNNING));
-    blocks(&mut c, 0, &pipe_words(&case.planes));
+    blocks(&mut c, 0, &replay_words(&case.planes));
     c.push(cmd(op::TRIGGER, 0, 1 << trigger::STOP));
     c.push(cmd(op::DRAIN, 0, 0));
     c.push(cmd(op::END, 0, 0));

@@ -29,9 +29,3 @@ pub fn random_planes(
         })
         .collect()
 }
-
-/// Word `idx` (raster order, P pixels) of a plane, pixel i in bit i.
-pub fn word(plane: &BitPlane, p: usize, idx: usize) -> u64 {
-    let bits = plane.bits();
-    (0..p).fold(0u64, |acc, i| acc | ((bits[idx * p + i] as u64) << i))
-}

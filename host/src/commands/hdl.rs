@@ -18,7 +18,8 @@
 
 use anyhow::{bail, Context};
 use serde::Serialize;
-use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind, DEVICES};
+use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind};
+use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::lint_waivers::{verilator_config, VLT_FILE};
 use smartagg_hdl::synth::{
     yosys_resources, yosys_script, Netlist, Synthesis, LUT_LEVELS_TARGET, MAPPINGS,

@@ -3,7 +3,6 @@
 //! output back-pressure.
 
 use super::probes::{vcd_of, Probes, Shadow, Vcd};
-use super::words::stream_word;
 use super::{Case, Cosim, HarnessError, Outcome};
 use crate::verilator::Model;
 use rand::{Rng, SeedableRng};
@@ -88,7 +87,7 @@ impl BramHost {
         });
         let mut loaded = 0;
         for idx in 0..self.wpp {
-            let word = stream_word(&mask_plane, p, idx);
+            let word = mask_plane.stream_word(p, idx);
             loaded += word.count_ones();
             self.sh.set(&mut self.m, load, 1);
             self.sh.set(&mut self.m, load_address, idx as u64);
@@ -184,7 +183,7 @@ impl BramHost {
                 self.sh.set(&mut self.m, in_valid, 1);
                 self.sh.set(&mut self.m, in_sop, (idx == 0) as u64);
                 self.sh
-                    .set(&mut self.m, in_live, stream_word(&case.planes[t], p, idx));
+                    .set(&mut self.m, in_live, case.planes[t].stream_word(p, idx));
                 took = true;
             } else {
                 self.sh.set(&mut self.m, in_valid, 0);

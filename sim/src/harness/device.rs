@@ -1,13 +1,14 @@
 //! The XEM6310 core as an interactive device, one host operation at a
 //! time: what the host's `cosim:` transport talks to.
 
-use super::words::{block_words, pipe_words};
+use super::words::block_words;
 use super::xem_host::XemHost;
 use super::{strip_padding, Case, Cosim, HarnessError};
 use crate::designs::{DesignError, DesignSpec};
 use crate::verilator::Model;
 use smartagg_hdl::registers::{status, wire_out};
 use smartagg_model::plane::BitPlane;
+use smartagg_model::registers::replay_words;
 use std::collections::VecDeque;
 
 /// The XEM6310 core as a device: its FrontPanel endpoints driven one host
@@ -72,7 +73,7 @@ impl Device {
 
     /// Queues bit-planes for the replay pipe-in (sent while [`Device::run`] runs).
     pub fn queue_planes(&mut self, planes: &[BitPlane]) {
-        self.replay.extend(pipe_words(planes));
+        self.replay.extend(replay_words(planes));
     }
 
     /// Replay words not yet sent.

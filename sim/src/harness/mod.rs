@@ -53,7 +53,7 @@ pub use compare::{compare_lossy, split_packets, strip_padding, Framed};
 pub use coverage::Coverage;
 pub use device::Device;
 pub use probes::{Mismatch, Stage, StageMismatch};
-pub use words::{block_words, pipe_words};
+pub use words::block_words;
 
 use crate::designs::{DesignError, DesignSpec};
 use crate::verilator::{Build, Counters, Model};

@@ -4,12 +4,13 @@
 //! blocks), with random host stalls on both pipes.
 
 use super::probes::{vcd_of, Probes, Shadow, Vcd};
-use super::words::{block_words, pipe_words, stream_word};
+use super::words::block_words;
 use super::{strip_padding, Case, Cosim, HarnessError, Outcome, Source};
 use crate::verilator::Model;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smartagg_hdl::registers::{control, status, trigger, wire_in, wire_out};
+use smartagg_model::registers::replay_words;
 use std::collections::VecDeque;
 use std::path::Path;
 
@@ -266,7 +267,7 @@ impl XemHost {
         }
         match case.source {
             Source::Replay => {
-                self.write_pipe(false, &pipe_words(&case.planes), case.input_stall)?;
+                self.write_pipe(false, &replay_words(&case.planes), case.input_stall)?;
             }
             Source::Sensor => self.feed_sensor(case)?,
         }
@@ -381,7 +382,7 @@ impl XemHost {
                     return Err(HarnessError::Gateware("sensor FIFO overflow".into()));
                 }
                 let (t, idx) = (sent / wpp, sent % wpp);
-                let word = stream_word(&case.planes[t], p, idx) | ((idx == 0) as u64) << p;
+                let word = case.planes[t].stream_word(p, idx) | ((idx == 0) as u64) << p;
                 self.sensor.push_back(word);
                 sent += 1;
                 // A sticky FAULT named when it rises, not at STOP.

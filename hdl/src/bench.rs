@@ -1,5 +1,6 @@
-//! A small clock-stepping harness over rust-hdl's simulation engine, for the
-//! block tests: settle the combinational logic, sample, clock.
+//! The block tests' bench: a small clock-stepping harness over rust-hdl's
+//! simulation engine (not the `sim/` co-simulation crate): settle the
+//! combinational logic, sample, clock.
 
 use rust_hdl::prelude::*;
 
