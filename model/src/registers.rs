@@ -333,8 +333,9 @@ mod tests {
         assert_eq!(replay_words(&[a.clone(), b]), [1 | 1 << 31, 1 << 3]);
         // A plane of 8×1 pixels is one byte: the word is zero-padded.
         let c = BitPlane::from_fn(8, 1, |x, _| x == 7);
-        assert_eq!(replay_bytes(&[c.clone()]), [0x80]);
-        assert_eq!(replay_words(&[c]), [0x80]);
+        let c = [c];
+        assert_eq!(replay_bytes(&c), [0x80]);
+        assert_eq!(replay_words(&c), [0x80]);
         // Stream words of the same plane, P = 4 and P = 16.
         assert_eq!(a.stream_word(4, 0), 1);
         assert_eq!(a.stream_word(4, 7), 1 << 3);
