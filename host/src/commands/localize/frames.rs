@@ -135,7 +135,7 @@ pub(super) fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         width: size.0.min(u32::MAX as usize) as u32,
         height: size.1.min(u32::MAX as usize) as u32,
         frames,
-        data_type: tiff_data_type(&args.input),
+        data_type: smartagg_io::stack::numpy_data_type(&args.input),
         blinks: false,
     };
     Ok((table, fits, extent))

@@ -404,29 +404,6 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// numpy's name of a TIFF's sample type (first page), as Picasso's movie
-/// loaders write it in `Data Type`; "unknown" if the tags do not say.
-fn tiff_data_type(path: &Path) -> String {
-    use tiff::tags::Tag;
-    let Ok(mut d) = std::fs::File::open(path)
-        .map_err(|_| ())
-        .and_then(|f| tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|_| ()))
-    else {
-        return "unknown".into();
-    };
-    let bits = match d.colortype() {
-        Ok(tiff::ColorType::Gray(b)) => b,
-        _ => return "unknown".into(),
-    };
-    // SampleFormat: 1 unsigned (the default), 2 signed, 3 IEEE float.
-    let kind = match d.find_tag_unsigned::<u16>(Tag::SampleFormat) {
-        Ok(Some(2)) => "int",
-        Ok(Some(3)) => "float",
-        _ => "uint",
-    };
-    format!("{kind}{bits}")
-}
-
 /// True for a TIFF (by magic number; a missing file is an error).
 fn is_tiff(path: &Path) -> anyhow::Result<bool> {
     use std::io::Read;
