@@ -3,7 +3,6 @@
 
 use clap::{Parser, Subcommand};
 
-mod calibration;
 mod commands;
 mod figure;
 mod output;

@@ -271,7 +271,7 @@ pub fn pipeline_config(
         )
     })?;
     if let Some(path) = &args.calibration {
-        let cal = crate::calibration::Calibration::load(path)?;
+        let cal = smartagg_calibration::Calibration::load(path)?;
         anyhow::ensure!(
             (cal.width, cal.height) == (width, height),
             "calibration {} is for {}x{} pixels, the recording has {}x{}",

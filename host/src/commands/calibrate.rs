@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use smartagg_model::params::{Camera, PresetName};
 
-use crate::calibration::frames::{calibrate_frames, FrameOptions, FrameSource, TiffStack};
-use crate::calibration::spad::{calibrate_spad, Counted, CriterionSpec, SpadOptions};
-use crate::calibration::{
+use crate::setup;
+use smartagg_calibration::frames::{calibrate_frames, FrameOptions, FrameSource, TiffStack};
+use smartagg_calibration::spad::{calibrate_spad, Counted, CriterionSpec, SpadOptions};
+use smartagg_calibration::{
     report, Calibration, FrameCalibration, FrameCamera, PlaneCounter, Provenance,
 };
-use crate::setup;
 
 /// Which camera the recordings come from.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

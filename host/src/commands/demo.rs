@@ -413,7 +413,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for ev in decoder.finish() {
         take(ev, &mut records, &mut end);
     }
-    crate::output::write_atomic(&rois_path, &received)?;
+    smartagg_io::output::write_atomic(&rois_path, &received)?;
     // `smartagg localize demo-out/blinks.rois` needs no camera flags.
     crate::stream_info::StreamInfo::new(&preset, args.field, args.field, "demo")
         .write_beside(&rois_path)?;
@@ -491,7 +491,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut table_bytes = Vec::new();
     table.write_csv(&mut table_bytes)?;
-    crate::output::write_atomic(&csv, &table_bytes)?;
+    smartagg_io::output::write_atomic(&csv, &table_bytes)?;
     let png = args.out.join("render.png");
     let points: Vec<Point> = locs
         .iter()
@@ -518,7 +518,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             scale_bar: true,
         },
     )?;
-    crate::output::write_atomic(&png, &png_bytes)?;
+    smartagg_io::output::write_atomic(&png, &png_bytes)?;
     timing.add(
         "write outputs",
         t,
@@ -541,7 +541,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         gateware.as_ref(),
     );
     let md = args.out.join("report.md");
-    crate::output::write_atomic(&md, report.as_bytes())?;
+    smartagg_io::output::write_atomic(&md, report.as_bytes())?;
     println!("{report}");
     println!(
         "written: {}, {}, {}, {}",

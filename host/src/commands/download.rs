@@ -11,7 +11,6 @@
 //! empty source, a stream with no valid packet (e.g. only packets of a newer
 //! format version), a stalled or failing source are errors either way.
 
-use crate::output::AtomicFile;
 use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
 use crate::transport::download::{
@@ -22,6 +21,7 @@ use crate::transport::frontpanel::{FrontPanelOptions, FrontPanelSource};
 use crate::transport::usb::{self, UsbOptions, UsbSource};
 use crate::transport::{cosim, DeviceConfig, PacketSource, SourceSpec};
 use anyhow::{bail, Context};
+use smartagg_io::output::AtomicFile;
 use smartagg_model::params::{Preset, PresetName};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -214,7 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         for out in [args.out.clone(), StreamInfo::path_for(&args.out)] {
-            if crate::output::same_file(input, &out) {
+            if smartagg_io::output::same_file(input, &out) {
                 bail!(
                     "--out {} is the input file itself: writing it would destroy the recording",
                     out.display()

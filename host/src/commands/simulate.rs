@@ -37,7 +37,7 @@ use smartagg_scene::{
     SpadSimulator,
 };
 
-use crate::output::AtomicFile;
+use smartagg_io::output::AtomicFile;
 
 /// Largest output `simulate` writes unless `--max-out-gib` says otherwise, GiB.
 pub const DEFAULT_MAX_OUT_GIB: f64 = 64.0;

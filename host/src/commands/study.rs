@@ -83,7 +83,7 @@ pub struct Args {
 /// criterion re-derived for any N and T_int, and an identity (folder and a
 /// CRC-32C of the maps) that the manifest records.
 fn sensor(path: &std::path::Path) -> anyhow::Result<SensorCalibration> {
-    let cal = crate::calibration::Calibration::load(path)
+    let cal = smartagg_calibration::Calibration::load(path)
         .with_context(|| format!("loading calibration {}", path.display()))?;
     let mut bytes = Vec::with_capacity(cal.dcr_hz.len() * 16);
     for d in &cal.dcr_hz {

@@ -25,12 +25,12 @@
 //! A failed fit is kept and flagged in `fit_status` (0 = ok) unless
 //! `--drop-failed`; either way the failures are counted and printed.
 
-use crate::calibration::{flags, AnyCalibration};
-use crate::output::AtomicFile;
 use crate::setup;
 use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
+use smartagg_calibration::{flags, AnyCalibration};
+use smartagg_io::output::AtomicFile;
 use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
@@ -311,17 +311,17 @@ struct Extent {
 
 fn run_in_pool(args: Args) -> anyhow::Result<()> {
     let s = setup(&args)?;
-    crate::output::refuse_overwriting(&args.out, &[&args.input])?;
+    smartagg_io::output::refuse_overwriting(&args.out, &[&args.input])?;
     let format = out_format(&args.out)?;
     if format == OutFormat::Picasso {
         let yaml = crate::picasso::sidecar_path(&args.out);
-        crate::output::refuse_overwriting(&yaml, &[&args.input])?;
+        smartagg_io::output::refuse_overwriting(&yaml, &[&args.input])?;
         if args.export_tiff.as_ref() == Some(&yaml) {
             bail!("--export-tiff is {}, the sidecar of --out", yaml.display());
         }
     }
     if let Some(tiff) = &args.export_tiff {
-        crate::output::refuse_overwriting(tiff, &[&args.input])?;
+        smartagg_io::output::refuse_overwriting(tiff, &[&args.input])?;
         if tiff == &args.out {
             bail!(
                 "--export-tiff and --out are the same file, {}",
