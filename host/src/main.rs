@@ -9,7 +9,6 @@ mod output;
 mod picasso;
 mod setup;
 mod stream_info;
-mod transport;
 
 /// Smart aggregation of binary SPAD bit-planes for single-molecule localisation.
 ///

@@ -13,16 +13,16 @@
 
 use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
-use crate::transport::download::{
-    download, DownloadObserver, DownloadOptions, DownloadReport, Progress,
-};
-use crate::transport::file::FileSource;
-use crate::transport::frontpanel::{FrontPanelOptions, FrontPanelSource};
-use crate::transport::usb::{self, UsbOptions, UsbSource};
-use crate::transport::{cosim, DeviceConfig, PacketSource, SourceSpec};
 use anyhow::{bail, Context};
 use smartagg_io::output::AtomicFile;
 use smartagg_model::params::{Preset, PresetName};
+use smartagg_transport::download::{
+    download, DownloadObserver, DownloadOptions, DownloadReport, Progress,
+};
+use smartagg_transport::file::FileSource;
+use smartagg_transport::frontpanel::{FrontPanelOptions, FrontPanelSource};
+use smartagg_transport::usb::{self, UsbOptions, UsbSource};
+use smartagg_transport::{cosim, DeviceConfig, PacketSource, SourceSpec};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
