@@ -59,8 +59,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         header.plane_period_ns,
     )?;
     let preset = setup::detection(
-        &args.pipeline.preset,
-        args.pipeline.objective,
+        &args.pipeline.preset.name,
+        args.pipeline.preset.objective,
         args.pipeline.flux,
     )?
     .0;

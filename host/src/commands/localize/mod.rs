@@ -109,6 +109,8 @@ pub enum LayoutArg {
 
 /// Arguments of `smartagg localize`.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("preset", |a| a.help("Camera preset (spcimager, spcimager-projected, spad512s, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model")))]
+#[command(mut_arg("objective", |a| a.help("Objective magnification of the preset (150 or 60)")))]
 pub struct Args {
     /// Blink-ROI packet stream (.rois) or TIFF stack of frames (.tif).
     pub input: PathBuf,
@@ -121,12 +123,8 @@ pub struct Args {
     /// Sample-plane pixel size, nm [default: from --preset, else from the stream's sidecar FILE.rois.json].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.1, 1e6, "nm"))]
     pub pixel_nm: Option<f64>,
-    /// Camera preset (spcimager, spcimager-projected, spad512s, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
-    #[arg(long)]
-    pub preset: Option<String>,
-    /// Objective magnification of the preset (150 or 60).
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    #[command(flatten)]
+    pub preset: crate::setup::OptionalPresetArgs,
     /// PSF σ in camera pixels (initial value when fitted) [default: the preset's, else the stream sidecar's, else 1.6 as ThunderSTORM].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.05, 100.0, "camera pixels"))]
     pub sigma: Option<f64>,
@@ -199,14 +197,17 @@ struct Setup {
 }
 
 fn setup(args: &Args) -> anyhow::Result<Setup> {
-    let mut preset = match &args.preset {
-        Some(name) => Some(Preset::new(PresetName::parse(name)?, args.objective)?),
+    let mut preset = match &args.preset.name {
+        Some(name) => Some(Preset::new(
+            PresetName::parse(name)?,
+            args.preset.objective,
+        )?),
         None => None,
     };
     // A stream from `aggregate` or `download` says its camera in a sidecar;
     // the command line wins over it.
     let mut sidecar = None;
-    if args.preset.is_none() && args.pixel_nm.is_none() && !is_tiff(&args.input)? {
+    if args.preset.name.is_none() && args.pixel_nm.is_none() && !is_tiff(&args.input)? {
         if let Some((info, path)) = StreamInfo::read_beside(&args.input)? {
             eprintln!(
                 "camera from {}: {} {}x, {:.2} nm pixels, PSF sigma {:.3} px",
@@ -478,8 +479,10 @@ mod tests {
             out: out.to_path_buf(),
             estimator: EstimatorArg::SpadMle,
             pixel_nm: Some(50.0),
-            preset: None,
-            objective: 150,
+            preset: crate::setup::OptionalPresetArgs {
+                name: None,
+                objective: 150,
+            },
             sigma: Some(1.5),
             fixed_sigma: false,
             noise: None,
