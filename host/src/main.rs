@@ -3,14 +3,12 @@
 
 use clap::{Parser, Subcommand};
 
-mod calibration;
 mod commands;
 mod figure;
 mod output;
 mod picasso;
 mod setup;
 mod stream_info;
-mod transport;
 
 /// Smart aggregation of binary SPAD bit-planes for single-molecule localisation.
 ///

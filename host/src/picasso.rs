@@ -40,11 +40,11 @@
 //! `photons`, `sx`, `sy`, `ellipticity` and needs `Width`, `Height` and
 //! `Frames` to be non-zero.
 
-use crate::output::AtomicFile;
 use anyhow::{bail, Context};
 use hdf5_metno as hdf5;
 use hdf5_metno::H5Type;
 use serde::{Deserialize, Serialize};
+use smartagg_io::output::AtomicFile;
 use smartagg_localize::table::{LocTable, Localization};
 use std::path::{Path, PathBuf};
 
@@ -295,7 +295,7 @@ pub fn write(path: &Path, table: &LocTable, meta: &PicassoMeta) -> anyhow::Resul
     side.write_all(yaml.as_bytes())
         .with_context(|| format!("writing {}", yaml_path.display()))?;
     h5.commit()?;
-    side.commit()
+    Ok(side.commit()?)
 }
 
 /// The sidecar's text: two YAML documents.

@@ -22,17 +22,56 @@ pub enum DetectionMode {
     Paper,
 }
 
+/// `--preset` and `--objective`: a camera preset and the objective it is
+/// used with, default SPCImager at 150x. Every command that takes a preset
+/// flattens this (or [`OptionalPresetArgs`]); a command whose presets are
+/// fewer, or whose preset is required, says so with `mut_arg("preset", ..)`.
+#[derive(clap::Args, Debug, Clone, PartialEq, Eq)]
+pub struct PresetArgs {
+    /// Camera preset: spcimager, spcimager-projected, spad512s, emccd, scmos.
+    #[arg(
+        id = "preset",
+        long = "preset",
+        value_name = "PRESET",
+        default_value = "spcimager"
+    )]
+    pub name: String,
+    /// Objective magnification: 150 or 60.
+    #[arg(long, default_value_t = 150)]
+    pub objective: u32,
+}
+
+impl Default for PresetArgs {
+    /// The command-line defaults: SPCImager at 150x.
+    fn default() -> PresetArgs {
+        PresetArgs {
+            name: "spcimager".into(),
+            objective: 150,
+        }
+    }
+}
+
+/// [`PresetArgs`] for commands where the preset is optional (it then comes
+/// from the input, or is not needed).
+#[derive(clap::Args, Debug, Clone, PartialEq, Eq)]
+pub struct OptionalPresetArgs {
+    /// Camera preset: spcimager, spcimager-projected, spad512s, emccd, scmos.
+    #[arg(id = "preset", long = "preset", value_name = "PRESET")]
+    pub name: Option<String>,
+    /// Objective magnification of the preset: 150 or 60.
+    #[arg(long, default_value_t = 150)]
+    pub objective: u32,
+}
+
 /// How the pipeline is parametrised: a preset and objective give N, the
 /// thresholds and the kernel through the statistics; any of them can be
 /// overridden.
 #[derive(clap::Args, Debug, Clone)]
+#[command(mut_arg("preset", |a| a.help("Camera preset whose statistics set N, T and the kernel (spcimager, spcimager-projected, spad512s)")))]
 pub struct PipelineArgs {
-    /// Camera preset whose statistics set N, T and the kernel (spcimager, spcimager-projected, spad512s).
-    #[arg(long, default_value = "spcimager")]
-    pub preset: String,
-    /// Objective magnification: 150 or 60.
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    // `--preset` (whose statistics set N, T and the kernel) and `--objective`.
+    #[command(flatten)]
+    pub preset: PresetArgs,
     /// Molecule flux, photons/s reaching the sensor (default: the study's 50,000).
     #[arg(long)]
     pub flux: Option<f64>,
@@ -115,8 +154,7 @@ impl Default for PipelineArgs {
     /// The command-line defaults: SPCImager at 150x, the field design.
     fn default() -> PipelineArgs {
         PipelineArgs {
-            preset: "spcimager".into(),
-            objective: 150,
+            preset: PresetArgs::default(),
             flux: None,
             n_window: None,
             detection: DetectionMode::Field,
@@ -195,7 +233,7 @@ pub fn pipeline_config(
     height: u32,
     plane_period_ns: u64,
 ) -> anyhow::Result<PipelineConfig> {
-    let (_, det) = detection(&args.preset, args.objective, args.flux)?;
+    let (_, det) = detection(&args.preset.name, args.preset.objective, args.flux)?;
     // Another window moves the paper's Eq. 7 threshold (and so the design) with it.
     let det = match args.n_window {
         Some(n) => det.at_window(n),
@@ -271,7 +309,7 @@ pub fn pipeline_config(
         )
     })?;
     if let Some(path) = &args.calibration {
-        let cal = crate::calibration::Calibration::load(path)?;
+        let cal = smartagg_calibration::Calibration::load(path)?;
         anyhow::ensure!(
             (cal.width, cal.height) == (width, height),
             "calibration {} is for {}x{} pixels, the recording has {}x{}",

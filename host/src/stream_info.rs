@@ -71,7 +71,7 @@ impl StreamInfo {
         let path = StreamInfo::path_for(stream);
         let mut text = serde_json::to_string_pretty(self)?;
         text.push('\n');
-        crate::output::write_atomic(&path, text.as_bytes())?;
+        smartagg_io::output::write_atomic(&path, text.as_bytes())?;
         Ok(path)
     }
 

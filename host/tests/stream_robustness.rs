@@ -2,7 +2,7 @@
 //! zero-length and newer-version files give clear messages; a stalled source
 //! ends after the timeout with the bytes received intact on disk. (The
 //! million-corruption fuzzing of the download loop is a unit test of
-//! `transport::fuzz_tests`, which needs the binary's internals.)
+//! `smartagg-transport`'s `fuzz_tests`, which needs the crate's internals.)
 
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::packet::{crc32c, newer_version_message, HEADER_LEN};

@@ -1,5 +1,6 @@
-//! TIFF input and output for the smartagg workspace: the one place that
-//! talks to the `tiff` crate.
+//! File input and output for the smartagg workspace: TIFF stacks and
+//! images (the one place that talks to the `tiff` crate), and outputs that
+//! are never left half-written.
 //!
 //! * [`stack`]: multi-page greyscale stacks — camera frames and exported
 //!   ROIs. [`stack::StackWriter`] streams 16-bit frames (BigTIFF past 4 GiB),
@@ -9,14 +10,21 @@
 //! * [`image`]: single-page 32-bit float and 8-bit images — rendered
 //!   densities with their ImageJ pixel size, calibration maps with their
 //!   description.
+//! * [`output`]: writing any output file without losing anything: it
+//!   appears at its target only once complete ([`output::AtomicFile`],
+//!   [`output::write_atomic`]) and never over one of the inputs
+//!   ([`output::refuse_overwriting`]).
 //!
 //! Users: `smartagg-scene` (simulated camera stacks), `smartagg-localize`
-//! (frame input, ROI export) and the `smartagg` host (calibration stacks and
-//! maps, rendered images). The crate depends on no project crate; every
-//! failure is an [`Error`] that names the file or stream, which each user
-//! converts into its own error type.
+//! (frame input, ROI export), `smartagg-calibration` (calibration stacks,
+//! maps and report files) and the `smartagg` host (rendered images, every
+//! output file). The crate depends on no project crate; every TIFF failure
+//! is an [`Error`] that names the file or stream, every output failure an
+//! [`output::OutputError`] that names the file, which each user converts
+//! into its own error type.
 
 pub mod image;
+pub mod output;
 mod samples;
 pub mod stack;
 

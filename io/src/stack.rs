@@ -391,6 +391,32 @@ pub fn write_stack<W: Write + Seek>(
     Ok(fits16)
 }
 
+/// numpy's name of the sample type of a TIFF's first page (`uint16`,
+/// `float32`, `int8`, ...), as Picasso's movie loaders write it in the
+/// `Data Type` of a localisation table's YAML sidecar. Anything that does
+/// not say (a missing or unreadable file, a colour page) is `"unknown"`:
+/// the name is informative, never a reason to fail.
+pub fn numpy_data_type(path: &Path) -> String {
+    use tiff::tags::Tag;
+    let Ok(mut d) = File::open(path)
+        .map_err(|_| ())
+        .and_then(|f| Decoder::new(std::io::BufReader::new(f)).map_err(|_| ()))
+    else {
+        return "unknown".into();
+    };
+    let bits = match d.colortype() {
+        Ok(tiff::ColorType::Gray(b)) => b,
+        _ => return "unknown".into(),
+    };
+    // SampleFormat: 1 unsigned (the default), 2 signed, 3 IEEE float.
+    let kind = match d.find_tag_unsigned::<u16>(Tag::SampleFormat) {
+        Ok(Some(2)) => "int",
+        Ok(Some(3)) => "float",
+        _ => "uint",
+    };
+    format!("{kind}{bits}")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -516,5 +542,28 @@ mod tests {
         r.read_exact(&mut b).unwrap();
         assert_eq!(&b[..], &data[7..17]);
         assert!(r.seek(SeekFrom::Current(-1_000)).is_err());
+    }
+
+    #[test]
+    fn numpy_data_type_names_the_first_pages_samples() {
+        let dir = std::env::temp_dir().join(format!("smartagg-io-dtype-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let u16_path = dir.join("u16.tif");
+        write_stack(create(&u16_path).unwrap(), 2, 1, &[vec![1, 2]]).unwrap();
+        assert_eq!(numpy_data_type(&u16_path), "uint16");
+        let f32_path = dir.join("f32.tif");
+        write_stack(create(&f32_path).unwrap(), 2, 1, &[vec![1, 70_000]]).unwrap();
+        assert_eq!(numpy_data_type(&f32_path), "float32");
+        let i8_path = dir.join("i8.tif");
+        TiffEncoder::new(create(&i8_path).unwrap())
+            .unwrap()
+            .write_image::<colortype::GrayI8>(2, 1, &[-1, 1])
+            .unwrap();
+        assert_eq!(numpy_data_type(&i8_path), "int8");
+        let text = dir.join("not.tif");
+        std::fs::write(&text, "not a TIFF").unwrap();
+        assert_eq!(numpy_data_type(&text), "unknown");
+        assert_eq!(numpy_data_type(&dir.join("missing.tif")), "unknown");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -21,14 +21,18 @@
 //! so shards run with different calibrations refuse to merge.
 
 use serde::{Deserialize, Serialize};
+use smartagg_calibration::{Calibration, CalibrationError, HotCriterion};
 use smartagg_model::params::SpadCamera;
 use smartagg_scene::spad::SpadMaps;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The critical dark-count rate of a configuration: `(N, T)` → the DCR at
 /// and above which a pixel's dark counts alone reach T (`None`: no rate
 /// can), or why it cannot be derived. The study asks it at the pipeline's
-/// hold level T_hold.
+/// hold level T_hold. [`SensorCalibration::load`] makes it from the
+/// calibration's [`HotCriterion`] ([`SensorMaps::critical_dcr_of`]); tests
+/// put their own rule in its place.
 pub type CriticalDcr = dyn Fn(u32, u64) -> Result<Option<f64>, String> + Send + Sync;
 
 /// Calibrated per-pixel maps of a whole sensor, raster order.
@@ -56,6 +60,17 @@ impl std::fmt::Debug for SensorMaps {
 }
 
 impl SensorMaps {
+    /// The [`CriticalDcr`] of a calibration's hot-pixel criterion: the
+    /// criterion re-derived for `(N, T)`, its critical rate.
+    pub fn critical_dcr_of(criterion: HotCriterion) -> Box<CriticalDcr> {
+        Box::new(move |n, t| {
+            criterion
+                .with_threshold(n, t)
+                .map(|c| c.dcr_critical_hz)
+                .map_err(|e| e.to_string())
+        })
+    }
+
     /// Checks the map sizes and values; the error names the first bad one.
     pub fn validate(&self) -> Result<(), String> {
         let n = self.width as usize * self.height as usize;
@@ -156,6 +171,73 @@ pub struct SensorCalibration {
     /// The maps (absent when the options were read back from a manifest).
     #[serde(skip)]
     pub maps: Option<Arc<SensorMaps>>,
+}
+
+/// Why [`SensorCalibration::load`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SensorLoadError {
+    /// The calibration folder could not be read.
+    #[error("loading calibration {}", path.display())]
+    Load {
+        /// The folder.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: CalibrationError,
+    },
+    /// The calibration's maps are not a usable sensor
+    /// ([`SensorMaps::validate`]).
+    #[error("calibration {}: {why}", path.display())]
+    Invalid {
+        /// The folder.
+        path: PathBuf,
+        /// The first bad map or value.
+        why: String,
+    },
+}
+
+impl SensorCalibration {
+    /// The calibrated sensor of `study --calibration DIR`: the SPAD
+    /// calibration folder's maps, its hot-pixel criterion (re-derived for
+    /// any N and T_int) and the identity that the manifest records — the
+    /// folder, size, dark planes and a CRC-32C of the maps (DCR, then PRNU),
+    /// so that shards run on different calibrations refuse to merge.
+    pub fn load(path: &Path) -> Result<SensorCalibration, SensorLoadError> {
+        let cal = Calibration::load(path).map_err(|source| SensorLoadError::Load {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut bytes = Vec::with_capacity(cal.dcr_hz.len() * 16);
+        for d in &cal.dcr_hz {
+            bytes.extend_from_slice(&d.to_le_bytes());
+        }
+        for p in cal.prnu.iter().flatten() {
+            bytes.extend_from_slice(&p.to_le_bytes());
+        }
+        let id = format!(
+            "{} ({}x{} px, {} dark planes, maps CRC-32C {:08x})",
+            path.display(),
+            cal.width,
+            cal.height,
+            cal.planes,
+            smartagg_model::packet::crc32c(&bytes)
+        );
+        let maps = SensorMaps {
+            width: cal.width,
+            height: cal.height,
+            dcr_hz: cal.dcr_hz,
+            prnu: cal.prnu,
+            critical_dcr: SensorMaps::critical_dcr_of(cal.hot_criterion),
+        };
+        maps.validate().map_err(|why| SensorLoadError::Invalid {
+            path: path.to_path_buf(),
+            why,
+        })?;
+        Ok(SensorCalibration {
+            id,
+            maps: Some(Arc::new(maps)),
+        })
+    }
 }
 
 impl PartialEq for SensorCalibration {

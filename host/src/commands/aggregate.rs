@@ -1,9 +1,9 @@
 //! `smartagg aggregate`: a bit-plane recording in, blink-ROI packets out.
 
-use crate::output::AtomicFile;
 use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
 use anyhow::Context;
+use smartagg_io::output::AtomicFile;
 use smartagg_model::fast_engine::{default_chunk, fast_pipeline, run_parallel};
 use smartagg_model::packet::Encoder;
 use smartagg_model::pipeline::{FrontEnd, Pipeline};
@@ -59,14 +59,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         header.plane_period_ns,
     )?;
     let preset = setup::detection(
-        &args.pipeline.preset,
-        args.pipeline.objective,
+        &args.pipeline.preset.name,
+        args.pipeline.preset.objective,
         args.pipeline.flux,
     )?
     .0;
-    crate::output::refuse_overwriting(&args.out, &[&args.recording])?;
+    smartagg_io::output::refuse_overwriting(&args.out, &[&args.recording])?;
     let info = StreamInfo::new(&preset, header.width, header.height, "aggregate");
-    crate::output::refuse_overwriting(&StreamInfo::path_for(&args.out), &[&args.recording])?;
+    smartagg_io::output::refuse_overwriting(&StreamInfo::path_for(&args.out), &[&args.recording])?;
     // Written beside the target and renamed into place only when complete:
     // a failure leaves no partial stream (and never touches the recording).
     let mut out = BufWriter::new(AtomicFile::create(&args.out)?);

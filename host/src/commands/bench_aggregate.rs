@@ -189,7 +189,10 @@ impl Case {
         width: Option<u32>,
         height: Option<u32>,
     ) -> anyhow::Result<Case> {
-        let preset = Preset::new(PresetName::parse(&pipeline.preset)?, pipeline.objective)?;
+        let preset = Preset::new(
+            PresetName::parse(&pipeline.preset.name)?,
+            pipeline.preset.objective,
+        )?;
         let (sw, sh) = preset.camera.size();
         let (width, height) = (width.unwrap_or(sw), height.unwrap_or(sh));
         let period_ns = (preset.period_s() * 1e9).round() as u64;
@@ -249,7 +252,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // background tracks; at most the stream's 255).
         let mut spad = Case::new(
             &PipelineArgs {
-                preset: PresetName::Spad512s.as_str().into(),
+                preset: setup::PresetArgs {
+                    name: PresetName::Spad512s.as_str().into(),
+                    ..Default::default()
+                },
                 ..Default::default()
             },
             None,

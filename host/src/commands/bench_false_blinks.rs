@@ -34,15 +34,15 @@ pub struct Args {
 /// Runs the measurement.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let preset = Preset::new(
-        PresetName::parse(&args.pipeline.preset)?,
-        args.pipeline.objective,
+        PresetName::parse(&args.pipeline.preset.name)?,
+        args.pipeline.preset.objective,
     )?;
     let Camera::Spad(cam) = &preset.camera else {
         anyhow::bail!("false blinks apply to bit-plane (SPAD) presets");
     };
     let (_, det) = setup::detection(
-        &args.pipeline.preset,
-        args.pipeline.objective,
+        &args.pipeline.preset.name,
+        args.pipeline.preset.objective,
         args.pipeline.flux,
     )?;
     let mut cfg = setup::pipeline_config(&args.pipeline, args.width, args.height, 100_000)?;

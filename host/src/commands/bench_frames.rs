@@ -74,7 +74,7 @@ fn write_truth(
     truth: &[smartagg_localize::crlb::Emitter],
     pixel_nm: f64,
 ) -> anyhow::Result<()> {
-    let mut w = std::io::BufWriter::new(crate::output::AtomicFile::create(path)?);
+    let mut w = std::io::BufWriter::new(smartagg_io::output::AtomicFile::create(path)?);
     writeln!(w, "frame,x_px,y_px,x_nm,y_nm,photons,background,sigma_px")?;
     for (i, e) in truth.iter().enumerate() {
         writeln!(
@@ -155,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         let mut buf = std::io::Cursor::new(Vec::new());
         smartagg_io::stack::write_stack(&mut buf, side, side, &pages)?;
-        let mut w = crate::output::AtomicFile::create(&stack)?;
+        let mut w = smartagg_io::output::AtomicFile::create(&stack)?;
         w.write_all(buf.get_ref())?;
         w.commit()?;
     }

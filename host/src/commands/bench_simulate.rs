@@ -11,13 +11,11 @@ use smartagg_scene::{Layout, Scene, SpadSimulator};
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("preset", |a| a.help("SPAD preset: spcimager, spcimager-projected or spad512s")))]
+#[command(mut_arg("objective", |a| a.help("Objective magnification (150 or 60)")))]
 pub struct Args {
-    /// SPAD preset: spcimager, spcimager-projected or spad512s.
-    #[arg(long, default_value = "spcimager")]
-    pub preset: String,
-    /// Objective magnification (150 or 60).
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    #[command(flatten)]
+    pub preset: crate::setup::PresetArgs,
     /// Bit-planes per case.
     #[arg(long, default_value_t = 20_000)]
     pub planes: u64,
@@ -44,8 +42,8 @@ fn line(name: &str, b: &SpadBench, plane_period_s: f64) {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let name = PresetName::parse(&a.preset)?;
-    let p = Preset::new(name, a.objective)?;
+    let name = PresetName::parse(&a.preset.name)?;
+    let p = Preset::new(name, a.preset.objective)?;
     let Camera::Spad(cam) = &p.camera else {
         bail!("`bench simulate` measures the SPAD bit-plane simulator: use --preset spcimager, spcimager-projected or spad512s");
     };
@@ -60,7 +58,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let study = Scene::study(&p, 0.03);
     println!(
         "SPAD simulator, preset {name} at {}x, {} planes per case, one thread (camera rate {:.0} planes/s)",
-        a.objective,
+        a.preset.objective,
         a.planes,
         1.0 / cam.plane_period_s
     );

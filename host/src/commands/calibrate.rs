@@ -9,12 +9,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use smartagg_model::params::{Camera, PresetName};
 
-use crate::calibration::frames::{calibrate_frames, FrameOptions, FrameSource, TiffStack};
-use crate::calibration::spad::{calibrate_spad, Counted, CriterionSpec, SpadOptions};
-use crate::calibration::{
+use crate::setup;
+use smartagg_calibration::frames::{calibrate_frames, FrameOptions, FrameSource, TiffStack};
+use smartagg_calibration::spad::{calibrate_spad, Counted, CriterionSpec, SpadOptions};
+use smartagg_calibration::{
     report, Calibration, FrameCalibration, FrameCamera, PlaneCounter, Provenance,
 };
-use crate::setup;
 
 /// Which camera the recordings come from.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,6 +29,7 @@ pub enum CameraArg {
 
 /// Arguments of `smartagg calibrate`.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("preset", |a| a.help("Preset: for SPAD, sets N, T_int and the kernel of the hot-pixel criterion (default spcimager); for EMCCD/sCMOS, the gain used without a flat")))]
 pub struct Args {
     /// Dark recording: .spad bit-planes (raw packed planes with --raw) for a
     /// SPAD camera, a 16-bit TIFF stack for EMCCD/sCMOS.
@@ -43,13 +44,8 @@ pub struct Args {
     /// Camera kind (default: the preset's; else .tif/.tiff must say which, other files are SPAD).
     #[arg(long, value_enum)]
     pub camera: Option<CameraArg>,
-    /// Preset: for SPAD, sets N, T_int and the kernel of the hot-pixel
-    /// criterion (default spcimager); for EMCCD/sCMOS, the gain used without a flat.
-    #[arg(long)]
-    pub preset: Option<String>,
-    /// Objective magnification of the preset: 150 or 60.
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    #[command(flatten)]
+    pub preset: crate::setup::OptionalPresetArgs,
     /// Molecule flux for the preset's statistics, photons/s (default 50,000).
     #[arg(long)]
     pub flux: Option<f64>,
@@ -95,11 +91,11 @@ fn preset_camera(name: &str) -> anyhow::Result<CameraArg> {
 }
 
 fn choose_camera(args: &Args) -> anyhow::Result<CameraArg> {
-    let from_preset = args.preset.as_deref().map(preset_camera).transpose()?;
+    let from_preset = args.preset.name.as_deref().map(preset_camera).transpose()?;
     Ok(match (args.camera, from_preset) {
         (Some(c), Some(p)) if c != p => bail!(
             "--camera {c:?} contradicts --preset {} (a {p:?} camera)",
-            args.preset.as_deref().unwrap_or("")
+            args.preset.name.as_deref().unwrap_or("")
         ),
         (Some(c), _) | (None, Some(c)) => c,
         (None, None) => {
@@ -167,14 +163,18 @@ fn count_planes(path: &Path, what: &str, args: &Args) -> anyhow::Result<Counted>
 }
 
 fn run_spad(args: &Args) -> anyhow::Result<()> {
-    let preset_name = args.preset.clone().unwrap_or_else(|| "spcimager".into());
-    let (preset, det) = setup::detection(&preset_name, args.objective, args.flux)?;
+    let preset_name = args
+        .preset
+        .name
+        .clone()
+        .unwrap_or_else(|| "spcimager".into());
+    let (preset, det) = setup::detection(&preset_name, args.preset.objective, args.flux)?;
     let Camera::Spad(cam) = &preset.camera else {
         bail!("preset {preset_name} is not a SPAD camera");
     };
     let mut prov = provenance(args);
     prov.preset = Some(preset_name.clone());
-    prov.objective = Some(args.objective);
+    prov.objective = Some(args.preset.objective);
     let n_window = args.n_window.unwrap_or(det.n_window);
     let threshold_int = args.threshold_int.unwrap_or(det.threshold_int);
     let light = args
@@ -182,7 +182,7 @@ fn run_spad(args: &Args) -> anyhow::Result<()> {
         .unwrap_or((det.background_rate_hz - cam.dcr_median_hz).max(0.0));
     let mut source = format!(
         "preset {preset_name}, {}x objective, flux {} photons/s: N = {}, T_int = {}",
-        args.objective, det.flux_hz, det.n_window, det.threshold_int
+        args.preset.objective, det.flux_hz, det.n_window, det.threshold_int
     );
     if args.n_window.is_some() || args.threshold_int.is_some() {
         source.push_str(&format!(
@@ -286,10 +286,10 @@ fn run_frames(args: &Args, camera: FrameCamera) -> anyhow::Result<()> {
         );
     }
     let mut prov = provenance(args);
-    let fallback_gain = match &args.preset {
+    let fallback_gain = match &args.preset.name {
         Some(p) => {
             let preset =
-                smartagg_model::params::Preset::new(PresetName::parse(p)?, args.objective)?;
+                smartagg_model::params::Preset::new(PresetName::parse(p)?, args.preset.objective)?;
             prov.preset = Some(p.clone());
             match &preset.camera {
                 Camera::Emccd(c) => Some((c.em_gain / c.e_per_adu, format!("preset {p}"))),

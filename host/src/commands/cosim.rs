@@ -12,13 +12,11 @@ use std::path::PathBuf;
 
 /// Arguments of `smartagg cosim`.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("preset", |a| a.help("Camera preset (spcimager, spcimager-projected)")))]
+#[command(mut_arg("objective", |a| a.help("Objective magnification (150 or 60)")))]
 pub struct Args {
-    /// Camera preset (spcimager, spcimager-projected).
-    #[arg(long, default_value = "spcimager")]
-    pub preset: String,
-    /// Objective magnification (150 or 60).
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    #[command(flatten)]
+    pub preset: crate::setup::PresetArgs,
     /// Bit-planes to stream.
     #[arg(long, default_value_t = 500)]
     pub planes: usize,
@@ -50,8 +48,8 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let name = PresetName::parse(&args.preset)?;
-    let config = Config::for_preset(name, args.objective)?;
+    let name = PresetName::parse(&args.preset.name)?;
+    let config = Config::for_preset(name, args.preset.objective)?;
     let (w, h) = match (args.width, args.height) {
         (Some(w), Some(h)) => (w, h),
         _ => REDUCED,

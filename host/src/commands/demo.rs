@@ -25,6 +25,7 @@ use smartagg_model::record::{BlinkRecord, Record};
 use smartagg_scene::scene::{Blinking, Layout, OnTime, Position, Scene};
 use smartagg_scene::spad::SpadSimulator;
 use smartagg_scene::truth::BlinkTruth;
+use smartagg_study::matching::{assign, Loc, Truth};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -86,8 +87,9 @@ const RULERS: [(f64, f64, f64); 6] = [
 /// Marker spacing of GATTA-PAINT 80G, nm.
 const SPACING_NM: f64 = 80.0;
 
-/// Localisations further than this from the truth are false (one pixel at 150x).
-const MATCH_NM: f64 = 53.3;
+/// Localisations further than this from the truth are false (one pixel at
+/// 150x): the study's match radius, 53.3 nm.
+const MATCH_NM: f64 = smartagg_study::spec::DEFAULT_MATCH_RADIUS_NM;
 
 fn scene(preset: &Preset, field: u32, mean_off_s: f64) -> (Scene, Vec<[usize; 3]>) {
     let px = preset.pixel_nm();
@@ -413,7 +415,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for ev in decoder.finish() {
         take(ev, &mut records, &mut end);
     }
-    crate::output::write_atomic(&rois_path, &received)?;
+    smartagg_io::output::write_atomic(&rois_path, &received)?;
     // `smartagg localize demo-out/blinks.rois` needs no camera flags.
     crate::stream_info::StreamInfo::new(&preset, args.field, args.field, "demo")
         .write_beside(&rois_path)?;
@@ -491,7 +493,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut table_bytes = Vec::new();
     table.write_csv(&mut table_bytes)?;
-    crate::output::write_atomic(&csv, &table_bytes)?;
+    smartagg_io::output::write_atomic(&csv, &table_bytes)?;
     let png = args.out.join("render.png");
     let points: Vec<Point> = locs
         .iter()
@@ -518,7 +520,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             scale_bar: true,
         },
     )?;
-    crate::output::write_atomic(&png, &png_bytes)?;
+    smartagg_io::output::write_atomic(&png, &png_bytes)?;
     timing.add(
         "write outputs",
         t,
@@ -541,7 +543,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         gateware.as_ref(),
     );
     let md = args.out.join("report.md");
-    crate::output::write_atomic(&md, report.as_bytes())?;
+    smartagg_io::output::write_atomic(&md, report.as_bytes())?;
     println!("{report}");
     println!(
         "written: {}, {}, {}, {}",
@@ -595,32 +597,41 @@ fn analyse(
     emitters: &[Position],
     period_s: f64,
 ) -> Analysis {
-    // A localisation matches the nearest true blink within MATCH_NM whose
-    // on-time overlaps the planes the record summed.
+    // The study's truth-matching rule: a localisation matches the nearest
+    // true blink within MATCH_NM whose on-time overlaps the planes the
+    // record summed.
     let mut per_emitter: Vec<Vec<(f64, f64)>> = vec![Vec::new(); emitters.len()];
     let mut found = vec![false; truth.len()];
     let (mut matched, mut sq) = (0usize, 0.0);
-    for (loc, rec) in locs.iter().zip(records) {
-        if !loc.status.is_ok() {
-            continue;
-        }
-        let summed = smartagg_model::record_check::summed_planes_by(rec, n_window, Some(end_trim));
-        let (t0, t1) = (summed.start as f64 * period_s, summed.end as f64 * period_s);
-        let best = truth
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| b.t_on_s < t1 && b.t_off_s > t0)
-            .map(|(i, b)| {
-                (
-                    i,
-                    ((b.x_nm - loc.x_nm).powi(2) + (b.y_nm - loc.y_nm).powi(2)).sqrt(),
-                )
-            })
-            .filter(|&(_, d)| d <= MATCH_NM)
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((i, d)) = best {
+    let fitted: Vec<Loc> = locs
+        .iter()
+        .zip(records)
+        .filter(|(loc, _)| loc.status.is_ok())
+        .map(|(loc, rec)| {
+            let summed =
+                smartagg_model::record_check::summed_planes_by(rec, n_window, Some(end_trim));
+            Loc {
+                x_nm: loc.x_nm,
+                y_nm: loc.y_nm,
+                t0_s: summed.start as f64 * period_s,
+                t1_s: summed.end as f64 * period_s,
+                photons: loc.intensity,
+            }
+        })
+        .collect();
+    let blinks: Vec<Truth> = truth
+        .iter()
+        .map(|b| Truth {
+            x_nm: b.x_nm,
+            y_nm: b.y_nm,
+            t_on_s: b.t_on_s,
+            t_off_s: b.t_off_s,
+        })
+        .collect();
+    for (loc, m) in fitted.iter().zip(assign(&blinks, &fitted, MATCH_NM)) {
+        if let Some(i) = m {
             matched += 1;
-            sq += d * d;
+            sq += (blinks[i].x_nm - loc.x_nm).powi(2) + (blinks[i].y_nm - loc.y_nm).powi(2);
             found[i] = true;
             if let Some(v) = per_emitter.get_mut(truth[i].emitter as usize) {
                 v.push((loc.x_nm, loc.y_nm));

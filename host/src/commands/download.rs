@@ -11,18 +11,18 @@
 //! empty source, a stream with no valid packet (e.g. only packets of a newer
 //! format version), a stalled or failing source are errors either way.
 
-use crate::output::AtomicFile;
 use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
-use crate::transport::download::{
+use anyhow::{bail, Context};
+use smartagg_io::output::AtomicFile;
+use smartagg_model::params::{Preset, PresetName};
+use smartagg_transport::download::{
     download, DownloadObserver, DownloadOptions, DownloadReport, Progress,
 };
-use crate::transport::file::FileSource;
-use crate::transport::frontpanel::{FrontPanelOptions, FrontPanelSource};
-use crate::transport::usb::{self, UsbOptions, UsbSource};
-use crate::transport::{cosim, DeviceConfig, PacketSource, SourceSpec};
-use anyhow::{bail, Context};
-use smartagg_model::params::{Preset, PresetName};
+use smartagg_transport::file::FileSource;
+use smartagg_transport::frontpanel::{FrontPanelOptions, FrontPanelSource};
+use smartagg_transport::usb::{self, UsbOptions, UsbSource};
+use smartagg_transport::{cosim, DeviceConfig, PacketSource, SourceSpec};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -142,7 +142,7 @@ fn open_source(args: &Args, spec: &SourceSpec) -> anyhow::Result<Box<dyn PacketS
 
 /// The configuration the device gets: the preset's statistics for its full sensor.
 fn device_config(args: &PipelineArgs) -> anyhow::Result<DeviceConfig> {
-    let (preset, _) = setup::detection(&args.preset, args.objective, args.flux)?;
+    let (preset, _) = setup::detection(&args.preset.name, args.preset.objective, args.flux)?;
     let (width, height) = preset.camera.size();
     let period_ns = (preset.period_s() * 1e9).round() as u64;
     let cfg = setup::pipeline_config(args, width, height, period_ns)?;
@@ -161,7 +161,7 @@ fn write_sidecar(args: &Args, preset: &Preset, r: &DownloadReport) -> anyhow::Re
     println!(
         "camera {} {}x recorded in {} for localize",
         preset.name,
-        args.pipeline.objective,
+        args.pipeline.preset.objective,
         path.display()
     );
     Ok(())
@@ -202,8 +202,8 @@ fn print_summary(r: &DownloadReport, out: &Path) {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec: SourceSpec = args.source.parse()?;
     let preset = Preset::new(
-        PresetName::parse(&args.pipeline.preset)?,
-        args.pipeline.objective,
+        PresetName::parse(&args.pipeline.preset.name)?,
+        args.pipeline.preset.objective,
     )?;
     if let SourceSpec::File(input) = &spec {
         let ignored = args.pipeline.configuration_options();
@@ -214,7 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         for out in [args.out.clone(), StreamInfo::path_for(&args.out)] {
-            if crate::output::same_file(input, &out) {
+            if smartagg_io::output::same_file(input, &out) {
                 bail!(
                     "--out {} is the input file itself: writing it would destroy the recording",
                     out.display()

@@ -30,7 +30,7 @@ use smartagg_localize::table::{format_decimal, CsvTable};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::output::{refuse_overwriting, AtomicFile};
+use smartagg_io::output::{refuse_overwriting, AtomicFile};
 use std::io::Write as _;
 
 /// How the drift is estimated.

@@ -13,13 +13,10 @@ use smartagg_model::stats::Detection;
 
 /// Arguments of `smartagg params`.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("preset", |a| a.help("Camera preset: spcimager, spcimager-projected or spad512s (bit-plane cameras)")))]
 pub struct Args {
-    /// Camera preset: spcimager, spcimager-projected or spad512s (bit-plane cameras).
-    #[arg(long, default_value = "spcimager")]
-    pub preset: String,
-    /// Objective magnification: 150 or 60.
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    #[command(flatten)]
+    pub preset: crate::setup::PresetArgs,
     /// Molecule flux, photons/s reaching the sensor (default: 50,000).
     #[arg(long)]
     pub flux: Option<f64>,
@@ -59,7 +56,7 @@ const RECALL_DURATIONS_MS: [f64; 8] = [5.0, 10.0, 15.0, 20.0, 30.0, 50.0, 70.0, 
 
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (preset, det) = setup::detection(&args.preset, args.objective, args.flux)?;
+    let (preset, det) = setup::detection(&args.preset.name, args.preset.objective, args.flux)?;
     let Camera::Spad(cam) = &preset.camera else {
         anyhow::bail!("params applies to bit-plane (SPAD) presets");
     };
@@ -97,8 +94,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     });
     if args.json {
         let out = Output {
-            preset: &args.preset,
-            objective: args.objective,
+            preset: &args.preset.name,
+            objective: args.preset.objective,
             detection: &det,
             detection_probability: pd,
             false_alarms: fa,
@@ -113,8 +110,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     println!(
         "{} at {}x: eta = {:.4}, background b = {:.2} Hz/pixel, molecule I = {:.0} photons/s, tau = {:.0} us, PSF sigma = {:.3} px",
-        args.preset,
-        args.objective,
+        args.preset.name,
+        args.preset.objective,
         det.eta,
         det.background_rate_hz,
         det.flux_hz,

@@ -32,8 +32,8 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::figure::{figure_png, Colormap, FigureOptions};
-use crate::output::{refuse_overwriting, same_file, AtomicFile};
 use crate::{picasso, setup};
+use smartagg_io::output::{refuse_overwriting, same_file, AtomicFile};
 
 /// Leaves out the points too far from the median position (or too blurred)
 /// for one image of at most [`MAX_PIXELS`] pixels at `pixel_nm`; returns

@@ -37,7 +37,7 @@ use smartagg_scene::{
     SpadSimulator,
 };
 
-use crate::output::AtomicFile;
+use smartagg_io::output::AtomicFile;
 
 /// Largest output `simulate` writes unless `--max-out-gib` says otherwise, GiB.
 pub const DEFAULT_MAX_OUT_GIB: f64 = 64.0;
@@ -68,16 +68,18 @@ pub enum Order {
 
 /// Arguments.
 #[derive(clap::Args, Debug)]
+// The preset is required here (no default). `mut_arg` moves the argument
+// to the end of the list, which orders the usage line; moving `--out` after
+// it keeps that line `--preset <PRESET> --out <OUT>`.
+#[command(mut_arg("preset", |a| a.required(true).default_value(None::<&str>)))]
+#[command(mut_arg("out", |a| a))]
+#[command(mut_arg("objective", |a| a.help("Objective magnification (150 or 60)")))]
 pub struct Args {
-    /// Camera preset: spcimager, spcimager-projected, spad512s, emccd, scmos.
-    #[arg(long)]
-    pub preset: String,
+    #[command(flatten)]
+    pub preset: crate::setup::PresetArgs,
     /// What the camera looks at.
     #[arg(long, value_enum, default_value = "single")]
     pub scene: SceneKind,
-    /// Objective magnification (150 or 60).
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
     /// Number of bit-planes (SPAD) or frames (EMCCD/sCMOS).
     #[arg(long, conflicts_with = "seconds")]
     pub planes: Option<u64>,
@@ -397,8 +399,8 @@ fn truth_path(out: &std::path::Path) -> PathBuf {
 
 /// Runs the command.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let name = PresetName::parse(&a.preset)?;
-    let preset = Preset::new(name, a.objective)?;
+    let name = PresetName::parse(&a.preset.name)?;
+    let preset = Preset::new(name, a.preset.objective)?;
     let cam = build_camera(&a, &preset)?;
     let scene = build_scene(&a, &preset)?;
     scene.validate(&cam)?;
@@ -428,7 +430,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let t = Instant::now();
     println!(
         "preset {name} ({}x), field {}x{} px of {:.2} nm, PSF sigma {:.3} px, seed {}",
-        a.objective,
+        a.preset.objective,
         scene.width,
         scene.height,
         scene.pixel_nm(&cam),

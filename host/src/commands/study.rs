@@ -3,11 +3,10 @@
 //! The work is in the `smartagg-study` crate; this is the command line.
 
 use anyhow::{bail, Context};
-use smartagg_study::sensor::{SensorCalibration, SensorMaps};
+use smartagg_study::sensor::SensorCalibration;
 use smartagg_study::spec::LMin;
 use smartagg_study::{run, Plan, Shard, StudyName, StudyOptions};
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments.
@@ -77,48 +76,6 @@ pub struct Args {
     /// hot pixels. Not for the hot-pixels study or the experiment studies.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
-}
-
-/// The calibrated sensor of `--calibration`: its maps, the hot-pixel
-/// criterion re-derived for any N and T_int, and an identity (folder and a
-/// CRC-32C of the maps) that the manifest records.
-fn sensor(path: &std::path::Path) -> anyhow::Result<SensorCalibration> {
-    let cal = crate::calibration::Calibration::load(path)
-        .with_context(|| format!("loading calibration {}", path.display()))?;
-    let mut bytes = Vec::with_capacity(cal.dcr_hz.len() * 16);
-    for d in &cal.dcr_hz {
-        bytes.extend_from_slice(&d.to_le_bytes());
-    }
-    for p in cal.prnu.iter().flatten() {
-        bytes.extend_from_slice(&p.to_le_bytes());
-    }
-    let id = format!(
-        "{} ({}x{} px, {} dark planes, maps CRC-32C {:08x})",
-        path.display(),
-        cal.width,
-        cal.height,
-        cal.planes,
-        smartagg_model::packet::crc32c(&bytes)
-    );
-    let criterion = cal.hot_criterion.clone();
-    let maps = SensorMaps {
-        width: cal.width,
-        height: cal.height,
-        dcr_hz: cal.dcr_hz,
-        prnu: cal.prnu,
-        critical_dcr: Box::new(move |n, t| {
-            criterion
-                .with_threshold(n, t)
-                .map(|c| c.dcr_critical_hz)
-                .map_err(|e| e.to_string())
-        }),
-    };
-    maps.validate()
-        .map_err(|e| anyhow::anyhow!("calibration {}: {e}", path.display()))?;
-    Ok(SensorCalibration {
-        id,
-        maps: Some(Arc::new(maps)),
-    })
 }
 
 fn options(a: &Args, calibration: Option<&SensorCalibration>) -> anyhow::Result<StudyOptions> {
@@ -224,7 +181,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             if !a.dirs.is_empty() {
                 bail!("unexpected arguments after `all`: {:?}", a.dirs);
             }
-            let cal = a.calibration.as_deref().map(sensor).transpose()?;
+            let cal = a
+                .calibration
+                .as_deref()
+                .map(SensorCalibration::load)
+                .transpose()?;
             for s in StudyName::ALL {
                 if cal.is_some() && s == StudyName::HotPixels {
                     eprintln!(
@@ -274,7 +235,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     a.dirs
                 );
             }
-            let cal = a.calibration.as_deref().map(sensor).transpose()?;
+            let cal = a
+                .calibration
+                .as_deref()
+                .map(SensorCalibration::load)
+                .transpose()?;
             run_one(&a, StudyName::parse(name)?, &a.out, cal.as_ref())
         }
     }

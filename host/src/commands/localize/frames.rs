@@ -135,7 +135,7 @@ pub(super) fn localize_tiff(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         width: size.0.min(u32::MAX as usize) as u32,
         height: size.1.min(u32::MAX as usize) as u32,
         frames,
-        data_type: tiff_data_type(&args.input),
+        data_type: smartagg_io::stack::numpy_data_type(&args.input),
         blinks: false,
     };
     Ok((table, fits, extent))
@@ -147,7 +147,7 @@ pub(super) const FRAME_BATCH: usize = 1024;
 /// Per-pixel conversion of a frame with a frame calibration:
 /// (ADU − offset) / (ADU per electron).
 pub(super) fn calibrate_frame(
-    c: &crate::calibration::FrameCalibration,
+    c: &smartagg_calibration::FrameCalibration,
     conversion: Conversion,
     frame: &mut smartagg_io::stack::Frame,
 ) -> anyhow::Result<()> {
@@ -178,7 +178,7 @@ pub(super) fn frame_pipeline(
     conversion: Conversion,
     read_noise: f64,
     roi: usize,
-    calibration: Option<&crate::calibration::FrameCalibration>,
+    calibration: Option<&smartagg_calibration::FrameCalibration>,
     first: &smartagg_io::stack::Frame,
 ) -> anyhow::Result<FramePipeline> {
     let n = first.width * first.height;

@@ -25,12 +25,12 @@
 //! A failed fit is kept and flagged in `fit_status` (0 = ok) unless
 //! `--drop-failed`; either way the failures are counted and printed.
 
-use crate::calibration::{flags, AnyCalibration};
-use crate::output::AtomicFile;
 use crate::setup;
 use crate::stream_info::StreamInfo;
 use anyhow::{bail, Context};
 use rayon::prelude::*;
+use smartagg_calibration::{flags, AnyCalibration};
+use smartagg_io::output::AtomicFile;
 use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
@@ -109,6 +109,8 @@ pub enum LayoutArg {
 
 /// Arguments of `smartagg localize`.
 #[derive(clap::Args, Debug)]
+#[command(mut_arg("preset", |a| a.help("Camera preset (spcimager, spcimager-projected, spad512s, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model")))]
+#[command(mut_arg("objective", |a| a.help("Objective magnification of the preset (150 or 60)")))]
 pub struct Args {
     /// Blink-ROI packet stream (.rois) or TIFF stack of frames (.tif).
     pub input: PathBuf,
@@ -121,12 +123,8 @@ pub struct Args {
     /// Sample-plane pixel size, nm [default: from --preset, else from the stream's sidecar FILE.rois.json].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.1, 1e6, "nm"))]
     pub pixel_nm: Option<f64>,
-    /// Camera preset (spcimager, spcimager-projected, spad512s, emccd, scmos): pixel size, PSF σ, ADU conversion, noise model.
-    #[arg(long)]
-    pub preset: Option<String>,
-    /// Objective magnification of the preset (150 or 60).
-    #[arg(long, default_value_t = 150)]
-    pub objective: u32,
+    #[command(flatten)]
+    pub preset: crate::setup::OptionalPresetArgs,
     /// PSF σ in camera pixels (initial value when fitted) [default: the preset's, else the stream sidecar's, else 1.6 as ThunderSTORM].
     #[arg(long, allow_negative_numbers = true, value_parser = |s: &str| setup::ranged(s, 0.05, 100.0, "camera pixels"))]
     pub sigma: Option<f64>,
@@ -199,14 +197,17 @@ struct Setup {
 }
 
 fn setup(args: &Args) -> anyhow::Result<Setup> {
-    let mut preset = match &args.preset {
-        Some(name) => Some(Preset::new(PresetName::parse(name)?, args.objective)?),
+    let mut preset = match &args.preset.name {
+        Some(name) => Some(Preset::new(
+            PresetName::parse(name)?,
+            args.preset.objective,
+        )?),
         None => None,
     };
     // A stream from `aggregate` or `download` says its camera in a sidecar;
     // the command line wins over it.
     let mut sidecar = None;
-    if args.preset.is_none() && args.pixel_nm.is_none() && !is_tiff(&args.input)? {
+    if args.preset.name.is_none() && args.pixel_nm.is_none() && !is_tiff(&args.input)? {
         if let Some((info, path)) = StreamInfo::read_beside(&args.input)? {
             eprintln!(
                 "camera from {}: {} {}x, {:.2} nm pixels, PSF sigma {:.3} px",
@@ -311,17 +312,17 @@ struct Extent {
 
 fn run_in_pool(args: Args) -> anyhow::Result<()> {
     let s = setup(&args)?;
-    crate::output::refuse_overwriting(&args.out, &[&args.input])?;
+    smartagg_io::output::refuse_overwriting(&args.out, &[&args.input])?;
     let format = out_format(&args.out)?;
     if format == OutFormat::Picasso {
         let yaml = crate::picasso::sidecar_path(&args.out);
-        crate::output::refuse_overwriting(&yaml, &[&args.input])?;
+        smartagg_io::output::refuse_overwriting(&yaml, &[&args.input])?;
         if args.export_tiff.as_ref() == Some(&yaml) {
             bail!("--export-tiff is {}, the sidecar of --out", yaml.display());
         }
     }
     if let Some(tiff) = &args.export_tiff {
-        crate::output::refuse_overwriting(tiff, &[&args.input])?;
+        smartagg_io::output::refuse_overwriting(tiff, &[&args.input])?;
         if tiff == &args.out {
             bail!(
                 "--export-tiff and --out are the same file, {}",
@@ -404,29 +405,6 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// numpy's name of a TIFF's sample type (first page), as Picasso's movie
-/// loaders write it in `Data Type`; "unknown" if the tags do not say.
-fn tiff_data_type(path: &Path) -> String {
-    use tiff::tags::Tag;
-    let Ok(mut d) = std::fs::File::open(path)
-        .map_err(|_| ())
-        .and_then(|f| tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|_| ()))
-    else {
-        return "unknown".into();
-    };
-    let bits = match d.colortype() {
-        Ok(tiff::ColorType::Gray(b)) => b,
-        _ => return "unknown".into(),
-    };
-    // SampleFormat: 1 unsigned (the default), 2 signed, 3 IEEE float.
-    let kind = match d.find_tag_unsigned::<u16>(Tag::SampleFormat) {
-        Ok(Some(2)) => "int",
-        Ok(Some(3)) => "float",
-        _ => "uint",
-    };
-    format!("{kind}{bits}")
-}
-
 /// True for a TIFF (by magic number; a missing file is an error).
 fn is_tiff(path: &Path) -> anyhow::Result<bool> {
     use std::io::Read;
@@ -501,8 +479,10 @@ mod tests {
             out: out.to_path_buf(),
             estimator: EstimatorArg::SpadMle,
             pixel_nm: Some(50.0),
-            preset: None,
-            objective: 150,
+            preset: crate::setup::OptionalPresetArgs {
+                name: None,
+                objective: 150,
+            },
             sigma: Some(1.5),
             fixed_sigma: false,
             noise: None,

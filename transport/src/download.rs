@@ -592,7 +592,7 @@ pub fn download(
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::transport::DeviceConfig;
+    use crate::DeviceConfig;
     use smartagg_model::packet::{Encoder, Packet};
     use smartagg_model::record::{BlinkRecord, DroppedRecord};
     use std::collections::VecDeque;

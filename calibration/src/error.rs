@@ -1,7 +1,7 @@
 //! Everything that can go wrong while calibrating or reading a calibration.
 //!
-//! (The host crate does not depend on `thiserror`; `Display` and `Error`
-//! are written out here.)
+//! (`Display` and `Error` are written out here, as they were when this
+//! module was part of the host, which does not depend on `thiserror`.)
 
 use std::fmt;
 use std::path::PathBuf;

@@ -20,8 +20,20 @@ pub struct ReportFiles {
 }
 
 fn write_file(path: &Path, text: &str) -> Result<(), CalibrationError> {
-    crate::output::write_atomic(path, text.as_bytes())
-        .map_err(|e| CalibrationError::invalid("report", format!("{e:#}")))
+    smartagg_io::output::write_atomic(path, text.as_bytes())
+        .map_err(|e| CalibrationError::invalid("report", chain(&e)))
+}
+
+/// An error and its causes, `: `-separated (as anyhow's `{:#}`).
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cause = c.source();
+    }
+    s
 }
 
 /// Log-spaced histogram of the positive values: (lower edge, upper edge, count).

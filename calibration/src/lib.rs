@@ -1,10 +1,17 @@
-//! Camera calibration from the camera's own recordings (paper §2).
+//! `smartagg-calibration`: camera calibration from the camera's own
+//! recordings (paper §2) — computing it, writing and reading the
+//! calibration folder, and its human-readable report.
 //!
 //! What every SPAD user does first: measure each pixel's dark-count rate
 //! (DCR), find the hot pixels, and measure the photon-response
 //! non-uniformity (PRNU). Stage 0 of the pipeline (the hot-pixel mask) and
-//! the SPAD likelihood's per-pixel maps use exactly these. The same command
-//! calibrates EMCCD and sCMOS cameras (offset, gain and read-noise maps).
+//! the SPAD likelihood's per-pixel maps use exactly these. The same
+//! `smartagg calibrate` command calibrates EMCCD and sCMOS cameras (offset,
+//! gain and read-noise maps).
+//!
+//! Users: the `smartagg` host (`calibrate` writes a calibration;
+//! `aggregate`, `localize` and `study --calibration` read one). The crate
+//! depends on `smartagg-model` and `smartagg-io` only.
 //!
 //! ## SPAD estimators ([`spad`], [`estimate`])
 //!

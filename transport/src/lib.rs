@@ -1,4 +1,6 @@
-//! Transports: where the blink-ROI packet stream comes from.
+//! `smartagg-transport`: where the blink-ROI packet stream comes from — a
+//! board, a recorded file or the co-simulated gateware — and the download
+//! loop that turns any of them into a `.rois` file (`smartagg download`).
 //!
 //! Every source implements [`PacketSource`]: configure the device from a
 //! preset, start, read chunks of bytes with a time limit, stop. The
@@ -14,14 +16,22 @@
 //! | `cosim:PRESET`  | [`cosim`]                         | the Verilated gateware played as if it were the board (sim crate) |
 //!
 //! The register map the device sources share is in [`registers`].
+//!
+//! Cargo features (all on by default): `usb` (the `usb` module, `rusb`),
+//! `frontpanel` (the `frontpanel` module, `libloading`) and `cosim` (the
+//! `cosim` module, `smartagg-sim`). The file source, the download loop and
+//! the register map are always built.
 
+#[cfg(feature = "cosim")]
 pub mod cosim;
 pub mod download;
 pub mod file;
+#[cfg(feature = "frontpanel")]
 pub mod frontpanel;
 #[cfg(test)]
 mod fuzz_tests;
 pub mod registers;
+#[cfg(feature = "usb")]
 pub mod usb;
 
 use std::fmt;
@@ -75,17 +85,20 @@ pub trait PacketSource {
     fn stop(&mut self) -> Result<(), TransportError>;
 }
 
-/// Why a transport failed; every message says what to do about it.
+/// Why a transport failed; every message says what to do about it. The
+/// FrontPanel and libusb variants exist with their features.
 #[derive(Debug)]
 pub enum TransportError {
     /// A `--source` value that does not parse.
     BadSource(String),
     /// The Opal Kelly FrontPanel library is not installed where we looked.
+    #[cfg(feature = "frontpanel")]
     LibraryNotFound {
         /// Every path tried.
         looked_in: Vec<String>,
     },
     /// A library was found but could not be loaded.
+    #[cfg(feature = "frontpanel")]
     LibraryLoad {
         /// Path or name.
         path: String,
@@ -93,6 +106,7 @@ pub enum TransportError {
         reason: String,
     },
     /// The library lacks a function we need.
+    #[cfg(feature = "frontpanel")]
     MissingSymbol {
         /// Path or name of the library.
         path: String,
@@ -100,6 +114,7 @@ pub enum TransportError {
         symbol: &'static str,
     },
     /// A FrontPanel call returned an error code.
+    #[cfg(feature = "frontpanel")]
     FrontPanel {
         /// The call.
         call: &'static str,
@@ -128,6 +143,7 @@ pub enum TransportError {
         device: String,
     },
     /// Another USB error.
+    #[cfg(feature = "usb")]
     Usb {
         /// What we were doing.
         during: String,
@@ -153,6 +169,7 @@ impl fmt::Display for TransportError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             TransportError::BadSource(s) => write!(f, "{s}"),
+            #[cfg(feature = "frontpanel")]
             TransportError::LibraryNotFound { looked_in } => write!(
                 f,
                 "Opal Kelly FrontPanel library not found (looked in {}): install the FrontPanel SDK, set {}=/path/to/{}, or use --source usb",
@@ -160,15 +177,18 @@ impl fmt::Display for TransportError {
                 frontpanel::LIB_ENV,
                 frontpanel::LIB_NAME
             ),
+            #[cfg(feature = "frontpanel")]
             TransportError::LibraryLoad { path, reason } => write!(
                 f,
                 "cannot load the FrontPanel library {path}: {reason}"
             ),
+            #[cfg(feature = "frontpanel")]
             TransportError::MissingSymbol { path, symbol } => write!(
                 f,
                 "{path} has no function {symbol}: it is not Opal Kelly's FrontPanel library, or a version without the C API (install the FrontPanel SDK, or point {} at libokFrontPanel)",
                 frontpanel::LIB_ENV
             ),
+            #[cfg(feature = "frontpanel")]
             TransportError::FrontPanel { call, code } => write!(
                 f,
                 "FrontPanel {call} failed: error {code} ({})",
@@ -193,6 +213,7 @@ impl fmt::Display for TransportError {
             TransportError::Disconnected { device } => {
                 write!(f, "{device} disappeared (unplugged or reset)")
             }
+            #[cfg(feature = "usb")]
             TransportError::Usb { during, error } => write!(f, "USB error while {during}: {error}"),
             TransportError::GenerationMismatch(diffs) => write!(
                 f,

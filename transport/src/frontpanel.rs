@@ -484,8 +484,8 @@ impl<D: PipeDevice> PacketSource for FrontPanelSource<D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transport::registers::tests::{bus_for, pipeline, MockBus};
-    use crate::transport::registers::trigger;
+    use crate::registers::tests::{bus_for, pipeline, MockBus};
+    use crate::registers::trigger;
 
     /// A FrontPanel device simulated at the register level: a FIFO that the
     /// gateware fills in bursts, padded to a granule at the end.
