@@ -5,7 +5,6 @@ use clap::{Parser, Subcommand};
 
 mod commands;
 mod figure;
-mod output;
 mod picasso;
 mod setup;
 mod stream_info;

@@ -86,7 +86,7 @@ fn design(preset: &str, objective: u32) -> anyhow::Result<Design> {
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {
-    crate::output::write_atomic(path, text.as_bytes())
+    Ok(smartagg_io::output::write_atomic(path, text.as_bytes())?)
 }
 
 /// The ISE 14.7 project script of a design.
@@ -421,10 +421,26 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
         "one row per netlist (its LUTs, RAM, DSP and depth all measured on the same cells; \
          LUT = LUT1-6 + INV; levels: CARRY4 and MUXF7/8 count 0):"
     );
-    let lx45 = |m: &MappingReport| m.devices.first().map_or(f64::NAN, |u| u.lut_percent);
+    // The LUT share of the design's own device (the LX45 for a bare file).
+    let device = d.map_or(DEVICES[0].name, |d| d.device.name);
+    let share = |m: &MappingReport| {
+        m.devices
+            .iter()
+            .find(|u| u.device == device)
+            .map_or(f64::NAN, |u| u.lut_percent)
+    };
     println!(
         "{:<8} {:>7} {:>5} {:>8} {:>7} {:>7} {:>4} {:>6} {:>6} {:>7}  ends per level (0, 1, ...)",
-        "mapping", "LUT", "INV", "LUT RAM", "% LX45", "FF", "DSP", "RAMB16", "CARRY4", "levels"
+        "mapping",
+        "LUT",
+        "INV",
+        "LUT RAM",
+        format!("% {}", device.trim_start_matches("XC6S")),
+        "FF",
+        "DSP",
+        "RAMB16",
+        "CARRY4",
+        "levels"
     );
     let unknown = |x: Option<u32>| x.map_or("?".into(), |x| x.to_string());
     for m in &rep.mappings {
@@ -434,7 +450,7 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
             m.luts,
             m.inverters,
             m.lut_ram,
-            lx45(m),
+            share(m),
             m.ffs,
             m.dsp48a1,
             m.ramb16 as f64 + m.ramb8 as f64 / 2.0,
