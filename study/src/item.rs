@@ -67,15 +67,7 @@ pub fn item_timeline(plan: &Plan, point: usize, block: usize) -> Timeline {
 }
 
 fn truth_of(blinks: &[BlinkNm]) -> Vec<Truth> {
-    blinks
-        .iter()
-        .map(|b| Truth {
-            x_nm: b.x_nm,
-            y_nm: b.y_nm,
-            t_on_s: b.t_on_s,
-            t_off_s: b.t_off_s,
-        })
-        .collect()
+    blinks.iter().map(Truth::from).collect()
 }
 
 /// Runs work item (`point`, `block`) of `plan`; `setups[c]` is the setup of

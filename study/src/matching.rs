@@ -67,6 +67,28 @@ pub struct Truth {
     pub t_off_s: f64,
 }
 
+impl From<&crate::timeline::BlinkNm> for Truth {
+    fn from(b: &crate::timeline::BlinkNm) -> Truth {
+        Truth {
+            x_nm: b.x_nm,
+            y_nm: b.y_nm,
+            t_on_s: b.t_on_s,
+            t_off_s: b.t_off_s,
+        }
+    }
+}
+
+impl From<&smartagg_scene::truth::BlinkTruth> for Truth {
+    fn from(b: &smartagg_scene::truth::BlinkTruth) -> Truth {
+        Truth {
+            x_nm: b.x_nm,
+            y_nm: b.y_nm,
+            t_on_s: b.t_on_s,
+            t_off_s: b.t_off_s,
+        }
+    }
+}
+
 /// For every localisation, the blink it matches (index into `truth`), or
 /// `None` for a false positive.
 pub fn assign(truth: &[Truth], locs: &[Loc], radius_nm: f64) -> Vec<Option<usize>> {

@@ -619,15 +619,7 @@ fn analyse(
             }
         })
         .collect();
-    let blinks: Vec<Truth> = truth
-        .iter()
-        .map(|b| Truth {
-            x_nm: b.x_nm,
-            y_nm: b.y_nm,
-            t_on_s: b.t_on_s,
-            t_off_s: b.t_off_s,
-        })
-        .collect();
+    let blinks: Vec<Truth> = truth.iter().map(Truth::from).collect();
     for (loc, m) in fitted.iter().zip(assign(&blinks, &fitted, MATCH_NM)) {
         if let Some(i) = m {
             matched += 1;

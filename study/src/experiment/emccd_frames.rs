@@ -93,15 +93,7 @@ pub fn compute(
             let s = derive_seed(&[seed, key_hash("emccd-frames"), (ms * 1000.0) as u64]);
             let tl = Timeline::one_at_a_time(s, n, ms / 1000.0);
             let blinks = place(&tl.blinks, setup.field_nm(), setup.margin_nm);
-            let truth: Vec<Truth> = blinks
-                .iter()
-                .map(|b| Truth {
-                    x_nm: b.x_nm,
-                    y_nm: b.y_nm,
-                    t_on_s: b.t_on_s,
-                    t_off_s: b.t_off_s,
-                })
-                .collect();
+            let truth: Vec<Truth> = blinks.iter().map(Truth::from).collect();
             let explicit = blinks
                 .iter()
                 .enumerate()
