@@ -13,20 +13,22 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum ToolError {
     /// The tool is not installed.
-    #[error("`{tool}` is not installed or not on PATH ({source}); install it, e.g. `apt-get install -y verilator yosys`")]
+    #[error("`{tool}` is not installed or not on PATH ({error}); install it, e.g. `apt-get install -y verilator yosys`")]
     Missing {
         /// Tool name.
         tool: &'static str,
-        /// The spawn error.
-        source: std::io::Error,
+        /// The spawn error (in the message; not chained, so that it is said once).
+        error: std::io::Error,
     },
-    /// A file could not be written.
-    #[error("writing {path}: {source}")]
+    /// A file could not be written or read.
+    #[error("{action} {path}: {error}")]
     Io {
+        /// `writing` or `reading`.
+        action: &'static str,
         /// The path.
         path: PathBuf,
-        /// The error.
-        source: std::io::Error,
+        /// The error (in the message; not chained, so that it is said once).
+        error: std::io::Error,
     },
     /// The tool ran and reported problems.
     #[error("`{tool}` failed (exit {code:?}):\n{output}")]
@@ -47,19 +49,22 @@ pub enum ToolError {
 }
 
 fn write_file(dir: &Path, name: &str, text: &str) -> Result<PathBuf, ToolError> {
-    std::fs::create_dir_all(dir).map_err(|source| ToolError::Io {
+    std::fs::create_dir_all(dir).map_err(|error| ToolError::Io {
+        action: "writing",
         path: dir.to_path_buf(),
-        source,
+        error,
     })?;
     let path = dir.join(name);
-    let mut f = std::fs::File::create(&path).map_err(|source| ToolError::Io {
+    let mut f = std::fs::File::create(&path).map_err(|error| ToolError::Io {
+        action: "writing",
         path: path.clone(),
-        source,
+        error,
     })?;
     f.write_all(text.as_bytes())
-        .map_err(|source| ToolError::Io {
+        .map_err(|error| ToolError::Io {
+            action: "writing",
             path: path.clone(),
-            source,
+            error,
         })?;
     Ok(path)
 }
@@ -67,7 +72,7 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<PathBuf, ToolError> 
 fn run(tool: &'static str, cmd: &mut Command) -> Result<String, ToolError> {
     let out = cmd
         .output()
-        .map_err(|source| ToolError::Missing { tool, source })?;
+        .map_err(|error| ToolError::Missing { tool, error })?;
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
@@ -401,7 +406,11 @@ pub fn yosys_resources(
     )?;
     let read = |name: &str| {
         let path = dir.join(name);
-        std::fs::read_to_string(&path).map_err(|source| ToolError::Io { path, source })
+        std::fs::read_to_string(&path).map_err(|error| ToolError::Io {
+            action: "reading",
+            path,
+            error,
+        })
     };
     let log = read("yosys.log").unwrap_or(out);
     let (memory_bits, multipliers) = parse_floors(&log)?;

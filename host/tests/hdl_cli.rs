@@ -201,6 +201,16 @@ fn resources_synthesises_the_given_file_and_reports_its_hash() {
         assert_eq!(devices[0]["fits"], true);
         assert_eq!(devices[0]["fits_within_levels"], levels <= 7, "{m}");
     }
+    // A work folder that is a file is refused before yosys runs.
+    let e = err(&[
+        "hdl",
+        "resources",
+        "--verilog",
+        file.to_str().unwrap(),
+        "--work",
+        file.to_str().unwrap(),
+    ]);
+    assert!(e.contains("--work") && e.contains("not a directory"), "{e}");
     // A file without a `top` module is refused by name.
     let bad = dir.path().join("bad.v");
     std::fs::write(&bad, "module other(); endmodule\n").unwrap();

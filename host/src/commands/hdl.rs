@@ -360,6 +360,11 @@ fn report(name: String, v: &str, s: &Synthesis, seconds: f64, d: Option<&Design>
 }
 
 fn resources(a: ResourcesArgs) -> anyhow::Result<()> {
+    if let Some(w) = &a.work {
+        if w.exists() && !w.is_dir() {
+            bail!("--work {}: exists and is not a directory", w.display());
+        }
+    }
     let (name, v, d) = match (&a.preset, &a.verilog) {
         (_, Some(path)) => {
             let v = std::fs::read_to_string(path)
