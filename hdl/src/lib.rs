@@ -55,6 +55,7 @@ pub mod front_half;
 pub mod hot_pixel_mask;
 pub mod lint_waivers;
 pub mod lut_levels;
+pub mod mcb_model;
 pub mod packetiser;
 pub mod pipeline;
 pub mod registers;

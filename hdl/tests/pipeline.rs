@@ -12,7 +12,7 @@ use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::bench::{settle, Bench, Stalls};
-use smartagg_hdl::delay_line_ddr::McbModel;
+use smartagg_hdl::mcb_model::McbModel;
 use smartagg_hdl::pipeline::{test_back_config, TestPipeline, TestPipelineDdr};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;

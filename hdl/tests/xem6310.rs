@@ -11,7 +11,7 @@ mod common;
 
 use rust_hdl::prelude::*;
 use smartagg_hdl::bench::{settle, Bench};
-use smartagg_hdl::delay_line_ddr::McbModel;
+use smartagg_hdl::mcb_model::McbModel;
 use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::registers::{self, control, status, wire_in, wire_out};
 use smartagg_hdl::xem6310::{TestXemCore, TestXemCoreOnChip};
