@@ -309,15 +309,13 @@ pub fn lut_ram_luts(cell: &str) -> Option<u64> {
 }
 
 /// Parses the output of `stat -tech xilinx` (the last statistics table in
-/// `text`) into cell counts, and an `ltp` line (`length=N`) if there is one.
+/// `text`) into cell counts ([`Resources::logic_depth`] and
+/// [`Resources::lut_levels`] are left `None`).
 pub fn parse_cells(text: &str) -> Result<Resources, ToolError> {
     let start = text
         .rfind("Number of cells:")
         .ok_or(ToolError::NoStatistics)?;
-    let mut r = Resources {
-        logic_depth: parse_ltp(text),
-        ..Resources::default()
-    };
+    let mut r = Resources::default();
     for line in text[start..].lines().skip(1) {
         let mut parts = line.split_whitespace();
         let (Some(name), Some(count), None) = (parts.next(), parts.next(), parts.next()) else {
@@ -481,7 +479,7 @@ Longest topological path in top (length=7):
         // 2 RAM32M × 4 + 1 RAM64X1D × 2 + 3 SRL16E × 1.
         assert_eq!(r.lutram, 13);
         assert_eq!((r.ffs, r.carry4, r.ramb16, r.ramb8), (20, 3, 1, 2));
-        assert_eq!(r.logic_depth, Some(7));
+        assert_eq!(parse_ltp(STAT), Some(7));
         assert_eq!(lut_ram_luts("LUT6"), None);
         assert!(parse_cells("no table").is_err());
     }

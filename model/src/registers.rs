@@ -301,10 +301,10 @@ pub fn replay_bytes(planes: &[crate::plane::BitPlane]) -> Vec<u8> {
     bytes
 }
 
-/// [`replay_bytes`] as the pipe's 32-bit little-endian words, the last one
+/// Pipe-in bytes as the pipe's 32-bit little-endian words, the last one
 /// zero-padded.
-pub fn replay_words(planes: &[crate::plane::BitPlane]) -> Vec<u32> {
-    replay_bytes(planes)
+pub fn pipe_words(bytes: &[u8]) -> Vec<u32> {
+    bytes
         .chunks(4)
         .map(|c| {
             let mut b = [0u8; 4];
@@ -312,6 +312,11 @@ pub fn replay_words(planes: &[crate::plane::BitPlane]) -> Vec<u32> {
             u32::from_le_bytes(b)
         })
         .collect()
+}
+
+/// [`replay_bytes`] as the pipe's 32-bit words ([`pipe_words`]).
+pub fn replay_words(planes: &[crate::plane::BitPlane]) -> Vec<u32> {
+    pipe_words(&replay_bytes(planes))
 }
 
 /// How many pixels mask bytes written to pipe-in [`pipe::MASK_IN`] mask: the
