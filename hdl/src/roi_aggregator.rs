@@ -23,15 +23,19 @@
 //! are cut from the two words that hold them (the ring keeps even and odd
 //! words in separate banks, so both are read in one clock; columns outside
 //! the sensor read 0), and the R counters of that ROI row are read,
-//! incremented by `delayed·pre`, and written back the next clock. Three stages, so
+//! incremented by `delayed·pre`, and written back the next clock. Four stages, so
 //! that no path between registers is long: S0 picks the slot (the lowest
-//! bit of `rel`) and registers its view; SA computes the word and
-//! counter addresses; S1 adds and writes. The view of plane t stays
-//! untouched until the sweep has finished t, so reading it at S0 is as good
-//! as at the row's start; `planes_done` and the rows the writer may reuse
-//! lag the sweep's own counters by the clock that SA adds. `need`, `rlo`
-//! and `rhi` (what row `ra` waits for and which ROI rows cover it) move with
-//! `ra` instead of being computed from it. In the first
+//! bit of `rel`) and registers its index; SV reads its view entry through
+//! a binary multiplexer (4:1 a LUT: about 21 LUTs a bit for the 64
+//! entries, where an AND-OR over one-hot selects took about 39); SA
+//! computes the word and counter addresses; S1 adds and writes. The view
+//! of plane t stays untouched until the sweep has finished t, so reading
+//! it at SV is as good as at the row's start; `planes_done` and the rows
+//! the writer may reuse lag the sweep's own counters by the two clocks
+//! that SV and SA add. A slot covers row `ra` when
+//! `0 ≤ (ra + h) − ay ≤ 2h`, one subtraction a slot. `need` and `rhi`
+//! (what row `ra` waits for, and `ra + h`) move with `ra` instead of being
+//! computed from it. In the first
 //! plane of a segment (`fresh`) the old counts read as zero, so counters
 //! never need clearing; as every segment is swept in its first plane (even
 //! an opening at `t < N`, which sums nothing yet), its counters and mask
@@ -64,6 +68,9 @@ use crate::fifo::Fifo;
 use crate::spatial_filter::ConstMul;
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
+
+// The view multiplexer is written for 32 slots (literal offsets for hdl_gen).
+const _: () = assert!(MAX_SLOTS == 32);
 
 /// The ROI aggregator. `P`: pixels per word; `RAW`: row-buffer bank address
 /// bits; `RCW`: counter bits; `CAW`: counter address bits; `BW`: bank bits.
@@ -133,18 +140,26 @@ pub struct RoiAggregator<
     rslot: DFF<Bits<16>>,
     gs: DFF<Bits<16>>,
     ta: DFF<Bits<48>>,
-    /// The ROI rows that cover row `ra`: `max(ra − h, 0)` and `ra + h`,
-    /// kept beside `ra` rather than computed from it.
-    rlo: DFF<Bits<COORD_BITS>>,
+    /// `ra + h`: the last ROI row that covers row `ra`, kept beside `ra`
+    /// rather than computed from it.
     rhi: DFF<Bits<COORD_BITS>>,
-    /// `gs` one clock later: the rows the writer may reuse (a row's last
-    /// slot reads the ring one clock after the row is done).
+    /// `gs` two clocks later: the rows the writer may reuse (a row's last
+    /// slot reads the ring, at SA, two clocks after the row is done).
+    gs_v: DFF<Bits<16>>,
     gs_w: DFF<Bits<16>>,
-    /// `ta` one clock later: a swept plane's last counter write comes one
-    /// clock after its row is done.
+    /// `ta` two clocks later: a swept plane's last counter write, at S1,
+    /// comes two clocks after its row is done.
+    pd_v: DFF<Bits<48>>,
     pd: DFF<Bits<48>>,
+    // View stage (SV): the selected entry's index, registered after the
+    // slot priority logic; the entry is read through a binary multiplexer.
+    v_valid: DFF<Bit>,
+    /// The selected entry: bit 5 the plane's parity, bits 0–4 the slot.
+    v_idx: DFF<Bits<8>>,
+    v_row_hi: DFF<Bits<COORD_BITS>>,
+    v_rbase: DFF<Bits<RAW>>,
     // Address stage (SA): the selected slot's view, registered after the
-    // slot multiplexer, with the row it sweeps.
+    // view multiplexer, with the row it sweeps.
     a_valid: DFF<Bit>,
     /// The selected slot's view entry (fields at
     /// [`crate::blink_tracker::shadow`]'s offsets).
@@ -192,8 +207,23 @@ pub struct RoiAggregator<
     now_v: Signal<Local, Bits<MAX_SLOTS>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
-    /// The OR tree that finds the selected slot's view entry.
-    kt: Vec<Signal<Local, Bits<64>>>,
+    /// The selected slot's index (binary), from `rsel_v`.
+    slot_idx: Signal<Local, Bits<8>>,
+    /// The view multiplexer, one level per index bit: `vm0` holds the 64
+    /// entries at `parity·32 + slot` (absent slots read 0), `vm1` … `vm5`
+    /// halve it, selecting by bits 0 … 4 of `v_idx`; bit 5 picks the root.
+    vm0: Vec<Signal<Local, Bits<64>>>,
+    vm1: Vec<Signal<Local, Bits<64>>>,
+    vm2: Vec<Signal<Local, Bits<64>>>,
+    vm3: Vec<Signal<Local, Bits<64>>>,
+    vm4: Vec<Signal<Local, Bits<64>>>,
+    vm5: Vec<Signal<Local, Bits<64>>>,
+    /// Masks of the slots whose index has bit b set, b = 0 … 4.
+    idx_b0: Constant<Bits<MAX_SLOTS>>,
+    idx_b1: Constant<Bits<MAX_SLOTS>>,
+    idx_b2: Constant<Bits<MAX_SLOTS>>,
+    idx_b3: Constant<Bits<MAX_SLOTS>>,
+    idx_b4: Constant<Bits<MAX_SLOTS>>,
     dy: Signal<Local, Bits<COORD_BITS>>,
     x0p: Signal<Local, Bits<16>>,
     wq: Signal<Local, Bits<16>>,
@@ -288,10 +318,15 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             rslot: Default::default(),
             gs: Default::default(),
             ta: Default::default(),
-            rlo: Default::default(),
             rhi: Default::default(),
+            gs_v: Default::default(),
             gs_w: Default::default(),
+            pd_v: Default::default(),
             pd: Default::default(),
+            v_valid: Default::default(),
+            v_idx: Default::default(),
+            v_row_hi: Default::default(),
+            v_rbase: Default::default(),
             a_valid: Default::default(),
             a_view: Default::default(),
             a_row_hi: Default::default(),
@@ -326,7 +361,18 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             now_v: Default::default(),
             row_done: Default::default(),
             s0: Default::default(),
-            kt: lanes(2 * m - 1),
+            slot_idx: Default::default(),
+            vm0: lanes(2 * MAX_SLOTS),
+            vm1: lanes(MAX_SLOTS),
+            vm2: lanes(MAX_SLOTS / 2),
+            vm3: lanes(MAX_SLOTS / 4),
+            vm4: lanes(MAX_SLOTS / 8),
+            vm5: lanes(MAX_SLOTS / 16),
+            idx_b0: Constant::new(0xAAAA_AAAAu64.to_bits()),
+            idx_b1: Constant::new(0xCCCC_CCCCu64.to_bits()),
+            idx_b2: Constant::new(0xF0F0_F0F0u64.to_bits()),
+            idx_b3: Constant::new(0xFF00_FF00u64.to_bits()),
+            idx_b4: Constant::new(0xFFFF_0000u64.to_bits()),
             dy: Default::default(),
             x0p: Default::default(),
             wq: Default::default(),
@@ -370,9 +416,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rlo, rhi, gs_w, pd,
-            ra, need, a_valid, a_view, a_row_hi, a_rbase, s1_valid, s1_pre, s1_fresh, s1_off,
-            s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd, s1_addr, rel
+            self, clock, wbase, wslot, gw, ovf, sweeping, rbase, rslot, gs, ta, rhi, gs_v, gs_w,
+            pd_v, pd, v_valid, v_idx, v_row_hi, v_rbase, ra, need, a_valid, a_view, a_row_hi,
+            a_rbase, s1_valid, s1_pre, s1_fresh, s1_off, s1_sh_hi, s1_lo_ok, s1_hi_ok, s1_odd,
+            s1_addr, rel
         );
         for q in 0..4 {
             self.ring[q].clock.next = self.clock.val();
@@ -384,8 +431,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
 
         // ---- Writer: even words to ring 0..1, odd words to ring 2..3.
         self.pending.next = self.gw.q.val() - self.gs_w.q.val();
-        self.gs_w.d.next = self.gs.q.val();
-        self.pd.d.next = self.ta.q.val();
+        self.gs_v.d.next = self.gs.q.val();
+        self.gs_w.d.next = self.gs_v.q.val();
+        self.pd_v.d.next = self.ta.q.val();
+        self.pd.d.next = self.pd_v.q.val();
         for q in 0..4 {
             self.ring[q].write_address.next =
                 self.wbase.q.val() + bit_cast::<RAW, 16>(self.in_x.val() >> 1);
@@ -440,16 +489,19 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
                     // (Offsets: `shadow`; literals for hdl_gen.)
+                    // Rows ay − h … ay + h cover ra iff 0 ≤ (ra + h) − ay ≤ 2h:
+                    // one subtraction modulo 2^10, as a difference below zero
+                    // wraps to at least 2^10 − 511 > 2h (rows are below 512).
                     if self.par.val() {
                         self.now_rel[i].next = (self.sh[i + mm].val().get_bit(62)
                             | self.sh[i + mm].val().get_bit(63))
-                            & (self.sh[i + mm].val().get_bits::<10>(10) >= self.rlo.q.val())
-                            & (self.sh[i + mm].val().get_bits::<10>(10) <= self.rhi.q.val());
+                            & ((self.rhi.q.val() - self.sh[i + mm].val().get_bits::<10>(10))
+                                <= self.two_h.val());
                     } else {
                         self.now_rel[i].next = (self.sh[i].val().get_bit(62)
                             | self.sh[i].val().get_bit(63))
-                            & (self.sh[i].val().get_bits::<10>(10) >= self.rlo.q.val())
-                            & (self.sh[i].val().get_bits::<10>(10) <= self.rhi.q.val());
+                            & ((self.rhi.q.val() - self.sh[i].val().get_bits::<10>(10))
+                                <= self.two_h.val());
                     }
                     self.now_v.next = self.now_v.val().replace_bit(i, self.now_rel[i].val());
                 }
@@ -470,43 +522,109 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.rest.next = self.rel.q.val() & self.taken.val();
         self.any_rel.next = self.rel.q.val().any();
         self.s0.next = self.sweeping.q.val() & self.any_rel.val();
-        // An OR tree over the entries, each zero unless its slot is the one
-        // selected (`rsel_v` is one-hot): a few LUT levels, where an if-chain
-        // or an OR accumulated slot by slot is a 32-deep chain to synthesis.
-        // Tree layout: leaves 0 … M − 1, node M + j = node 2j | node 2j + 1,
-        // the root last (every node reads lower ones only).
-        for n in 0..(2 * self._m - 1) {
-            self.kt[n].next = 0.into();
+        // Its index, bit b the OR of the one-hot bits whose slot has bit b.
+        self.slot_idx.next = 0.into();
+        self.slot_idx.next = self
+            .slot_idx
+            .val()
+            .replace_bit(0, (self.rsel_v.val() & self.idx_b0.val()).any());
+        self.slot_idx.next = self
+            .slot_idx
+            .val()
+            .replace_bit(1, (self.rsel_v.val() & self.idx_b1.val()).any());
+        self.slot_idx.next = self
+            .slot_idx
+            .val()
+            .replace_bit(2, (self.rsel_v.val() & self.idx_b2.val()).any());
+        self.slot_idx.next = self
+            .slot_idx
+            .val()
+            .replace_bit(3, (self.rsel_v.val() & self.idx_b3.val()).any());
+        self.slot_idx.next = self
+            .slot_idx
+            .val()
+            .replace_bit(4, (self.rsel_v.val() & self.idx_b4.val()).any());
+        self.slot_idx.next = self.slot_idx.val().replace_bit(5, self.par.val());
+
+        // ---- S0 → SV: the selected entry's index and its row, registered
+        // (the priority logic is S0's).
+        self.v_valid.d.next = self.s0.val();
+        self.v_idx.d.next = self.slot_idx.val();
+        self.v_row_hi.d.next = self.rhi.q.val();
+        self.v_rbase.d.next = self.rbase.q.val();
+
+        // ---- SV: the entry, through a binary multiplexer of 4:1 steps a
+        // LUT each (an AND-OR over the 64 entries costs twice the LUTs).
+        // Entries of plane t stay untouched until the sweep has finished t
+        // (`planes_done` lags S1), so reading one at SV is as good as at
+        // the row's start. (Literal offsets for hdl_gen: 32 = MAX_SLOTS.)
+        for n in 0..64 {
+            self.vm0[n].next = 0.into();
         }
-        // (`rel`, hence `rsel_v`, is empty unless sweeping: the register is
-        // the cheapest gate for a simulator.)
-        if self.sweeping.q.val() {
+        for n in 0..32 {
+            self.vm1[n].next = 0.into();
+        }
+        for n in 0..16 {
+            self.vm2[n].next = 0.into();
+        }
+        for n in 0..8 {
+            self.vm3[n].next = 0.into();
+        }
+        for n in 0..4 {
+            self.vm4[n].next = 0.into();
+        }
+        for n in 0..2 {
+            self.vm5[n].next = 0.into();
+        }
+        // (Computed only for a valid index: nothing in hardware, and a
+        // simulator skips 127 words on the other clocks.)
+        if self.v_valid.q.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
-                    if self.rsel_v.val().get_bit(i) {
-                        if self.par.val() {
-                            self.kt[i].next = self.sh[i + mm].val();
-                        } else {
-                            self.kt[i].next = self.sh[i].val();
-                        }
-                    }
+                    self.vm0[i].next = self.sh[i].val();
+                    self.vm0[i + 32].next = self.sh[i + mm].val();
                 }
             }
-            for mm in self._m..(self._m + 1) {
-                for j in 0..(self._m - 1) {
-                    self.kt[mm + j].next = self.kt[2 * j].val() | self.kt[2 * j + 1].val();
+            for n in 0..32 {
+                self.vm1[n].next = self.vm0[2 * n].val();
+                if self.v_idx.q.val().get_bit(0) {
+                    self.vm1[n].next = self.vm0[2 * n + 1].val();
+                }
+            }
+            for n in 0..16 {
+                self.vm2[n].next = self.vm1[2 * n].val();
+                if self.v_idx.q.val().get_bit(1) {
+                    self.vm2[n].next = self.vm1[2 * n + 1].val();
+                }
+            }
+            for n in 0..8 {
+                self.vm3[n].next = self.vm2[2 * n].val();
+                if self.v_idx.q.val().get_bit(2) {
+                    self.vm3[n].next = self.vm2[2 * n + 1].val();
+                }
+            }
+            for n in 0..4 {
+                self.vm4[n].next = self.vm3[2 * n].val();
+                if self.v_idx.q.val().get_bit(3) {
+                    self.vm4[n].next = self.vm3[2 * n + 1].val();
+                }
+            }
+            for n in 0..2 {
+                self.vm5[n].next = self.vm4[2 * n].val();
+                if self.v_idx.q.val().get_bit(4) {
+                    self.vm5[n].next = self.vm4[2 * n + 1].val();
                 }
             }
         }
 
-        // ---- S0 → SA: the selected slot's view and its row, registered
-        // (the priority chain and the slot multiplexer are the stage's logic).
-        self.a_valid.d.next = self.s0.val();
-        for mm in self._m..(self._m + 1) {
-            self.a_view.d.next = self.kt[2 * mm - 2].val();
+        // ---- SV → SA: the selected slot's view and its row, registered.
+        self.a_valid.d.next = self.v_valid.q.val();
+        self.a_view.d.next = self.vm5[0].val();
+        if self.v_idx.q.val().get_bit(5) {
+            self.a_view.d.next = self.vm5[1].val();
         }
-        self.a_row_hi.d.next = self.rhi.q.val();
-        self.a_rbase.d.next = self.rbase.q.val();
+        self.a_row_hi.d.next = self.v_row_hi.q.val();
+        self.a_rbase.d.next = self.v_rbase.q.val();
 
         // ---- SA: addresses of the two words and of the counter row.
         self.dy.next = self.a_row_hi.q.val() - self.a_view.q.val().get_bits::<10>(10);
@@ -630,14 +748,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
                 self.ra.d.next = 0.into();
                 self.ta.d.next = self.ta.q.val() + 1;
                 self.need.d.next = self.need0.val();
-                self.rlo.d.next = 0.into();
                 self.rhi.d.next = self.h_c.val();
             } else {
                 self.ra.d.next = self.ra.q.val() + 1;
                 self.rhi.d.next = self.rhi1.val();
-                if self.rhi1.val() >= self.two_h.val() {
-                    self.rlo.d.next = self.rhi1.val() - self.two_h.val();
-                }
                 if self.need.q.val() != self.rows_h.val() {
                     self.need.d.next = self.need.q.val() + 1;
                 }
@@ -655,10 +769,12 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             self.gs.d.next = 0.into();
             self.ta.d.next = 0.into();
             self.need.d.next = self.need0.val();
+            self.gs_v.d.next = 0.into();
             self.gs_w.d.next = 0.into();
+            self.pd_v.d.next = 0.into();
             self.pd.d.next = 0.into();
-            self.rlo.d.next = 0.into();
             self.rhi.d.next = self.h_c.val();
+            self.v_valid.d.next = false;
             self.a_valid.d.next = false;
             self.ra.d.next = 0.into();
             self.s1_valid.d.next = false;

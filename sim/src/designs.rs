@@ -19,7 +19,8 @@ use crate::ddr2::{self, Ddr2Timing};
 use crate::verilator::{BuildOptions, Dir, VerilatorError};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use smartagg_hdl::configs::{
-    DelayLineKind, Design, Projected150Core, Projected60Core, Spcimager150Core, Spcimager60Core,
+    on_generation_stack, DelayLineKind, Design, Projected150Core, Projected60Core,
+    Spcimager150Core, Spcimager60Core,
 };
 use smartagg_hdl::front_half::verilog;
 use smartagg_hdl::pipeline::Pipeline;
@@ -314,14 +315,18 @@ impl DesignSpec {
 
     /// The Verilog of the generated core (module `top`), as `hdl` writes
     /// it: the shipped design's XEM6310 core type, or the demo's pipeline.
+    /// Built on a thread of its own ([`on_generation_stack`]): a core is
+    /// too large a value for a test thread's stack.
     pub fn top_verilog(&self) -> Result<String, DesignError> {
         let b = self.back()?;
-        Ok(match self.config {
-            _ if self.demo => verilog(Spcimager150Demo::new(&b)?),
-            Config::Spcimager150 => verilog(Spcimager150Core::new(&b)?),
-            Config::Spcimager60 => verilog(Spcimager60Core::new(&b)?),
-            Config::Projected150 => verilog(Projected150Core::new(&b)?),
-            Config::Projected60 => verilog(Projected60Core::new(&b)?),
+        on_generation_stack(|| {
+            Ok(match self.config {
+                _ if self.demo => verilog(Spcimager150Demo::new(&b)?),
+                Config::Spcimager150 => verilog(Spcimager150Core::new(&b)?),
+                Config::Spcimager60 => verilog(Spcimager60Core::new(&b)?),
+                Config::Projected150 => verilog(Projected150Core::new(&b)?),
+                Config::Projected60 => verilog(Projected60Core::new(&b)?),
+            })
         })
     }
 
