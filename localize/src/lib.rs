@@ -9,6 +9,8 @@
 //!   σ fixed or fitted), and the SPAD binomial maximum likelihood ([`spad`]),
 //!   exact under pile-up, using the record's on/off bit-plane split, dark-count
 //!   and PRNU maps, and hot pixels ignored or interpolated ([`roi`]).
+//!   [`record_fit`] fits a blink record's ROI where it lies on the sensor,
+//!   with the sensor's calibration maps cut to it.
 //! * Uncertainty ([`crlb`]): the Cramér–Rao bound of the model actually
 //!   fitted (Poisson, EMCCD F² = 2, sCMOS per-pixel read variance, SPAD
 //!   binomial), reported per localisation; Mortensen's closed forms.
@@ -48,6 +50,7 @@ pub mod linalg;
 pub mod lm;
 pub mod merge;
 pub mod psf;
+pub mod record_fit;
 pub mod render;
 pub mod roi;
 pub mod spad;
@@ -57,6 +60,7 @@ pub mod table;
 
 pub use error::LocalizeError;
 pub use fit::{fit_roi, Estimator, Fit, FitOptions, FitStatus, NoiseModel, SigmaMode};
+pub use record_fit::{fit_record, RecordFitConfig, SensorMaps};
 pub use roi::{HotPixelMode, PixelMaps, RoiView};
 pub use spad::{fit_binomial, SpadRoi};
 pub use table::{LocTable, Localization};

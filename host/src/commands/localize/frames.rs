@@ -192,11 +192,8 @@ pub(super) fn frame_pipeline(
         None
     };
     let hot = calibration.map(|c| {
-        let mode = match args.hot_pixels {
-            HotArg::Ignore => HotPixelMode::Ignore,
-            HotArg::Interpolate => HotPixelMode::Interpolate,
-        };
-        (c.flags.iter().map(|f| f & flags::HOT != 0).collect(), mode)
+        let hot = c.flags.iter().map(|f| f & flags::HOT != 0).collect();
+        (hot, args.hot_pixels.mode())
     });
     let p = FramePipeline {
         // With a calibration the host converts per pixel.

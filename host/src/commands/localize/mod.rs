@@ -34,12 +34,9 @@ use smartagg_io::output::AtomicFile;
 use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
-use smartagg_localize::spad::{fit_binomial, SpadRoi};
+use smartagg_localize::record_fit::{fit_record, RecordFitConfig, SensorMaps};
 use smartagg_localize::table::{LocTable, Localization};
-use smartagg_localize::{
-    fit_roi, Estimator, FitOptions, FitStatus, HotPixelMode, NoiseModel, PixelMaps, RoiView,
-    SigmaMode,
-};
+use smartagg_localize::{Estimator, FitOptions, HotPixelMode, NoiseModel, SigmaMode};
 use smartagg_model::params::{Camera, Preset, PresetName};
 use smartagg_model::record::{flags as rflags, BlinkRecord, Record, StreamStart};
 use smartagg_model::record_check::{check_blink, is_empty_segment, RepeatFilter};
@@ -96,6 +93,16 @@ pub enum HotArg {
     Ignore,
     /// Replace them by the mean of their valid 4-neighbours.
     Interpolate,
+}
+
+impl HotArg {
+    /// The library's strategy of this name.
+    fn mode(self) -> HotPixelMode {
+        match self {
+            HotArg::Ignore => HotPixelMode::Ignore,
+            HotArg::Interpolate => HotPixelMode::Interpolate,
+        }
+    }
 }
 
 /// Layout of `--export-tiff`.
@@ -419,6 +426,7 @@ fn is_tiff(path: &Path) -> anyhow::Result<bool> {
 mod tests {
     use super::stream::*;
     use super::*;
+    use smartagg_localize::FitStatus;
     use smartagg_model::packet::Encoder;
 
     fn record(i: u16, x: u16, y: u16, counts: Vec<u32>) -> BlinkRecord {

@@ -133,16 +133,6 @@ pub fn read_stream(path: &Path) -> anyhow::Result<StreamContent> {
     })
 }
 
-/// Sensor-sized SPAD maps from a calibration: dark counts per plane, PRNU,
-/// hot pixels.
-pub(super) struct SpadMaps {
-    width: usize,
-    height: usize,
-    dark_per_plane: Vec<f64>,
-    gain: Option<Vec<f64>>,
-    hot: Vec<bool>,
-}
-
 pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable, usize, Extent)> {
     let StreamContent {
         start,
@@ -184,7 +174,6 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
             );
         }
     }
-    let est = args.estimator.estimator();
     let maps = match &args.calibration {
         None => None,
         Some(dir) => match AnyCalibration::load(dir)
@@ -195,13 +184,18 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
                     .as_ref()
                     .map(|st| st.plane_period_ns as f64 * 1e-9)
                     .unwrap_or(c.tau_s);
-                Some(SpadMaps {
-                    width: c.width as usize,
-                    height: c.height as usize,
-                    dark_per_plane: c.dcr_hz.iter().map(|r| r * tau).collect(),
-                    gain: c.prnu.clone(),
-                    hot: c.flags.iter().map(|f| f & flags::HOT != 0).collect(),
-                })
+                let hot = c.flags.iter().map(|f| f & flags::HOT != 0).collect();
+                Some(
+                    SensorMaps::from_dcr(
+                        c.width as usize,
+                        c.height as usize,
+                        &c.dcr_hz,
+                        tau,
+                        c.prnu.clone(),
+                        hot,
+                    )
+                    .with_context(|| format!("calibration {}", dir.display()))?,
+                )
             }
             AnyCalibration::Frame(_) => bail!(
                 "{} is a frame-camera calibration; blink-ROI packets need a SPAD calibration",
@@ -210,11 +204,10 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         },
     };
     if let (Some(st), Some(m)) = (&start, &maps) {
-        if (st.width as usize, st.height as usize) != (m.width, m.height) {
+        let (w, h) = m.size();
+        if (st.width as usize, st.height as usize) != (w, h) {
             bail!(
-                "the calibration is {}x{} pixels but the stream's sensor is {}x{}",
-                m.width,
-                m.height,
+                "the calibration is {w}x{h} pixels but the stream's sensor is {}x{}",
                 st.width,
                 st.height
             );
@@ -232,14 +225,18 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
             "warning: {masked} ROIs contain pixels masked by the pipeline (they read 0); give --calibration to leave them out of the fit"
         );
     }
-    let hot_mode = match args.hot_pixels {
-        HotArg::Ignore => HotPixelMode::Ignore,
-        HotArg::Interpolate => HotPixelMode::Interpolate,
+    let cfg = RecordFitConfig {
+        estimator: args.estimator.estimator(),
+        opts: s.opts,
+        pixel_nm: s.pixel_nm,
+        sensor,
+        maps: maps.as_ref(),
+        hot_pixels: args.hot_pixels.mode(),
     };
     let rows: Vec<Localization> = rois
         .par_iter()
         .enumerate()
-        .map(|(i, rec)| fit_record(rec, i as u64 + 1, est, s, sensor, maps.as_ref(), hot_mode))
+        .map(|(i, rec)| fit_record(rec, i as u64 + 1, &cfg))
         .collect();
     if let Some(path) = &args.export_tiff {
         export_tiff(path, &rois, args.export_layout, sensor)?;
@@ -280,114 +277,6 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         n,
         extent,
     ))
-}
-
-/// Fits one blink record.
-pub(super) fn fit_record(
-    rec: &BlinkRecord,
-    frame: u64,
-    est: Estimator,
-    s: &Setup,
-    sensor: Option<(usize, usize)>,
-    maps: Option<&SpadMaps>,
-    hot_mode: HotPixelMode,
-) -> Localization {
-    let side = rec.roi_size as usize;
-    let (x0, y0) = (rec.roi_x0(), rec.roi_y0());
-    let extra = vec![
-        rec.t_s as f64,
-        rec.t_e as f64,
-        rec.planes_summed as f64,
-        rec.flags as f64,
-    ];
-    let bad_shape =
-        side == 0 || side > smartagg_localize::psf::MAX_SIDE || rec.counts.len() != side * side;
-    if bad_shape {
-        let mut l = Localization::from_fit(
-            &smartagg_localize::Fit::failed(side.max(1), s.sigma_px, FitStatus::InconsistentCounts),
-            x0 as f64,
-            y0 as f64,
-            s.pixel_nm,
-            frame,
-        );
-        l.extra = extra;
-        return l;
-    }
-    // Per-ROI maps: pixels off the sensor ignored; calibration maps cut out.
-    let mut pm = PixelMaps::uniform(side);
-    let mut hot = vec![false; side * side];
-    let planes = rec.planes_summed as f64;
-    for j in 0..side {
-        for i in 0..side {
-            let k = j * side + i;
-            let (x, y) = (x0 + i as i32, y0 + j as i32);
-            let off =
-                x < 0 || y < 0 || sensor.is_some_and(|(w, h)| x as usize >= w || y as usize >= h);
-            if off {
-                pm.ignore[k] = true;
-                continue;
-            }
-            if let Some(m) = maps {
-                let (xu, yu) = (x as usize, y as usize);
-                if xu < m.width && yu < m.height {
-                    let q = yu * m.width + xu;
-                    pm.dark[k] = m.dark_per_plane[q];
-                    if let Some(g) = &m.gain {
-                        // A dead pixel (response 0) is left out rather than
-                        // given an impossible gain.
-                        if g[q] > 0.0 {
-                            pm.gain[k] = g[q];
-                        } else {
-                            pm.ignore[k] = true;
-                        }
-                    }
-                    hot[k] = m.hot[q];
-                }
-            }
-        }
-    }
-    let mut data: Vec<f64> = rec.counts.iter().map(|&c| c as f64).collect();
-    if maps.is_some() {
-        // Shapes agree by construction.
-        let _ = smartagg_localize::roi::apply_hot_pixels(&mut data, &hot, hot_mode, &mut pm);
-    }
-    let fit = if est == Estimator::SpadMle {
-        let counts: Vec<u32> = if maps.is_some() && hot_mode == HotPixelMode::Interpolate {
-            data.iter().map(|&v| v.round().max(0.0) as u32).collect()
-        } else {
-            rec.counts.clone()
-        };
-        let (n_on, n_off) = smartagg_localize::spad::on_off_split(rec);
-        let roi = SpadRoi {
-            side,
-            counts: &counts,
-            n_on,
-            n_off,
-            maps: Some(&pm),
-        };
-        fit_binomial(&roi, &s.opts)
-    } else {
-        // Frame estimators see totals: dark counts over all planes summed.
-        for d in pm.dark.iter_mut() {
-            *d *= planes;
-        }
-        let opts = FitOptions {
-            noise: NoiseModel::Poisson,
-            ..s.opts
-        };
-        fit_roi(
-            est,
-            &RoiView {
-                side,
-                data: &data,
-                maps: Some(&pm),
-            },
-            &opts,
-        )
-    };
-    let mut l = Localization::from_fit(&fit, x0 as f64, y0 as f64, s.pixel_nm, frame);
-    l.extra = extra;
-    l
 }
 
 pub(super) fn export_tiff(
