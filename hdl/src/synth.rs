@@ -139,31 +139,14 @@ pub struct Mapping {
 /// yosys commands shared by every mapping: read the Verilog, count the
 /// memory bits and multipliers of the flattened design (the analytic
 /// floors), then `synth_xilinx -family xc6s -flatten` up to its LUT mapping,
-/// written to [`PREPARED_FILE`] and read back, saved as `prepared`.
-///
-/// Why the round trip through the file: ABC's LUT count depends on the
-/// order in which it reads the netlist, and that order differs between the
-/// design left in memory by `synth_xilinx` and the same design read from
-/// RTLIL — by 11 % for the SPCImager top under the 7-level bound (23,799
-/// against 21,188 LUT, yosys 0.23). Mapping the design as read from the
-/// file makes each mapping's figures what one gets from
-/// `read_rtlil prepared.il` and that mapping's commands alone (about a
-/// minute instead of the whole run), so a mapping can be re-run and
-/// varied without the ten-minute preparation.
+/// saved as `prepared`.
 pub const PREPARE: &str = "read_verilog top.v
 hierarchy -top top
 proc
 flatten
 stat
 synth_xilinx -family xc6s -top top -flatten -run :map_luts
-write_rtlil prepared.il
-design -reset
-read_rtlil prepared.il
 design -save prepared";
-
-/// The prepared design as RTLIL, written by [`PREPARE`] into the work
-/// folder: the input of every mapping.
-pub const PREPARED_FILE: &str = "prepared.il";
 
 /// The mapping whose figures are quoted: `synth_xilinx`'s own `map_luts`,
 /// `finalize` and `check` steps for the xc6s (6-input LUTs, MUXF7/8), with
@@ -511,10 +494,6 @@ Longest topological path in top (length=7):
     fn the_script_maps_the_prepared_design_once_per_mapping() {
         let s = yosys_script(&MAPPINGS);
         assert!(s.starts_with(PREPARE));
-        // Every mapping reads the design as written to the checkpoint.
-        let read = s.find(&format!("read_rtlil {PREPARED_FILE}")).unwrap();
-        assert!(s.find(&format!("write_rtlil {PREPARED_FILE}")).unwrap() < read);
-        assert!(read < s.find("design -save prepared").unwrap());
         assert_eq!(s.matches("design -load prepared").count(), MAPPINGS.len());
         for m in MAPPINGS {
             for file in ["stat", "netlist", "ltp"] {

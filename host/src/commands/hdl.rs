@@ -22,7 +22,7 @@ use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind};
 use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::lint_waivers::{verilator_config, VLT_FILE};
 use smartagg_hdl::synth::{
-    yosys_resources, yosys_script, Netlist, Synthesis, LUT_LEVELS_TARGET, MAPPINGS, PREPARED_FILE,
+    yosys_resources, yosys_script, Netlist, Synthesis, LUT_LEVELS_TARGET, MAPPINGS,
 };
 use smartagg_model::params::PresetName;
 use std::path::{Path, PathBuf};
@@ -64,7 +64,7 @@ pub struct ResourcesArgs {
     /// `hdl generate`) instead of generating the preset's design.
     #[arg(long, conflicts_with = "preset")]
     pub verilog: Option<PathBuf>,
-    /// Directory for yosys's files (`top.v`, `synth.ys`, `yosys.log`, the prepared design `prepared.il`, the deepest paths of each mapping; default: a temporary one, removed).
+    /// Directory for yosys's files (`top.v`, `synth.ys`, `yosys.log`, the deepest paths of each mapping; default: a temporary one, removed).
     #[arg(long)]
     pub work: Option<PathBuf>,
     /// Print JSON instead of the summary.
@@ -528,12 +528,9 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
         println!("{}", rep.yosys_script);
     } else {
         println!(
-            "yosys script: {} (`yosys -s synth.ys` there reproduces every figure); the design \
-             every mapping starts from: {} (`read_rtlil {}` and one mapping's commands \
-             reproduce that mapping); per mapping, the deepest paths in levels-paths-NAME.txt",
-            dir.join("synth.ys").display(),
-            dir.join(PREPARED_FILE).display(),
-            PREPARED_FILE
+            "yosys script: {} (`yosys -s synth.ys` there reproduces every figure); per mapping, \
+             the deepest paths in levels-paths-NAME.txt",
+            dir.join("synth.ys").display()
         );
     }
 }
