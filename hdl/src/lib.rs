@@ -41,6 +41,7 @@
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
+pub mod bank_pool;
 pub mod bench;
 pub mod blink_tracker;
 pub mod bram;
