@@ -128,13 +128,28 @@ pub fn verilator_lint(verilog: &str, dir: &Path) -> Result<String, ToolError> {
 /// differ only by how the LUTs were mapped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Mapping {
-    /// Short name (`abc-d7`, `abc`, `abc9`), used in reports and file names.
+    /// Short name (`abc-d7`, `abc-d7-il`, `abc`, `abc9`), used in reports
+    /// and file names.
     pub name: &'static str,
     /// What the mapping optimises, one line.
     pub about: &'static str,
     /// The yosys commands, one per line.
     pub commands: &'static str,
+    /// Maps the prepared design as written to [`PREPARED_RTLIL`] and read
+    /// back (`design -reset; read_rtlil`), not as kept in memory: the same
+    /// cells and wires, handed to ABC in another order. ABC's structural
+    /// choices and its cut enumeration depend on that order; on the
+    /// SPCImager top the same script has mapped the same design to LUT
+    /// counts 12 % apart in the two orders (`hdl/RESOURCES.md`). Only the
+    /// classic mapping can run so: `abc9` needs the black boxes' parameter
+    /// declarations, which RTLIL does not keep.
+    pub read_back: bool,
 }
+
+/// The prepared design in RTLIL, written once after [`PREPARE`] for the
+/// mappings that [`Mapping::read_back`] (removed by [`yosys_resources`]
+/// once measured: a whole top's is tens of MB).
+pub const PREPARED_RTLIL: &str = "prepared.il";
 
 /// yosys commands shared by every mapping: read the Verilog, count the
 /// memory bits and multipliers of the flattened design (the analytic
@@ -148,7 +163,8 @@ stat
 synth_xilinx -family xc6s -top top -flatten -run :map_luts
 design -save prepared";
 
-/// The mapping whose figures are quoted: `synth_xilinx`'s own `map_luts`,
+/// The depth-bounded mapping (quoted in its smaller order, see
+/// [`ABC_D7_READ_BACK`]): `synth_xilinx`'s own `map_luts`,
 /// `finalize` and `check` steps for the xc6s (6-input LUTs, MUXF7/8), with
 /// one change, the ABC script: its default (`dch -f; if; mfs2`) with `if`
 /// given a delay target of 7 LUT levels (`-D 7`: the LUT library's unit
@@ -169,6 +185,18 @@ opt_lut_ins -tech xilinx
 clkbufmap -buf BUFG O:I
 clean
 hierarchy -check",
+    read_back: false,
+};
+
+/// [`ABC_D7`]'s commands on the prepared design read back from
+/// [`PREPARED_RTLIL`] ([`Mapping::read_back`]): a second order of the same
+/// netlist, so that the report shows how far ABC's result moves with the
+/// order alone, and the smaller of the two netlists can be used.
+pub const ABC_D7_READ_BACK: Mapping = Mapping {
+    name: "abc-d7-il",
+    about: "abc-d7 on the prepared design as written to prepared.il and read back: the same cells in RTLIL's order",
+    commands: ABC_D7.commands,
+    read_back: true,
 };
 
 /// `synth_xilinx`'s own classic `abc` mapping: unit delay per LUT, each cone
@@ -178,6 +206,7 @@ pub const ABC: Mapping = Mapping {
     name: "abc",
     about: "synth_xilinx's classic abc: the fewest LUT levels",
     commands: "synth_xilinx -family xc6s -top top -flatten -run map_luts:",
+    read_back: false,
 };
 
 /// `synth_xilinx -abc9`: yosys' delay-driven flow (for the xc6s with the
@@ -190,10 +219,12 @@ pub const ABC9: Mapping = Mapping {
     about: "synth_xilinx -abc9: delay-driven, paths stretched up to the critical delay",
     commands: "techmap -map +/xilinx/ff_map.v
 synth_xilinx -family xc6s -top top -flatten -abc9 -run map_luts:",
+    read_back: false,
 };
 
-/// The mappings `yosys_resources` runs, the quoted one first.
-pub const MAPPINGS: [Mapping; 3] = [ABC_D7, ABC, ABC9];
+/// The mappings `yosys_resources` runs: the bounded-depth mapping in both
+/// orders first, then the two of `synth_xilinx`.
+pub const MAPPINGS: [Mapping; 4] = [ABC_D7, ABC_D7_READ_BACK, ABC, ABC9];
 
 /// At most this many LUT levels between registers, in the netlist whose
 /// LUTs are counted (issue #39: ≤ 80 % of the LX45's LUTs *and* ≤ 7 levels,
@@ -201,8 +232,10 @@ pub const MAPPINGS: [Mapping; 3] = [ABC_D7, ABC, ABC9];
 pub const LUT_LEVELS_TARGET: u32 = 7;
 
 /// The whole yosys script of [`yosys_resources`], run as `yosys -s
-/// synth.ys` in a folder holding `top.v`: [`PREPARE`], then for each
-/// mapping `design -load prepared`, its commands, its cell counts
+/// synth.ys` in a folder holding `top.v`: [`PREPARE`] (and, if a mapping
+/// reads it back, `write_rtlil prepared.il`), then for each mapping
+/// `design -load prepared` (or `design -reset; read_rtlil prepared.il`),
+/// its commands, its cell counts
 /// (`stat-NAME.txt`), its netlist as JSON (`netlist-NAME.json`, measured in
 /// LUT levels by [`crate::lut_levels`]) and yosys' own longest path through
 /// the combinational cells, every cell counted (`ltp-NAME.txt`; flip-flops,
@@ -210,9 +243,17 @@ pub const LUT_LEVELS_TARGET: u32 = 7;
 /// deleted first, so that paths start and end at them).
 pub fn yosys_script(mappings: &[Mapping]) -> String {
     let mut s = format!("{PREPARE}\n");
+    if mappings.iter().any(|m| m.read_back) {
+        s += &format!("write_rtlil {PREPARED_RTLIL}\n");
+    }
     for m in mappings {
+        let load = if m.read_back {
+            format!("design -reset\nread_rtlil {PREPARED_RTLIL}")
+        } else {
+            "design -load prepared".to_string()
+        };
         s += &format!(
-            "# {name}: {about}\ndesign -load prepared\n{commands}\n\
+            "# {name}: {about}\n{load}\n{commands}\n\
              tee -q -o stat-{name}.txt stat -tech xilinx\n\
              write_json netlist-{name}.json\n\
              delete t:FD* t:SRL* t:RAMB* t:DSP48* t:*BUF* t:ok* t:smartagg_mig\n\
@@ -410,6 +451,7 @@ pub fn yosys_resources(
             error,
         })
     };
+    let _ = std::fs::remove_file(dir.join(PREPARED_RTLIL));
     let log = read("yosys.log").unwrap_or(out);
     let (memory_bits, multipliers) = parse_floors(&log)?;
     let mut netlists = Vec::new();
@@ -494,7 +536,23 @@ Longest topological path in top (length=7):
     fn the_script_maps_the_prepared_design_once_per_mapping() {
         let s = yosys_script(&MAPPINGS);
         assert!(s.starts_with(PREPARE));
-        assert_eq!(s.matches("design -load prepared").count(), MAPPINGS.len());
+        let read_back = MAPPINGS.iter().filter(|m| m.read_back).count();
+        assert_eq!(read_back, 1);
+        assert_eq!(
+            s.matches("design -load prepared").count(),
+            MAPPINGS.len() - read_back
+        );
+        // The checkpoint is written once, before any mapping changes the
+        // design, and each read-back mapping starts from it alone.
+        let written = s.find("write_rtlil prepared.il").expect("checkpoint");
+        assert!(written < s.find("# ").unwrap());
+        assert_eq!(
+            s.matches("design -reset\nread_rtlil prepared.il\n").count(),
+            read_back
+        );
+        assert_eq!(ABC_D7_READ_BACK.commands, ABC_D7.commands);
+        // Without a read-back mapping, no checkpoint.
+        assert!(!yosys_script(&[ABC, ABC9]).contains("rtlil"));
         for m in MAPPINGS {
             for file in ["stat", "netlist", "ltp"] {
                 assert!(

@@ -56,7 +56,7 @@ fn yosys_maps_the_test_front_half_to_spartan6() {
     assert!(s.memory_bits >= 7 * 96, "{s:?}");
     assert_eq!(s.multipliers, 0, "{s:?}");
     let names: Vec<&str> = s.netlists.iter().map(|n| n.mapping.name).collect();
-    assert_eq!(names, ["abc-d7", "abc", "abc9"]);
+    assert_eq!(names, ["abc-d7", "abc-d7-il", "abc", "abc9"]);
     for n in &s.netlists {
         let r = &n.resources;
         let name = n.mapping.name;

@@ -183,7 +183,20 @@ fn resources_synthesises_the_given_file_and_reports_its_hash() {
         .iter()
         .map(|m| m["mapping"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["abc-d7", "abc", "abc9"], "{j}");
+    assert_eq!(names, ["abc-d7", "abc-d7-il", "abc", "abc9"], "{j}");
+    // The smallest netlist within the target depth is named, and it is
+    // no larger than any other such netlist.
+    let within = |m: &serde_json::Value| m["lut_levels"].as_u64().unwrap() <= 7;
+    let size = |m: &serde_json::Value| m["luts"].as_u64().unwrap() + m["lut_ram"].as_u64().unwrap();
+    let best = j["smallest_within_levels"].as_str().unwrap();
+    let b = maps.iter().find(|m| m["mapping"] == best).unwrap();
+    assert!(within(b), "{j}");
+    assert!(
+        maps.iter()
+            .filter(|m| within(m))
+            .all(|m| size(b) <= size(m)),
+        "{j}"
+    );
     let script = j["yosys_script"].as_str().unwrap();
     for m in maps {
         assert!(script.contains(&format!("netlist-{}.json", m["mapping"].as_str().unwrap())));

@@ -10,11 +10,12 @@
 //!   which are proprietary and supplied by the user.
 //! * `hdl resources` synthesises the same Verilog text with yosys
 //!   `synth_xilinx -family xc6s -flatten`, maps the prepared design's LUTs
-//!   three ways (`smartagg_hdl::synth::MAPPINGS`) and reports, for each
-//!   mapped netlist, LUT, FF, block RAM and DSP use against the XC6SLX45
-//!   and XC6SLX150 and its depth in LUT levels, beside the analytic floors
-//!   and the throughput arithmetic, and the yosys script that reproduces
-//!   them.
+//!   four ways (`smartagg_hdl::synth::MAPPINGS`: one of them in two
+//!   netlist orders) and reports, for each mapped netlist, LUT, FF, block
+//!   RAM and DSP use against the XC6SLX45 and XC6SLX150 and its depth in
+//!   LUT levels, the smallest netlist within the target depth, the
+//!   analytic floors, the throughput arithmetic, and the yosys script that
+//!   reproduces them.
 
 use anyhow::{bail, Context};
 use serde::Serialize;
@@ -262,8 +263,11 @@ struct Report {
     memory_bits: u64,
     ramb16_floor: u64,
     multipliers: u64,
-    /// One entry per mapping of the same prepared design, the quoted one first.
+    /// One entry per mapping of the same prepared design.
     mappings: Vec<MappingReport>,
+    /// The mapping whose netlist has the fewest LUTs (LUT RAM included)
+    /// among those within `lut_levels_target` levels, if any is.
+    smallest_within_levels: Option<&'static str>,
     throughput: Option<Throughput>,
 }
 
@@ -331,6 +335,21 @@ fn mapping_report(n: &Netlist) -> MappingReport {
     }
 }
 
+/// The mapping of the netlist with the fewest LUTs (LUT RAM included)
+/// within [`LUT_LEVELS_TARGET`] levels; the first of equals.
+fn smallest_within_levels(netlists: &[Netlist]) -> Option<&'static str> {
+    netlists
+        .iter()
+        .filter(|n| {
+            n.resources
+                .lut_levels
+                .as_ref()
+                .is_some_and(|l| l.levels <= LUT_LEVELS_TARGET)
+        })
+        .min_by_key(|n| n.resources.luts + n.resources.lutram)
+        .map(|n| n.mapping.name)
+}
+
 fn report(name: String, v: &str, s: &Synthesis, seconds: f64, d: Option<&Design>) -> Report {
     let throughput = d.map(|d| {
         let t = d.throughput();
@@ -355,6 +374,7 @@ fn report(name: String, v: &str, s: &Synthesis, seconds: f64, d: Option<&Design>
         ramb16_floor: s.ramb16_floor(),
         multipliers: s.multipliers,
         mappings: s.netlists.iter().map(mapping_report).collect(),
+        smallest_within_levels: smallest_within_levels(&s.netlists),
         throughput,
     }
 }
@@ -435,7 +455,7 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
             .map_or(f64::NAN, |u| u.lut_percent)
     };
     println!(
-        "{:<8} {:>7} {:>5} {:>8} {:>7} {:>7} {:>4} {:>6} {:>6} {:>7}  ends per level (0, 1, ...)",
+        "{:<9} {:>7} {:>5} {:>8} {:>7} {:>7} {:>4} {:>6} {:>6} {:>7}  ends per level (0, 1, ...)",
         "mapping",
         "LUT",
         "INV",
@@ -450,7 +470,7 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
     let unknown = |x: Option<u32>| x.map_or("?".into(), |x| x.to_string());
     for m in &rep.mappings {
         println!(
-            "{:<8} {:>7} {:>5} {:>8} {:>6.1}% {:>7} {:>4} {:>6.1} {:>6} {:>7}  {}",
+            "{:<9} {:>7} {:>5} {:>8} {:>6.1}% {:>7} {:>4} {:>6.1} {:>6} {:>7}  {}",
             m.mapping,
             m.luts,
             m.inverters,
@@ -467,6 +487,25 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
                 .collect::<Vec<_>>()
                 .join(" ")
         );
+    }
+    match rep
+        .smallest_within_levels
+        .and_then(|b| rep.mappings.iter().find(|m| m.mapping == b))
+    {
+        Some(m) => println!(
+            "smallest netlist within {} LUT levels: {} ({} LUT + {} LUT RAM = {:.1} % of the {device}); \
+             abc-d7 and abc-d7-il are one script on one design in two orders, \
+             so their difference is ABC's sensitivity to the order alone",
+            rep.lut_levels_target,
+            m.mapping,
+            m.luts,
+            m.lut_ram,
+            share(m)
+        ),
+        None => println!(
+            "no netlist within {} LUT levels",
+            rep.lut_levels_target
+        ),
     }
     for m in &rep.mappings {
         println!("{}: {}", m.mapping, m.about);
