@@ -39,6 +39,11 @@
 //!   the model's raster tie rule (candidates), two line buffers of H;
 //! * [`front_half`]: the chain, its configurations and its Verilog.
 //!
+//! ## Back-half blocks (stages 5–7)
+//! * [`record_queue::RecordQueue`] and [`record_finisher::RecordFinisher`]:
+//!   sub-blocks of the packetiser stage ([`packetiser`]) in the back half
+//!   ([`pipeline`]).
+//!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
 pub mod bank_pool;
@@ -59,6 +64,8 @@ pub mod lut_levels;
 pub mod mcb_model;
 pub mod packetiser;
 pub mod pipeline;
+pub mod record_finisher;
+pub mod record_queue;
 pub mod registers;
 pub mod roi_aggregator;
 pub mod rolling_count;
