@@ -39,13 +39,21 @@
 //!   the model's raster tie rule (candidates), two line buffers of H;
 //! * [`front_half`]: the chain, its configurations and its Verilog.
 //!
-//! ## Back-half blocks (stages 5–7)
-//! * [`record_queue::RecordQueue`] and [`record_finisher::RecordFinisher`]:
-//!   sub-blocks of the packetiser stage ([`packetiser`]) in the back half
-//!   ([`pipeline`]).
+//! ## Back-half blocks (stages 5–7) and the whole pipeline
+//! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`]), the ROI
+//!   aggregator and its bank pool ([`roi_aggregator`], [`bank_pool`]), the
+//!   record queue and finisher ([`record_queue::RecordQueue`],
+//!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
+//!   stage), the packetiser ([`packetiser`]) and the output FIFO;
+//! * [`stream_control::StreamControl`]: START's register check and latch,
+//!   the source gated at plane boundaries, the drain and flush planes after
+//!   STOP;
+//! * [`pipeline`]: stream control, hot-pixel mask, delay line, front half
+//!   and back half, with its configurations.
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
+pub mod back_half;
 pub mod bank_pool;
 pub mod bench;
 pub mod blink_tracker;
@@ -72,6 +80,7 @@ pub mod rolling_count;
 pub mod schedule;
 pub mod spatial_filter;
 pub mod stream;
+pub mod stream_control;
 pub mod synth;
 pub mod threshold;
 pub mod xem6310;
