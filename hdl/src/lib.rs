@@ -49,7 +49,9 @@
 //!   the source gated at plane boundaries, the drain and flush planes after
 //!   STOP;
 //! * [`pipeline`]: stream control, hot-pixel mask, delay line, front half
-//!   and back half, with its configurations.
+//!   and back half, with its configurations;
+//! * [`xem6310`]: the XEM6310 top around the pipeline, with the
+//!   FrontPanel endpoints as black boxes ([`frontpanel`]).
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
@@ -66,6 +68,7 @@ pub mod delay_line_ddr;
 pub mod device;
 pub mod fifo;
 pub mod front_half;
+pub mod frontpanel;
 pub mod hot_pixel_mask;
 pub mod lint_waivers;
 pub mod lut_levels;
