@@ -33,6 +33,7 @@
 //! preset's σ scaled to 2^8; `xem150` and `proj150` use
 //! [`smartagg_hdl::front_half::spcimager150_config`].
 
+use smartagg_hdl::back_half::BackHalf;
 use smartagg_hdl::blink_tracker::BlinkTracker;
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use smartagg_hdl::configs::Spcimager150Xem;
@@ -43,7 +44,6 @@ use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
 use smartagg_hdl::packetiser::Packetiser;
-use smartagg_hdl::pipeline::BackHalf;
 use smartagg_hdl::pipeline::{
     projected150_back_config, spcimager150_back_config, test_back_config, Projected150Pipeline,
     TestPipeline,

@@ -25,7 +25,7 @@
 //! the tracker). M = 32 slots and L_max up to 65,535 planes are the model's
 //! defaults. N, T_int, T_hold, END_TRIM, L_min, L_max and the hot-pixel
 //! mask are runtime registers, latched at stream start
-//! ([`crate::pipeline::StreamControl`]).
+//! ([`crate::stream_control::StreamControl`]).
 //!
 //! rust-hdl widths are const generics, so each design is one type alias
 //! here; its `new` checks the alias against the configuration.

@@ -39,8 +39,23 @@
 //!   the model's raster tie rule (candidates), two line buffers of H;
 //! * [`front_half`]: the chain, its configurations and its Verilog.
 //!
+//! ## Back-half blocks (stages 5–7) and the whole pipeline
+//! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`]), the ROI
+//!   aggregator and its bank pool ([`roi_aggregator`], [`bank_pool`]), the
+//!   record queue and finisher ([`record_queue::RecordQueue`],
+//!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
+//!   stage), the packetiser ([`packetiser`]) and the output FIFO;
+//! * [`stream_control::StreamControl`]: START's register check and latch,
+//!   the source gated at plane boundaries, the drain and flush planes after
+//!   STOP;
+//! * [`pipeline`]: stream control, hot-pixel mask, delay line, front half
+//!   and back half, with its configurations;
+//! * [`xem6310`]: the XEM6310 top around the pipeline, with the
+//!   FrontPanel endpoints as black boxes ([`frontpanel`]).
+//!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
+pub mod back_half;
 pub mod bank_pool;
 pub mod bench;
 pub mod blink_tracker;
@@ -53,18 +68,22 @@ pub mod delay_line_ddr;
 pub mod device;
 pub mod fifo;
 pub mod front_half;
+pub mod frontpanel;
 pub mod hot_pixel_mask;
 pub mod lint_waivers;
 pub mod lut_levels;
 pub mod mcb_model;
 pub mod packetiser;
 pub mod pipeline;
+pub mod record_finisher;
+pub mod record_queue;
 pub mod registers;
 pub mod roi_aggregator;
 pub mod rolling_count;
 pub mod schedule;
 pub mod spatial_filter;
 pub mod stream;
+pub mod stream_control;
 pub mod synth;
 pub mod threshold;
 pub mod xem6310;

@@ -110,7 +110,7 @@ pub struct RoiAggregator<
     pub overrun: Signal<Out, Bit>,
     /// Raw rows written and not yet swept: how far the ring is filled. A
     /// source that can wait (the replay) holds its words while this is near
-    /// [`BackHalfConfig::row_buffer_rows`] ([`crate::pipeline::BackHalf`]'s `room`).
+    /// [`BackHalfConfig::row_buffer_rows`] ([`crate::back_half::BackHalf`]'s `room`).
     pub backlog: Signal<Out, Bits<16>>,
     /// Counter read request (packetiser).
     pub rd_req: Signal<In, Bit>,

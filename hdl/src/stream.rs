@@ -484,3 +484,43 @@ impl<const A: usize, const B: usize> Logic for Widen<A, B> {
         self.y.next = bit_cast::<B, A>(self.x.val());
     }
 }
+
+/// P one-bit lanes as one P-bit word (lane i in bit i).
+#[derive(LogicBlock)]
+pub struct PackLanes<const P: usize> {
+    /// Lanes.
+    pub lanes: Vec<Signal<In, Bit>>,
+    /// Word.
+    pub word: Signal<Out, Bits<P>>,
+    part: Vec<Signal<Local, Bits<P>>>,
+    one: Vec<Constant<Bits<P>>>,
+}
+
+impl<const P: usize> Default for PackLanes<P> {
+    fn default() -> Self {
+        PackLanes {
+            lanes: lanes(P),
+            word: Default::default(),
+            part: lanes(P + 1),
+            one: (0..P)
+                .map(|i| Constant::new((1u64 << i).to_bits()))
+                .collect(),
+        }
+    }
+}
+
+impl<const P: usize> Logic for PackLanes<P> {
+    #[hdl_gen]
+    fn update(&mut self) {
+        self.part[0].next = 0.into();
+        for i in 0..P {
+            self.part[i + 1].next = self.part[i].val();
+            if self.lanes[i].val() {
+                self.part[i + 1].next = self.part[i].val() | self.one[i].val();
+            }
+        }
+        for pp in P..(P + 1) {
+            self.word.next = self.part[pp].val();
+        }
+    }
+}

@@ -604,7 +604,7 @@ fn narrow_counters_keep_accumulators_up_to_their_width_only() {
 /// cut at the last plane too), every N and END_TRIM.
 #[test]
 fn record_finisher_equals_the_models_blink_fields() {
-    use smartagg_hdl::packetiser::RecordFinisher;
+    use smartagg_hdl::record_finisher::RecordFinisher;
     use smartagg_model::blink_tracker::Segment;
     let (_, bh) = config(9);
     let mut f = RecordFinisher::<8>::new(&bh).unwrap();
