@@ -38,7 +38,7 @@ pub enum LevelsError {
 }
 
 /// The logic depth of a mapped netlist.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct LutLevels {
     /// Longest path between registers (or ports, memories, black boxes) in
     /// LUT levels.

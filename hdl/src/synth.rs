@@ -335,6 +335,22 @@ impl Synthesis {
     pub fn netlist(&self, name: &str) -> Option<&Netlist> {
         self.netlists.iter().find(|n| n.mapping.name == name)
     }
+
+    /// The netlist with the fewest LUTs (LUT RAM included) among those
+    /// within [`LUT_LEVELS_TARGET`] LUT levels, the first of equals: the
+    /// one to quote, since [`ABC_D7`] and [`ABC_D7_READ_BACK`] map one
+    /// design in two orders and either may be the smaller.
+    pub fn smallest_within_levels(&self) -> Option<&Netlist> {
+        self.netlists
+            .iter()
+            .filter(|n| {
+                n.resources
+                    .lut_levels
+                    .as_ref()
+                    .is_some_and(|l| l.levels <= LUT_LEVELS_TARGET)
+            })
+            .min_by_key(|n| n.resources.luts + n.resources.lutram)
+    }
 }
 
 /// LUTs of a Spartan-6 SLICEM that one distributed-RAM or shift-register
@@ -524,6 +540,43 @@ Longest topological path in top (length=7):
         assert_eq!(parse_ltp(STAT), Some(7));
         assert_eq!(lut_ram_luts("LUT6"), None);
         assert!(parse_cells("no table").is_err());
+    }
+
+    #[test]
+    fn the_smallest_netlist_is_chosen_among_the_shallow_ones() {
+        let netlist = |mapping, luts, lutram, levels: Option<u32>| Netlist {
+            mapping,
+            resources: Resources {
+                luts,
+                lutram,
+                lut_levels: levels.map(|levels| crate::lut_levels::LutLevels {
+                    levels,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            },
+        };
+        let mut s = Synthesis {
+            memory_bits: 0,
+            multipliers: 0,
+            netlists: vec![
+                netlist(ABC_D7, 125, 10, Some(7)),
+                netlist(ABC_D7_READ_BACK, 100, 10, Some(7)),
+                netlist(ABC, 130, 0, Some(6)),
+                // Smaller, but too deep.
+                netlist(ABC9, 90, 10, Some(12)),
+            ],
+        };
+        let name = |s: &Synthesis| s.smallest_within_levels().map(|n| n.mapping.name);
+        assert_eq!(name(&s), Some("abc-d7-il"));
+        // LUT RAM counts: 100 + 40 is more than 130 + 0 (and 125 + 10).
+        s.netlists[1].resources.lutram = 40;
+        assert_eq!(name(&s), Some("abc"));
+        // Unmeasured depth never qualifies; nothing shallow, no choice.
+        s.netlists[2].resources.lut_levels = None;
+        s.netlists[0].resources.lut_levels = None;
+        s.netlists[1].resources.lut_levels = None;
+        assert_eq!(name(&s), None);
     }
 
     #[test]

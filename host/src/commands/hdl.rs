@@ -23,7 +23,8 @@ use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind};
 use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::lint_waivers::{verilator_config, VLT_FILE};
 use smartagg_hdl::synth::{
-    yosys_resources, yosys_script, Netlist, Synthesis, LUT_LEVELS_TARGET, MAPPINGS,
+    yosys_resources, yosys_script, Netlist, Synthesis, ABC_D7, ABC_D7_READ_BACK, LUT_LEVELS_TARGET,
+    MAPPINGS,
 };
 use smartagg_model::params::PresetName;
 use std::path::{Path, PathBuf};
@@ -335,21 +336,6 @@ fn mapping_report(n: &Netlist) -> MappingReport {
     }
 }
 
-/// The mapping of the netlist with the fewest LUTs (LUT RAM included)
-/// within [`LUT_LEVELS_TARGET`] levels; the first of equals.
-fn smallest_within_levels(netlists: &[Netlist]) -> Option<&'static str> {
-    netlists
-        .iter()
-        .filter(|n| {
-            n.resources
-                .lut_levels
-                .as_ref()
-                .is_some_and(|l| l.levels <= LUT_LEVELS_TARGET)
-        })
-        .min_by_key(|n| n.resources.luts + n.resources.lutram)
-        .map(|n| n.mapping.name)
-}
-
 fn report(name: String, v: &str, s: &Synthesis, seconds: f64, d: Option<&Design>) -> Report {
     let throughput = d.map(|d| {
         let t = d.throughput();
@@ -374,7 +360,7 @@ fn report(name: String, v: &str, s: &Synthesis, seconds: f64, d: Option<&Design>
         ramb16_floor: s.ramb16_floor(),
         multipliers: s.multipliers,
         mappings: s.netlists.iter().map(mapping_report).collect(),
-        smallest_within_levels: smallest_within_levels(&s.netlists),
+        smallest_within_levels: s.smallest_within_levels().map(|n| n.mapping.name),
         throughput,
     }
 }
@@ -494,13 +480,15 @@ fn print_report(rep: &Report, d: Option<&Design>, dir: &Path, temporary: bool) {
     {
         Some(m) => println!(
             "smallest netlist within {} LUT levels: {} ({} LUT + {} LUT RAM = {:.1} % of the {device}); \
-             abc-d7 and abc-d7-il are one script on one design in two orders, \
+             {} and {} are one script on one design in two orders, \
              so their difference is ABC's sensitivity to the order alone",
             rep.lut_levels_target,
             m.mapping,
             m.luts,
             m.lut_ram,
-            share(m)
+            share(m),
+            ABC_D7.name,
+            ABC_D7_READ_BACK.name
         ),
         None => println!(
             "no netlist within {} LUT levels",
