@@ -51,7 +51,8 @@
 //! * [`pipeline`]: stream control, hot-pixel mask, delay line, front half
 //!   and back half, with its configurations;
 //! * [`xem6310`]: the XEM6310 top around the pipeline, with the
-//!   FrontPanel endpoints as black boxes ([`frontpanel`]).
+//!   FrontPanel endpoints as black boxes ([`frontpanel`]) and the DDR2
+//!   controller as a black box or the DDR2 pins parked ([`mig_ddr2`]).
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
 
@@ -73,6 +74,7 @@ pub mod hot_pixel_mask;
 pub mod lint_waivers;
 pub mod lut_levels;
 pub mod mcb_model;
+pub mod mig_ddr2;
 pub mod packetiser;
 pub mod pipeline;
 pub mod record_finisher;
