@@ -291,9 +291,24 @@ impl FastFrontEnd {
                 d
             }
         };
-        let changes: usize = (0..words).map(|wi| diff(wi).count_ones() as usize).sum();
-        if changes * DENSE_FRACTION > total {
-            for (wi, &entering) in live.iter().enumerate().take(words) {
+        // The sparse pass counts the changes as it goes and gives up at the
+        // first word that takes them past an eighth of the field (the same
+        // planes as counting them first): the rest only updates the counts,
+        // and H is recomputed from them.
+        let limit = total / DENSE_FRACTION;
+        let gave_up = match self.k1.len() {
+            1 => self.sparse::<1>(live, delayed, words, last_mask, limit),
+            3 => self.sparse::<3>(live, delayed, words, last_mask, limit),
+            5 => self.sparse::<5>(live, delayed, words, last_mask, limit),
+            7 => self.sparse::<7>(live, delayed, words, last_mask, limit),
+            9 => self.sparse::<9>(live, delayed, words, last_mask, limit),
+            11 => self.sparse::<11>(live, delayed, words, last_mask, limit),
+            13 => self.sparse::<13>(live, delayed, words, last_mask, limit),
+            15 => self.sparse::<15>(live, delayed, words, last_mask, limit),
+            _ => self.sparse::<0>(live, delayed, words, last_mask, limit),
+        };
+        if let Some(from) = gave_up {
+            for (wi, &entering) in live.iter().enumerate().take(words).skip(from) {
                 let mut d = diff(wi);
                 while d != 0 {
                     let bit = d.trailing_zeros() as usize;
@@ -308,24 +323,15 @@ impl FastFrontEnd {
             }
             self.recompute_dense();
             self.dense_planes += 1;
-        } else {
-            match self.k1.len() {
-                1 => self.sparse::<1>(live, delayed, words, last_mask),
-                3 => self.sparse::<3>(live, delayed, words, last_mask),
-                5 => self.sparse::<5>(live, delayed, words, last_mask),
-                7 => self.sparse::<7>(live, delayed, words, last_mask),
-                9 => self.sparse::<9>(live, delayed, words, last_mask),
-                11 => self.sparse::<11>(live, delayed, words, last_mask),
-                13 => self.sparse::<13>(live, delayed, words, last_mask),
-                15 => self.sparse::<15>(live, delayed, words, last_mask),
-                _ => self.sparse::<0>(live, delayed, words, last_mask),
-            }
         }
         self.scan::<ISA>();
     }
 
     /// Adds `±K` around every pixel whose bit entering the window differs
-    /// from the bit leaving it. `K` is the kernel length (0: any length).
+    /// from the bit leaving it, and updates its count. `K` is the kernel
+    /// length (0: any length). Gives up before the first word that takes the
+    /// changes past `limit`, and returns its index: the counts from that word
+    /// on are then not updated, and H is not whole.
     #[inline(always)]
     fn sparse<const K: usize>(
         &mut self,
@@ -333,7 +339,8 @@ impl FastFrontEnd {
         delayed: &[u64],
         words: usize,
         last_mask: u64,
-    ) {
+        limit: usize,
+    ) -> Option<usize> {
         let (width, height, stride, k) = (self.width, self.height, self.stride, self.k1.len());
         let (pad, half) = (self.pad, self.half);
         // Every footprint lies inside `filtered`: its top-left cell is at
@@ -345,9 +352,23 @@ impl FastFrontEnd {
         assert!(self.kernel_plus.len() == k * k && self.kernel_minus.len() == k * k);
         let filtered = self.filtered.as_mut_ptr();
         let counts = &mut self.counts[..];
+        // `±K` as local fixed-size rows: the stores through `filtered` (a raw
+        // pointer the compiler must assume may alias anything reachable from
+        // `self`) then do not force the weights' slice to be reloaded, cut
+        // into rows and checked again for every change.
+        let mut footprints = [[[0u32; K]; K]; 2];
+        for (footprint, weights) in footprints
+            .iter_mut()
+            .zip([&self.kernel_minus, &self.kernel_plus])
+        {
+            for (dy, row) in footprint.iter_mut().enumerate() {
+                row.copy_from_slice(&weights[dy * K..(dy + 1) * K]);
+            }
+        }
         // Position of each word's first pixel, stepped from word to word (no
         // division per word).
         let (mut wy, mut wx) = (0usize, 0usize);
+        let mut changes = 0;
         for wi in 0..words {
             if wi > 0 {
                 wx += 64;
@@ -363,6 +384,10 @@ impl FastFrontEnd {
             }
             if d == 0 {
                 continue;
+            }
+            changes += d.count_ones() as usize;
+            if changes > limit {
+                return Some(wi);
             }
             let first = wi * 64;
             let (mut y, mut x, mut at) = (wy, wx, first);
@@ -382,12 +407,12 @@ impl FastFrontEnd {
                 debug_assert!(x < width && y < height);
                 // The footprint's top-left cell in the haloed layout.
                 let base = (y + pad - half) * stride + x + pad - half;
-                let weights = if plus {
-                    &self.kernel_plus[..]
-                } else {
-                    &self.kernel_minus[..]
-                };
                 if K == 0 {
+                    let weights = if plus {
+                        &self.kernel_plus[..]
+                    } else {
+                        &self.kernel_minus[..]
+                    };
                     for dy in 0..k {
                         // SAFETY: row dy of the footprint is inside `filtered`.
                         let row = unsafe {
@@ -398,8 +423,8 @@ impl FastFrontEnd {
                         }
                     }
                 } else {
-                    let weights: &[[u32; K]] = weights.as_chunks::<K>().0;
-                    for (dy, wk) in weights.iter().enumerate() {
+                    let footprint = &footprints[usize::from(plus)];
+                    for (dy, wk) in footprint.iter().enumerate() {
                         // SAFETY: row dy of the footprint is K cells inside
                         // `filtered`, and u32 cells are aligned as [u32; K].
                         let row =
@@ -409,6 +434,7 @@ impl FastFrontEnd {
                 }
             }
         }
+        None
     }
 
     /// Stages 3–4: the pixels at or above the hold level and the candidates

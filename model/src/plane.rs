@@ -92,6 +92,7 @@ impl BitPlane {
 
     /// Up to 64 pixels of row `y` from column `x0` (signed) as bits, pixel
     /// `x0 + i` at bit i; pixels outside the plane read 0.
+    #[inline]
     pub fn row_bits(&self, x0: i64, y: i64, len: usize) -> u64 {
         debug_assert!(len <= 64);
         if y < 0 || y >= self.height as i64 || len == 0 {

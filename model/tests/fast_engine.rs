@@ -229,6 +229,52 @@ fn sparse_and_dense_paths_are_both_taken_and_agree() {
     assert!(candidates > 0, "the threshold must be reached somewhere");
 }
 
+/// The dense path starts above an eighth of the field changed: with the
+/// changes counted during the sparse pass (which gives up part-way through
+/// the plane), a plane of exactly an eighth stays sparse and one more change
+/// goes dense, and H and the candidates equal the golden front end's both
+/// ways, whichever word the count crosses in.
+#[test]
+fn the_dense_path_starts_above_an_eighth_of_the_field() {
+    let (w, h, n) = (24, 16, 3);
+    let cfg = PipelineConfig::new(w, h, n, vec![1, 2, 1], 2, 4);
+    let limit = w * h / 8;
+    let zero = BitPlane::zeros(w, h);
+    for (changes, dense) in [(limit, 0), (limit + 1, 1)] {
+        for offset in [0, 77, w * h - changes] {
+            // `changes` pixels on from raster index `offset` (wrapping): the
+            // count crosses the limit at a different word each time.
+            let on = |x: usize, y: usize| (y * w + x + w * h - offset) % (w * h) < changes;
+            let plane = BitPlane::from_fn(w, h, on);
+            let mut golden = GoldenFrontEnd::new(&cfg);
+            golden.push(&plane, &zero);
+            for mut fast in [FastFrontEnd::new(&cfg), FastFrontEnd::new(&cfg).portable()] {
+                fast.push(&plane, &zero);
+                assert_eq!(
+                    fast.dense_planes(),
+                    dense,
+                    "{changes} changes from {offset}"
+                );
+                let h_fast: Vec<u32> = (0..h)
+                    .flat_map(|y| (0..w).map(move |x| (x, y)))
+                    .map(|(x, y)| fast.filtered_at(x, y))
+                    .collect();
+                assert_eq!(h_fast, golden.filtered(), "{changes} changes from {offset}");
+                assert_eq!(fast.candidates(), golden.candidates());
+                assert_eq!(
+                    fast.above().len(),
+                    golden_above(&golden, cfg.threshold_hold)
+                );
+            }
+        }
+    }
+}
+
+/// The number of pixels of `golden`'s H at or above `thr`.
+fn golden_above(golden: &GoldenFrontEnd, thr: u32) -> usize {
+    golden.filtered().iter().filter(|&&v| v >= thr).count()
+}
+
 #[test]
 fn source_errors_stop_the_parallel_run() {
     let cfg = PipelineConfig::new(8, 8, 4, vec![1, 2, 1], 2, 8);
