@@ -306,6 +306,8 @@ impl<F: FrontEnd> Pipeline<F> {
             out.push(self.emit(c));
         }
         self.close_free_slots();
+        // The ROIs sum B_{t+1−N} next: fetch their rows meanwhile.
+        self.rois.prefetch(self.delay.peek(0));
         if let Some(d) = drops {
             out.push(Record::Dropped(DroppedRecord {
                 plane: t,
@@ -341,6 +343,10 @@ impl<F: FrontEnd> Pipeline<F> {
                     .expect("a finished segment has ended");
                 for u in first as i64..=last {
                     let i = (u as u64 + n - p) as usize;
+                    // A few planes ahead: these planes are old, out of cache.
+                    if u + 4 <= last {
+                        self.rois.prefetch_slot(c.slot, self.delay.peek(i + 4));
+                    }
                     self.rois.add(c.slot, self.delay.peek(i));
                 }
                 out.push(self.emit(c));

@@ -102,6 +102,24 @@ impl RoiAggregator {
         self.slots[slot].as_ref()
     }
 
+    /// Prefetches the rows of `plane` that every open slot's ROI covers (a
+    /// cache hint, see [`BitPlane::prefetch_row`]): the pipeline calls it
+    /// with the plane that leaves the delay line next.
+    pub fn prefetch(&self, plane: &BitPlane) {
+        for slot in 0..self.slots.len() {
+            self.prefetch_slot(slot, plane);
+        }
+    }
+
+    /// [`RoiAggregator::prefetch`] for one slot (no-op for an empty slot).
+    pub fn prefetch_slot(&self, slot: usize, plane: &BitPlane) {
+        if let Some(acc) = &self.slots[slot] {
+            for dy in 0..acc.size {
+                plane.prefetch_row(acc.x0, acc.y0 + dy as i64, acc.size);
+            }
+        }
+    }
+
     /// Returns the counts and flags of `slot` and restarts it at zero (same anchor).
     pub fn take(&mut self, slot: usize) -> Option<(Vec<u32>, u8)> {
         let acc = self.slots[slot].as_mut()?;
