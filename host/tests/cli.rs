@@ -529,6 +529,16 @@ fn options_are_checked_where_they_are_parsed() {
     assert!(!Path::new(&out).exists());
 }
 
+/// Counts of planes are at least one: no golden planes would leave every
+/// speed-up against it undefined (NaN and ∞ in the table).
+#[test]
+fn bench_aggregate_refuses_zero_planes() {
+    for flag in ["--planes", "--golden-planes", "--pool"] {
+        let e = err(&["bench", "aggregate", flag, "0"]);
+        assert!(e.contains(flag) && e.contains("1.."), "{flag}: {e}");
+    }
+}
+
 #[test]
 fn bench_aggregate_prints_the_scaling_curve_and_the_serial_ceiling() {
     // A small SPAD512S field, so that the debug build runs it quickly: the

@@ -28,12 +28,12 @@ use std::time::Instant;
 pub struct Args {
     #[command(flatten)]
     pub pipeline: PipelineArgs,
-    /// Planes per measurement of the fast engine (with `--stream`: planes streamed).
-    #[arg(long, default_value_t = 3000)]
+    /// Planes per measurement of the fast engine (with `--stream`: planes streamed), ≥ 1.
+    #[arg(long, default_value_t = 3000, value_parser = clap::value_parser!(u64).range(1..))]
     pub planes: u64,
-    /// Planes for the (slow) golden engine.
-    #[arg(long, default_value_t = 300)]
-    pub golden_planes: usize,
+    /// Planes for the (slow) golden engine, ≥ 1 (its rate is every other engine's reference).
+    #[arg(long, default_value_t = 300, value_parser = clap::value_parser!(u32).range(1..))]
+    pub golden_planes: u32,
     /// Most worker threads: the scaling curve runs 1, 2, 4, … up to this, 1..=1024 (default: all cores; more than the cores oversubscribe them, as asked). With `--stream`: the workers.
     #[arg(long, value_parser = crate::setup::thread_count)]
     pub threads: Option<usize>,
@@ -52,9 +52,9 @@ pub struct Args {
     /// only a copy per plane and holds a fixed amount of memory.
     #[arg(long)]
     pub stream: bool,
-    /// Planes simulated for the `--stream` pool.
-    #[arg(long, default_value_t = 1024)]
-    pub pool: usize,
+    /// Planes simulated for the `--stream` pool, ≥ 1.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
+    pub pool: u32,
     /// Scenes to measure, comma-separated (default: all three).
     #[arg(
         long,
@@ -234,7 +234,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..typical.clone()
     };
-    let planes_n = usize::try_from(args.planes)?.max(args.golden_planes).max(1);
+    let golden_planes = args.golden_planes as usize;
+    let planes_n = usize::try_from(args.planes)?.max(golden_planes);
     header();
     if args.scene.contains(&BenchScene::Typical) {
         measure(&case, "typical", &typical, planes_n, &args, threads)?;
@@ -308,7 +309,7 @@ fn measure(
     let (w, h) = (case.width, case.height);
     let planes = simulate(&case.preset, scene, planes_n, args.seed)?;
     let on = scene.expected_on(&case.preset.camera).unwrap_or(0.0);
-    let gp = &planes[..args.golden_planes.min(planes.len())];
+    let gp = &planes[..(args.golden_planes as usize).min(planes.len())];
     let t = Timing::start();
     let golden = run_with(Pipeline::new(cfg.clone())?, gp.iter().cloned())?;
     let (golden_rate, golden_cpu) = t.rates(gp.len());
@@ -461,7 +462,7 @@ fn stream(
     threads: usize,
 ) -> anyhow::Result<()> {
     let planes = args.planes;
-    let pool_len = args.pool.max(1);
+    let pool_len = args.pool as usize;
     let t = Timing::start();
     let pool = simulate(preset, scene, pool_len, args.seed)?;
     println!(
