@@ -95,16 +95,9 @@ impl BitPlane {
     #[inline]
     pub fn row_bits(&self, x0: i64, y: i64, len: usize) -> u64 {
         debug_assert!(len <= 64);
-        if y < 0 || y >= self.height as i64 || len == 0 {
+        let Some((start, n, shift)) = self.row_span(x0, y, len) else {
             return 0;
-        }
-        let lo = x0.max(0);
-        let hi = (x0 + len as i64).min(self.width as i64);
-        if lo >= hi {
-            return 0;
-        }
-        let start = y as usize * self.width + lo as usize;
-        let n = (hi - lo) as usize;
+        };
         let bits: u64 = if self.bits.as_bitptr().bit().into_inner() == 0 {
             // Whole words (bitvec's generic load costs as much as the ROI sums).
             let words = self.bits.as_raw_slice();
@@ -120,7 +113,23 @@ impl BitPlane {
         } else {
             self.bits[start..start + n].load_le()
         };
-        bits << (lo - x0)
+        bits << shift
+    }
+
+    /// The part of row `y` from column `x0` (signed), `len` pixels long,
+    /// that lies on the plane: its first raster index, its length and its
+    /// offset from `x0`; `None` when no pixel of it is on the plane.
+    #[inline]
+    fn row_span(&self, x0: i64, y: i64, len: usize) -> Option<(usize, usize, usize)> {
+        if y < 0 || y >= self.height as i64 || len == 0 {
+            return None;
+        }
+        let lo = x0.max(0);
+        let hi = (x0 + len as i64).min(self.width as i64);
+        (lo < hi).then(|| {
+            let start = y as usize * self.width + lo as usize;
+            (start, (hi - lo) as usize, (lo - x0) as usize)
+        })
     }
 
     /// Sets the pixel at (x, y); panics if outside the plane.
@@ -150,14 +159,13 @@ impl BitPlane {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            if y < 0 || y >= self.height as i64 || len == 0 {
+            let Some((start, n, _)) = self.row_span(x0, y, len) else {
                 return;
-            }
-            let lo = x0.clamp(0, self.width as i64) as usize;
-            let hi = (x0 + len as i64).clamp(0, self.width as i64) as usize;
+            };
+            // Raw words (the bit offset of a sliced plane at most shifts
+            // them by one: a hint either way).
             let words = self.bits.as_raw_slice();
-            let row = y as usize * self.width;
-            for w in [(row + lo) / 64, (row + hi.max(lo + 1) - 1) / 64] {
+            for w in [start / 64, (start + n - 1) / 64] {
                 if let Some(word) = words.get(w) {
                     // SAFETY: SSE is part of the x86-64 baseline, and a
                     // prefetch of a valid address has no other effect.
