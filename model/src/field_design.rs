@@ -263,30 +263,38 @@ pub fn design(
     let (mut u_open, mut rate) = rate_at(hold)?;
     let mut open = hold;
     if rate > budget_per_s {
-        let (u_top, r_top) = rate_at(top)?;
-        if r_top > budget_per_s {
+        if hold >= top {
             return Err(FieldDesignError::Unreachable {
                 budget_per_s,
                 pixels,
-                best_per_s: r_top,
+                best_per_s: rate,
             });
         }
-        // The up-crossing rate falls with T: bisect for the smallest T
-        // within the budget.
-        let (mut lo, mut hi) = (hold, top);
-        let mut best = (u_top, r_top);
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            let r = rate_at(mid)?;
-            if r.1 <= budget_per_s {
-                hi = mid;
-                best = r;
-            } else {
-                lo = mid;
+        // The up-crossing rate falls with T. Double T until it is within
+        // the budget (the lattice's work grows with T, so the bracket is
+        // kept near the answer rather than reaching up to `top`), then
+        // search the bracket for the smallest T within it.
+        let mut below = (hold, rate);
+        let above = loop {
+            let t = below.0.saturating_mul(2).min(top);
+            let (u, r) = rate_at(t)?;
+            if r <= budget_per_s {
+                break (t, r, u);
             }
-        }
-        open = hi;
-        (u_open, rate) = best;
+            if t >= top {
+                return Err(FieldDesignError::Unreachable {
+                    budget_per_s,
+                    pixels,
+                    best_per_s: r,
+                });
+            }
+            below = (t, r);
+        };
+        let (t, r, u) = smallest_within(below, above, budget_per_s, |t| {
+            rate_at(t).map(|(u, r)| (r, u))
+        })?;
+        open = t;
+        (u_open, rate) = (u, r);
     }
     let unit = det.threshold_unit;
     let sigmas = |t: u64| {
@@ -319,6 +327,72 @@ pub fn design(
     Ok(d)
 }
 
+/// The smallest integer `t` in `(lo.0, hi.0]` whose rate is within
+/// `budget`, with that rate and what `rate` gave beside it: `lo` is
+/// `(t, rate)` and `hi` `(t, rate, extra)` with `rate(lo) > budget ≥
+/// rate(hi)`, and the rate does not rise with `t`. `rate(t)` returns
+/// `(rate, extra)` and is only called strictly inside the bracket.
+///
+/// Each evaluation of the design's rate is a lattice convolution, so the
+/// search steps by the secant of `ln(rate / budget)` through the last two
+/// levels evaluated (a smooth function of T for an exact tail, whose root it
+/// approaches superlinearly from either side), falling back to the
+/// bracket's own secant (regula falsi) when that one leaves the bracket.
+/// After three steps in a row that do not halve the bracket (a secant
+/// converging from one side leaves the other end where it was), it
+/// bisects: at most four times bisection's evaluations, whatever the
+/// rate's shape.
+fn smallest_within<X, E>(
+    lo: (u64, f64),
+    hi: (u64, f64, X),
+    budget: f64,
+    mut rate: impl FnMut(u64) -> Result<(f64, X), E>,
+) -> Result<(u64, f64, X), E> {
+    // ln(rate / budget): > 0 at the low end, ≤ 0 at the high end (−∞ for a
+    // rate of 0, where the secants give way to bisection).
+    let excess = |r: f64| (r / budget).ln();
+    let (mut lo, mut g_lo) = (lo.0, excess(lo.1));
+    let mut g_hi = excess(hi.1);
+    let mut hi = hi;
+    // The last two levels evaluated, with their excess.
+    let (mut prev, mut last) = ((lo, g_lo), (hi.0, g_hi));
+    // Steps in a row that did not halve the bracket.
+    let mut slow = 0;
+    // Where the secant through (a, g_a) and (b, g_b) crosses zero, if it
+    // does strictly inside the bracket.
+    let secant = |(a, ga): (u64, f64), (b, gb): (u64, f64), lo: u64, hi: u64| {
+        let x = b as f64 - gb * (b as f64 - a as f64) / (gb - ga);
+        (ga.is_finite() && gb.is_finite() && x > lo as f64 && x < hi as f64).then_some(x)
+    };
+    while hi.0 - lo > 1 {
+        let width = hi.0 - lo;
+        let x = (slow < 3)
+            .then(|| {
+                secant(prev, last, lo, hi.0).or_else(|| secant((lo, g_lo), (hi.0, g_hi), lo, hi.0))
+            })
+            .flatten();
+        let t = match x {
+            Some(x) => (x.round() as u64).clamp(lo + 1, hi.0 - 1),
+            None => lo + width / 2,
+        };
+        let (r, extra) = rate(t)?;
+        let g = excess(r);
+        if r <= budget {
+            (hi, g_hi) = ((t, r, extra), g);
+        } else {
+            (lo, g_lo) = (t, g);
+        }
+        (prev, last) = (last, (t, g));
+        // Bisection leaves at most ⌈width/2⌉.
+        slow = if 2 * (hi.0 - lo) > width + 1 {
+            slow + 1
+        } else {
+            0
+        };
+    }
+    Ok(hi)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -337,7 +411,7 @@ mod tests {
         assert_eq!(d.threshold_hold, det.threshold_int);
         assert!(d.threshold_open > d.threshold_hold);
         assert!(d.predicted_false_blinks_per_s <= 1.0);
-        // One unit lower is over the budget: the bisection found the edge.
+        // One unit lower is over the budget: the search found the edge.
         let below =
             BackgroundProcess::new(&det.kernel(), det.n_window, det.p_off, d.threshold_open - 1)
                 .unwrap()
@@ -423,5 +497,95 @@ mod tests {
             let e = design(&det, w, h, rate, budget).unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
+    }
+
+    #[test]
+    fn an_unreachable_budget_is_an_error() {
+        // One plane of a bright background, held near H's mean: H at its
+        // maximum (every pixel on) is crossed at about 0.9^81 per
+        // pixel-plane, far above 1/s over the field.
+        let mut det = spcimager(150);
+        (det.n_window, det.p_off, det.threshold_int) = (1, 0.9, 58_000);
+        match design(&det, 320, 240, 10_000.0, 1.0) {
+            Err(FieldDesignError::Unreachable { best_per_s, .. }) => {
+                assert!(best_per_s > 1e3, "{best_per_s}")
+            }
+            other => panic!("{other:?}"),
+        }
+        // A hold level already above H's maximum: no search, no panic.
+        det.threshold_int = 1 << 17;
+        let d = design(&det, 320, 240, 10_000.0, 1.0).unwrap();
+        assert_eq!(d.threshold_open, 1 << 17);
+        assert_eq!(d.predicted_false_blinks_per_s, 0.0);
+    }
+
+    /// Evaluations that bisecting a bracket `(lo, lo + width]` makes.
+    fn bisections(width: u64) -> u32 {
+        64 - (width - 1).leading_zeros()
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn the_search_finds_the_first_level_within_the_budget(
+            lo in 0u64..1_000,
+            width in 1u64..5_000,
+            edge_at in 0.0f64..1.0,
+            shape in 0usize..5,
+            a in 1e-3f64..2.0,
+            budget in 1e-9f64..1e3,
+        ) {
+            let hi = lo + width;
+            // The first level within the budget, in (lo, hi].
+            let edge = lo + 1 + ((width - 1) as f64 * edge_at) as u64;
+            // rate / budget: > 1 below the edge, ≤ 1 from it on, never rising.
+            let ratio = |t: u64| -> f64 {
+                let (t, e) = (t as f64, edge as f64);
+                match shape {
+                    0 => (-a * (t - e)).exp(),
+                    1 => (-a * ((t - lo as f64).powi(2) - (e - lo as f64).powi(2)) / width as f64).exp(),
+                    2 => if t < e { 2.0 } else { 0.0 },
+                    3 => 1.0 - 1e-12 * (t - e + 0.5),
+                    _ => if t < e { 1e300 } else { 1e-300 },
+                }
+            };
+            let rate = |t: u64| budget * ratio(t);
+            let mut calls = Vec::new();
+            let (t, r, x) = smallest_within((lo, rate(lo)), (hi, rate(hi), hi), budget, |t| {
+                calls.push(t);
+                Ok::<_, ()>((rate(t), t))
+            })
+            .unwrap();
+            proptest::prop_assert_eq!((t, r, x), (edge, rate(edge), edge));
+            proptest::prop_assert!(calls.iter().all(|&c| c > lo && c < hi), "{:?}", calls);
+            proptest::prop_assert!(
+                calls.len() as u32 <= 4 * bisections(width),
+                "{} calls for a bracket of {}: {:?}", calls.len(), width, calls
+            );
+        }
+    }
+
+    #[test]
+    fn the_open_level_takes_a_handful_of_lattices() {
+        let det = spcimager(150);
+        let d = design(&det, 320, 240, 10_000.0, 1.0).unwrap();
+        let (kernel, scale) = (det.kernel(), 320.0 * 240.0 * 10_000.0);
+        let rate = |t| {
+            BackgroundProcess::new(&kernel, det.n_window, det.p_off, t)
+                .map(|b| b.upcrossing() * scale)
+        };
+        // The bracket the design's doubling finds.
+        let (lo, hi) = (det.threshold_int, 2 * det.threshold_int);
+        let (r_lo, r_hi) = (rate(lo).unwrap(), rate(hi).unwrap());
+        assert!(r_lo > 1.0 && r_hi <= 1.0, "{r_lo} {r_hi}");
+        let mut calls = 0;
+        let (t, r, ()) = smallest_within((lo, r_lo), (hi, r_hi, ()), 1.0, |t| {
+            calls += 1;
+            rate(t).map(|r| (r, ()))
+        })
+        .unwrap();
+        assert_eq!((t, r), (d.threshold_open, d.predicted_false_blinks_per_s));
+        // Bisection takes 17 lattices for this bracket.
+        assert_eq!(bisections(hi - lo), 17);
+        assert!(calls <= 6, "{calls} lattices");
     }
 }
