@@ -556,7 +556,9 @@ impl Prepared {
                 .map(|&(off, _, len)| off + len - 1)
                 .max()
                 .unwrap_or(0);
-            next.fill(0.0);
+            // Cells above `hi` hold nothing: `next` held two classes ago's
+            // lattice, whose mass lay at or below today's `hi`.
+            next[..=new_hi.max(hi)].fill(0.0);
             // `next[off + h] += cur[h]·c` for every tap, a block of `next`
             // at a time so that it stays in the L1 cache while every tap
             // adds to it (a tap at a time, `next` went to memory and back
