@@ -252,31 +252,26 @@ impl BlinkTracker {
     pub fn associate(&mut self, t: u64, candidates: &[Candidate]) -> (Vec<usize>, Option<Drops>) {
         let mut opened: Vec<usize> = Vec::new();
         let mut drops: Option<Drops> = None;
-        let r = self.r_assoc as i32;
         // The anchors that absorb a candidate: tracks active at the end of
         // t − 1, then each track this plane opens. (Dense scenes bring tens of
-        // candidates per plane against full slots: a flat list of anchors
-        // keeps this stage a small share of the fast engine's time.)
-        let mut anchors: Vec<(i32, i32)> = self
-            .slots
-            .iter()
-            .zip(&self.active_prev)
-            .filter_map(|(s, &active)| match s {
-                Slot::Busy(seg) if active => Some((seg.anchor_x as i32, seg.anchor_y as i32)),
-                _ => None,
-            })
-            .collect();
+        // candidates per plane against full slots: a flat list of anchors,
+        // its x and y apart so that they compare as vectors, keeps this stage
+        // a small share of the fast engine's time.)
+        let mut anchors = Anchors::default();
+        for (s, &active) in self.slots.iter().zip(&self.active_prev) {
+            if let Slot::Busy(seg) = s {
+                if active {
+                    anchors.push(seg.anchor_x, seg.anchor_y);
+                }
+            }
+        }
         // Slots free at the end of t − 1, lowest first; each is taken once.
         let free: Vec<usize> = (0..self.slots.len())
             .filter(|&i| self.free_prev[i] && self.slots[i] == Slot::Free)
             .collect();
         let mut next_free = free.into_iter();
         for c in candidates {
-            let (cx, cy) = (c.x as i32, c.y as i32);
-            if anchors
-                .iter()
-                .any(|&(ax, ay)| (ax - cx).abs() <= r && (ay - cy).abs() <= r)
-            {
+            if anchors.any_within(c.x, c.y, self.r_assoc) {
                 continue;
             }
             match next_free.next() {
@@ -293,7 +288,7 @@ impl BlinkTracker {
                         end_flags: 0,
                         confirmed: false,
                     });
-                    anchors.push((cx, cy));
+                    anchors.push(c.x, c.y);
                     opened.push(i);
                 }
                 None => {
@@ -420,6 +415,45 @@ impl BlinkTracker {
     }
 }
 
+/// Track anchors, their x and y in lists of their own.
+#[derive(Debug, Default)]
+struct Anchors {
+    x: Vec<u32>,
+    y: Vec<u32>,
+}
+
+impl Anchors {
+    fn push(&mut self, x: u16, y: u16) {
+        self.x.push(x.into());
+        self.y.push(y.into());
+    }
+
+    /// Whether an anchor lies within `r` of (x, y) on both axes. `|a − c| ≤
+    /// r` is tested as `a − (c − r) ≤ 2r` in wrapping arithmetic (one
+    /// unsigned compare; r ≤ 255 as the configuration checks, coordinates
+    /// are u16), and eight anchors are taken at a time without stopping
+    /// among them, so that the compiler compares them as vectors.
+    fn any_within(&self, x: u16, y: u16, r: u32) -> bool {
+        let (x0, y0) = (u32::from(x).wrapping_sub(r), u32::from(y).wrapping_sub(r));
+        let span = 2 * r;
+        let near = |ax: u32, ay: u32| (ax.wrapping_sub(x0) <= span) & (ay.wrapping_sub(y0) <= span);
+        let (mut xs, mut ys) = (self.x.chunks_exact(8), self.y.chunks_exact(8));
+        for (x8, y8) in (&mut xs).zip(&mut ys) {
+            let mut hit = false;
+            for l in 0..8 {
+                hit |= near(x8[l], y8[l]);
+            }
+            if hit {
+                return true;
+            }
+        }
+        xs.remainder()
+            .iter()
+            .zip(ys.remainder())
+            .any(|(&ax, &ay)| near(ax, ay))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -480,6 +514,33 @@ mod tests {
             }
         }
         (opened, drops)
+    }
+
+    proptest! {
+        /// Anchors anywhere on a u16 field, any radius the configuration
+        /// allows, any count (whole eights and a remainder): the wrapping,
+        /// eight-at-a-time test is the definition.
+        #[test]
+        fn any_within_is_the_square_around_the_candidate(
+            anchors in proptest::collection::vec((any::<u16>(), any::<u16>()), 0..40),
+            near in proptest::collection::vec((-300i32..300, -300i32..300), 0..4),
+            (x, y) in (any::<u16>(), any::<u16>()),
+            r in 0u32..=255,
+        ) {
+            let mut list = Anchors::default();
+            // Some anchors near the candidate, so that both answers occur.
+            let close = near.iter().filter_map(|&(dx, dy)| {
+                Some((u16::try_from(x as i32 + dx).ok()?, u16::try_from(y as i32 + dy).ok()?))
+            });
+            let all: Vec<(u16, u16)> = anchors.iter().copied().chain(close).collect();
+            for &(ax, ay) in &all {
+                list.push(ax, ay);
+            }
+            let expected = all.iter().any(|&(ax, ay)| {
+                (ax as i64 - x as i64).abs() <= r as i64 && (ay as i64 - y as i64).abs() <= r as i64
+            });
+            prop_assert_eq!(list.any_within(x, y, r), expected);
+        }
     }
 
     proptest! {
