@@ -49,8 +49,12 @@ impl BitPlane {
         p
     }
 
-    /// Wraps raster-order bits; `bits.len()` must equal `width·height`.
-    pub fn from_bits(width: usize, height: usize, bits: BitVec<u64, Lsb0>) -> Option<BitPlane> {
+    /// Wraps raster-order bits; `bits.len()` must equal `width·height`. Bits
+    /// that start inside their first word (a vector cut from a slice) are
+    /// moved to its first bit: a plane's [`BitPlane::words`] hold pixel i at
+    /// bit `i % 64` of word `i / 64`, always.
+    pub fn from_bits(width: usize, height: usize, mut bits: BitVec<u64, Lsb0>) -> Option<BitPlane> {
+        bits.force_align();
         (bits.len() == width * height).then_some(BitPlane {
             width,
             height,
@@ -98,22 +102,17 @@ impl BitPlane {
         let Some((start, n, shift)) = self.row_span(x0, y, len) else {
             return 0;
         };
-        let bits: u64 = if self.bits.as_bitptr().bit().into_inner() == 0 {
-            // Whole words (bitvec's generic load costs as much as the ROI sums).
-            let words = self.bits.as_raw_slice();
-            let (w, b) = (start / 64, start % 64);
-            let mut v = words[w] >> b;
-            if b + n > 64 {
-                v |= words[w + 1] << (64 - b);
-            }
-            if n < 64 {
-                v &= (1u64 << n) - 1;
-            }
-            v
-        } else {
-            self.bits[start..start + n].load_le()
-        };
-        bits << shift
+        // Whole words (bitvec's generic load costs as much as the ROI sums).
+        let words = self.words();
+        let (w, b) = (start / 64, start % 64);
+        let mut v = words[w] >> b;
+        if b + n > 64 {
+            v |= words[w + 1] << (64 - b);
+        }
+        if n < 64 {
+            v &= (1u64 << n) - 1;
+        }
+        v << shift
     }
 
     /// The part of row `y` from column `x0` (signed), `len` pixels long,
@@ -162,9 +161,7 @@ impl BitPlane {
             let Some((start, n, _)) = self.row_span(x0, y, len) else {
                 return;
             };
-            // Raw words (the bit offset of a sliced plane at most shifts
-            // them by one: a hint either way).
-            let words = self.bits.as_raw_slice();
+            let words = self.words();
             for w in [start / 64, (start + n - 1) / 64] {
                 if let Some(word) = words.get(w) {
                     // SAFETY: SSE is part of the x86-64 baseline, and a
@@ -178,7 +175,8 @@ impl BitPlane {
     }
 
     /// The raster-order bits as 64-bit words, pixel i at bit `i % 64` of word
-    /// `i / 64`. Bits past `width·height` in the last word are unspecified.
+    /// `i / 64` (every constructor starts the bits at a word's first bit).
+    /// Bits past `width·height` in the last word are unspecified.
     pub fn words(&self) -> &[u64] {
         self.bits.as_raw_slice()
     }
@@ -238,6 +236,28 @@ impl BitPlane {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn bits_cut_from_a_slice_give_aligned_words() {
+        let plane = BitPlane::from_fn(37, 5, |x, y| (x * 3 + y * 7) % 5 < 2);
+        for head in [1, 3, 63] {
+            let mut longer = bitvec![u64, Lsb0; 1; head];
+            longer.extend_from_bitslice(plane.bits());
+            let cut = BitVec::from_bitslice(&longer[head..]);
+            assert_ne!(
+                cut.as_bitptr().bit().into_inner(),
+                0,
+                "the cut starts mid-word"
+            );
+            let p = BitPlane::from_bits(37, 5, cut).unwrap();
+            assert_eq!(p, plane);
+            for i in 0..37 * 5 {
+                let bit = (p.words()[i / 64] >> (i % 64)) & 1 == 1;
+                assert_eq!(bit, p.get(i % 37, i / 37), "pixel {i}");
+            }
+            assert_eq!(p.row_bits(-3, 2, 20), plane.row_bits(-3, 2, 20));
+        }
+    }
 
     proptest! {
         #[test]
