@@ -8,15 +8,54 @@
 use crate::hot_pixel_mask::HotPixelMask;
 use crate::plane::BitPlane;
 use std::collections::VecDeque;
+use std::sync::Arc;
+
+/// One plane of a batch of planes that its owner shares: what the parallel
+/// engine hands its back end (its chunks), so that the delay line keeps a
+/// reference instead of a copy.
+#[derive(Debug, Clone)]
+pub struct SharedPlane {
+    batch: Arc<Vec<BitPlane>>,
+    index: usize,
+}
+
+impl SharedPlane {
+    /// Plane `index` of `batch`; `None` if the batch has no such plane.
+    pub fn new(batch: Arc<Vec<BitPlane>>, index: usize) -> Option<SharedPlane> {
+        (index < batch.len()).then_some(SharedPlane { batch, index })
+    }
+
+    /// The plane.
+    pub fn plane(&self) -> &BitPlane {
+        &self.batch[self.index]
+    }
+}
+
+/// A plane in the line: its own copy, or a shared one.
+#[derive(Debug, Clone)]
+enum Held {
+    Own(BitPlane),
+    Shared(SharedPlane),
+}
+
+impl Held {
+    fn plane(&self) -> &BitPlane {
+        match self {
+            Held::Own(p) => p,
+            Held::Shared(s) => s.plane(),
+        }
+    }
+}
 
 /// A first-in first-out line of the last N bit-planes, plus the one that
-/// has just left (`B_{t−N}`, read by the rolling count and the ROI sums),
-/// whose memory the next push reuses: no plane is allocated per push.
+/// has just left (`B_{t−N}`, read by the rolling count and the ROI sums).
+/// A copied plane goes into the memory of the copy that left: no plane is
+/// allocated per push. A [`SharedPlane`] is kept by reference, not copied.
 #[derive(Debug, Clone)]
 pub struct DelayLine {
     n: usize,
     /// `B_{t−N} … B_t` once full (N + 1 planes); `B_0 … B_t` before.
-    planes: VecDeque<BitPlane>,
+    planes: VecDeque<Held>,
     zero: BitPlane,
 }
 
@@ -41,21 +80,33 @@ impl DelayLine {
     /// mask is given, into the memory of the plane that leaves;
     /// [`DelayLine::delayed`] is then `B_{t−N}`.
     pub fn push_masked(&mut self, plane: &BitPlane, mask: Option<&HotPixelMask>) {
+        let mut buf = match self.make_room() {
+            Some(Held::Own(buf)) => buf,
+            _ => self.zero.clone(),
+        };
+        buf.copy_masked(plane, mask);
+        self.planes.push_back(Held::Own(buf));
+    }
+
+    /// Pushes a plane that is already masked, keeping a reference to it.
+    pub fn push_shared(&mut self, plane: SharedPlane) {
+        self.make_room();
+        self.planes.push_back(Held::Shared(plane));
+    }
+
+    /// Takes out the plane that left before this push, once the line is full.
+    fn make_room(&mut self) -> Option<Held> {
         if self.planes.len() == self.n + 1 {
-            let mut buf = self.planes.pop_front().expect("full");
-            buf.copy_masked(plane, mask);
-            self.planes.push_back(buf);
+            self.planes.pop_front()
         } else {
-            let mut buf = self.zero.clone();
-            buf.copy_masked(plane, mask);
-            self.planes.push_back(buf);
+            None
         }
     }
 
     /// `B_{t−N}` after `B_t` went in (zero for `t < N`).
     pub fn delayed(&self) -> &BitPlane {
         if self.planes.len() == self.n + 1 {
-            &self.planes[0]
+            self.planes[0].plane()
         } else {
             &self.zero
         }
@@ -63,7 +114,7 @@ impl DelayLine {
 
     /// The plane pushed last (`B_t`; zero before the first push).
     pub fn newest(&self) -> &BitPlane {
-        self.planes.back().unwrap_or(&self.zero)
+        self.planes.back().map_or(&self.zero, Held::plane)
     }
 
     /// The plane that will come out `i + 1` pushes from now (`i < N`), i.e.
@@ -72,7 +123,7 @@ impl DelayLine {
     pub fn peek(&self, i: usize) -> &BitPlane {
         // planes[j] is B_{t+1−len+j}: B_{t−N+1+i} is at j = i + len − N.
         match (i + self.planes.len()).checked_sub(self.n) {
-            Some(j) if j < self.planes.len() => &self.planes[j],
+            Some(j) if j < self.planes.len() => self.planes[j].plane(),
             _ => &self.zero,
         }
     }
@@ -122,6 +173,38 @@ mod tests {
         let mut small = BitPlane::zeros(3, 1);
         small.copy_masked(&planes[0], None);
         assert_eq!(small, planes[0]);
+    }
+
+    #[test]
+    fn shared_and_copied_planes_come_out_alike() {
+        let planes: Vec<BitPlane> = (0..12u64)
+            .map(|t| {
+                BitPlane::from_fn(5, 2, |x, y| {
+                    (t * 7 + x as u64 * 3 + y as u64).is_multiple_of(4)
+                })
+            })
+            .collect();
+        let batch = Arc::new(planes.clone());
+        assert!(SharedPlane::new(batch.clone(), 12).is_none());
+        let (mut copied, mut mixed) = (DelayLine::new(3, 5, 2), DelayLine::new(3, 5, 2));
+        for (t, p) in planes.iter().enumerate() {
+            copied.push_masked(p, None);
+            // Runs of shared planes between copies, so that a copy also
+            // follows a shared plane out of the line.
+            if t % 5 < 3 {
+                mixed.push_shared(SharedPlane::new(batch.clone(), t).unwrap());
+            } else {
+                mixed.push_masked(p, None);
+            }
+            assert_eq!(mixed.newest(), p);
+            assert_eq!(mixed.delayed(), copied.delayed(), "plane {t}");
+            for i in 0..3 {
+                assert_eq!(mixed.peek(i), copied.peek(i), "plane {t}, peek {i}");
+            }
+        }
+        // The line holds N + 1 planes, so it keeps no more of the batch.
+        drop(mixed);
+        assert_eq!(Arc::strong_count(&batch), 1);
     }
 
     #[test]

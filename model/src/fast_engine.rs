@@ -28,6 +28,7 @@
 
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
+use crate::delay_line::SharedPlane;
 use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
 use crate::record::Record;
@@ -854,7 +855,7 @@ pub fn default_chunk(n_window: u32) -> usize {
 #[derive(Debug, Clone)]
 pub struct FrontResults {
     cfg: PipelineConfig,
-    planes: Vec<BitPlane>,
+    planes: Arc<Vec<BitPlane>>,
     fronts: Vec<PlaneFront>,
 }
 
@@ -868,7 +869,7 @@ impl FrontResults {
         FrontResults {
             cfg: cfg.clone(),
             fronts: chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes),
-            planes,
+            planes: Arc::new(planes),
         }
     }
 
@@ -898,8 +899,9 @@ impl FrontResults {
             },
         )?;
         let mut out = vec![back.start_record()];
-        for p in &self.planes {
-            out.extend(back.push_masked_plane(p)?);
+        for index in 0..self.planes.len() {
+            let plane = SharedPlane::new(self.planes.clone(), index).expect("a plane of it");
+            out.extend(back.push_shared_plane(plane)?);
         }
         out.extend(back.finish());
         Ok(out)
@@ -916,8 +918,10 @@ impl FrontResults {
 /// hot pixels; each worker takes the next chunk as soon as it is free (no
 /// barrier between chunks) and computes its stages 1–4; the calling thread
 /// runs the sequential stages 5–7 on the chunks in stream order. At most
-/// `3·threads + 1` chunks are in flight, so memory is bounded by
-/// `(3·threads + 1)·chunk + threads·N` planes, whatever the stream's length.
+/// `3·threads + 1` chunks are in flight, and the back end's delay line keeps
+/// the chunks that hold its last N + 1 planes (by reference: no plane is
+/// copied after the reader), so memory is bounded by `(3·threads + 3)·chunk
+/// + (threads + 1)·N` planes, whatever the stream's length.
 pub fn run_parallel<E, P, I, S>(
     cfg: PipelineConfig,
     planes: I,
@@ -1078,8 +1082,9 @@ where
             early.insert(done.index, done);
             while let Some(d) = early.remove(&next) {
                 back.front_end_mut().queue.extend(d.fronts);
-                for plane in d.planes.iter() {
-                    match back.push_masked_plane(plane) {
+                for index in 0..d.planes.len() {
+                    let plane = SharedPlane::new(d.planes.clone(), index).expect("a plane of it");
+                    match back.push_shared_plane(plane) {
                         Ok(records) => records.into_iter().for_each(&mut sink),
                         Err(e) => {
                             result = Err(ParallelError::Pipeline(e));

@@ -21,7 +21,7 @@
 use crate::blink_tracker::{BlinkTracker, Completed};
 use crate::candidates::{self, Candidate};
 use crate::config::{ConfigError, PipelineConfig};
-use crate::delay_line::DelayLine;
+use crate::delay_line::{DelayLine, SharedPlane};
 use crate::plane::BitPlane;
 use crate::record::{flags, BlinkRecord, DroppedRecord, Record, StreamEnd, MAX_PLANE};
 use crate::roi_aggregator::RoiAggregator;
@@ -248,7 +248,30 @@ impl<F: FrontEnd> Pipeline<F> {
         self.push(plane, false)
     }
 
+    /// [`Pipeline::push_masked_plane`] for a plane of a batch the caller
+    /// shares: the delay line keeps a reference to it instead of a copy
+    /// (the parallel engine's back end, whose chunks are shared).
+    pub fn push_shared_plane(&mut self, plane: SharedPlane) -> Result<Vec<Record>, PipelineError> {
+        self.check(plane.plane())?;
+        self.delay.push_shared(plane);
+        self.step()
+    }
+
     fn push(&mut self, plane: &BitPlane, mask_it: bool) -> Result<Vec<Record>, PipelineError> {
+        self.check(plane)?;
+        // Stage 0. The delay line keeps the masked `B_t` and `B_{t−N}`;
+        // both are read from it rather than copied.
+        let mask = if mask_it {
+            self.cfg.hot_mask.as_ref()
+        } else {
+            None
+        };
+        self.delay.push_masked(plane, mask);
+        self.step()
+    }
+
+    /// Whether plane `t = planes()` may go in.
+    fn check(&self, plane: &BitPlane) -> Result<(), PipelineError> {
         if self.finished {
             return Err(PipelineError::Finished);
         }
@@ -265,16 +288,13 @@ impl<F: FrontEnd> Pipeline<F> {
         if self.planes > MAX_PLANE {
             return Err(PipelineError::TooManyPlanes);
         }
-        let t = self.planes;
+        Ok(())
+    }
 
-        // Stages 0–4. The delay line keeps the masked `B_t` and `B_{t−N}`;
-        // both are read from it rather than copied.
-        let mask = if mask_it {
-            self.cfg.hot_mask.as_ref()
-        } else {
-            None
-        };
-        self.delay.push_masked(plane, mask);
+    /// Stages 1–7 of plane `t = planes()`, just pushed into the delay line.
+    fn step(&mut self) -> Result<Vec<Record>, PipelineError> {
+        let t = self.planes;
+        // Stages 1–4.
         let delayed = self.delay.delayed();
         self.front.push(self.delay.newest(), delayed);
 
