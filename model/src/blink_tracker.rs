@@ -172,6 +172,9 @@ pub struct BlinkTracker {
     active_prev: Vec<bool>,
     free_prev: Vec<bool>,
     counters: TrackerCounters,
+    /// Scratch of [`BlinkTracker::associate`], kept between planes so that
+    /// no plane allocates it.
+    anchors: Anchors,
 }
 
 /// Candidates dropped during one plane.
@@ -205,6 +208,7 @@ impl BlinkTracker {
             active_prev: vec![false; slots],
             free_prev: vec![true; slots],
             counters: TrackerCounters::default(),
+            anchors: Anchors::default(),
         }
     }
 
@@ -257,7 +261,8 @@ impl BlinkTracker {
         // candidates per plane against full slots: a flat list of anchors,
         // its x and y apart so that they compare as vectors, keeps this stage
         // a small share of the fast engine's time.)
-        let mut anchors = Anchors::default();
+        let mut anchors = std::mem::take(&mut self.anchors);
+        anchors.clear();
         for (s, &active) in self.slots.iter().zip(&self.active_prev) {
             if let Slot::Busy(seg) = s {
                 if active {
@@ -266,15 +271,17 @@ impl BlinkTracker {
             }
         }
         // Slots free at the end of t − 1, lowest first; each is taken once.
-        let free: Vec<usize> = (0..self.slots.len())
-            .filter(|&i| self.free_prev[i] && self.slots[i] == Slot::Free)
-            .collect();
-        let mut next_free = free.into_iter();
+        // Only the slot taken changes, and the search goes on past it, so
+        // searching as it goes finds the same slots as listing them first.
+        let mut first_free = 0;
         for c in candidates {
             if anchors.any_within(c.x, c.y, self.r_assoc) {
                 continue;
             }
-            match next_free.next() {
+            let free = (first_free..self.slots.len())
+                .find(|&i| self.free_prev[i] && self.slots[i] == Slot::Free);
+            first_free = free.map_or(self.slots.len(), |i| i + 1);
+            match free {
                 Some(i) => {
                     self.slots[i] = Slot::Busy(Segment {
                         anchor_x: c.x,
@@ -305,6 +312,7 @@ impl BlinkTracker {
                 }
             }
         }
+        self.anchors = anchors;
         (opened, drops)
     }
 
@@ -416,13 +424,18 @@ impl BlinkTracker {
 }
 
 /// Track anchors, their x and y in lists of their own.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 struct Anchors {
     x: Vec<u32>,
     y: Vec<u32>,
 }
 
 impl Anchors {
+    fn clear(&mut self) {
+        self.x.clear();
+        self.y.clear();
+    }
+
     fn push(&mut self, x: u16, y: u16) {
         self.x.push(x.into());
         self.y.push(y.into());

@@ -321,7 +321,8 @@ impl<F: FrontEnd> Pipeline<F> {
 
         // Stage 7.
         let done = self.tracker.end_of_plane(t);
-        let mut out = Vec::with_capacity(done.len() + 1);
+        // Most planes complete nothing: no allocation then.
+        let mut out = Vec::with_capacity(done.len() + usize::from(drops.is_some()));
         for c in done {
             out.push(self.emit(c));
         }
