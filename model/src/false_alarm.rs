@@ -551,14 +551,15 @@ impl Prepared {
                 };
                 taps.push((off, terms.pmf[i], (hi + 1).min(t - off)));
             }
+            // Never below `hi` (a class whose terms all reach T leaves no
+            // mass below it, and cells up to `hi` must still be zeroed).
             let new_hi = taps
                 .iter()
                 .map(|&(off, _, len)| off + len - 1)
-                .max()
-                .unwrap_or(0);
+                .fold(hi, usize::max);
             // Cells above `hi` hold nothing: `next` held two classes ago's
             // lattice, whose mass lay at or below today's `hi`.
-            next[..=new_hi.max(hi)].fill(0.0);
+            next[..=new_hi].fill(0.0);
             // `next[off + h] += cur[h]·c` for every tap, a block of `next`
             // at a time so that it stays in the L1 cache while every tap
             // adds to it (a tap at a time, `next` went to memory and back
@@ -1380,6 +1381,35 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_class_beyond_the_threshold_leaves_no_mass_below_it() {
+        // The second class's every significant term reaches T: all mass goes
+        // to the tail, and the lattice below T is zero for good.
+        let classes = [
+            Class {
+                weight: 1,
+                trials: 3_000,
+                p: 0.5,
+            },
+            Class {
+                weight: 1_000,
+                trials: 40,
+                p: 0.999,
+            },
+            Class {
+                weight: 1_001,
+                trials: 1,
+                p: 0.01,
+            },
+        ];
+        let prepared = Prepared::new(&classes, 1_800);
+        let lattice = prepared.run(FIRST_PASS_CUTOFF);
+        assert!(lattice.below.iter().all(|&m| m == 0.0));
+        assert!((lattice.tail - 1.0).abs() < 1e-9, "{}", lattice.tail);
+        let reference = lattice_term_by_term(&prepared, FIRST_PASS_CUTOFF);
+        assert!(reference.iter().all(|&m| m == 0.0));
     }
 
     #[test]
