@@ -25,6 +25,14 @@ impl SharedPlane {
         (index < batch.len()).then_some(SharedPlane { batch, index })
     }
 
+    /// Every plane of `batch`, in order.
+    pub fn every(batch: &Arc<Vec<BitPlane>>) -> impl Iterator<Item = SharedPlane> + '_ {
+        (0..batch.len()).map(|index| SharedPlane {
+            batch: batch.clone(),
+            index,
+        })
+    }
+
     /// The plane.
     pub fn plane(&self) -> &BitPlane {
         &self.batch[self.index]
@@ -186,6 +194,9 @@ mod tests {
             .collect();
         let batch = Arc::new(planes.clone());
         assert!(SharedPlane::new(batch.clone(), 12).is_none());
+        let every: Vec<SharedPlane> = SharedPlane::every(&batch).collect();
+        assert!(every.iter().map(SharedPlane::plane).eq(planes.iter()));
+        drop(every);
         let (mut copied, mut mixed) = (DelayLine::new(3, 5, 2), DelayLine::new(3, 5, 2));
         for (t, p) in planes.iter().enumerate() {
             copied.push_masked(p, None);

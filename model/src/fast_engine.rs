@@ -899,8 +899,7 @@ impl FrontResults {
             },
         )?;
         let mut out = vec![back.start_record()];
-        for index in 0..self.planes.len() {
-            let plane = SharedPlane::new(self.planes.clone(), index).expect("a plane of it");
+        for plane in SharedPlane::every(&self.planes) {
             out.extend(back.push_shared_plane(plane)?);
         }
         out.extend(back.finish());
@@ -1082,8 +1081,7 @@ where
             early.insert(done.index, done);
             while let Some(d) = early.remove(&next) {
                 back.front_end_mut().queue.extend(d.fronts);
-                for index in 0..d.planes.len() {
-                    let plane = SharedPlane::new(d.planes.clone(), index).expect("a plane of it");
+                for plane in SharedPlane::every(&d.planes) {
                     match back.push_shared_plane(plane) {
                         Ok(records) => records.into_iter().for_each(&mut sink),
                         Err(e) => {
