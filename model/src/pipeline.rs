@@ -439,15 +439,17 @@ where
     run_with(Pipeline::new(cfg)?, planes)
 }
 
-/// Runs a whole stream through a pipeline with any front end.
+/// Runs a whole stream through a pipeline with any front end; the planes
+/// may be given by value or by reference.
 pub fn run_with<F, I>(mut p: Pipeline<F>, planes: I) -> Result<Vec<Record>, PipelineError>
 where
     F: FrontEnd,
-    I: IntoIterator<Item = BitPlane>,
+    I: IntoIterator,
+    I::Item: std::borrow::Borrow<BitPlane>,
 {
     let mut out = vec![p.start_record()];
     for plane in planes {
-        out.extend(p.push_plane(&plane)?);
+        out.extend(p.push_plane(std::borrow::Borrow::borrow(&plane))?);
     }
     out.extend(p.finish());
     Ok(out)

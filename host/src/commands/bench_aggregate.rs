@@ -311,7 +311,7 @@ fn measure(
     let on = scene.expected_on(&case.preset.camera).unwrap_or(0.0);
     let gp = &planes[..(args.golden_planes as usize).min(planes.len())];
     let t = Timing::start();
-    let golden = run_with(Pipeline::new(cfg.clone())?, gp.iter().cloned())?;
+    let golden = run_with(Pipeline::new(cfg.clone())?, gp.iter())?;
     let (golden_rate, golden_cpu) = t.rates(gp.len());
     let golden_bytes = bytes_of(&golden)?;
     let gpix = |rate: f64| rate * (w as f64 * h as f64) / 1e9;
@@ -342,7 +342,7 @@ fn measure(
         None,
     );
     // The fast engines on the golden planes: bytes must be identical.
-    let fast_same = run_with(fast_pipeline(cfg.clone())?, gp.iter().cloned())?;
+    let fast_same = run_with(fast_pipeline(cfg.clone())?, gp.iter())?;
     let par_same = parallel(cfg, gp, gp.len(), threads.max(2))?;
     if bytes_of(&fast_same)? != golden_bytes || bytes_of(&par_same)? != golden_bytes {
         anyhow::bail!("the fast engine's bytes differ from the golden model's on the {name} scene");
@@ -376,7 +376,7 @@ fn measure(
         }
     }
     let t = Timing::start();
-    let fast = run_with(fast_pipeline(cfg.clone())?, planes.iter().cloned())?;
+    let fast = run_with(fast_pipeline(cfg.clone())?, planes.iter())?;
     let single = t.rates(planes.len());
     single_rate.get_or_insert(single.0);
     row(
