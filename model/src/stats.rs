@@ -273,7 +273,7 @@ pub struct Detection {
 impl Detection {
     /// The same statistics with window `n` (≥ 1) instead of Eq. 6's: Eq. 7's
     /// threshold `T = N·E(F_off) + 3√(N·Var F_off)`, `T_int = max(1,
-    /// ⌈T·2^(2a)⌉)` and the window's moments follow it ([`derive`] ends here
+    /// ⌈T·2^(2a)⌉)` and the window's moments follow it ([`derive()`] ends here
     /// with Eq. 6's N).
     pub fn at_window(&self, n: u32) -> Detection {
         let n = n.max(1);
