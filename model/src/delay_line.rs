@@ -20,11 +20,6 @@ pub struct SharedPlane {
 }
 
 impl SharedPlane {
-    /// Plane `index` of `batch`; `None` if the batch has no such plane.
-    pub fn new(batch: Arc<Vec<BitPlane>>, index: usize) -> Option<SharedPlane> {
-        (index < batch.len()).then_some(SharedPlane { batch, index })
-    }
-
     /// Every plane of `batch`, in order.
     pub fn every(batch: &Arc<Vec<BitPlane>>) -> impl Iterator<Item = SharedPlane> + '_ {
         (0..batch.len()).map(|index| SharedPlane {
@@ -193,17 +188,15 @@ mod tests {
             })
             .collect();
         let batch = Arc::new(planes.clone());
-        assert!(SharedPlane::new(batch.clone(), 12).is_none());
-        let every: Vec<SharedPlane> = SharedPlane::every(&batch).collect();
+        let mut every: Vec<SharedPlane> = SharedPlane::every(&batch).collect();
         assert!(every.iter().map(SharedPlane::plane).eq(planes.iter()));
-        drop(every);
         let (mut copied, mut mixed) = (DelayLine::new(3, 5, 2), DelayLine::new(3, 5, 2));
         for (t, p) in planes.iter().enumerate() {
             copied.push_masked(p, None);
             // Runs of shared planes between copies, so that a copy also
             // follows a shared plane out of the line.
             if t % 5 < 3 {
-                mixed.push_shared(SharedPlane::new(batch.clone(), t).unwrap());
+                mixed.push_shared(every[t].clone());
             } else {
                 mixed.push_masked(p, None);
             }
@@ -214,6 +207,7 @@ mod tests {
             }
         }
         // The line holds N + 1 planes, so it keeps no more of the batch.
+        every.clear();
         drop(mixed);
         assert_eq!(Arc::strong_count(&batch), 1);
     }

@@ -749,23 +749,6 @@ fn below32_avx2(f: &[u32], c: usize, thr: u32) -> bool {
     _mm256_movemask_epi8(_mm256_cmpeq_epi32(_mm256_max_epu32(m, t), t)) == -1
 }
 
-/// Asks the CPU to bring `s` into its cache (a hint: no effect on any result).
-#[inline]
-fn prefetch_slice<T>(s: &[T]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let base = s.as_ptr().cast::<i8>();
-        for offset in (0..std::mem::size_of_val(s)).step_by(64) {
-            // SAFETY: `base + offset` lies inside `s`; SSE is part of the
-            // x86-64 baseline, and a prefetch has no other effect.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.add(offset)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = s;
-}
-
 /// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.
 fn above_near(above: &[u32], width: usize, height: usize, x: usize, y: usize) -> bool {
     let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
@@ -810,7 +793,7 @@ impl FrontEnd for ReplayFrontEnd {
         // (thousands of them) each search would wait on memory. Fetch the
         // next plane's while this one is tracked.
         if let Some(next) = self.queue.front() {
-            prefetch_slice(&next.above);
+            crate::plane::prefetch(&next.above);
         }
     }
 

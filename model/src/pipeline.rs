@@ -237,36 +237,22 @@ impl<F: FrontEnd> Pipeline<F> {
 
     /// Processes bit-plane `t = planes()` and returns the records completed by it.
     pub fn push_plane(&mut self, plane: &BitPlane) -> Result<Vec<Record>, PipelineError> {
-        self.push(plane, true)
-    }
-
-    /// [`Pipeline::push_plane`] for a plane whose hot pixels the caller has
-    /// already forced to 0 with this configuration's mask (the parallel
-    /// engine's reader does it once per plane): the same records, without
-    /// masking the plane a second time.
-    pub fn push_masked_plane(&mut self, plane: &BitPlane) -> Result<Vec<Record>, PipelineError> {
-        self.push(plane, false)
-    }
-
-    /// [`Pipeline::push_masked_plane`] for a plane of a batch the caller
-    /// shares: the delay line keeps a reference to it instead of a copy
-    /// (the parallel engine's back end, whose chunks are shared).
-    pub fn push_shared_plane(&mut self, plane: SharedPlane) -> Result<Vec<Record>, PipelineError> {
-        self.check(plane.plane())?;
-        self.delay.push_shared(plane);
-        self.step()
-    }
-
-    fn push(&mut self, plane: &BitPlane, mask_it: bool) -> Result<Vec<Record>, PipelineError> {
         self.check(plane)?;
         // Stage 0. The delay line keeps the masked `B_t` and `B_{t−N}`;
         // both are read from it rather than copied.
-        let mask = if mask_it {
-            self.cfg.hot_mask.as_ref()
-        } else {
-            None
-        };
-        self.delay.push_masked(plane, mask);
+        self.delay.push_masked(plane, self.cfg.hot_mask.as_ref());
+        self.step()
+    }
+
+    /// [`Pipeline::push_plane`] for a plane whose hot pixels the caller has
+    /// already forced to 0 with this configuration's mask, in a batch the
+    /// caller shares (the parallel engine's reader masks each plane once,
+    /// into chunks its back end shares): the same records, without masking
+    /// the plane again, and the delay line keeps a reference to it instead
+    /// of a copy.
+    pub fn push_shared_plane(&mut self, plane: SharedPlane) -> Result<Vec<Record>, PipelineError> {
+        self.check(plane.plane())?;
+        self.delay.push_shared(plane);
         self.step()
     }
 

@@ -155,23 +155,9 @@ impl BitPlane {
     /// ahead, they no longer wait on memory.
     #[inline]
     pub fn prefetch_row(&self, x0: i64, y: i64, len: usize) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let Some((start, n, _)) = self.row_span(x0, y, len) else {
-                return;
-            };
-            let words = self.words();
-            for w in [start / 64, (start + n - 1) / 64] {
-                if let Some(word) = words.get(w) {
-                    // SAFETY: SSE is part of the x86-64 baseline, and a
-                    // prefetch of a valid address has no other effect.
-                    unsafe { _mm_prefetch::<_MM_HINT_T0>((word as *const u64).cast()) };
-                }
-            }
+        if let Some((start, n, _)) = self.row_span(x0, y, len) {
+            prefetch(&self.words()[start / 64..=(start + n - 1) / 64]);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = (x0, y, len);
     }
 
     /// The raster-order bits as 64-bit words, pixel i at bit `i % 64` of word
@@ -230,6 +216,31 @@ impl BitPlane {
     pub fn count_ones(&self) -> usize {
         self.bits.count_ones()
     }
+}
+
+/// Asks the CPU to bring every cache line that `s` touches into its cache
+/// (a hint: no effect on any result). Used where a read far out of the
+/// cache is known a plane ahead: the ROI rows of the plane that leaves the
+/// delay line next, the next plane's pixels at the hold level.
+#[inline]
+pub(crate) fn prefetch<T>(s: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        const LINE: usize = 64;
+        let base = s.as_ptr().cast::<i8>();
+        // From the start of the first line to the end of the slice.
+        let skew = base as usize % LINE;
+        let mut offset = 0;
+        while offset < skew + std::mem::size_of_val(s) {
+            // SAFETY: SSE is part of the x86-64 baseline; a prefetch never
+            // faults, and every address lies in a line that `s` touches.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(base.wrapping_sub(skew).wrapping_add(offset)) };
+            offset += LINE;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = s;
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 
 use proptest::prelude::*;
 use smartagg_model::config::PipelineConfig;
+use smartagg_model::delay_line::SharedPlane;
 use smartagg_model::fast_engine::{
     default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa, ParallelError,
 };
@@ -10,6 +11,7 @@ use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd, Pipeline
 use smartagg_model::plane::BitPlane;
 use smartagg_model::record::Record;
 use smartagg_model::record_check::check_blink;
+use std::sync::Arc;
 
 struct Rng(u64);
 impl Rng {
@@ -120,7 +122,7 @@ fn spcimager_like_field_matches_golden_single_and_parallel() {
 /// The parallel engine and the replay mask each plane once, in the reader
 /// (or `FrontResults::compute`), and hand the back end planes already
 /// masked: the records stay the golden ones, and the back end's
-/// `push_masked_plane` really does not mask again.
+/// `push_shared_plane` really does not mask again.
 #[test]
 fn hot_pixels_are_masked_once_and_the_records_stay_golden() {
     let mut cfg = spcimager_like(64, 48, 108);
@@ -145,21 +147,23 @@ fn hot_pixels_are_masked_once_and_the_records_stay_golden() {
         golden
     );
 
-    // `push_masked_plane` on planes masked by the caller = `push_plane`.
-    let masked: Vec<BitPlane> = planes.iter().map(|p| mask.apply(p)).collect();
+    // `push_shared_plane` on planes masked by the caller = `push_plane`.
+    let masked = Arc::new(planes.iter().map(|p| mask.apply(p)).collect::<Vec<_>>());
+    let raw = Arc::new(planes.clone());
     let mut by_caller = fast_pipeline(cfg.clone()).unwrap();
     let mut by_pipeline = fast_pipeline(cfg.clone()).unwrap();
     let mut unmasked = fast_pipeline(cfg).unwrap();
     let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
-    for (raw, m) in planes.iter().zip(&masked) {
-        a.extend(by_caller.push_masked_plane(m).unwrap());
-        b.extend(by_pipeline.push_plane(raw).unwrap());
-        c.extend(unmasked.push_masked_plane(raw).unwrap());
+    let shared = SharedPlane::every(&masked).zip(SharedPlane::every(&raw));
+    for ((m, r), plane) in shared.zip(&planes) {
+        a.extend(by_caller.push_shared_plane(m).unwrap());
+        b.extend(by_pipeline.push_plane(plane).unwrap());
+        c.extend(unmasked.push_shared_plane(r).unwrap());
     }
     assert_eq!(a, b);
-    // The raw planes through `push_masked_plane` keep the hot pixel's
+    // The raw planes through `push_shared_plane` keep the hot pixel's
     // bits: the rolling counts, hence the records, differ.
-    assert_ne!(c, b, "push_masked_plane must not mask the plane itself");
+    assert_ne!(c, b, "push_shared_plane must not mask the plane itself");
 }
 
 #[test]
