@@ -563,7 +563,7 @@ fn bench_aggregate_prints_the_scaling_curve_and_the_serial_ceiling() {
     ]);
     for row in [
         "stages 1-4 portable",
-        "stages 5-7 alone",
+        "stages 5-7, 2 thr",
         "fast, chunked x1 ",
         "fast, chunked x2 ",
         "fast, chunked x3 ",

@@ -22,7 +22,15 @@ pub struct SharedPlane {
 impl SharedPlane {
     /// Every plane of `batch`, in order.
     pub fn every(batch: &Arc<Vec<BitPlane>>) -> impl Iterator<Item = SharedPlane> + '_ {
-        (0..batch.len()).map(|index| SharedPlane {
+        SharedPlane::within(batch, 0..batch.len())
+    }
+
+    /// The planes of `batch` in `range` (clipped to the batch), in order.
+    pub fn within(
+        batch: &Arc<Vec<BitPlane>>,
+        range: std::ops::Range<usize>,
+    ) -> impl Iterator<Item = SharedPlane> + '_ {
+        (range.start..range.end.min(batch.len())).map(|index| SharedPlane {
             batch: batch.clone(),
             index,
         })
@@ -190,6 +198,11 @@ mod tests {
         let batch = Arc::new(planes.clone());
         let mut every: Vec<SharedPlane> = SharedPlane::every(&batch).collect();
         assert!(every.iter().map(SharedPlane::plane).eq(planes.iter()));
+        // A range of the batch, clipped to it.
+        let within = |r| SharedPlane::within(&batch, r).map(|s| s.plane().clone());
+        assert!(within(3..7).eq(planes[3..7].iter().cloned()));
+        assert!(within(10..20).eq(planes[10..].iter().cloned()));
+        assert_eq!(within(12..20).count(), 0);
         let (mut copied, mut mixed) = (DelayLine::new(3, 5, 2), DelayLine::new(3, 5, 2));
         for (t, p) in planes.iter().enumerate() {
             copied.push_masked(p, None);

@@ -26,12 +26,13 @@
 //!   any chunk length and thread count, and memory is bounded by the chunk
 //!   length, the threads, N and the field, not by the stream's length.
 
+use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
-use crate::delay_line::SharedPlane;
+use crate::delay_line::{DelayLine, SharedPlane};
 use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
-use crate::record::Record;
+use crate::record::{Record, MAX_PLANE};
 use std::collections::VecDeque;
 use std::sync::Arc;
 
@@ -782,8 +783,9 @@ struct ReplayFrontEnd {
     current: PlaneFront,
 }
 
-impl FrontEnd for ReplayFrontEnd {
-    fn push(&mut self, _live: &BitPlane, _delayed: &BitPlane) {
+impl ReplayFrontEnd {
+    /// Takes the next plane's stages 1–4 from the queue.
+    fn next_plane(&mut self) {
         self.current = self
             .queue
             .pop_front()
@@ -795,6 +797,12 @@ impl FrontEnd for ReplayFrontEnd {
         if let Some(next) = self.queue.front() {
             crate::plane::prefetch(&next.above);
         }
+    }
+}
+
+impl FrontEnd for ReplayFrontEnd {
+    fn push(&mut self, _live: &BitPlane, _delayed: &BitPlane) {
+        self.next_plane();
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
@@ -833,13 +841,13 @@ pub fn default_chunk(n_window: u32) -> usize {
 
 /// Stages 1–4 of planes from stream start, kept with the planes so that
 /// stages 5–7 can run alone on them ([`FrontResults::replay_back_end`]): how
-/// `smartagg bench aggregate` measures the sequential back end, the serial
-/// part of [`run_parallel`].
+/// `smartagg bench aggregate` measures the back end, the part of
+/// [`run_parallel`] that the workers do not share.
 #[derive(Debug, Clone)]
 pub struct FrontResults {
     cfg: PipelineConfig,
-    planes: Arc<Vec<BitPlane>>,
-    fronts: Vec<PlaneFront>,
+    /// The planes in chunks of [`default_chunk`], each with its stages 1–4.
+    chunks: Vec<(Arc<Vec<BitPlane>>, Vec<PlaneFront>)>,
 }
 
 impl FrontResults {
@@ -849,45 +857,147 @@ impl FrontResults {
             Some(m) => planes.iter().map(|p| m.apply(p)).collect(),
             None => planes.to_vec(),
         };
+        let mut fronts = chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes).into_iter();
+        let chunks = planes
+            .chunks(default_chunk(cfg.n_window))
+            .map(|c| {
+                (
+                    Arc::new(c.to_vec()),
+                    fronts.by_ref().take(c.len()).collect(),
+                )
+            })
+            .collect();
         FrontResults {
             cfg: cfg.clone(),
-            fronts: chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes),
-            planes: Arc::new(planes),
+            chunks,
         }
     }
 
     /// Planes held.
     pub fn len(&self) -> usize {
-        self.planes.len()
+        self.chunks.iter().map(|(c, _)| c.len()).sum()
     }
 
     /// Whether no plane is held.
     pub fn is_empty(&self) -> bool {
-        self.planes.is_empty()
+        self.len() == 0
     }
 
     /// Stages 5–7 alone — the tracker, the ROI sums and the records — on the
-    /// planes and their stages 1–4: the records of the whole stream (start
-    /// to end), the same as [`fast_pipeline`]'s on the same planes.
+    /// planes and their stages 1–4, as [`run_parallel`] runs them (the
+    /// tracker a chunk ahead in a thread of its own): the records of the
+    /// whole stream (start to end), the same as [`fast_pipeline`]'s on the
+    /// same planes.
     pub fn replay_back_end(self) -> Result<Vec<Record>, PipelineError> {
         let cfg = self.cfg;
         cfg.validate()?;
-        let mut back = Pipeline::with_front_end(
-            cfg.clone(),
-            ReplayFrontEnd {
-                width: cfg.width,
-                height: cfg.height,
-                queue: self.fronts.into(),
-                ..Default::default()
-            },
-        )?;
-        let mut out = vec![back.start_record()];
-        for plane in SharedPlane::every(&self.planes) {
-            out.extend(back.push_shared_plane(plane)?);
-        }
-        out.extend(back.finish());
+        let mut out = vec![Record::Start(cfg.stream_start())];
+        let end = split_back_end(&cfg, self.chunks.into_iter(), |r| out.push(r), || {})?;
+        out.extend(end);
         Ok(out)
     }
+}
+
+/// Planes of a chunk and the tracker's decisions at each, on their way from
+/// the tracker's thread to the sums: a few hundred at a time, so that the
+/// sums start soon after the tracker (a chunk can be thousands of planes).
+struct Tracked {
+    planes: Arc<Vec<BitPlane>>,
+    range: std::ops::Range<usize>,
+    steps: Vec<TrackStep>,
+}
+
+/// Planes the tracker hands to the sums at a time.
+const HANDOFF: usize = 128;
+
+/// Stages 5–7 on chunks in stream order (each chunk's planes with their
+/// stages 1–4), in two threads: the tracker ([`Tracking`]) runs in a thread
+/// of its own, a few hundred planes ahead of the ROI sums and the records
+/// ([`Summing`]), which run in the calling thread. `sink` gets each plane's
+/// records in stream order and `chunk_done` is called once a chunk's have
+/// all gone; the records of the stream's end are returned (not sunk), so
+/// that the caller can hold them back if the stream failed.
+fn split_back_end<C>(
+    cfg: &PipelineConfig,
+    chunks: C,
+    mut sink: impl FnMut(Record),
+    chunk_done: impl FnMut(),
+) -> Result<Vec<Record>, PipelineError>
+where
+    C: Iterator<Item = (Arc<Vec<BitPlane>>, Vec<PlaneFront>)> + Send,
+{
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Tracked>(4);
+    std::thread::scope(|scope| {
+        let tracker = scope.spawn(move || -> TrackEnd {
+            let mut tracking = Tracking::new(cfg);
+            let mut front = ReplayFrontEnd {
+                width: cfg.width,
+                height: cfg.height,
+                ..Default::default()
+            };
+            let mut t = 0u64;
+            'chunks: for (planes, fronts) in chunks {
+                front.queue.extend(fronts);
+                let len = planes.len();
+                for start in (0..len).step_by(HANDOFF) {
+                    let range = start..(start + HANDOFF).min(len);
+                    let steps = range
+                        .clone()
+                        .map(|_| {
+                            front.next_plane();
+                            let mut step = TrackStep::default();
+                            tracking.step(t, &front, &mut step);
+                            t += 1;
+                            step
+                        })
+                        .collect();
+                    let planes = planes.clone();
+                    // A failed send: the sums have stopped.
+                    if tx
+                        .send(Tracked {
+                            planes,
+                            range,
+                            steps,
+                        })
+                        .is_err()
+                    {
+                        break 'chunks;
+                    }
+                }
+            }
+            tracking.finish(t)
+        });
+        let mut chunk_done = chunk_done;
+        let mut delay = DelayLine::new(cfg.n_window as usize, cfg.width, cfg.height);
+        let mut summing = Summing::new(cfg);
+        let mut t = 0u64;
+        let mut result = Ok(());
+        'chunks: for tracked in &rx {
+            let planes = SharedPlane::within(&tracked.planes, tracked.range.clone());
+            for (plane, step) in planes.zip(&tracked.steps) {
+                if t > MAX_PLANE {
+                    result = Err(PipelineError::TooManyPlanes);
+                    break 'chunks;
+                }
+                delay.push_shared(plane);
+                summing
+                    .step(t, step, &delay)
+                    .into_iter()
+                    .for_each(&mut sink);
+                t += 1;
+            }
+            if tracked.range.end == tracked.planes.len() {
+                chunk_done();
+            }
+        }
+        // The tracker stops at its next send, and drops its chunks (which
+        // stops whoever feeds them); `chunk_done` may hold what lets them
+        // be fed, so it goes first.
+        drop((rx, chunk_done));
+        let end = tracker.join().expect("the tracker's thread panicked");
+        result?;
+        Ok(summing.finish(t, end, &delay))
+    })
 }
 
 /// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
@@ -898,8 +1008,10 @@ impl FrontResults {
 ///
 /// A reader thread pulls the planes (decoding or simulating them) and masks
 /// hot pixels; each worker takes the next chunk as soon as it is free (no
-/// barrier between chunks) and computes its stages 1–4; the calling thread
-/// runs the sequential stages 5–7 on the chunks in stream order. At most
+/// barrier between chunks) and computes its stages 1–4; stages 5–7 take
+/// the chunks in stream order, in two threads (see [`crate::back_end`]): the
+/// tracker in a thread of its own, the ROI sums and the records in the
+/// calling thread, which calls `sink`. At most
 /// `3·threads + 1` chunks are in flight, and the back end's delay line keeps
 /// the chunks that hold its last N + 1 planes (by reference: no plane is
 /// copied after the reader), so memory is bounded by `(3·threads + 3)·chunk
@@ -922,16 +1034,7 @@ where
     let threads = threads.max(1);
     let chunk = chunk.max(1);
     let n = cfg.n_window as usize;
-    let mut back = Pipeline::with_front_end(
-        cfg.clone(),
-        ReplayFrontEnd {
-            width: cfg.width,
-            height: cfg.height,
-            ..Default::default()
-        },
-    )
-    .map_err(ParallelError::Pipeline)?;
-    sink(back.start_record());
+    sink(Record::Start(cfg.stream_start()));
 
     let (job_tx, job_rx) = std::sync::mpsc::sync_channel::<Job>(threads);
     // Shared by the workers only: when the last one stops, the reader's
@@ -1059,36 +1162,27 @@ where
         // Stages 5–7 in stream order; chunks that come back early wait.
         let mut early: std::collections::BTreeMap<usize, Done> = Default::default();
         let mut next = 0;
-        let mut result = Ok(());
-        'chunks: for done in &done_rx {
-            early.insert(done.index, done);
-            while let Some(d) = early.remove(&next) {
-                back.front_end_mut().queue.extend(d.fronts);
-                for plane in SharedPlane::every(&d.planes) {
-                    match back.push_shared_plane(plane) {
-                        Ok(records) => records.into_iter().for_each(&mut sink),
-                        Err(e) => {
-                            result = Err(ParallelError::Pipeline(e));
-                            break 'chunks;
-                        }
-                    }
-                }
+        let in_order = std::iter::from_fn(move || loop {
+            if let Some(d) = early.remove(&next) {
                 next += 1;
-                // The back end holds no credit: a failed send only means the
-                // reader has finished.
-                let _ = credit_tx.send(());
+                return Some((d.planes, d.fronts));
             }
-        }
-        // Stops the workers (their sends fail), hence the reader.
-        drop((done_rx, credit_tx));
+            let d = done_rx.recv().ok()?;
+            early.insert(d.index, d);
+        });
+        // The back end holds no credit: a failed send only means the reader
+        // has finished.
+        let back = split_back_end(&cfg, in_order, &mut sink, move || {
+            let _ = credit_tx.send(());
+        });
+        // The back end has stopped the workers (their sends fail), hence
+        // the reader.
         let read = reader.join().expect("the plane reader panicked");
-        result?;
-        read
-    })?;
-    for r in back.finish() {
-        sink(r);
-    }
-    Ok(())
+        let end = back.map_err(ParallelError::Pipeline)?;
+        read?;
+        end.into_iter().for_each(&mut sink);
+        Ok(())
+    })
 }
 
 /// Stages 1–4 of every plane of a chunk. `history` holds the (up to N)

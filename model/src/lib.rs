@@ -20,6 +20,7 @@
 //! * [`record`] and [`packet`]: the records and their byte format;
 //! * [`recording`]: the `.spad` bit-plane container and raw packed planes.
 
+pub mod back_end;
 pub mod blink_tracker;
 pub mod candidates;
 pub mod config;

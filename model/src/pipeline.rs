@@ -18,12 +18,13 @@
 //!
 //! Every stage's output of the last plane is observable (for co-simulation).
 
-use crate::blink_tracker::{BlinkTracker, Completed};
+use crate::back_end::{Summing, TrackStep, Tracking};
+use crate::blink_tracker::BlinkTracker;
 use crate::candidates::{self, Candidate};
 use crate::config::{ConfigError, PipelineConfig};
 use crate::delay_line::{DelayLine, SharedPlane};
 use crate::plane::BitPlane;
-use crate::record::{flags, BlinkRecord, DroppedRecord, Record, StreamEnd, MAX_PLANE};
+use crate::record::{Record, MAX_PLANE};
 use crate::roi_aggregator::RoiAggregator;
 use crate::rolling_count::RollingCount;
 use crate::spatial_filter::SpatialFilter;
@@ -144,10 +145,12 @@ pub struct Pipeline<F: FrontEnd = GoldenFrontEnd> {
     cfg: PipelineConfig,
     delay: DelayLine,
     front: F,
-    tracker: BlinkTracker,
-    rois: RoiAggregator,
+    tracking: Tracking,
+    summing: Summing,
+    /// The tracker's decisions of the current plane (kept between planes so
+    /// that no plane allocates it).
+    step: TrackStep,
     planes: u64,
-    blinks: u64,
     finished: bool,
 }
 
@@ -179,17 +182,10 @@ impl<F: FrontEnd> Pipeline<F> {
         Ok(Pipeline {
             delay: DelayLine::new(cfg.n_window as usize, w, h),
             front,
-            tracker: BlinkTracker::new(
-                cfg.slots,
-                cfg.n_window,
-                cfg.end_trim,
-                cfg.l_min,
-                cfg.l_max,
-                cfg.r_assoc,
-            ),
-            rois: RoiAggregator::new(cfg.slots, cfg.roi_size, w, h),
+            tracking: Tracking::new(&cfg),
+            summing: Summing::new(&cfg),
+            step: TrackStep::default(),
             planes: 0,
-            blinks: 0,
             finished: false,
             cfg,
         })
@@ -227,12 +223,12 @@ impl<F: FrontEnd> Pipeline<F> {
 
     /// Stage 5 state: the tracker.
     pub fn tracker(&self) -> &BlinkTracker {
-        &self.tracker
+        self.tracking.tracker()
     }
 
     /// Stage 6 state: the ROI accumulators.
     pub fn rois(&self) -> &RoiAggregator {
-        &self.rois
+        self.summing.rois()
     }
 
     /// Processes bit-plane `t = planes()` and returns the records completed by it.
@@ -280,139 +276,20 @@ impl<F: FrontEnd> Pipeline<F> {
     /// Stages 1–7 of plane `t = planes()`, just pushed into the delay line.
     fn step(&mut self) -> Result<Vec<Record>, PipelineError> {
         let t = self.planes;
-        // Stages 1–4.
-        let delayed = self.delay.delayed();
-        self.front.push(self.delay.newest(), delayed);
-
-        // Stage 5a: tracks live at the end of t−1.
-        let front = &self.front;
-        self.tracker
-            .evaluate(t, |x, y| front.neighbourhood_on(x as usize, y as usize));
-
-        // Stage 5b: candidates in raster order.
-        let (opened, drops) = self.tracker.associate(t, self.front.candidates());
-        for &slot in &opened {
-            if let crate::blink_tracker::Slot::Busy(seg) = &self.tracker.slots()[slot] {
-                self.rois
-                    .open(slot, seg.anchor_x, seg.anchor_y, self.cfg.hot_mask.as_ref());
-            }
-        }
-
-        // Stage 6.
-        for slot in 0..self.cfg.slots {
-            if self.tracker.sums_delayed(slot, t) {
-                self.rois.add(slot, delayed);
-            }
-        }
-
-        // Stage 7.
-        let done = self.tracker.end_of_plane(t);
-        // Most planes complete nothing: no allocation then.
-        let mut out = Vec::with_capacity(done.len() + usize::from(drops.is_some()));
-        for c in done {
-            out.push(self.emit(c));
-        }
-        self.close_free_slots();
-        // The ROIs sum B_{t+1−N} next: fetch their rows meanwhile.
-        self.rois.prefetch(self.delay.peek(0));
-        if let Some(d) = drops {
-            out.push(Record::Dropped(DroppedRecord {
-                plane: t,
-                count: d.count,
-                first_x: d.first.x,
-                first_y: d.first.y,
-            }));
-        }
+        self.front.push(self.delay.newest(), self.delay.delayed());
+        self.tracking.step(t, &self.front, &mut self.step);
+        let out = self.summing.step(t, &self.step, &self.delay);
         self.planes += 1;
         Ok(out)
     }
 
-    /// Ends the stream: closes live tracks (TRUNCATED), completes their
-    /// sums from the delay line, and returns the last blink records and
-    /// the stream-end record. Further planes are refused.
     pub fn finish(&mut self) -> Vec<Record> {
         if self.finished {
             return Vec::new();
         }
         self.finished = true;
-        let mut out = Vec::new();
-        if self.planes > 0 {
-            let n = self.cfg.n_window as u64;
-            let p = self.planes;
-            let done = self.tracker.finish(p);
-            for c in done {
-                // Planes not yet summed: u in [max(first, p − N), last], still
-                // inside the delay line, which holds B_{p−N} … B_{p−1}.
-                let seg = &c.segment;
-                let first = seg.first_plane(self.cfg.n_window).max(p.saturating_sub(n));
-                let last = seg
-                    .last_plane(self.cfg.n_window, self.cfg.end_trim)
-                    .expect("a finished segment has ended");
-                for u in first as i64..=last {
-                    let i = (u as u64 + n - p) as usize;
-                    // A few planes ahead: these planes are old, out of cache.
-                    if u + 4 <= last {
-                        self.rois.prefetch_slot(c.slot, self.delay.peek(i + 4));
-                    }
-                    self.rois.add(c.slot, self.delay.peek(i));
-                }
-                out.push(self.emit(c));
-            }
-            self.close_free_slots();
-        }
-        let counters = self.tracker.counters();
-        out.push(Record::End(StreamEnd {
-            planes: self.planes,
-            blinks: self.blinks,
-            unconfirmed: counters.unconfirmed,
-            dropped_candidates: counters.dropped_candidates,
-            bridged_dips: counters.bridged_dips,
-            cut_segments: counters.cut_segments,
-        }));
-        out
-    }
-
-    fn emit(&mut self, c: Completed) -> Record {
-        let seg = c.segment;
-        let n = self.cfg.n_window;
-        let half = (n / 2) as i64;
-        let t_drop = seg.t_drop.expect("a completed segment has ended");
-        let (counts, roi_flags) = self.rois.take(c.slot).expect("a busy slot has an ROI");
-        let f = seg.flags(n) | roi_flags;
-        let t_s = if seg.continuation {
-            seg.t_cross as i64
-        } else {
-            seg.t_cross as i64 - half
-        };
-        let t_e = if f & (flags::CUT | flags::TRUNCATED) != 0 {
-            t_drop as i64
-        } else {
-            t_drop as i64 - half
-        };
-        self.blinks += 1;
-        Record::Blink(BlinkRecord {
-            slot: c.slot as u8,
-            flags: f,
-            anchor_x: seg.anchor_x,
-            anchor_y: seg.anchor_y,
-            t_cross: seg.t_cross,
-            t_drop,
-            t_s,
-            t_e,
-            planes_summed: seg
-                .planes_summed(n, self.cfg.end_trim)
-                .expect("a completed segment has ended") as u32,
-            roi_size: self.cfg.roi_size as u8,
-            counts,
-        })
-    }
-
-    fn close_free_slots(&mut self) {
-        for (i, s) in self.tracker.slots().iter().enumerate() {
-            if *s == crate::blink_tracker::Slot::Free {
-                self.rois.close(i);
-            }
-        }
+        let end = self.tracking.finish(self.planes);
+        self.summing.finish(self.planes, end, &self.delay)
     }
 }
 

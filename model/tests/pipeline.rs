@@ -1,9 +1,12 @@
 //! The golden pipeline on hand-built scenes, and its invariants on random ones.
 
 use proptest::prelude::*;
+use smartagg_model::back_end::{Summing, TrackStep, Tracking};
+use smartagg_model::blink_tracker::Slot;
 use smartagg_model::config::PipelineConfig;
+use smartagg_model::delay_line::DelayLine;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
-use smartagg_model::pipeline::{run, Pipeline, PipelineError};
+use smartagg_model::pipeline::{run, FrontEnd, GoldenFrontEnd, Pipeline, PipelineError};
 use smartagg_model::plane::BitPlane;
 use smartagg_model::record::{flags, BlinkRecord, Record, StreamEnd};
 
@@ -432,5 +435,56 @@ proptest! {
         prop_assert_eq!(e.blinks, b.len() as u64);
         let dropped: u64 = recs.iter().filter_map(|r| match r { Record::Dropped(d) => Some(d.count as u64), _ => None }).sum();
         prop_assert_eq!(e.dropped_candidates, dropped);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// The back end's halves are joined only by each plane's `TrackStep`:
+    /// the tracker run over the whole stream first, and the sums and
+    /// records after it, give the pipeline's records. After every plane a
+    /// slot holds an ROI exactly while it holds a segment.
+    #[test]
+    fn the_tracker_run_ahead_of_the_sums_gives_the_same_records(
+        seed in any::<u64>(), n in 1u32..8, thr in 1u32..40, planes in 1usize..120,
+        spots in 0usize..6, bg in 0u64..60, slots in 1usize..5, l_min in 1u32..6,
+        r_assoc in 0u32..3, trim in 0u32..8,
+    ) {
+        let stream = random_stream(seed, planes, spots, bg);
+        let mut c = cfg(n, thr);
+        c.slots = slots;
+        c.l_min = l_min;
+        c.l_max = n.max(l_min).max(12);
+        c.r_assoc = r_assoc;
+        c.end_trim = trim % n;
+        let want = run(c.clone(), stream.clone()).unwrap();
+
+        let zero = BitPlane::zeros(W, H);
+        let mut front = GoldenFrontEnd::new(&c);
+        let mut tracking = Tracking::new(&c);
+        let mut steps = Vec::new();
+        let mut busy = Vec::new();
+        for (t, plane) in stream.iter().enumerate() {
+            let delayed = t.checked_sub(n as usize).map_or(&zero, |d| &stream[d]);
+            front.push(plane, delayed);
+            let mut step = TrackStep::default();
+            tracking.step(t as u64, &front, &mut step);
+            steps.push(step);
+            busy.push(tracking.tracker().slots().iter().map(|s| *s != Slot::Free).collect::<Vec<_>>());
+        }
+        let track_end = tracking.finish(planes as u64);
+
+        let mut got = vec![Record::Start(c.stream_start())];
+        let mut delay = DelayLine::new(n as usize, W, H);
+        let mut summing = Summing::new(&c);
+        for (t, (plane, step)) in stream.iter().zip(&steps).enumerate() {
+            delay.push_masked(plane, None);
+            got.extend(summing.step(t as u64, step, &delay));
+            let held: Vec<bool> = (0..slots).map(|s| summing.rois().get(s).is_some()).collect();
+            prop_assert_eq!(&held, &busy[t], "plane {}", t);
+        }
+        got.extend(summing.finish(planes as u64, track_end, &delay));
+        prop_assert_eq!(got, want);
     }
 }

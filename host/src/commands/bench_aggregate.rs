@@ -386,8 +386,9 @@ fn measure(
         bytes_of(&fast)?.len(),
         single_rate,
     );
-    // Stages 5–7 alone (the sequential back end of the chunked engine, the
-    // serial part of its scaling): the ceiling of any thread count.
+    // Stages 5–7 alone (the back end of the chunked engine, in its two
+    // threads: the part that the workers do not share): the ceiling of any
+    // thread count.
     let fronts = FrontResults::compute(cfg, &planes);
     let t = Timing::start();
     let back = fronts.replay_back_end()?;
@@ -395,7 +396,7 @@ fn measure(
     if back != fast {
         anyhow::bail!("stages 5-7 replayed alone differ from the fast engine on the {name} scene");
     }
-    row("stages 5-7 alone", planes.len(), rates, 0, single_rate);
+    row("stages 5-7, 2 thr", planes.len(), rates, 0, single_rate);
     // The scaling curve: one worker overlaps the reader and the back end;
     // more workers share the chunks. Every worker needs several chunks, or
     // the curve measures the stream's end, where workers wait for the last

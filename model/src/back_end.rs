@@ -1,0 +1,258 @@
+//! Stages 5–7 in two halves that can run in two threads: [`Tracking`] (stage
+//! 5, the blink tracker's decisions) and [`Summing`] (stage 6, the ROI sums,
+//! and stage 7, the records).
+//!
+//! [`Pipeline`](crate::pipeline::Pipeline) runs them one after the other on
+//! every plane. The parallel engine
+//! ([`run_parallel`](crate::fast_engine::run_parallel)) runs the tracker a
+//! chunk ahead in a thread of its own: on a large field each half is about
+//! half of the sequential back end. A plane's [`TrackStep`] carries all that
+//! the sums and records need from the tracker, so the records are the same
+//! whichever way the halves run.
+
+use crate::blink_tracker::{BlinkTracker, Completed, Drops, Slot, TrackerCounters};
+use crate::config::PipelineConfig;
+use crate::delay_line::DelayLine;
+use crate::pipeline::FrontEnd;
+use crate::record::{flags, BlinkRecord, DroppedRecord, Record, StreamEnd};
+use crate::roi_aggregator::RoiAggregator;
+
+/// What the tracker decided at one plane: all that the ROI sums and the
+/// records of that plane need from it.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TrackStep {
+    /// Slots opened at this plane, with their anchors: (slot, x, y).
+    pub opened: Vec<(u16, u16, u16)>,
+    /// Slots that add the delayed plane `B_{t−N}` to their ROI, lowest first.
+    pub summing: Vec<u16>,
+    /// Segments completed at this plane, slot order.
+    pub completed: Vec<Completed>,
+    /// Slots freed at this plane that hold an ROI: it is emptied after the
+    /// records.
+    pub closed: Vec<u16>,
+    /// Candidates that found no free slot at this plane.
+    pub drops: Option<Drops>,
+}
+
+/// The tracker's end of the stream: what [`Summing::finish`] needs.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TrackEnd {
+    /// The confirmed segments still held, slot order (live ones TRUNCATED):
+    /// their sums are completed from the delay line.
+    pub completed: Vec<Completed>,
+    /// The tracker's totals, for the stream-end record.
+    pub counters: TrackerCounters,
+}
+
+/// Stage 5 driven plane by plane: the tracks evaluated against the front
+/// end's hold level, the candidates associated, the segments ended.
+#[derive(Debug, Clone)]
+pub struct Tracking {
+    tracker: BlinkTracker,
+    /// Slots whose ROI [`Summing`] holds (opened and not yet closed): a
+    /// mirror, so that a step names only the ROIs to close.
+    roi_open: Vec<bool>,
+}
+
+impl Tracking {
+    /// A tracker with every slot free, for a validated configuration.
+    pub fn new(cfg: &PipelineConfig) -> Tracking {
+        Tracking {
+            tracker: BlinkTracker::new(
+                cfg.slots,
+                cfg.n_window,
+                cfg.end_trim,
+                cfg.l_min,
+                cfg.l_max,
+                cfg.r_assoc,
+            ),
+            roi_open: vec![false; cfg.slots],
+        }
+    }
+
+    /// The tracker.
+    pub fn tracker(&self) -> &BlinkTracker {
+        &self.tracker
+    }
+
+    /// Stage 5 of plane `t`, the front end having taken that plane: writes
+    /// into `step` what the sums and records of the plane need.
+    pub fn step<F: FrontEnd>(&mut self, t: u64, front: &F, step: &mut TrackStep) {
+        self.tracker
+            .evaluate(t, |x, y| front.neighbourhood_on(x as usize, y as usize));
+        let (opened, drops) = self.tracker.associate(t, front.candidates());
+        step.opened.clear();
+        for slot in opened {
+            if let Slot::Busy(seg) = &self.tracker.slots()[slot] {
+                step.opened.push((slot as u16, seg.anchor_x, seg.anchor_y));
+                self.roi_open[slot] = true;
+            }
+        }
+        step.summing.clear();
+        for slot in 0..self.roi_open.len() {
+            if self.tracker.sums_delayed(slot, t) {
+                step.summing.push(slot as u16);
+            }
+        }
+        step.completed = self.tracker.end_of_plane(t);
+        step.closed.clear();
+        for (slot, (open, s)) in self
+            .roi_open
+            .iter_mut()
+            .zip(self.tracker.slots())
+            .enumerate()
+        {
+            if *open && *s == Slot::Free {
+                *open = false;
+                step.closed.push(slot as u16);
+            }
+        }
+        step.drops = drops;
+    }
+
+    /// Stream end after `planes` planes: every segment still held ends.
+    pub fn finish(&mut self, planes: u64) -> TrackEnd {
+        let completed = if planes > 0 {
+            self.tracker.finish(planes)
+        } else {
+            Vec::new()
+        };
+        self.roi_open.fill(false);
+        TrackEnd {
+            completed,
+            counters: self.tracker.counters().clone(),
+        }
+    }
+}
+
+/// Stages 6–7 driven plane by plane: each slot's ROI sums of the planes
+/// leaving the delay line, and the records.
+#[derive(Debug, Clone)]
+pub struct Summing {
+    cfg: PipelineConfig,
+    rois: RoiAggregator,
+    blinks: u64,
+}
+
+impl Summing {
+    /// Every ROI empty, for a validated configuration.
+    pub fn new(cfg: &PipelineConfig) -> Summing {
+        Summing {
+            rois: RoiAggregator::new(cfg.slots, cfg.roi_size, cfg.width, cfg.height),
+            blinks: 0,
+            cfg: cfg.clone(),
+        }
+    }
+
+    /// The ROI accumulators.
+    pub fn rois(&self) -> &RoiAggregator {
+        &self.rois
+    }
+
+    /// Stages 6–7 of plane `t`, the delay line holding `B_t` (so that it
+    /// gives `B_{t−N}`): the plane's records, in the order of
+    /// `model/PACKETS.md` §8.
+    pub fn step(&mut self, t: u64, step: &TrackStep, delay: &DelayLine) -> Vec<Record> {
+        let mask = self.cfg.hot_mask.as_ref();
+        for &(slot, x, y) in &step.opened {
+            self.rois.open(slot as usize, x, y, mask);
+        }
+        let delayed = delay.delayed();
+        for &slot in &step.summing {
+            self.rois.add(slot as usize, delayed);
+        }
+        let mut out = Vec::with_capacity(step.completed.len() + usize::from(step.drops.is_some()));
+        for c in &step.completed {
+            out.push(self.emit(c));
+        }
+        for &slot in &step.closed {
+            self.rois.close(slot as usize);
+        }
+        self.rois.prefetch(delay.peek(0));
+        if let Some(d) = step.drops {
+            out.push(Record::Dropped(DroppedRecord {
+                plane: t,
+                count: d.count,
+                first_x: d.first.x,
+                first_y: d.first.y,
+            }));
+        }
+        out
+    }
+
+    /// Stream end after `planes` planes, the delay line holding the last
+    /// ones: the segments still held summed to their last plane, in slot
+    /// order, then the stream-end record.
+    pub fn finish(&mut self, planes: u64, end: TrackEnd, delay: &DelayLine) -> Vec<Record> {
+        let mut out = Vec::with_capacity(end.completed.len() + 1);
+        if planes > 0 {
+            let n = self.cfg.n_window as u64;
+            for c in &end.completed {
+                let seg = &c.segment;
+                let first = seg
+                    .first_plane(self.cfg.n_window)
+                    .max(planes.saturating_sub(n));
+                let last = seg
+                    .last_plane(self.cfg.n_window, self.cfg.end_trim)
+                    .expect("a finished segment has ended");
+                for u in first as i64..=last {
+                    let i = (u as u64 + n - planes) as usize;
+                    if u + 4 <= last {
+                        self.rois.prefetch_slot(c.slot, delay.peek(i + 4));
+                    }
+                    self.rois.add(c.slot, delay.peek(i));
+                }
+                out.push(self.emit(c));
+            }
+            // The tracker has freed every slot.
+            for slot in 0..self.cfg.slots {
+                self.rois.close(slot);
+            }
+        }
+        let counters = end.counters;
+        out.push(Record::End(StreamEnd {
+            planes,
+            blinks: self.blinks,
+            unconfirmed: counters.unconfirmed,
+            dropped_candidates: counters.dropped_candidates,
+            bridged_dips: counters.bridged_dips,
+            cut_segments: counters.cut_segments,
+        }));
+        out
+    }
+
+    fn emit(&mut self, c: &Completed) -> Record {
+        let seg = &c.segment;
+        let n = self.cfg.n_window;
+        let half = (n / 2) as i64;
+        let t_drop = seg.t_drop.expect("a completed segment has ended");
+        let (counts, roi_flags) = self.rois.take(c.slot).expect("a busy slot has an ROI");
+        let f = seg.flags(n) | roi_flags;
+        let t_s = if seg.continuation {
+            seg.t_cross as i64
+        } else {
+            seg.t_cross as i64 - half
+        };
+        let t_e = if f & (flags::CUT | flags::TRUNCATED) != 0 {
+            t_drop as i64
+        } else {
+            t_drop as i64 - half
+        };
+        self.blinks += 1;
+        Record::Blink(BlinkRecord {
+            slot: c.slot as u8,
+            flags: f,
+            anchor_x: seg.anchor_x,
+            anchor_y: seg.anchor_y,
+            t_cross: seg.t_cross,
+            t_drop,
+            t_s,
+            t_e,
+            planes_summed: seg
+                .planes_summed(n, self.cfg.end_trim)
+                .expect("a completed segment has ended") as u32,
+            roi_size: self.cfg.roi_size as u8,
+            counts,
+        })
+    }
+}
