@@ -774,7 +774,7 @@ struct PlaneFront {
     above: Vec<u32>,
 }
 
-/// Replays precomputed stages 1–4 to the sequential back end.
+/// Replays precomputed stages 1–4 to the tracker (stage 5) of the back end.
 #[derive(Debug, Default)]
 struct ReplayFrontEnd {
     width: usize,
@@ -858,15 +858,15 @@ impl FrontResults {
             None => planes.to_vec(),
         };
         let mut fronts = chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes).into_iter();
-        let chunks = planes
-            .chunks(default_chunk(cfg.n_window))
-            .map(|c| {
-                (
-                    Arc::new(c.to_vec()),
-                    fronts.by_ref().take(c.len()).collect(),
-                )
-            })
-            .collect();
+        // The planes move into their chunks: no second copy.
+        let chunk = default_chunk(cfg.n_window);
+        let mut planes = planes.into_iter().peekable();
+        let mut chunks = Vec::new();
+        while planes.peek().is_some() {
+            let c: Vec<BitPlane> = planes.by_ref().take(chunk).collect();
+            let f = fronts.by_ref().take(c.len()).collect();
+            chunks.push((Arc::new(c), f));
+        }
         FrontResults {
             cfg: cfg.clone(),
             chunks,
