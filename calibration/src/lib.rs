@@ -44,7 +44,7 @@
 //!
 //! Frame cameras: see [`frames`].
 //!
-//! ## File format, version 1 ([`format`])
+//! ## File format, version 1 ([`format`](mod@format))
 //!
 //! A calibration is a directory:
 //!

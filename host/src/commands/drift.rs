@@ -45,7 +45,10 @@ pub enum Method {
 /// Arguments of `smartagg drift`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Localisation table (ThunderSTORM CSV with "x [nm]", "y [nm]" and a time column).
+    // A help attribute, not a doc comment: rustdoc would read "[nm]" as a link.
+    #[arg(
+        help = "Localisation table (ThunderSTORM CSV with \"x [nm]\", \"y [nm]\" and a time column)"
+    )]
     pub table: PathBuf,
     /// Corrected table (same columns).
     #[arg(long)]

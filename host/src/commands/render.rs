@@ -57,7 +57,10 @@ fn drop_outliers(points: &mut Vec<Point>, pixel_nm: f64) -> usize {
 /// Arguments of `smartagg render`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Localisation table: CSV with "x [nm]", "y [nm]" and "uncertainty [nm]" columns, or Picasso HDF5 (/locs with x, y, lpx, lpy in camera pixels).
+    // A help attribute, not a doc comment: rustdoc would read "[nm]" as a link.
+    #[arg(
+        help = "Localisation table: CSV with \"x [nm]\", \"y [nm]\" and \"uncertainty [nm]\" columns, or Picasso HDF5 (/locs with x, y, lpx, lpy in camera pixels)"
+    )]
     pub table: PathBuf,
     /// Output image: .png (colour map, scale bar) or .tif (32-bit float density, calibrated in nm for ImageJ/Fiji).
     #[arg(long)]
