@@ -377,6 +377,24 @@ fn random_stream(seed: u64, planes: usize, spots: usize, bg_per_mille: u64) -> V
         .collect()
 }
 
+/// The configuration of the random-stream properties.
+fn random_cfg(
+    n: u32,
+    thr: u32,
+    slots: usize,
+    l_min: u32,
+    r_assoc: u32,
+    trim: u32,
+) -> PipelineConfig {
+    let mut c = cfg(n, thr);
+    c.slots = slots;
+    c.l_min = l_min;
+    c.l_max = n.max(l_min).max(12);
+    c.r_assoc = r_assoc;
+    c.end_trim = trim % n;
+    c
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(256))]
 
@@ -388,12 +406,7 @@ proptest! {
                                  spots in 0usize..6, bg in 0u64..60, slots in 1usize..5, l_min in 1u32..6, r_assoc in 0u32..3,
                                  trim in 0u32..8) {
         let stream = random_stream(seed, planes, spots, bg);
-        let mut c = cfg(n, thr);
-        c.slots = slots;
-        c.l_min = l_min;
-        c.l_max = n.max(l_min).max(12);
-        c.r_assoc = r_assoc;
-        c.end_trim = trim % n;
+        let c = random_cfg(n, thr, slots, l_min, r_assoc, trim);
         let recs = run(c.clone(), stream.clone()).unwrap();
         let b = blinks(&recs);
         let half = (n / 2) as i64;
@@ -452,12 +465,7 @@ proptest! {
         r_assoc in 0u32..3, trim in 0u32..8,
     ) {
         let stream = random_stream(seed, planes, spots, bg);
-        let mut c = cfg(n, thr);
-        c.slots = slots;
-        c.l_min = l_min;
-        c.l_max = n.max(l_min).max(12);
-        c.r_assoc = r_assoc;
-        c.end_trim = trim % n;
+        let c = random_cfg(n, thr, slots, l_min, r_assoc, trim);
         let want = run(c.clone(), stream.clone()).unwrap();
 
         let zero = BitPlane::zeros(W, H);
