@@ -540,6 +540,48 @@ fn bench_aggregate_refuses_zero_planes() {
 }
 
 #[test]
+fn bench_aggregate_streams_the_scene_asked_for() {
+    fn stream(scene: Option<&str>) -> Vec<&str> {
+        let mut a = vec![
+            "bench",
+            "aggregate",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--stream",
+            "--planes",
+            "2000",
+            "--pool",
+            "64",
+            "--threads",
+            "2",
+        ];
+        if let Some(s) = scene {
+            a.extend(["--scene", s]);
+        }
+        a
+    }
+    for (scene, name) in [
+        (None, "typical"),
+        (Some("dense"), "dense"),
+        (Some("spad512s,dense"), "dense"),
+    ] {
+        let out = ok(&stream(scene));
+        assert!(
+            out.contains(&format!("of the {name} scene")),
+            "{scene:?}:\n{out}"
+        );
+        assert!(
+            out.contains("RSS MiB") && out.contains(" records, "),
+            "{out}"
+        );
+    }
+    let e = err(&stream(Some("spad512s")));
+    assert!(e.contains("--preset spad512s"), "{e}");
+}
+
+#[test]
 fn bench_aggregate_prints_the_scaling_curve_and_the_serial_ceiling() {
     // A small SPAD512S field, so that the debug build runs it quickly: the
     // golden check, stages 1-4 and 5-7 alone, and the curve 1, 2, 3 threads.

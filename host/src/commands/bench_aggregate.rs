@@ -55,7 +55,8 @@ pub struct Args {
     /// Planes simulated for the `--stream` pool, ≥ 1.
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     pub pool: u32,
-    /// Scenes to measure, comma-separated (default: all three).
+    /// Scenes to measure, comma-separated (default: all three). With
+    /// `--stream`: the first of `typical` and `dense` given.
     #[arg(
         long,
         value_enum,
@@ -221,9 +222,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     println!("{}", setup::describe(&case.cfg));
     let typical = case.typical();
-    if args.stream {
-        return stream(&case.preset, &typical, &case.cfg, &args, threads);
-    }
     let dense = Scene {
         layout: Layout::Random {
             density_per_um2: 500.0,
@@ -234,6 +232,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..typical.clone()
     };
+    if args.stream {
+        let (name, scene) = match args.scene.iter().find(|s| **s != BenchScene::Spad512s) {
+            Some(BenchScene::Dense) => ("dense", &dense),
+            Some(_) => ("typical", &typical),
+            None => anyhow::bail!(
+                "--stream streams the preset's typical or dense scene; for the SPAD512S give --preset spad512s"
+            ),
+        };
+        return stream(&case.preset, name, scene, &case.cfg, &args, threads);
+    }
     let golden_planes = args.golden_planes as usize;
     let planes_n = usize::try_from(args.planes)?.max(golden_planes);
     header();
@@ -457,6 +465,7 @@ fn measure(
 
 fn stream(
     preset: &Preset,
+    name: &str,
     scene: &Scene,
     cfg: &PipelineConfig,
     args: &Args,
@@ -467,7 +476,7 @@ fn stream(
     let t = Timing::start();
     let pool = simulate(preset, scene, pool_len, args.seed)?;
     println!(
-        "pool of {pool_len} simulated planes in {:.1} s; streaming {planes} planes through the fast engine on {threads} threads (chunks of {})",
+        "pool of {pool_len} simulated planes of the {name} scene in {:.1} s; streaming {planes} planes through the fast engine on {threads} threads (chunks of {})",
         t.wall.elapsed().as_secs_f64(),
         default_chunk(cfg.n_window)
     );
