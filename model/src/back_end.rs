@@ -161,6 +161,7 @@ impl Summing {
         for &slot in &step.summing {
             self.rois.add(slot as usize, delayed);
         }
+        // Most planes complete nothing: no allocation then.
         let mut out = Vec::with_capacity(step.completed.len() + usize::from(step.drops.is_some()));
         for c in &step.completed {
             out.push(self.emit(c));
@@ -168,6 +169,7 @@ impl Summing {
         for &slot in &step.closed {
             self.rois.close(slot as usize);
         }
+        // The ROIs sum B_{t+1−N} next: fetch their rows meanwhile.
         self.rois.prefetch(delay.peek(0));
         if let Some(d) = step.drops {
             out.push(Record::Dropped(DroppedRecord {
@@ -195,8 +197,11 @@ impl Summing {
                 let last = seg
                     .last_plane(self.cfg.n_window, self.cfg.end_trim)
                     .expect("a finished segment has ended");
+                // Planes not yet summed: u in [max(first, p − N), last], still
+                // inside the delay line, which holds B_{p−N} … B_{p−1}.
                 for u in first as i64..=last {
                     let i = (u as u64 + n - planes) as usize;
+                    // A few planes ahead: these planes are old, out of cache.
                     if u + 4 <= last {
                         self.rois.prefetch_slot(c.slot, delay.peek(i + 4));
                     }

@@ -30,9 +30,9 @@ use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
 use crate::delay_line::{DelayLine, SharedPlane};
-use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
+use crate::pipeline::{check_plane_number, FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
-use crate::record::{Record, MAX_PLANE};
+use crate::record::Record;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
@@ -975,8 +975,8 @@ where
         'chunks: for tracked in &rx {
             let planes = SharedPlane::within(&tracked.planes, tracked.range.clone());
             for (plane, step) in planes.zip(&tracked.steps) {
-                if t > MAX_PLANE {
-                    result = Err(PipelineError::TooManyPlanes);
+                if let Err(e) = check_plane_number(t) {
+                    result = Err(e);
                     break 'chunks;
                 }
                 delay.push_shared(plane);

@@ -267,10 +267,7 @@ impl<F: FrontEnd> Pipeline<F> {
                 want_h: h,
             });
         }
-        if self.planes > MAX_PLANE {
-            return Err(PipelineError::TooManyPlanes);
-        }
-        Ok(())
+        check_plane_number(self.planes)
     }
 
     /// Stages 1–7 of plane `t = planes()`, just pushed into the delay line.
@@ -283,6 +280,9 @@ impl<F: FrontEnd> Pipeline<F> {
         Ok(out)
     }
 
+    /// Ends the stream: closes live tracks (TRUNCATED), completes their
+    /// sums from the delay line, and returns the last blink records and
+    /// the stream-end record. Further planes are refused.
     pub fn finish(&mut self) -> Vec<Record> {
         if self.finished {
             return Vec::new();
@@ -290,6 +290,15 @@ impl<F: FrontEnd> Pipeline<F> {
         self.finished = true;
         let end = self.tracking.finish(self.planes);
         self.summing.finish(self.planes, end, &self.delay)
+    }
+}
+
+/// Whether plane `t` may go in: its number must fit the records' 48 bits.
+pub(crate) fn check_plane_number(t: u64) -> Result<(), PipelineError> {
+    if t > MAX_PLANE {
+        Err(PipelineError::TooManyPlanes)
+    } else {
+        Ok(())
     }
 }
 
