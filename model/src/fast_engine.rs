@@ -425,13 +425,15 @@ impl FastFrontEnd {
                         }
                     }
                 } else {
-                    let footprint = &footprints[usize::from(plus)];
-                    for (dy, wk) in footprint.iter().enumerate() {
-                        // SAFETY: row dy of the footprint is K cells inside
-                        // `filtered`, and u32 cells are aligned as [u32; K].
-                        let row =
-                            unsafe { &mut *filtered.add(base + dy * stride).cast::<[u32; K]>() };
-                        add_row::<K>(row, wk);
+                    // One pointer stepped a row at a time (no multiply per
+                    // row).
+                    let mut row = filtered.wrapping_add(base);
+                    for wk in &footprints[usize::from(plus)] {
+                        // SAFETY: each of the footprint's K rows is K cells
+                        // inside `filtered`, and u32 cells are aligned as
+                        // [u32; K].
+                        add_row::<K>(unsafe { &mut *row.cast::<[u32; K]>() }, wk);
+                        row = row.wrapping_add(stride);
                     }
                 }
             }
@@ -441,7 +443,7 @@ impl FastFrontEnd {
 
     /// Stages 3–4: the pixels at or above the hold level and the candidates
     /// (at or above the open level) among them, in raster order, in one
-    /// pass. Thirty-two pixels whose maximum is below the hold level are
+    /// pass. Runs of 64 (then 32) pixels whose maximum is below the hold level are
     /// skipped at once; in the others, eight pixels at a time are compared
     /// with the hold level and with their eight neighbours (the zeroed ring
     /// stands for the outside of the field: an above-threshold pixel beats
@@ -481,17 +483,19 @@ impl FastFrontEnd {
         for y in 0..h {
             let c0 = (pad + y) * s + pad;
             let mut x0 = 0;
+            // Runs of 64 cells, then of 32, whose maximum is below the hold
+            // level are skipped at once (most of the field, most planes).
+            while x0 + 64 <= w {
+                if !below_run::<ISA, 64>(f, c0 + x0, thr) {
+                    for b in 0..8 {
+                        let at = x0 + 8 * b;
+                        scan_block::<ISA>(f, above, candidates, (y, w, s), c0, at, (thr, open));
+                    }
+                }
+                x0 += 64;
+            }
             while x0 + 32 <= w {
-                #[cfg(target_arch = "x86_64")]
-                let below = if ISA >= AVX2 {
-                    // SAFETY: as for `block8_avx2` above.
-                    unsafe { below32_avx2(f, c0 + x0, thr) }
-                } else {
-                    below32(f, c0 + x0, thr)
-                };
-                #[cfg(not(target_arch = "x86_64"))]
-                let below = below32(f, c0 + x0, thr);
-                if !below {
+                if !below_run::<ISA, 32>(f, c0 + x0, thr) {
                     for b in 0..4 {
                         let at = x0 + 8 * b;
                         scan_block::<ISA>(f, above, candidates, (y, w, s), c0, at, (thr, open));
@@ -702,6 +706,18 @@ fn block8_avx2(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
     (above, above & max)
 }
 
+/// [`below`] in `ISA`'s build.
+#[inline(always)]
+fn below_run<const ISA: u8, const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if ISA >= AVX2 {
+        // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2`, which runs only
+        // when the CPU has AVX2.
+        return unsafe { below_avx2::<B>(f, c, thr) };
+    }
+    below::<B>(f, c, thr)
+}
+
 /// Pushes `make(offset + i)` for every set bit i of `bits`, ascending.
 #[inline(always)]
 fn push_bits<T>(out: &mut Vec<T>, mut bits: u32, offset: usize, make: impl Fn(usize) -> T) {
@@ -711,40 +727,35 @@ fn push_bits<T>(out: &mut Vec<T>, mut bits: u32, offset: usize, make: impl Fn(us
     }
 }
 
-/// Whether all 32 cells from `c` are below `thr`: four lane-wise maxima,
-/// reduced once.
+/// Whether all `B` cells from `c` are below `thr` (`B` a multiple of 8):
+/// lane-wise maxima, reduced once.
 #[inline(always)]
-fn below32(f: &[u32], c: usize, thr: u32) -> bool {
-    let g: &[u32; 32] = f[c..c + 32].try_into().expect("32 cells");
+fn below<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
+    let g: &[u32; B] = f[c..c + B].try_into().expect("B cells");
     let mut m = [0u32; 8];
-    for b in 0..4 {
+    for group in g.chunks_exact(8) {
         for l in 0..8 {
-            m[l] = m[l].max(g[8 * b + l]);
+            m[l] = m[l].max(group[l]);
         }
     }
     m.iter().fold(0, |a, &v| a.max(v)) < thr
 }
 
-/// [`below32`] with AVX2 unsigned maxima and one compare.
+/// [`below`] with AVX2 unsigned maxima and one compare.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn below32_avx2(f: &[u32], c: usize, thr: u32) -> bool {
+fn below_avx2<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
     use std::arch::x86_64::*;
-    let g: &[u32; 32] = f[c..c + 32].try_into().expect("32 cells");
+    let g: &[u32; B] = f[c..c + B].try_into().expect("B cells");
     if thr == 0 {
         return false;
     }
     let p = g.as_ptr().cast::<__m256i>();
-    // SAFETY: `g` is 32 u32 = four unaligned 32-byte loads.
-    let (a, b, c, d) = unsafe {
-        (
-            _mm256_loadu_si256(p),
-            _mm256_loadu_si256(p.add(1)),
-            _mm256_loadu_si256(p.add(2)),
-            _mm256_loadu_si256(p.add(3)),
-        )
-    };
-    let m = _mm256_max_epu32(_mm256_max_epu32(a, b), _mm256_max_epu32(c, d));
+    // SAFETY: `g` is B u32 = B / 8 unaligned 32-byte loads.
+    let mut m = unsafe { _mm256_loadu_si256(p) };
+    for i in 1..B / 8 {
+        m = _mm256_max_epu32(m, unsafe { _mm256_loadu_si256(p.add(i)) });
+    }
     // Every lane < thr ⇔ max(lane, thr − 1) = thr − 1.
     let t = _mm256_set1_epi32((thr - 1) as i32);
     _mm256_movemask_epi8(_mm256_cmpeq_epi32(_mm256_max_epu32(m, t), t)) == -1

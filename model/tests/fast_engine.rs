@@ -353,7 +353,7 @@ proptest! {
     /// kernel path; and the candidates are the same.
     #[test]
     fn fast_front_end_equals_golden_stage_outputs(
-        seed in any::<u64>(), w in 1usize..90, h in 1usize..12, planes in 1usize..60,
+        seed in any::<u64>(), w in 1usize..140, h in 1usize..12, planes in 1usize..60,
         n in 1u32..12, kernel in 0usize..5, p_max in 0.0f64..0.6, thr in 1u32..200,
         hold_pct in 1u32..=100,
     ) {
