@@ -119,6 +119,8 @@ pub struct FastFrontEnd {
     isa: Isa,
     /// Planes filtered densely (too many changed pixels for the sparse path).
     dense_planes: u64,
+    /// Pixels whose bit entering the window differed from the bit leaving it.
+    changed_pixels: u64,
 }
 
 impl FastFrontEnd {
@@ -153,6 +155,7 @@ impl FastFrontEnd {
             candidates: Vec::new(),
             isa: Isa::detect(),
             dense_planes: 0,
+            changed_pixels: 0,
         }
     }
 
@@ -219,6 +222,13 @@ impl FastFrontEnd {
     /// eighth of the pixels changed; the others were updated incrementally.
     pub fn dense_planes(&self) -> u64 {
         self.dense_planes
+    }
+
+    /// Pixels so far whose bit entering the window differed from the bit
+    /// leaving it, summed over the planes: the work of stages 1–2 (each one
+    /// adds `±K` around its pixel).
+    pub fn changed_pixels(&self) -> u64 {
+        self.changed_pixels
     }
 
     /// `H_t` at (x, y).
@@ -312,6 +322,7 @@ impl FastFrontEnd {
         if let Some(from) = gave_up {
             for (wi, &entering) in live.iter().enumerate().take(words).skip(from) {
                 let mut d = diff(wi);
+                self.changed_pixels += u64::from(d.count_ones());
                 while d != 0 {
                     let bit = d.trailing_zeros() as usize;
                     d &= d - 1;
@@ -387,10 +398,12 @@ impl FastFrontEnd {
             if d == 0 {
                 continue;
             }
-            changes += d.count_ones() as usize;
-            if changes > limit {
+            let in_word = d.count_ones() as usize;
+            if changes + in_word > limit {
+                self.changed_pixels += changes as u64;
                 return Some(wi);
             }
+            changes += in_word;
             let first = wi * 64;
             let (mut y, mut x, mut at) = (wy, wx, first);
             while d != 0 {
@@ -438,6 +451,7 @@ impl FastFrontEnd {
                 }
             }
         }
+        self.changed_pixels += changes as u64;
         None
     }
 

@@ -374,12 +374,19 @@ proptest! {
             .collect();
         prop_assert!(!FastFrontEnd::new(&cfg).portable().uses_avx2());
         let zero = BitPlane::zeros(w, h);
+        let mut changed = 0u64;
         for t in 0..planes {
             let delayed = if t >= n as usize { &stream[t - n as usize] } else { &zero };
             golden.push(&stream[t], delayed);
             fast.push(&stream[t], delayed);
+            changed += (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .filter(|&(x, y)| stream[t].get(x, y) != delayed.get(x, y))
+                .count() as u64;
+            prop_assert_eq!(fast.changed_pixels(), changed, "plane {}", t);
             for other in &mut slower {
                 other.push(&stream[t], delayed);
+                prop_assert_eq!(other.changed_pixels(), changed);
                 prop_assert_eq!(other.above(), fast.above(), "{:?}", other.isa());
                 prop_assert_eq!(other.candidates(), fast.candidates(), "{:?}", other.isa());
                 prop_assert_eq!(other.dense_planes(), fast.dense_planes());

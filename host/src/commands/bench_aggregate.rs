@@ -376,8 +376,11 @@ fn measure(
         );
         if isa == best {
             println!(
-                "{:<8} {} of {} planes filtered densely (more than 1/8 of the pixels changed)",
+                "{:<8} {:.0} pixels changed a plane (the bit entering the window is not the one \
+                 leaving it: each adds ±K around it); {} of {} planes filtered densely (more \
+                 than 1/8 of the pixels changed)",
                 "",
+                fe.changed_pixels() as f64 / planes.len().max(1) as f64,
                 fe.dense_planes(),
                 planes.len()
             );
