@@ -631,6 +631,14 @@ fn scan_block<const ISA: u8>(
             }
         }
     }
+    #[cfg(target_arch = "x86_64")]
+    if ISA >= AVX2 {
+        // SAFETY: as above.
+        unsafe { push_bits8_avx2(above, ab, (y * w + x0) as u32) };
+    } else {
+        push_bits(above, ab, y * w + x0, |i| i as u32);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
     push_bits(above, ab, y * w + x0, |i| i as u32);
     push_bits(candidates, cands, x0, |x| Candidate {
         x: x as u16,
@@ -730,6 +738,53 @@ fn below_run<const ISA: u8, const B: usize>(f: &[u32], c: usize, thr: u32) -> bo
         return unsafe { below_avx2::<B>(f, c, thr) };
     }
     below::<B>(f, c, thr)
+}
+
+/// The set bits of every byte, ascending, then zeros: `PACKED[m][..k]` are
+/// the k bits of `m`.
+const PACKED: [[u32; 8]; 256] = {
+    let mut t = [[0u32; 8]; 256];
+    let mut m = 0;
+    while m < 256 {
+        let (mut k, mut b) = (0, 0);
+        while b < 8 {
+            if m & (1 << b) != 0 {
+                t[m][k] = b as u32;
+                k += 1;
+            }
+            b += 1;
+        }
+        m += 1;
+    }
+    t
+};
+
+/// [`push_bits`] of the eight low bits of `bits` as `offset + i`, with one
+/// 8-lane store and a length step: in a crowded field most blocks have
+/// several pixels at the hold level, and a push per pixel cost more than
+/// the compares that found them.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn push_bits8_avx2(out: &mut Vec<u32>, bits: u32, offset: u32) {
+    use std::arch::x86_64::*;
+    let bits = bits & 0xff;
+    if bits == 0 {
+        return;
+    }
+    out.reserve(8);
+    let len = out.len();
+    let lanes = &PACKED[bits as usize];
+    // SAFETY: `lanes` is 8 u32 = one unaligned 32-byte load; `reserve(8)`
+    // made room for 8 u32 from `len`, of which the first `popcount` are
+    // written values and become part of the vector.
+    unsafe {
+        let v = _mm256_add_epi32(
+            _mm256_loadu_si256(lanes.as_ptr().cast()),
+            _mm256_set1_epi32(offset as i32),
+        );
+        _mm256_storeu_si256(out.as_mut_ptr().add(len).cast(), v);
+        out.set_len(len + bits.count_ones() as usize);
+    }
 }
 
 /// Pushes `make(offset + i)` for every set bit i of `bits`, ascending.
