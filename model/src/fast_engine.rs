@@ -457,12 +457,12 @@ impl FastFrontEnd {
 
     /// Stages 3–4: the pixels at or above the hold level and the candidates
     /// (at or above the open level) among them, in raster order, in one
-    /// pass. Runs of 64 (then 32) pixels whose maximum is below the hold level are
-    /// skipped at once; in the others, eight pixels at a time are compared
-    /// with the hold level and with their eight neighbours (the zeroed ring
-    /// stands for the outside of the field: an above-threshold pixel beats
-    /// 0, which is the same as ignoring those neighbours); the few maxima
-    /// found are then compared with the open level.
+    /// pass. Runs of 64 (then 32) pixels whose maximum is below the hold
+    /// level are skipped at once; in the others, eight pixels at a time are
+    /// compared with the two levels, and those at both with their eight
+    /// neighbours (the zeroed ring stands for the outside of the field: an
+    /// above-threshold pixel beats 0, which is the same as ignoring those
+    /// neighbours).
     #[inline(always)]
     fn scan<const ISA: u8>(&mut self) {
         self.above.clear();
@@ -612,25 +612,15 @@ fn scan_block<const ISA: u8>(
     (thr, open): (u32, u32),
 ) {
     #[cfg(target_arch = "x86_64")]
-    let (ab, mut cands) = if ISA >= AVX2 {
+    let (ab, cands) = if ISA >= AVX2 {
         // SAFETY: ISA ≥ AVX2 only inside `push_words_avx2`, which runs
         // only when the CPU has AVX2.
-        unsafe { block8_avx2(f, c0 + x0, s, thr) }
+        unsafe { block8_avx2(f, c0 + x0, s, (thr, open)) }
     } else {
-        block8(f, c0 + x0, s, thr)
+        block8(f, c0 + x0, s, (thr, open))
     };
     #[cfg(not(target_arch = "x86_64"))]
-    let (ab, mut cands) = block8(f, c0 + x0, s, thr);
-    if open > thr {
-        let mut bits = cands;
-        while bits != 0 {
-            let l = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            if f[c0 + x0 + l] < open {
-                cands &= !(1 << l);
-            }
-        }
-    }
+    let (ab, cands) = block8(f, c0 + x0, s, (thr, open));
     #[cfg(target_arch = "x86_64")]
     if ISA >= AVX2 {
         // SAFETY: as above.
@@ -647,19 +637,24 @@ fn scan_block<const ISA: u8>(
 }
 
 /// Eight pixels from cell `c` of the haloed H (row stride `s`): the bit
-/// masks of those at or above `thr`, and of those that are also candidates
-/// (strictly above their four earlier neighbours in raster order, at least
-/// their four later ones). Lane-wise, so that it compiles to vector compares.
+/// masks of those at or above `thr` (hold), and of the candidates: at or
+/// above `thr` and `open`, strictly above their four earlier neighbours in
+/// raster order and at least their four later ones. The neighbours are read
+/// only if a pixel reaches both levels (in a crowded field most pixels at
+/// the hold level are below the open level). Lane-wise, so that it compiles
+/// to vector compares.
 #[inline(always)]
-fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
+fn block8(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> (u32, u32) {
     let load = |at: usize| -> [u32; 8] { f[at..at + 8].try_into().expect("8 lanes") };
     let v = load(c);
-    let mut above = 0u32;
+    let (mut above, mut opened) = (0u32, 0u32);
     for (l, &x) in v.iter().enumerate() {
         above |= u32::from(x >= thr) << l;
+        opened |= u32::from(x >= open) << l;
     }
-    if above == 0 {
-        return (0, 0);
+    let opened = above & opened;
+    if opened == 0 {
+        return (above, 0);
     }
     let (ul, u, ur, le) = (load(c - s - 1), load(c - s), load(c - s + 1), load(c - 1));
     let (ri, dl, d, dr) = (load(c + 1), load(c + s - 1), load(c + s), load(c + s + 1));
@@ -675,7 +670,7 @@ fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
             & (v[l] >= dr[l]);
         max |= u32::from(m) << l;
     }
-    (above, above & max)
+    (above, opened & max)
 }
 
 /// [`block8`] with AVX2 compares and move-masks (the compiler's own
@@ -683,7 +678,7 @@ fn block8(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
 /// order is signed order after flipping the sign bit.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn block8_avx2(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
+fn block8_avx2(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> (u32, u32) {
     use std::arch::x86_64::*;
     #[target_feature(enable = "avx2")]
     fn load(f: &[u32], at: usize) -> __m256i {
@@ -703,6 +698,8 @@ fn block8_avx2(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
     if above == 0 {
         return (0, 0);
     }
+    let o = _mm256_set1_epi32((open ^ 0x8000_0000) as i32);
+    let opened = above & !mask(_mm256_cmpgt_epi32(o, v));
     let earlier = _mm256_and_si256(
         _mm256_and_si256(
             _mm256_cmpgt_epi32(v, load(f, c - s - 1)),
@@ -725,7 +722,7 @@ fn block8_avx2(f: &[u32], c: usize, s: usize, thr: u32) -> (u32, u32) {
         ),
     );
     let max = mask(_mm256_andnot_si256(later_greater, earlier));
-    (above, above & max)
+    (above, opened & max)
 }
 
 /// [`below`] in `ISA`'s build.
