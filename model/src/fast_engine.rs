@@ -499,23 +499,20 @@ impl FastFrontEnd {
             let mut x0 = 0;
             // Runs of 64 cells, then of 32, whose maximum is below the hold
             // level are skipped at once (most of the field, most planes).
-            while x0 + 64 <= w {
-                if !below_run::<ISA, 64>(f, c0 + x0, thr) {
-                    for b in 0..8 {
-                        let at = x0 + 8 * b;
-                        scan_block::<ISA>(f, above, candidates, (y, w, s), c0, at, (thr, open));
+            for run in [64, 32] {
+                while x0 + run <= w {
+                    let below = if run == 64 {
+                        below_run::<ISA, 64>(f, c0 + x0, thr)
+                    } else {
+                        below_run::<ISA, 32>(f, c0 + x0, thr)
+                    };
+                    if !below {
+                        for at in (x0..x0 + run).step_by(8) {
+                            scan_block::<ISA>(f, above, candidates, (y, w, s), c0, at, (thr, open));
+                        }
                     }
+                    x0 += run;
                 }
-                x0 += 64;
-            }
-            while x0 + 32 <= w {
-                if !below_run::<ISA, 32>(f, c0 + x0, thr) {
-                    for b in 0..4 {
-                        let at = x0 + 8 * b;
-                        scan_block::<ISA>(f, above, candidates, (y, w, s), c0, at, (thr, open));
-                    }
-                }
-                x0 += 32;
             }
             while x0 + 8 <= w {
                 scan_block::<ISA>(f, above, candidates, (y, w, s), c0, x0, (thr, open));
