@@ -1,0 +1,479 @@
+//! [`run_parallel`]: the stream in time chunks over worker threads (stages
+//! 1–4), the tracker and the sums each in a thread of their own (stages
+//! 5–7); and [`FrontResults`], the workers' results kept for a second back
+//! end.
+
+use super::{above_near, FastFrontEnd};
+use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
+use crate::candidates::Candidate;
+use crate::config::PipelineConfig;
+use crate::delay_line::{DelayLine, SharedPlane};
+use crate::pipeline::{check_plane_number, FrontEnd, PipelineError};
+use crate::plane::BitPlane;
+use crate::record::Record;
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+/// Stages 1–4 of one plane, as computed by a worker.
+#[derive(Debug, Clone, Default)]
+struct PlaneFront {
+    candidates: Vec<Candidate>,
+    above: Vec<u32>,
+}
+
+/// Replays precomputed stages 1–4 to the tracker (stage 5) of the back end.
+#[derive(Debug, Default)]
+struct ReplayFrontEnd {
+    width: usize,
+    height: usize,
+    queue: VecDeque<PlaneFront>,
+    current: PlaneFront,
+}
+
+impl ReplayFrontEnd {
+    /// Takes the next plane's stages 1–4 from the queue.
+    fn next_plane(&mut self) {
+        self.current = self
+            .queue
+            .pop_front()
+            .expect("a precomputed front end per plane");
+        // The tracker's 3×3 tests binary-search the plane's pixels at the
+        // hold level: a worker wrote them a while ago, and on a large field
+        // (thousands of them) each search would wait on memory. Fetch the
+        // next plane's while this one is tracked.
+        if let Some(next) = self.queue.front() {
+            crate::plane::prefetch(&next.above);
+        }
+    }
+}
+
+impl FrontEnd for ReplayFrontEnd {
+    fn push(&mut self, _live: &BitPlane, _delayed: &BitPlane) {
+        self.next_plane();
+    }
+
+    fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
+        above_near(&self.current.above, self.width, self.height, x, y)
+    }
+
+    fn candidates(&self) -> &[Candidate] {
+        &self.current.candidates
+    }
+}
+
+/// A time chunk of the stream on its way to a worker: its planes and the
+/// (up to N) planes before it, oldest first, as ranges of earlier chunks
+/// (shared with the jobs that had them, not copied: at N ≈ 1,000 planes of
+/// 512×512 a copy would cost more than the filtering).
+struct Job {
+    index: usize,
+    history: Vec<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)>,
+    planes: Arc<Vec<BitPlane>>,
+}
+
+/// A chunk back from a worker, with stages 1–4 of each of its planes.
+struct Done {
+    index: usize,
+    planes: Arc<Vec<BitPlane>>,
+    fronts: Vec<PlaneFront>,
+}
+
+/// The time chunk [`run_parallel`] is best given for a window of `n_window`
+/// planes: every chunk re-reads the N planes before it to warm its counts
+/// up, so a chunk of 4N or more keeps that below a quarter of its work; 512
+/// at least, so that short windows still hand out chunks of useful size.
+pub fn default_chunk(n_window: u32) -> usize {
+    (4 * n_window as usize).max(512)
+}
+
+/// Stages 1–4 of planes from stream start, kept with the planes so that
+/// stages 5–7 can run alone on them ([`FrontResults::replay_back_end`]): how
+/// `smartagg bench aggregate` measures the back end, the part of
+/// [`run_parallel`] that the workers do not share.
+#[derive(Debug, Clone)]
+pub struct FrontResults {
+    cfg: PipelineConfig,
+    /// The planes in chunks of [`default_chunk`], each with its stages 1–4.
+    chunks: Vec<(Arc<Vec<BitPlane>>, Vec<PlaneFront>)>,
+}
+
+impl FrontResults {
+    /// Stages 1–4 (the fast front end) of `planes`, from stream start.
+    pub fn compute(cfg: &PipelineConfig, planes: &[BitPlane]) -> FrontResults {
+        let planes: Vec<BitPlane> = match &cfg.hot_mask {
+            Some(m) => planes.iter().map(|p| m.apply(p)).collect(),
+            None => planes.to_vec(),
+        };
+        let mut fronts = chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes).into_iter();
+        // The planes move into their chunks: no second copy.
+        let chunk = default_chunk(cfg.n_window);
+        let mut planes = planes.into_iter().peekable();
+        let mut chunks = Vec::new();
+        while planes.peek().is_some() {
+            let c: Vec<BitPlane> = planes.by_ref().take(chunk).collect();
+            let f = fronts.by_ref().take(c.len()).collect();
+            chunks.push((Arc::new(c), f));
+        }
+        FrontResults {
+            cfg: cfg.clone(),
+            chunks,
+        }
+    }
+
+    /// Planes held.
+    pub fn len(&self) -> usize {
+        self.chunks.iter().map(|(c, _)| c.len()).sum()
+    }
+
+    /// Whether no plane is held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Stages 5–7 alone — the tracker, the ROI sums and the records — on the
+    /// planes and their stages 1–4, as [`run_parallel`] runs them (the
+    /// tracker a chunk ahead in a thread of its own): the records of the
+    /// whole stream (start to end), the same as [`fast_pipeline`](super::fast_pipeline)'s on the
+    /// same planes.
+    pub fn replay_back_end(self) -> Result<Vec<Record>, PipelineError> {
+        let cfg = self.cfg;
+        cfg.validate()?;
+        let mut out = vec![Record::Start(cfg.stream_start())];
+        let end = split_back_end(&cfg, self.chunks.into_iter(), |r| out.push(r), || {})?;
+        out.extend(end);
+        Ok(out)
+    }
+}
+
+/// Planes of a chunk and the tracker's decisions at each, on their way from
+/// the tracker's thread to the sums: a few hundred at a time, so that the
+/// sums start soon after the tracker (a chunk can be thousands of planes).
+struct Tracked {
+    planes: Arc<Vec<BitPlane>>,
+    range: std::ops::Range<usize>,
+    steps: Vec<TrackStep>,
+}
+
+/// Planes the tracker hands to the sums at a time.
+const HANDOFF: usize = 128;
+
+/// Stages 5–7 on chunks in stream order (each chunk's planes with their
+/// stages 1–4), in two threads: the tracker ([`Tracking`]) runs in a thread
+/// of its own, a few hundred planes ahead of the ROI sums and the records
+/// ([`Summing`]), which run in the calling thread. `sink` gets each plane's
+/// records in stream order and `chunk_done` is called once a chunk's have
+/// all gone; the records of the stream's end are returned (not sunk), so
+/// that the caller can hold them back if the stream failed.
+fn split_back_end<C>(
+    cfg: &PipelineConfig,
+    chunks: C,
+    mut sink: impl FnMut(Record),
+    chunk_done: impl FnMut(),
+) -> Result<Vec<Record>, PipelineError>
+where
+    C: Iterator<Item = (Arc<Vec<BitPlane>>, Vec<PlaneFront>)> + Send,
+{
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Tracked>(4);
+    std::thread::scope(|scope| {
+        let tracker = scope.spawn(move || -> TrackEnd {
+            let mut tracking = Tracking::new(cfg);
+            let mut front = ReplayFrontEnd {
+                width: cfg.width,
+                height: cfg.height,
+                ..Default::default()
+            };
+            let mut t = 0u64;
+            'chunks: for (planes, fronts) in chunks {
+                front.queue.extend(fronts);
+                let len = planes.len();
+                for start in (0..len).step_by(HANDOFF) {
+                    let range = start..(start + HANDOFF).min(len);
+                    let steps = range
+                        .clone()
+                        .map(|_| {
+                            front.next_plane();
+                            let mut step = TrackStep::default();
+                            tracking.step(t, &front, &mut step);
+                            t += 1;
+                            step
+                        })
+                        .collect();
+                    let planes = planes.clone();
+                    // A failed send: the sums have stopped.
+                    if tx
+                        .send(Tracked {
+                            planes,
+                            range,
+                            steps,
+                        })
+                        .is_err()
+                    {
+                        break 'chunks;
+                    }
+                }
+            }
+            tracking.finish(t)
+        });
+        let mut chunk_done = chunk_done;
+        let mut delay = DelayLine::new(cfg.n_window as usize, cfg.width, cfg.height);
+        let mut summing = Summing::new(cfg);
+        let mut t = 0u64;
+        let mut result = Ok(());
+        'chunks: for tracked in &rx {
+            let planes = SharedPlane::within(&tracked.planes, tracked.range.clone());
+            for (plane, step) in planes.zip(&tracked.steps) {
+                if let Err(e) = check_plane_number(t) {
+                    result = Err(e);
+                    break 'chunks;
+                }
+                delay.push_shared(plane);
+                summing
+                    .step(t, step, &delay)
+                    .into_iter()
+                    .for_each(&mut sink);
+                t += 1;
+            }
+            if tracked.range.end == tracked.planes.len() {
+                chunk_done();
+            }
+        }
+        // The tracker stops at its next send, and drops its chunks (which
+        // stops whoever feeds them); `chunk_done` may hold what lets them
+        // be fed, so it goes first.
+        drop((rx, chunk_done));
+        let end = tracker.join().expect("the tracker's thread panicked");
+        result?;
+        Ok(summing.finish(t, end, &delay))
+    })
+}
+
+/// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
+/// calling `sink` with every record in stream order (start record first,
+/// stream-end record last). Errors from the plane source stop the run and are
+/// returned. The source gives planes or references to them (the reader
+/// copies each into a chunk it recycles).
+///
+/// A reader thread pulls the planes (decoding or simulating them) and masks
+/// hot pixels; each worker takes the next chunk as soon as it is free (no
+/// barrier between chunks) and computes its stages 1–4; stages 5–7 take
+/// the chunks in stream order, in two threads (see [`crate::back_end`]): the
+/// tracker in a thread of its own, the ROI sums and the records in the
+/// calling thread, which calls `sink`. At most
+/// `3·threads + 1` chunks are in flight, and the back end's delay line keeps
+/// the chunks that hold its last N + 1 planes (by reference: no plane is
+/// copied after the reader), so memory is bounded by `(3·threads + 3)·chunk
+/// + (threads + 1)·N` planes, whatever the stream's length.
+pub fn run_parallel<E, P, I, S>(
+    cfg: PipelineConfig,
+    planes: I,
+    threads: usize,
+    chunk: usize,
+    mut sink: S,
+) -> Result<(), ParallelError<E>>
+where
+    E: Send,
+    P: std::borrow::Borrow<BitPlane> + Send,
+    I: Iterator<Item = Result<P, E>> + Send,
+    S: FnMut(Record),
+{
+    cfg.validate()
+        .map_err(|e| ParallelError::Pipeline(e.into()))?;
+    let threads = threads.max(1);
+    let chunk = chunk.max(1);
+    let n = cfg.n_window as usize;
+    sink(Record::Start(cfg.stream_start()));
+
+    let (job_tx, job_rx) = std::sync::mpsc::sync_channel::<Job>(threads);
+    // Shared by the workers only: when the last one stops, the reader's
+    // sends fail and it stops too.
+    let job_rx = std::sync::Arc::new(std::sync::Mutex::new(job_rx));
+    let (done_tx, done_rx) = std::sync::mpsc::sync_channel::<Done>(threads);
+    // Credits bound the chunks between the reader and the back end, however
+    // unevenly the workers finish.
+    let in_flight = 3 * threads + 1;
+    let (credit_tx, credit_rx) = std::sync::mpsc::sync_channel::<()>(in_flight);
+    for _ in 0..in_flight {
+        credit_tx
+            .send(())
+            .expect("the credit channel holds them all");
+    }
+    let worker_cfg = &cfg;
+    std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
+        let reader_cfg = cfg.clone();
+        let reader = scope.spawn(move || -> Result<(), ParallelError<E>> {
+            let mut planes = planes;
+            let mut history: VecDeque<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)> =
+                VecDeque::new();
+            let (w, h) = (reader_cfg.width, reader_cfg.height);
+            // Every chunk read, while anyone holds it: a chunk only the pool
+            // holds is filled again in place, so that planes are not
+            // allocated here and freed in bursts by another thread (on some
+            // machines the heap then returns its pages and every chunk
+            // faults them in again).
+            let mut pool: Vec<Arc<Vec<BitPlane>>> = Vec::new();
+            for index in 0.. {
+                let mut batch = pool
+                    .iter()
+                    .position(|c| Arc::strong_count(c) == 1)
+                    .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
+                    .unwrap_or_default();
+                let mut filled = 0;
+                while filled < chunk {
+                    match planes.next() {
+                        // A plane of another size never reaches a worker.
+                        Some(Ok(p)) if (p.borrow().width(), p.borrow().height()) != (w, h) => {
+                            let p = p.borrow();
+                            return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
+                                plane: (index * chunk + filled) as u64,
+                                got_w: p.width(),
+                                got_h: p.height(),
+                                want_w: w,
+                                want_h: h,
+                            }));
+                        }
+                        Some(Ok(p)) => {
+                            let (p, mask) = (p.borrow(), reader_cfg.hot_mask.as_ref());
+                            match batch.get_mut(filled) {
+                                Some(buf) => buf.copy_masked(p, mask),
+                                None => batch.push(match mask {
+                                    Some(m) => m.apply(p),
+                                    None => p.clone(),
+                                }),
+                            }
+                            filled += 1;
+                        }
+                        Some(Err(e)) => return Err(ParallelError::Source(e)),
+                        None => break,
+                    }
+                }
+                batch.truncate(filled);
+                if batch.is_empty() {
+                    break;
+                }
+                let full = batch.len() == chunk;
+                let batch = Arc::new(batch);
+                pool.push(batch.clone());
+                let job_history: Vec<_> = history.iter().cloned().collect();
+                // The last N planes read: ranges of this and earlier chunks.
+                history.push_back((batch.clone(), 0..batch.len()));
+                let held: usize = history.iter().map(|(_, r)| r.len()).sum();
+                let mut excess = held.saturating_sub(n);
+                while excess > 0 {
+                    let front = history.front_mut().expect("planes beyond N are held");
+                    let drop = excess.min(front.1.len());
+                    front.1.start += drop;
+                    excess -= drop;
+                    if front.1.is_empty() {
+                        history.pop_front();
+                    }
+                }
+                let job = Job {
+                    index,
+                    history: job_history,
+                    planes: batch,
+                };
+                if credit_rx.recv().is_err() || job_tx.send(job).is_err() || !full {
+                    break;
+                }
+            }
+            Ok(())
+        });
+        for _ in 0..threads {
+            let (rx, tx) = (job_rx.clone(), done_tx.clone());
+            scope.spawn(move || {
+                let mut fe = FastFrontEnd::new(worker_cfg);
+                loop {
+                    let job = match rx.lock() {
+                        Ok(rx) => rx.recv(),
+                        Err(_) => return,
+                    };
+                    let Ok(job) = job else { return };
+                    let history: Vec<&BitPlane> = job
+                        .history
+                        .iter()
+                        .flat_map(|(c, r)| c[r.clone()].iter())
+                        .collect();
+                    let fronts = chunk_fronts(&mut fe, worker_cfg, &history, &job.planes);
+                    let done = Done {
+                        index: job.index,
+                        planes: job.planes,
+                        fronts,
+                    };
+                    if tx.send(done).is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+        drop((job_rx, done_tx));
+        // Stages 5–7 in stream order; chunks that come back early wait.
+        let mut early: std::collections::BTreeMap<usize, Done> = Default::default();
+        let mut next = 0;
+        let in_order = std::iter::from_fn(move || loop {
+            if let Some(d) = early.remove(&next) {
+                next += 1;
+                return Some((d.planes, d.fronts));
+            }
+            let d = done_rx.recv().ok()?;
+            early.insert(d.index, d);
+        });
+        // The back end holds no credit: a failed send only means the reader
+        // has finished.
+        let back = split_back_end(&cfg, in_order, &mut sink, move || {
+            let _ = credit_tx.send(());
+        });
+        // The back end has stopped the workers (their sends fail), hence
+        // the reader.
+        let read = reader.join().expect("the plane reader panicked");
+        let end = back.map_err(ParallelError::Pipeline)?;
+        read?;
+        end.into_iter().for_each(&mut sink);
+        Ok(())
+    })
+}
+
+/// Stages 1–4 of every plane of a chunk. `history` holds the (up to N)
+/// planes before it, oldest first: all N of them, or every plane since
+/// stream start (earlier planes are zero).
+fn chunk_fronts(
+    fe: &mut FastFrontEnd,
+    cfg: &PipelineConfig,
+    history: &[&BitPlane],
+    planes: &[BitPlane],
+) -> Vec<PlaneFront> {
+    let n = cfg.n_window as usize;
+    let zero = BitPlane::zeros(cfg.width, cfg.height);
+    let h = history.len();
+    // Plane i of the chunk is at h + i in `history ++ planes`.
+    let get = |j: usize| -> &BitPlane {
+        if j < h {
+            history[j]
+        } else {
+            &planes[j - h]
+        }
+    };
+    fe.rewarm(history.iter().copied());
+    planes
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let delayed = (h + i).checked_sub(n).map_or(&zero, get);
+            fe.push(p, delayed);
+            PlaneFront {
+                candidates: fe.candidates.clone(),
+                above: fe.above.clone(),
+            }
+        })
+        .collect()
+}
+
+/// Why a parallel run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum ParallelError<E> {
+    /// The plane source failed.
+    #[error("reading bit-planes: {0}")]
+    Source(E),
+    /// The pipeline refused a plane or the configuration.
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+}
