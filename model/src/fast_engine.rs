@@ -12,8 +12,9 @@
 //!   wrapping `−K`; each kernel row as whole vector adds; a halo around the
 //!   field removes every bounds test). When more than an eighth of the pixels
 //!   change (saturated planes) it recomputes H densely from the rolling counts
-//!   instead. Threshold and candidates are one pass that skips rows below
-//!   threshold and tests eight pixels at a time against their neighbours.
+//!   instead. Threshold and candidates are one pass that skips runs of 64
+//!   and 32 pixels below the hold level and tests eight pixels at a time
+//!   against the two levels and their neighbours (`fast_engine/block.rs`).
 //!   On x86-64 with AVX2 (detected at run time) the same code is compiled a
 //!   second time for AVX2, with explicit AVX2 compares in the scan.
 //! * [`run_parallel`] splits the stream into time chunks. H at plane t depends

@@ -11,34 +11,35 @@ use super::AVX2;
 use crate::candidates::Candidate;
 
 /// `row += w` for one kernel row, as 8-, 4- and 1-lane pieces so that the
-/// compiler emits whole vector adds. Each piece is loaded into registers
-/// before it is stored: after inlining the compiler cannot tell that `row`
-/// and `w` do not overlap, and would otherwise keep the adds scalar.
+/// compiler emits whole vector adds.
 #[inline(always)]
 pub(super) fn add_row<const K: usize>(row: &mut [u32; K], w: &[u32; K]) {
     let mut i = 0;
     while i + 8 <= K {
-        let mut r: [u32; 8] = row[i..i + 8].try_into().expect("8 lanes");
-        let v: [u32; 8] = w[i..i + 8].try_into().expect("8 lanes");
-        for l in 0..8 {
-            r[l] = r[l].wrapping_add(v[l]);
-        }
-        row[i..i + 8].copy_from_slice(&r);
+        add_lanes::<8>(&mut row[i..], &w[i..]);
         i += 8;
     }
     while i + 4 <= K {
-        let mut r: [u32; 4] = row[i..i + 4].try_into().expect("4 lanes");
-        let v: [u32; 4] = w[i..i + 4].try_into().expect("4 lanes");
-        for l in 0..4 {
-            r[l] = r[l].wrapping_add(v[l]);
-        }
-        row[i..i + 4].copy_from_slice(&r);
+        add_lanes::<4>(&mut row[i..], &w[i..]);
         i += 4;
     }
     while i < K {
-        row[i] = row[i].wrapping_add(w[i]);
+        add_lanes::<1>(&mut row[i..], &w[i..]);
         i += 1;
     }
+}
+
+/// `row[..L] += w[..L]`, loaded into registers before it is stored: after
+/// inlining the compiler cannot tell that `row` and `w` do not overlap, and
+/// would otherwise keep the adds scalar.
+#[inline(always)]
+fn add_lanes<const L: usize>(row: &mut [u32], w: &[u32]) {
+    let mut r: [u32; L] = row[..L].try_into().expect("L lanes");
+    let v: [u32; L] = w[..L].try_into().expect("L lanes");
+    for l in 0..L {
+        r[l] = r[l].wrapping_add(v[l]);
+    }
+    row[..L].copy_from_slice(&r);
 }
 
 /// Stages 3–4 for the eight pixels from `x0` of row `y` (`c0`: the row's
@@ -89,7 +90,7 @@ pub(super) fn scan_block<const ISA: u8>(
 /// the hold level are below the open level). Lane-wise, so that it compiles
 /// to vector compares.
 #[inline(always)]
-pub(super) fn block8(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> (u32, u32) {
+fn block8(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> (u32, u32) {
     let load = |at: usize| -> [u32; 8] { f[at..at + 8].try_into().expect("8 lanes") };
     let v = load(c);
     let (mut above, mut opened) = (0u32, 0u32);
@@ -127,7 +128,7 @@ pub(super) fn block8(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(super) fn block8_avx2(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> (u32, u32) {
+fn block8_avx2(f: &[u32], c: usize, s: usize, (thr, open): (u32, u32)) -> (u32, u32) {
     use std::arch::x86_64::*;
     #[target_feature(enable = "avx2")]
     fn load(f: &[u32], at: usize) -> __m256i {
@@ -212,7 +213,7 @@ const PACKED: [[u32; 8]; 256] = {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(super) fn push_bits8_avx2(out: &mut Vec<u32>, bits: u32, offset: u32) {
+fn push_bits8_avx2(out: &mut Vec<u32>, bits: u32, offset: u32) {
     use std::arch::x86_64::*;
     let bits = bits & 0xff;
     if bits == 0 {
@@ -236,12 +237,7 @@ pub(super) fn push_bits8_avx2(out: &mut Vec<u32>, bits: u32, offset: u32) {
 
 /// Pushes `make(offset + i)` for every set bit i of `bits`, ascending.
 #[inline(always)]
-pub(super) fn push_bits<T>(
-    out: &mut Vec<T>,
-    mut bits: u32,
-    offset: usize,
-    make: impl Fn(usize) -> T,
-) {
+fn push_bits<T>(out: &mut Vec<T>, mut bits: u32, offset: usize, make: impl Fn(usize) -> T) {
     while bits != 0 {
         out.push(make(offset + bits.trailing_zeros() as usize));
         bits &= bits - 1;
@@ -251,7 +247,7 @@ pub(super) fn push_bits<T>(
 /// Whether all `B` cells from `c` are below `thr` (`B` a multiple of 8):
 /// lane-wise maxima, reduced once.
 #[inline(always)]
-pub(super) fn below<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
+fn below<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
     let g: &[u32; B] = f[c..c + B].try_into().expect("B cells");
     let mut m = [0u32; 8];
     for group in g.chunks_exact(8) {
@@ -266,7 +262,7 @@ pub(super) fn below<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(super) fn below_avx2<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
+fn below_avx2<const B: usize>(f: &[u32], c: usize, thr: u32) -> bool {
     use std::arch::x86_64::*;
     let g: &[u32; B] = f[c..c + B].try_into().expect("B cells");
     if thr == 0 {
