@@ -76,6 +76,7 @@ pub mod spad;
 
 use serde::{Deserialize, Serialize};
 use smartagg_model::hot_pixel_mask::HotPixelMask;
+use smartagg_model::sensor_maps::SensorMaps;
 
 pub use counter::PlaneCounter;
 pub use error::CalibrationError;
@@ -180,6 +181,18 @@ impl Calibration {
             .filter(|(_, &f)| f & flags::HOT != 0)
             .map(|(i, _)| (i % w, i / w))
             .collect()
+    }
+
+    /// The sensor's maps as every consumer reads them: the DCR, the PRNU
+    /// (with a flat) and the `HOT` flags as hot pixels.
+    pub fn sensor_maps(&self) -> SensorMaps {
+        SensorMaps {
+            width: self.width,
+            height: self.height,
+            dcr_hz: self.dcr_hz.clone(),
+            prnu: self.prnu.clone(),
+            hot: self.flags.iter().map(|&f| f & flags::HOT != 0).collect(),
+        }
     }
 
     /// Checks sizes and values (what [`Calibration::save`] and

@@ -7,9 +7,10 @@ use super::spad::{calibrate_spad, Counted, CriterionSpec, SpadOptions};
 use super::*;
 use rand::{Rng, SeedableRng};
 use smartagg_model::params::{spcimager, Camera, Preset, PresetName, SceneLight, SpadCamera};
+use smartagg_model::sensor_maps::SensorMaps;
 use smartagg_model::stats::{derive, DetectionInputs};
 use smartagg_scene::{
-    Blinking, EmccdSimulator, Layout, OnTime, Scene, ScmosSimulator, SpadMaps, SpadSimulator,
+    Blinking, EmccdSimulator, Layout, OnTime, Scene, ScmosSimulator, SpadSimulator,
 };
 
 const W: u32 = 16;
@@ -52,7 +53,13 @@ fn preset_spec() -> CriterionSpec {
 }
 
 /// Counts `planes` simulated planes of `maps` under `background` light.
-fn simulate(cam: &SpadCamera, maps: &SpadMaps, background: f64, planes: u64, seed: u64) -> Counted {
+fn simulate(
+    cam: &SpadCamera,
+    maps: &SensorMaps,
+    background: f64,
+    planes: u64,
+    seed: u64,
+) -> Counted {
     let p = spcimager_preset();
     let scene = empty_scene(&p, maps.width, background);
     let mut sim = SpadSimulator::with_maps(cam, &scene, maps.clone(), seed).unwrap();
@@ -124,7 +131,7 @@ fn chi2_limit(k: usize) -> f64 {
 
 /// SPCImager with 30 % DRNU, 5 % hot pixels at 5 kHz, 5 % PRNU; pixel 0 is
 /// stuck at 1 (DCR 10⁹ Hz) and pixel 1 is dead (η = 0, DCR = 0).
-fn test_camera_and_maps(seed: u64) -> (SpadCamera, SpadMaps) {
+fn test_camera_and_maps(seed: u64) -> (SpadCamera, SensorMaps) {
     let cam = SpadCamera {
         drnu: 0.3,
         prnu: 0.05,
@@ -132,11 +139,11 @@ fn test_camera_and_maps(seed: u64) -> (SpadCamera, SpadMaps) {
         hot_pixel_dcr_hz: 5000.0,
         ..spcimager()
     };
-    let mut maps = SpadMaps::generate(&cam, W, W, seed);
+    let mut maps = smartagg_scene::generate_maps(&cam, W, W, seed);
     maps.dcr_hz[0] = 1e9;
     maps.hot[0] = true;
     maps.dcr_hz[1] = 0.0;
-    maps.eta[1] = 0.0;
+    maps.prnu.as_mut().expect("generated maps have a PRNU map")[1] = 0.0;
     maps.hot[1] = false;
     (cam, maps)
 }
@@ -245,8 +252,9 @@ fn flat_gives_the_prnu_map_within_stated_uncertainty_and_finds_the_dead_pixel() 
         .filter(|&i| cal.flags[i] & (flags::HOT | flags::SATURATED | flags::DEAD) == 0)
         .collect();
     assert_eq!(fs.normalising_pixels, norm.len());
-    let mean_eta = norm.iter().map(|&i| maps.eta[i]).sum::<f64>() / norm.len() as f64;
-    let truth: Vec<f64> = maps.eta.iter().map(|e| e / mean_eta).collect();
+    let eta = maps.efficiency(cam.eta());
+    let mean_eta = norm.iter().map(|&i| eta[i]).sum::<f64>() / norm.len() as f64;
+    let truth: Vec<f64> = eta.iter().map(|e| e / mean_eta).collect();
     // Hot pixels too (their response is noisier but stated so).
     let measured: Vec<usize> = (2..(W * W) as usize).collect();
     assert_calibrated("PRNU", prnu, &truth, sd, &measured);

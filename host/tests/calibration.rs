@@ -11,7 +11,10 @@ use std::process::{Command, Output};
 use smartagg_io::stack::StackWriter;
 use smartagg_model::params::{spcimager, Camera, Preset, PresetName, SceneLight, SpadCamera};
 use smartagg_model::recording::{pack_plane, BitOrder, RecordingWriter};
-use smartagg_scene::{Blinking, Layout, OnTime, Scene, ScmosSimulator, SpadMaps, SpadSimulator};
+use smartagg_model::sensor_maps::SensorMaps;
+use smartagg_scene::{
+    generate_maps, Blinking, Layout, OnTime, Scene, ScmosSimulator, SpadSimulator,
+};
 
 const W: u32 = 16;
 
@@ -47,7 +50,7 @@ fn camera() -> SpadCamera {
 
 /// Writes `planes` simulated planes of `maps` to a .spad file (and, with
 /// `raw`, the same planes headerless to a second file).
-fn record(path: &Path, maps: &SpadMaps, light: f64, planes: u64, seed: u64, raw: Option<&Path>) {
+fn record(path: &Path, maps: &SensorMaps, light: f64, planes: u64, seed: u64, raw: Option<&Path>) {
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
     record_scene(path, &empty_scene(&p, W, light), maps, planes, seed, raw);
 }
@@ -57,7 +60,7 @@ fn record(path: &Path, maps: &SpadMaps, light: f64, planes: u64, seed: u64, raw:
 fn record_scene(
     path: &Path,
     scene: &Scene,
-    maps: &SpadMaps,
+    maps: &SensorMaps,
     planes: u64,
     seed: u64,
     raw: Option<&Path>,
@@ -154,14 +157,14 @@ fn csv_pixels(path: &Path) -> BTreeSet<(u32, u32)> {
 struct Fixture {
     _tmp: tempfile::TempDir,
     dir: PathBuf,
-    maps: SpadMaps,
+    maps: SensorMaps,
 }
 
 impl Fixture {
     fn new(seed: u64) -> Fixture {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().to_path_buf();
-        let maps = SpadMaps::generate(&camera(), W, W, seed);
+        let maps = generate_maps(&camera(), W, W, seed);
         Fixture {
             _tmp: tmp,
             dir,
@@ -235,9 +238,10 @@ fn spad_dark_and_flat_recordings_give_the_maps_hot_pixels_and_report() {
     let prnu = map_f32(&out, "prnu");
     let psd = map_f32(&out, "prnu_sd");
     let normal: Vec<usize> = (0..n).filter(|&i| !fx.maps.hot[i]).collect();
-    let mean_eta = normal.iter().map(|&i| fx.maps.eta[i]).sum::<f64>() / normal.len() as f64;
+    let eta = fx.maps.efficiency(camera().eta());
+    let mean_eta = normal.iter().map(|&i| eta[i]).sum::<f64>() / normal.len() as f64;
     let zp: Vec<f64> = (0..n)
-        .map(|i| (prnu[i] - fx.maps.eta[i] / mean_eta) / psd[i])
+        .map(|i| (prnu[i] - eta[i] / mean_eta) / psd[i])
         .collect();
     let within = zp.iter().filter(|z| z.abs() < 3.0).count() as f64 / n as f64;
     eprintln!("PRNU: {:.2} % within 3 sd", 100.0 * within);
@@ -319,7 +323,7 @@ fn the_threshold_moves_the_hot_set_and_raw_planes_read_like_spad_files() {
         hot_pixel_fraction: 0.0,
         ..camera()
     };
-    fx.maps = SpadMaps::generate(&wide, W, W, 27);
+    fx.maps = generate_maps(&wide, W, W, 27);
     let (dark, raw) = (fx.path("dark.spad"), fx.path("dark.raw"));
     record(&dark, &fx.maps, 0.0, 60_000, 28, Some(&raw));
     let hot = |extra: &[&str], name: &str| {
@@ -410,11 +414,11 @@ fn bad_inputs_are_named() {
         "none.spad",
     );
     // A flat of another size.
-    let small = SpadMaps::generate(&camera(), W, W, 1);
-    let small = SpadMaps {
+    let small = generate_maps(&camera(), W, W, 1);
+    let small = SensorMaps {
         width: 8,
         height: 8,
-        eta: small.eta[..64].to_vec(),
+        prnu: small.prnu.map(|p| p[..64].to_vec()),
         dcr_hz: small.dcr_hz[..64].to_vec(),
         hot: small.hot[..64].to_vec(),
     };
@@ -565,7 +569,7 @@ fn the_study_simulates_a_calibrated_sensor() {
     let fx = Fixture::new(3);
     let side = 48;
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
-    let maps = SpadMaps::generate(&camera(), side, side, 5);
+    let maps = generate_maps(&camera(), side, side, 5);
     let dark = fx.path("dark48.spad");
     record_scene(&dark, &empty_scene(&p, side, 0.0), &maps, 4000, 6, None);
     let cal = fx.path("calib48");
@@ -633,7 +637,7 @@ fn download_loads_the_calibrated_hot_pixels_into_the_device() {
     let (w, h) = (320u32, 240u32);
     let p = Preset::new(PresetName::Spcimager, 150).unwrap();
     let cam = camera();
-    let mut maps = SpadMaps::uniform(&cam, w, h);
+    let mut maps = smartagg_scene::uniform_maps(&cam, w, h);
     // Twelve pixels that fire in nearly every plane: hot under any criterion.
     let hot: Vec<usize> = (0..12).map(|i| 1000 + i * 6007).collect();
     for &i in &hot {

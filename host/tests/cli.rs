@@ -307,6 +307,40 @@ fn calibration_masks_hot_pixels_in_aggregate() {
         &other,
     ]);
     assert!(err(&["aggregate", &other, "--out", &rois, "--calibration", &cal]).contains("24x20"));
+
+    // `localize` reads the same calibration (its maps: dark counts, hot
+    // pixels): the hot pixels that made the false blinks are left out of
+    // their fits, so every blink keeps its row but the table changes.
+    let plain = p(dir.path(), "plain.csv");
+    let calibrated = p(dir.path(), "calibrated.csv");
+    ok(&["localize", &rois, "--out", &plain]);
+    ok(&[
+        "localize",
+        &rois,
+        "--out",
+        &calibrated,
+        "--calibration",
+        &cal,
+    ]);
+    let (a, c) = (
+        std::fs::read_to_string(&plain).unwrap(),
+        std::fs::read_to_string(&calibrated).unwrap(),
+    );
+    assert_eq!(a.lines().count(), b0 + 1, "one row per blink, and a header");
+    assert_eq!(c.lines().count(), a.lines().count());
+    assert!(a != c, "the calibration changes the fits");
+    // A stream of another sensor is refused.
+    let other_rois = p(dir.path(), "other.rois");
+    ok(&["aggregate", &other, "--out", &other_rois, "--quiet"]);
+    let e = err(&[
+        "localize",
+        &other_rois,
+        "--out",
+        &plain,
+        "--calibration",
+        &cal,
+    ]);
+    assert!(e.contains("24x20") && e.contains("16x16"), "{e}");
 }
 
 #[test]

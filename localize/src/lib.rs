@@ -60,7 +60,7 @@ pub mod table;
 
 pub use error::LocalizeError;
 pub use fit::{fit_roi, Estimator, Fit, FitOptions, FitStatus, NoiseModel, SigmaMode};
-pub use record_fit::{fit_record, RecordFitConfig, SensorMaps};
+pub use record_fit::{fit_record, RecordFitConfig};
 pub use roi::{HotPixelMode, PixelMaps, RoiView};
 pub use spad::{fit_binomial, SpadRoi};
 pub use table::{LocTable, Localization};

@@ -3,81 +3,17 @@
 //! A [`BlinkRecord`] holds the R×R ROI of photon-detection counts a blink
 //! left over its summed bit-planes, placed by its anchor on the sensor.
 //! [`fit_record`] leaves the ROI's pixels off the sensor out of the fit, cuts
-//! the sensor's calibration maps ([`SensorMaps`]: dark counts per bit-plane,
-//! PRNU, hot pixels) to the ROI, and fits it, giving a [`Localization`] in
+//! the sensor's calibration maps ([`SensorMaps`]: dark-count rates, PRNU, hot
+//! pixels; dark counts per bit-plane from the plane period) to the ROI, and fits it, giving a [`Localization`] in
 //! sensor nanometres with the blink's timing and flags as extra columns.
 
-use crate::error::LocalizeError;
 use crate::fit::{fit_roi, Estimator, Fit, FitOptions, FitStatus, NoiseModel};
 use crate::psf::MAX_SIDE;
 use crate::roi::{apply_hot_pixels, HotPixelMode, PixelMaps, RoiView};
 use crate::spad::{fit_binomial, on_off_split, SpadRoi};
 use crate::table::Localization;
 use smartagg_model::record::BlinkRecord;
-
-/// Sensor-sized per-pixel maps of a SPAD camera, row-major: what a record
-/// fit needs of its calibration.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SensorMaps {
-    width: usize,
-    height: usize,
-    dark_per_plane: Vec<f64>,
-    gain: Option<Vec<f64>>,
-    hot: Vec<bool>,
-}
-
-impl SensorMaps {
-    /// Maps of a `width × height` sensor: expected dark counts per bit-plane,
-    /// the relative detection efficiency (PRNU; 0 marks a dead pixel) if
-    /// known, and the hot pixels. Every map has `width · height` entries.
-    pub fn new(
-        width: usize,
-        height: usize,
-        dark_per_plane: Vec<f64>,
-        gain: Option<Vec<f64>>,
-        hot: Vec<bool>,
-    ) -> Result<SensorMaps, LocalizeError> {
-        let n = width * height;
-        let lens = [
-            ("dark", dark_per_plane.len()),
-            ("gain", gain.as_ref().map_or(n, Vec::len)),
-            ("hot-pixel", hot.len()),
-        ];
-        if let Some(&(map, len)) = lens.iter().find(|(_, len)| *len != n) {
-            return Err(LocalizeError::MapShape {
-                map,
-                len,
-                expected: n,
-            });
-        }
-        Ok(SensorMaps {
-            width,
-            height,
-            dark_per_plane,
-            gain,
-            hot,
-        })
-    }
-
-    /// Maps from a dark count rate map (Hz) and the bit-plane period (s): a
-    /// pixel's dark counts per plane are its rate times the period.
-    pub fn from_dcr(
-        width: usize,
-        height: usize,
-        dcr_hz: &[f64],
-        plane_period_s: f64,
-        gain: Option<Vec<f64>>,
-        hot: Vec<bool>,
-    ) -> Result<SensorMaps, LocalizeError> {
-        let dark = dcr_hz.iter().map(|r| r * plane_period_s).collect();
-        SensorMaps::new(width, height, dark, gain, hot)
-    }
-
-    /// Sensor size `(width, height)`, pixels.
-    pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-}
+use smartagg_model::sensor_maps::SensorMaps;
 
 /// How the blink records of one stream are fitted: the estimator and its
 /// options, the camera, and what is known of the sensor.
@@ -96,8 +32,12 @@ pub struct RecordFitConfig<'a> {
     /// Sensor size `(width, height)`, pixels, from the stream's start record;
     /// without it only pixels left of or above the sensor are known to be off.
     pub sensor: Option<(usize, usize)>,
-    /// Calibration maps of the sensor, if any.
+    /// Calibration maps of the sensor, if any (raster order, the size of
+    /// the sensor).
     pub maps: Option<&'a SensorMaps>,
+    /// Bit-plane period, s: a pixel's expected dark counts in one plane are
+    /// its dark-count rate times it. Only read with `maps`.
+    pub plane_period_s: f64,
     /// What to do with the maps' hot pixels.
     pub hot_pixels: HotPixelMode,
 }
@@ -132,7 +72,7 @@ pub fn fit_record(rec: &BlinkRecord, frame: u64, cfg: &RecordFitConfig) -> Local
             FitStatus::InconsistentCounts,
         ));
     }
-    let (mut pm, hot) = roi_maps(rec, cfg.sensor, cfg.maps);
+    let (mut pm, hot) = roi_maps(rec, cfg);
     let mut data: Vec<f64> = rec.counts.iter().map(|&c| c as f64).collect();
     if cfg.maps.is_some() {
         // Shapes agree by construction.
@@ -177,11 +117,8 @@ pub fn fit_record(rec: &BlinkRecord, frame: u64, cfg: &RecordFitConfig) -> Local
 
 /// The per-ROI maps of a record of well-formed shape, and its hot pixels:
 /// pixels off the sensor ignored, the sensor maps cut out.
-fn roi_maps(
-    rec: &BlinkRecord,
-    sensor: Option<(usize, usize)>,
-    maps: Option<&SensorMaps>,
-) -> (PixelMaps, Vec<bool>) {
+fn roi_maps(rec: &BlinkRecord, cfg: &RecordFitConfig) -> (PixelMaps, Vec<bool>) {
+    let (sensor, maps) = (cfg.sensor, cfg.maps);
     let side = rec.roi_size as usize;
     let (x0, y0) = (rec.roi_x0(), rec.roi_y0());
     let mut pm = PixelMaps::uniform(side);
@@ -197,11 +134,10 @@ fn roi_maps(
                 continue;
             }
             let Some(m) = maps else { continue };
-            let (xu, yu) = (x as usize, y as usize);
-            if xu < m.width && yu < m.height {
-                let q = yu * m.width + xu;
-                pm.dark[k] = m.dark_per_plane[q];
-                if let Some(g) = &m.gain {
+            // x, y ≥ 0 here (off the sensor otherwise).
+            if let Some(q) = m.index(x as u32, y as u32) {
+                pm.dark[k] = m.dark_per_plane(q, cfg.plane_period_s);
+                if let Some(g) = &m.prnu {
                     // A dead pixel (response 0) is left out rather than
                     // given an impossible gain.
                     if g[q] > 0.0 {
@@ -266,6 +202,7 @@ mod tests {
             pixel_nm: PIXEL_NM,
             sensor: Some(SENSOR),
             maps,
+            plane_period_s: 1e-3,
             hot_pixels: HotPixelMode::Ignore,
         }
     }
@@ -277,7 +214,10 @@ mod tests {
         for &(x, y) in hot_at {
             hot[y * SENSOR.0 + x] = true;
         }
-        SensorMaps::new(SENSOR.0, SENSOR.1, vec![0.0; n], None, hot).unwrap()
+        SensorMaps {
+            hot,
+            ..SensorMaps::uniform(SENSOR.0 as u32, SENSOR.1 as u32, 0.0)
+        }
     }
 
     /// Fitted position, sensor pixels.
@@ -430,17 +370,8 @@ mod tests {
 
     #[test]
     fn dark_counts_per_plane_are_summed_over_the_planes_for_frame_fits() {
-        let n = SENSOR.0 * SENSOR.1;
         // 5 Hz at 1 ms planes: 0.005 counts per plane, 3.045 over 609 planes.
-        let maps = SensorMaps::from_dcr(
-            SENSOR.0,
-            SENSOR.1,
-            &vec![5.0; n],
-            1e-3,
-            None,
-            vec![false; n],
-        )
-        .unwrap();
+        let maps = SensorMaps::uniform(SENSOR.0 as u32, SENSOR.1 as u32, 5.0);
         let rec = record(20, 30, spot(4.5, 4.5));
         let bare = fit_record(&rec, 1, &config(Estimator::Mle, None));
         let dark = fit_record(&rec, 1, &config(Estimator::Mle, Some(&maps)));
@@ -456,8 +387,10 @@ mod tests {
         let n = SENSOR.0 * SENSOR.1;
         let mut gain = vec![1.0; n];
         gain[30 * SENSOR.0 + 21] = 0.0;
-        let maps =
-            SensorMaps::new(SENSOR.0, SENSOR.1, vec![0.0; n], Some(gain), vec![false; n]).unwrap();
+        let maps = SensorMaps {
+            prnu: Some(gain),
+            ..SensorMaps::uniform(SENSOR.0 as u32, SENSOR.1 as u32, 0.0)
+        };
         let mut rec = record(20, 30, spot(4.5, 4.5));
         let cfg = config(Estimator::Mle, Some(&maps));
         let l = fit_record(&rec, 1, &cfg);
@@ -465,29 +398,5 @@ mod tests {
         rec.counts[4 * 9 + 5] = 0;
         assert_eq!(fit_record(&rec, 1, &cfg), l);
         assert!(l.status.is_ok());
-    }
-
-    #[test]
-    fn maps_of_the_wrong_size_are_refused() {
-        let e =
-            SensorMaps::new(4, 3, vec![0.0; 12], Some(vec![1.0; 11]), vec![false; 12]).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                LocalizeError::MapShape {
-                    map: "gain",
-                    len: 11,
-                    expected: 12
-                }
-            ),
-            "{e}"
-        );
-        assert!(SensorMaps::from_dcr(4, 3, &[0.0; 12], 1e-4, None, vec![false; 13]).is_err());
-        assert_eq!(
-            SensorMaps::new(4, 3, vec![0.0; 12], None, vec![false; 12])
-                .unwrap()
-                .size(),
-            (4, 3)
-        );
     }
 }

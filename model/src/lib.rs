@@ -5,6 +5,8 @@
 //! produces, and the host decodes exactly what [`packet`] defines.
 //!
 //! * [`params`]: cameras, optics and the presets of Table 1 of the paper;
+//!   [`sensor_maps`]: a SPAD sensor's per-pixel dark-count rates, PRNU and
+//!   hot pixels, simulated or calibrated;
 //! * [`kernel`], [`stats`], [`false_alarm`]: the paper's Eq. 1–7 with the
 //!   integer kernel actually used, the window N, the threshold T and T_int,
 //!   and the predicted false-alarm rate and confirmation length L_min;
@@ -42,6 +44,7 @@ pub mod registers;
 pub mod rice;
 pub mod roi_aggregator;
 pub mod rolling_count;
+pub mod sensor_maps;
 pub mod spatial_filter;
 pub mod stats;
 pub mod threshold;

@@ -48,11 +48,12 @@ mod timeline;
 pub use drift::DriftTrajectory;
 pub use frames::{EmccdSimulator, Frame, ScmosMaps, ScmosNonUniformity, ScmosSimulator};
 pub use scene::{Blinking, ExplicitBlink, Layout, OnTime, Position, Scene};
-pub use spad::{SpadMaps, SpadSimulator};
+pub use spad::{generate_maps, uniform_maps, SpadSimulator};
 pub use truth::BlinkTruth;
 
 use smartagg_model::params::ParamError;
 use smartagg_model::recording::RecordingError;
+use smartagg_model::sensor_maps::SensorMapsError;
 use thiserror::Error;
 
 /// Anything that stops a simulation from being set up or written.
@@ -80,6 +81,17 @@ pub enum SceneError {
         /// Pixels in the maps.
         found: usize,
     },
+    /// A SPAD sensor's maps of another size than the field.
+    #[error("the sensor maps are {}x{} pixels, the field is {}x{}", maps.0, maps.1, field.0, field.1)]
+    MapShape {
+        /// Width and height of the maps.
+        maps: (u32, u32),
+        /// Width and height of the field.
+        field: (u32, u32),
+    },
+    /// A SPAD sensor's maps that are not a sensor (the first bad map or value).
+    #[error(transparent)]
+    Maps(#[from] SensorMapsError),
     /// A ground-truth CSV file that cannot be parsed.
     #[error("ground-truth CSV line {line}: {why}")]
     TruthCsv {

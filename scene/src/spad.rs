@@ -13,9 +13,10 @@
 //! background events and each detected molecule photon are sampled as events
 //! and OR-ed into the plane.
 //!
-//! ## Per-pixel maps ([`SpadMaps`])
+//! ## Per-pixel maps ([`generate_maps`], a [`SensorMaps`])
 //!
-//! * PRNU: `η_i = η · (1 + prnu · Z)`, Z standard normal, clamped to [0, 1];
+//! * PRNU: `η_i = η · (1 + prnu · Z)`, Z standard normal, clamped to [0, 1]
+//!   (the maps hold the factor, [`SensorMaps::efficiency`] the product);
 //! * DRNU: `DCR_i = DCR_median · e^{s Z}` (log-normal, median DCR_median) with
 //!   s chosen so that std/median = drnu, as the parameter is defined. A
 //!   log-normal keeps rates positive and is right-skewed like measured SPAD
@@ -44,6 +45,7 @@ use rand_distr::Exp1;
 use smartagg_model::params::{Camera, SpadCamera};
 use smartagg_model::plane::BitPlane;
 use smartagg_model::recording::{BitOrder, RecordingHeader};
+use smartagg_model::sensor_maps::SensorMaps;
 
 use crate::emission::Emission;
 use crate::sampling::{
@@ -54,75 +56,49 @@ use crate::timeline::Timeline;
 use crate::truth::BlinkTruth;
 use crate::SceneError;
 
-/// Per-pixel detection efficiency and dark-count rate of a SPAD field.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SpadMaps {
-    /// Field width, pixels.
-    pub width: u32,
-    /// Field height, pixels.
-    pub height: u32,
-    /// Detection efficiency η_i (PDE × fill factor × PRNU factor), raster order.
-    pub eta: Vec<f64>,
-    /// Dark-count rate, Hz, raster order.
-    pub dcr_hz: Vec<f64>,
-    /// Whether the pixel is hot.
-    pub hot: Vec<bool>,
+/// Draws the per-pixel maps of a `width × height` field from stream 0 of
+/// `seed` (see the module docs for the distributions): the PRNU factor
+/// `1 + prnu · Z` (at least 0; the efficiency `η · factor` is clamped to
+/// [0, 1] where it is used, [`SensorMaps::efficiency`]), the log-normal DCR
+/// and the hot pixels.
+pub fn generate_maps(camera: &SpadCamera, width: u32, height: u32, seed: u64) -> SensorMaps {
+    let n = width as usize * height as usize;
+    let mut rng = rng_stream(seed, STREAM_MAPS);
+    let s = lognormal_sigma_for_spread(camera.drnu);
+    let mut prnu = Vec::with_capacity(n);
+    let mut factor = Vec::with_capacity(n);
+    for _ in 0..n {
+        prnu.push((1.0 + camera.prnu * std_normal(&mut rng)).max(0.0));
+        factor.push((s * std_normal(&mut rng)).exp());
+    }
+    let n_hot = ((camera.hot_pixel_fraction * n as f64).round() as usize).min(n);
+    let mut hot = vec![false; n];
+    for i in rand::seq::index::sample(&mut rng, n, n_hot) {
+        hot[i] = true;
+    }
+    let dcr_hz = (0..n)
+        .map(|i| {
+            let base = if hot[i] {
+                camera.hot_pixel_dcr_hz
+            } else {
+                camera.dcr_median_hz
+            };
+            base * factor[i]
+        })
+        .collect();
+    SensorMaps {
+        width,
+        height,
+        dcr_hz,
+        prnu: Some(prnu),
+        hot,
+    }
 }
 
-impl SpadMaps {
-    /// Draws the maps of a `width × height` field from stream 0 of `seed`
-    /// (see the module docs for the distributions).
-    pub fn generate(camera: &SpadCamera, width: u32, height: u32, seed: u64) -> SpadMaps {
-        let n = width as usize * height as usize;
-        let mut rng = rng_stream(seed, STREAM_MAPS);
-        let eta0 = camera.eta();
-        let s = lognormal_sigma_for_spread(camera.drnu);
-        let mut eta = Vec::with_capacity(n);
-        let mut factor = Vec::with_capacity(n);
-        for _ in 0..n {
-            eta.push((eta0 * (1.0 + camera.prnu * std_normal(&mut rng))).clamp(0.0, 1.0));
-            factor.push((s * std_normal(&mut rng)).exp());
-        }
-        let n_hot = ((camera.hot_pixel_fraction * n as f64).round() as usize).min(n);
-        let mut hot = vec![false; n];
-        for i in rand::seq::index::sample(&mut rng, n, n_hot) {
-            hot[i] = true;
-        }
-        let dcr_hz = (0..n)
-            .map(|i| {
-                let base = if hot[i] {
-                    camera.hot_pixel_dcr_hz
-                } else {
-                    camera.dcr_median_hz
-                };
-                base * factor[i]
-            })
-            .collect();
-        SpadMaps {
-            width,
-            height,
-            eta,
-            dcr_hz,
-            hot,
-        }
-    }
-
-    /// Maps without any non-uniformity or hot pixel: η and the median DCR everywhere.
-    pub fn uniform(camera: &SpadCamera, width: u32, height: u32) -> SpadMaps {
-        let n = width as usize * height as usize;
-        SpadMaps {
-            width,
-            height,
-            eta: vec![camera.eta(); n],
-            dcr_hz: vec![camera.dcr_median_hz; n],
-            hot: vec![false; n],
-        }
-    }
-
-    /// Number of hot pixels.
-    pub fn hot_pixels(&self) -> usize {
-        self.hot.iter().filter(|&&h| h).count()
-    }
+/// Maps without any non-uniformity or hot pixel: the camera's η and median
+/// DCR everywhere.
+pub fn uniform_maps(camera: &SpadCamera, width: u32, height: u32) -> SensorMaps {
+    SensorMaps::uniform(width, height, camera.dcr_median_hz)
 }
 
 /// Probability above which a pixel is drawn on its own rather than by jumps.
@@ -308,7 +284,8 @@ pub struct SpadSimulator {
     height: u32,
     pixel_nm: f64,
     sigma_px: f64,
-    maps: SpadMaps,
+    maps: SensorMaps,
+    eta: Vec<f64>,
     background_hz: Vec<f64>,
     eta_min: f64,
     eta_max: f64,
@@ -319,10 +296,10 @@ pub struct SpadSimulator {
 }
 
 impl SpadSimulator {
-    /// A simulator with maps drawn from `seed` ([`SpadMaps::generate`]).
+    /// A simulator with maps drawn from `seed` ([`generate_maps`]).
     pub fn new(camera: &SpadCamera, scene: &Scene, seed: u64) -> Result<SpadSimulator, SceneError> {
         scene.validate(&Camera::Spad(camera.clone()))?;
-        let maps = SpadMaps::generate(camera, scene.width, scene.height, seed);
+        let maps = generate_maps(camera, scene.width, scene.height, seed);
         SpadSimulator::with_maps(camera, scene, maps, seed)
     }
 
@@ -331,37 +308,25 @@ impl SpadSimulator {
     pub fn with_maps(
         camera: &SpadCamera,
         scene: &Scene,
-        maps: SpadMaps,
+        maps: SensorMaps,
         seed: u64,
     ) -> Result<SpadSimulator, SceneError> {
         let cam = Camera::Spad(camera.clone());
         scene.validate(&cam)?;
-        let n = scene.width as usize * scene.height as usize;
-        for (len, w, h) in [
-            (maps.eta.len(), maps.width, maps.height),
-            (maps.dcr_hz.len(), maps.width, maps.height),
-            (maps.hot.len(), maps.width, maps.height),
-        ] {
-            if len != n || w != scene.width || h != scene.height {
-                return Err(SceneError::MapSize {
-                    expected: n,
-                    found: len,
-                });
-            }
+        if maps.width != scene.width || maps.height != scene.height {
+            return Err(SceneError::MapShape {
+                maps: (maps.width, maps.height),
+                field: (scene.width, scene.height),
+            });
         }
-        for &e in &maps.eta {
-            smartagg_model::params::check_range("eta (map)", e, 0.0, 1.0)?;
-        }
-        for &d in &maps.dcr_hz {
-            smartagg_model::params::check_non_negative("dcr_hz (map)", d)?;
-        }
+        maps.validate()?;
+        let eta = maps.efficiency(camera.eta());
         let pixel_nm = scene.pixel_nm(&cam);
         let sigma_px = scene.sigma_px(&cam);
         let light_per_px = scene
             .light
             .background_per_pixel_hz(&scene.optics, camera.pixel_pitch_um);
-        let background_hz: Vec<f64> = maps
-            .eta
+        let background_hz: Vec<f64> = eta
             .iter()
             .zip(&maps.dcr_hz)
             .map(|(&e, &d)| light_per_px * e + d)
@@ -372,8 +337,8 @@ impl SpadSimulator {
             .map(|&l| -(-l * tau).exp_m1())
             .collect();
         let sampler = BackgroundSampler::new(&p);
-        let eta_max = maps.eta.iter().copied().fold(0.0, f64::max);
-        let eta_min = maps.eta.iter().copied().fold(1.0, f64::min);
+        let eta_max = eta.iter().copied().fold(0.0, f64::max);
+        let eta_min = eta.iter().copied().fold(1.0, f64::min);
         let timeline = Timeline::new(scene, pixel_nm, seed);
         let emission = Emission::new(
             timeline,
@@ -389,6 +354,7 @@ impl SpadSimulator {
             pixel_nm,
             sigma_px,
             maps,
+            eta,
             background_hz,
             eta_min,
             eta_max,
@@ -427,7 +393,7 @@ impl SpadSimulator {
         self.emission.deposit(
             t0,
             t1,
-            &self.maps.eta,
+            &self.eta,
             self.eta_min,
             self.eta_max,
             &mut self.rng,
@@ -471,8 +437,14 @@ impl SpadSimulator {
     }
 
     /// The per-pixel maps.
-    pub fn maps(&self) -> &SpadMaps {
+    pub fn maps(&self) -> &SensorMaps {
         &self.maps
+    }
+
+    /// Each pixel's detection efficiency η_i (the camera's η times its
+    /// PRNU factor, clamped to [0, 1]), raster order.
+    pub fn efficiency(&self) -> &[f64] {
+        &self.eta
     }
 
     /// Per-pixel rate of background detections plus dark counts, Hz.

@@ -5,7 +5,7 @@ use smartagg_model::params::{spcimager, Camera, Preset, PresetName, SceneLight, 
 use smartagg_model::recording::{BitOrder, RecordingReader, RecordingWriter};
 use smartagg_scene::{
     Blinking, EmccdSimulator, ExplicitBlink, Layout, OnTime, Position, Scene, ScmosSimulator,
-    SpadMaps, SpadSimulator,
+    SpadSimulator,
 };
 
 fn spad_preset() -> (Preset, SpadCamera) {
@@ -79,7 +79,7 @@ fn impossible_parameters_name_the_parameter() {
     assert!(err_spad(&bad, &base).contains("`exposure_s`"));
 
     // Maps of the wrong size.
-    let maps = SpadMaps::uniform(&cam, 8, 8);
+    let maps = smartagg_scene::uniform_maps(&cam, 8, 8);
     let e = SpadSimulator::with_maps(&cam, &base, maps, 1)
         .unwrap_err()
         .to_string();

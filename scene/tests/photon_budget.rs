@@ -5,7 +5,7 @@
 //! and the exposed on-time by summing the overlap with every exposure window.
 
 use smartagg_model::params::{Camera, Preset, PresetName};
-use smartagg_scene::{BlinkTruth, EmccdSimulator, Scene, ScmosSimulator, SpadMaps, SpadSimulator};
+use smartagg_scene::{BlinkTruth, EmccdSimulator, Scene, ScmosSimulator, SpadSimulator};
 
 /// Fraction of N(c, σ²) in [0, len] by composite Simpson (4000 intervals).
 fn simpson_fraction(c: f64, sigma: f64, len: f64) -> f64 {
@@ -90,7 +90,7 @@ fn spad_photons_per_blink() {
         margin_px: 0.0,
         ..Scene::study(&p, 0.02)
     };
-    let maps = SpadMaps::uniform(cam, scene.width, scene.height);
+    let maps = smartagg_scene::uniform_maps(cam, scene.width, scene.height);
     let mut sim = SpadSimulator::with_maps(cam, &scene, maps, 5).unwrap();
     let planes = 40_000;
     for _ in 0..planes {

@@ -127,6 +127,7 @@ fn blinks_starting_and_stopping_inside_planes_match_the_event_level_sampler() {
 
     let es = EventScene {
         maps: sim.maps(),
+        eta: sim.efficiency(),
         background_photons_hz: sc
             .light
             .background_per_pixel_hz(&sc.optics, cam.pixel_pitch_um),
@@ -218,6 +219,7 @@ fn pile_up_at_i_tau_1e4_matches_the_event_level_sampler() {
     let fast = fast_counts(&mut sim, planes, |_| 0, 1);
     let es = EventScene {
         maps: sim.maps(),
+        eta: sim.efficiency(),
         background_photons_hz: sc
             .light
             .background_per_pixel_hz(&sc.optics, cam.pixel_pitch_um),

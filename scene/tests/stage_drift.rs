@@ -3,7 +3,7 @@
 
 use smartagg_model::params::{spcimager, Preset, PresetName, SceneLight};
 use smartagg_scene::{
-    Blinking, DriftTrajectory, ExplicitBlink, Layout, Position, Scene, SpadMaps, SpadSimulator,
+    Blinking, DriftTrajectory, ExplicitBlink, Layout, Position, Scene, SpadSimulator,
 };
 
 /// Mean x (pixels) of the detections of `planes` bit-planes of one blink at
@@ -35,7 +35,7 @@ fn centroid_x(drift: Option<DriftTrajectory>) -> (f64, Vec<smartagg_scene::Blink
         margin_px: 0.0,
     };
     // No dark counts: every detection is the molecule's.
-    let mut maps = SpadMaps::uniform(&cam, 32, 32);
+    let mut maps = smartagg_scene::uniform_maps(&cam, 32, 32);
     maps.dcr_hz.iter_mut().for_each(|d| *d = 0.0);
     let mut sim = SpadSimulator::with_maps(&cam, &scene, maps, 7).unwrap();
     if let Some(d) = drift {

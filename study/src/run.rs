@@ -40,7 +40,7 @@ pub fn run(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<Vec<ItemResult>, StudyError> {
     if let Some(cal) = &plan.options.calibration {
-        if cal.maps.is_none() {
+        if cal.sensor.is_none() {
             return Err(crate::StudyError::Option {
                 name: "calibration",
                 why: format!("{}: the maps are not loaded, cannot simulate", cal.id),

@@ -131,9 +131,10 @@ impl Setup {
             why,
         };
         // Read back from a manifest (merge, report): the identity only.
-        let Some(maps) = cal.maps.clone() else {
+        let Some(sensor) = cal.sensor.clone() else {
             return Ok(self);
         };
+        let maps = &sensor.maps;
         maps.validate()
             .map_err(|e| bad(format!("{}: {e}", cal.id)))?;
         if maps.width < self.field || maps.height < self.field {
@@ -149,14 +150,14 @@ impl Setup {
             Some((_, cfg)) => (cfg.n_window, u64::from(cfg.threshold_hold)),
             None => return Ok(self),
         };
-        let critical_dcr_hz = (maps.critical_dcr)(n, t).map_err(|e| {
+        let critical_dcr_hz = (sensor.critical_dcr)(n, t).map_err(|e| {
             bad(format!(
                 "{}: hot-pixel criterion for N = {n}, T_hold = {t}: {e}",
                 cal.id
             ))
         })?;
         self.sensor = Some(CalibratedSetup {
-            maps,
+            sensor,
             critical_dcr_hz,
         });
         Ok(self)
@@ -356,11 +357,12 @@ pub fn record_spad(
     // pixels masked in every pipeline (as `aggregate --calibration` does).
     let (mut sim, mask, gain) = match &setup.sensor {
         Some(cal) if hot_fraction.is_none() => {
-            let at = cal.maps.offset(field, seed);
-            let maps = cal.maps.crop(&camera, field, at, cal.critical_dcr_hz);
-            let gain: Vec<f64> = (0..field * field)
-                .map(|i| cal.maps.prnu_at(at.0 + i % field, at.1 + i / field))
-                .collect();
+            let at = cal.sensor.offset(field, seed);
+            let maps = cal
+                .sensor
+                .crop(field, at, cal.critical_dcr_hz)
+                .map_err(smartagg_scene::SceneError::from)?;
+            let gain: Vec<f64> = (0..maps.pixels()).map(|i| maps.prnu_of(i)).collect();
             let hot: Vec<(usize, usize)> = (0..maps.hot.len())
                 .filter(|&i| maps.hot[i])
                 .map(|i| (i % field as usize, i / field as usize))

@@ -3,7 +3,8 @@
 
 use smartagg_model::params::PresetName;
 use smartagg_model::record::flags;
-use smartagg_study::sensor::{SensorCalibration, SensorMaps};
+use smartagg_model::sensor_maps::SensorMaps;
+use smartagg_study::sensor::{CalibratedSensor, SensorCalibration};
 use smartagg_study::sim::{record_spad, Setup};
 use smartagg_study::spec::{LMin, StudyOptions};
 use smartagg_study::timeline::{place, Timeline};
@@ -30,11 +31,14 @@ fn calibration(asked: Arc<Mutex<Vec<(u32, u64)>>>) -> SensorCalibration {
     }
     SensorCalibration {
         id: "test-sensor (CRC 0)".into(),
-        maps: Some(Arc::new(SensorMaps {
-            width: w,
-            height: h,
-            dcr_hz: dcr,
-            prnu: Some(prnu),
+        sensor: Some(Arc::new(CalibratedSensor {
+            maps: SensorMaps {
+                width: w,
+                height: h,
+                dcr_hz: dcr,
+                prnu: Some(prnu),
+                hot: vec![false; (w * h) as usize],
+            },
             critical_dcr: Box::new(move |n, t| {
                 asked.lock().unwrap().push((n, t));
                 Ok(Some(50_000.0))
@@ -79,7 +83,7 @@ fn the_calibrated_hot_pixels_are_simulated_and_masked_at_the_items_crop() {
     )
     .unwrap();
     // The hot map is the lattice at this item's crop offset.
-    let (x0, y0) = sensor.maps.offset(s.field, seed);
+    let (x0, y0) = sensor.sensor.offset(s.field, seed);
     let f = s.field;
     let expect: Vec<bool> = (0..f * f)
         .map(|i| is_lattice_hot(x0 + i % f, y0 + i / f))
@@ -138,11 +142,8 @@ fn other_cameras_keep_their_maps_and_bad_calibrations_are_refused() {
 
     let small = SensorCalibration {
         id: "tiny".into(),
-        maps: Some(Arc::new(SensorMaps {
-            width: 8,
-            height: 8,
-            dcr_hz: vec![100.0; 64],
-            prnu: None,
+        sensor: Some(Arc::new(CalibratedSensor {
+            maps: SensorMaps::uniform(8, 8, 100.0),
             critical_dcr: Box::new(|_, _| Ok(None)),
         })),
     };
@@ -155,11 +156,8 @@ fn other_cameras_keep_their_maps_and_bad_calibrations_are_refused() {
 
     let no_rule = SensorCalibration {
         id: "norule".into(),
-        maps: Some(Arc::new(SensorMaps {
-            width: 64,
-            height: 64,
-            dcr_hz: vec![100.0; 64 * 64],
-            prnu: None,
+        sensor: Some(Arc::new(CalibratedSensor {
+            maps: SensorMaps::uniform(64, 64, 100.0),
             critical_dcr: Box::new(|_, _| Err("kernel mismatch".into())),
         })),
     };
@@ -183,7 +181,7 @@ fn other_cameras_keep_their_maps_and_bad_calibrations_are_refused() {
     // them is refused, not silently simulated with synthetic maps.
     let back: StudyOptions = serde_json::from_str(&serde_json::to_string(&opts).unwrap()).unwrap();
     assert_eq!(back.calibration.as_ref().unwrap().id, "test-sensor (CRC 0)");
-    assert!(back.calibration.as_ref().unwrap().maps.is_none());
+    assert!(back.calibration.as_ref().unwrap().sensor.is_none());
     let plan = Plan::new(StudyName::SmartVsFixed, back).unwrap();
     let e = smartagg_study::run::run(&plan, smartagg_study::Shard::ALL, &|_, _| {})
         .unwrap_err()

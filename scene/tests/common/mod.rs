@@ -4,11 +4,14 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Exp, Normal};
-use smartagg_scene::{ExplicitBlink, SpadMaps};
+use smartagg_model::sensor_maps::SensorMaps;
+use smartagg_scene::ExplicitBlink;
 
 /// Everything the event-level sampler needs, in physical units.
 pub struct EventScene<'a> {
-    pub maps: &'a SpadMaps,
+    pub maps: &'a SensorMaps,
+    /// Each pixel's detection efficiency η_i.
+    pub eta: &'a [f64],
     /// Background photons per pixel per second reaching the sensor (before η).
     pub background_photons_hz: f64,
     pub blinks: &'a [ExplicitBlink],
@@ -38,7 +41,7 @@ pub fn event_plane(s: &EventScene, k: u64, rng: &mut ChaCha8Rng) -> Vec<bool> {
             let gap = Exp::new(s.background_photons_hz).unwrap();
             let mut t = t0 + gap.sample(rng);
             while t < t1 {
-                if rng.gen::<f64>() < s.maps.eta[i] {
+                if rng.gen::<f64>() < s.eta[i] {
                     *bit = true;
                     break;
                 }
@@ -69,7 +72,7 @@ pub fn event_plane(s: &EventScene, k: u64, rng: &mut ChaCha8Rng) -> Vec<bool> {
             let (px, py) = ((x / s.pixel_nm).floor(), (y / s.pixel_nm).floor());
             if px >= 0.0 && py >= 0.0 && (px as usize) < w && (py as usize) < h {
                 let i = py as usize * w + px as usize;
-                if rng.gen::<f64>() < s.maps.eta[i] {
+                if rng.gen::<f64>() < s.eta[i] {
                     bits[i] = true;
                 }
             }

@@ -42,7 +42,6 @@ use smartagg_model::config::PipelineConfig;
 use smartagg_model::false_alarm::{detection_probability, tail_probability};
 use smartagg_model::params::{Camera, PresetName};
 use smartagg_model::stats::{normal_sf, Detection};
-use smartagg_scene::spad::SpadMaps;
 use smartagg_scene::{ExplicitBlink, Position, SpadSimulator};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -239,7 +238,7 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
         || -> Result<Vec<Vec<u64>>, StudyError> {
             let scene =
                 explicit_scene(&setup.preset, side_m as u32, side_m as u32, 1.0, mol_blinks);
-            let maps = SpadMaps::uniform(&cam, side_m as u32, side_m as u32);
+            let maps = smartagg_scene::uniform_maps(&cam, side_m as u32, side_m as u32);
             let mut sim = SpadSimulator::with_maps(
                 &cam,
                 &scene,
@@ -251,7 +250,7 @@ pub fn compute(seed: u64, quick: bool, blinks: Option<u32>) -> Result<DetectionR
         || -> Result<Vec<Vec<u64>>, StudyError> {
             let scene =
                 explicit_scene(&setup.preset, side_b as u32, side_b as u32, 1.0, Vec::new());
-            let maps = SpadMaps::uniform(&cam, side_b as u32, side_b as u32);
+            let maps = smartagg_scene::uniform_maps(&cam, side_b as u32, side_b as u32);
             let mut sim = SpadSimulator::with_maps(
                 &cam,
                 &scene,

@@ -34,7 +34,7 @@ use smartagg_io::output::AtomicFile;
 use smartagg_localize::export::{RoiLayout, RoiPage};
 use smartagg_localize::frames::{localize_batch, Conversion, FramePipeline};
 use smartagg_localize::merge::merge_consecutive;
-use smartagg_localize::record_fit::{fit_record, RecordFitConfig, SensorMaps};
+use smartagg_localize::record_fit::{fit_record, RecordFitConfig};
 use smartagg_localize::table::{LocTable, Localization};
 use smartagg_localize::{Estimator, FitOptions, HotPixelMode, NoiseModel, SigmaMode};
 use smartagg_model::params::{Camera, Preset, PresetName};

@@ -174,28 +174,22 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
             );
         }
     }
-    let maps = match &args.calibration {
-        None => None,
+    // The maps and the plane period their dark-count rates are read with:
+    // the stream's, or the calibration's exposure when the stream has none.
+    let (maps, plane_period_s) = match &args.calibration {
+        None => (None, 0.0),
         Some(dir) => match AnyCalibration::load(dir)
             .with_context(|| format!("loading calibration {}", dir.display()))?
         {
             AnyCalibration::Spad(c) => {
-                let tau = start
+                let period = start
                     .as_ref()
                     .map(|st| st.plane_period_ns as f64 * 1e-9)
                     .unwrap_or(c.tau_s);
-                let hot = c.flags.iter().map(|f| f & flags::HOT != 0).collect();
-                Some(
-                    SensorMaps::from_dcr(
-                        c.width as usize,
-                        c.height as usize,
-                        &c.dcr_hz,
-                        tau,
-                        c.prnu.clone(),
-                        hot,
-                    )
-                    .with_context(|| format!("calibration {}", dir.display()))?,
-                )
+                let maps = c.sensor_maps();
+                maps.validate()
+                    .with_context(|| format!("calibration {}", dir.display()))?;
+                (Some(maps), period)
             }
             AnyCalibration::Frame(_) => bail!(
                 "{} is a frame-camera calibration; blink-ROI packets need a SPAD calibration",
@@ -204,8 +198,8 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         },
     };
     if let (Some(st), Some(m)) = (&start, &maps) {
-        let (w, h) = m.size();
-        if (st.width as usize, st.height as usize) != (w, h) {
+        let (w, h) = (m.width, m.height);
+        if (u32::from(st.width), u32::from(st.height)) != (w, h) {
             bail!(
                 "the calibration is {w}x{h} pixels but the stream's sensor is {}x{}",
                 st.width,
@@ -231,6 +225,7 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
         pixel_nm: s.pixel_nm,
         sensor,
         maps: maps.as_ref(),
+        plane_period_s,
         hot_pixels: args.hot_pixels.mode(),
     };
     let rows: Vec<Localization> = rois
