@@ -9,7 +9,7 @@
 //!
 //! Configurations: every generated design by its name (`spcimager-150x`,
 //! `spcimager-60x`, `spcimager-projected-150x`, `spcimager-projected-60x`:
-//! [`smartagg_hdl::configs::Design`], the same Verilog as `smartagg hdl
+//! [`smartagg_hdl::designs::Design`], the same Verilog as `smartagg hdl
 //! generate`), `lint` (Verilator `--lint-only -Wall` of all four), and:
 //! * `test`: the small test front half (16×6, block-RAM delay line).
 //! * `pipe`: the small test pipeline (16×6, M = 4, 3×3 ROIs).
@@ -36,10 +36,10 @@
 use smartagg_hdl::back_half::BackHalf;
 use smartagg_hdl::blink_tracker::BlinkTracker;
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
-use smartagg_hdl::configs::Spcimager150Xem;
-use smartagg_hdl::configs::{text_hash, Design};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::delay_line_ddr::DelayLineDdr;
+use smartagg_hdl::designs::Spcimager150Xem;
+use smartagg_hdl::designs::{text_hash, Design};
 use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;

@@ -1,7 +1,7 @@
 //! The FPGAs a design is generated for and reported against, and which one
 //! a preset's design targets. A leaf module: the blocks that size
 //! themselves by a device (the spatial filter's DSP slices) and the named
-//! designs (`configs`) both read it.
+//! designs ([`crate::designs`]) both read it.
 
 use smartagg_model::params::PresetName;
 

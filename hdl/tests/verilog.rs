@@ -5,8 +5,8 @@
 //! (`constraints/xem6310.ucf`) against the top's ports.
 //! The tools are required: a missing tool fails with an install hint.
 
-use smartagg_hdl::configs::on_generation_stack;
-use smartagg_hdl::configs::Spcimager150Xem;
+use smartagg_hdl::designs::on_generation_stack;
+use smartagg_hdl::designs::Spcimager150Xem;
 use smartagg_hdl::front_half::{
     spcimager150_config, test_front_half_verilog, verilog, Spcimager150FrontHalf,
 };
@@ -202,7 +202,7 @@ fn xem6310_top_verilog_passes_verilator_lint() {
 /// the scheduling hints of `smartagg_hdl::schedule` cut every false loop.
 #[test]
 fn every_generated_design_passes_verilator_lint() {
-    for design in smartagg_hdl::configs::Design::all().unwrap() {
+    for design in smartagg_hdl::designs::Design::all().unwrap() {
         let v = design.verilog().unwrap();
         assert!(
             v.contains(smartagg_hdl::schedule::ISOLATE),

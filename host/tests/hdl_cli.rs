@@ -2,7 +2,7 @@
 //! configuration (`top.vlt`), UCF and ISE script; the UCF places every port of the generated top; resources runs
 //! yosys on a given file (a small one here) and reports its hash.
 
-use smartagg_hdl::configs::text_hash;
+use smartagg_hdl::designs::text_hash;
 use std::collections::HashSet;
 use std::path::Path;
 

@@ -3,9 +3,9 @@
 //! model and, in debug builds, probe ports on every stage's output.
 //!
 //! Every configuration that `smartagg hdl generate` ships
-//! ([`smartagg_hdl::configs::Design`]: the SPCImager and the projected
+//! ([`smartagg_hdl::designs::Design`]: the SPCImager and the projected
 //! SPCImager, each at 150× and 60×) is co-simulated as its XEM6310 core
-//! ([`smartagg_hdl::configs::Spcimager150Core`] and its siblings: the
+//! ([`smartagg_hdl::designs::Spcimager150Core`] and its siblings: the
 //! FrontPanel endpoints and the sensor port, with the DDR2 behavioural model
 //! on the MCB port of a DDR2 design, the MCB inputs parked as the top parks
 //! them for a block-RAM one), on its full field or on **any smaller field**
@@ -18,7 +18,7 @@
 use crate::ddr2::{self, Ddr2Timing};
 use crate::verilator::{BuildOptions, Dir, VerilatorError};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
-use smartagg_hdl::configs::{
+use smartagg_hdl::designs::{
     on_generation_stack, DelayLineKind, Design, Projected150Core, Projected60Core,
     Spcimager150Core, Spcimager60Core,
 };
@@ -146,8 +146,8 @@ pub const FULL: (usize, usize) = (320, 240);
 pub const DEMO: (usize, usize) = (48, 48);
 
 /// N_max of the demo's design: the SPCImager 150× window rounded up to a
-/// multiple of 8 (`smartagg_hdl::configs::block_ram_n_max`, checked by a
-/// test), as `smartagg_hdl::configs` sizes a block-RAM delay line
+/// multiple of 8 (`smartagg_hdl::designs::block_ram_n_max`, checked by a
+/// test), as `smartagg_hdl::designs` sizes a block-RAM delay line
 /// (0.26 Mbit: an eighth of the XC6SLX45's block RAM). A constant because
 /// the design's types are generated from it.
 pub const DEMO_N_MAX: u32 = 112;
@@ -161,7 +161,7 @@ pub const DEMO_N_MAX: u32 = 112;
 pub const DEMO_SLOTS: usize = 16;
 
 /// Pixels per clock of every configuration (see `smartagg_hdl`'s crate docs).
-pub const P: usize = smartagg_hdl::configs::PIXELS_PER_CLOCK;
+pub const P: usize = smartagg_hdl::designs::PIXELS_PER_CLOCK;
 
 /// SPCImager 150× pipeline (block-RAM delay line, M = 16) on the demo's
 /// 48×48 field. Parameters: those of `smartagg_hdl::pipeline::Pipeline`
@@ -275,7 +275,7 @@ impl DesignSpec {
         Ok(BackHalfConfig::new(
             &cfg,
             front,
-            smartagg_hdl::configs::L_MAX_MAX,
+            smartagg_hdl::designs::L_MAX_MAX,
         )?)
     }
 
@@ -309,7 +309,7 @@ impl DesignSpec {
         if self.demo {
             DEMO_SLOTS
         } else {
-            smartagg_hdl::configs::SLOTS
+            smartagg_hdl::designs::SLOTS
         }
     }
 
@@ -706,13 +706,13 @@ mod tests {
         assert_eq!(b.slots, DEMO_SLOTS);
         assert_eq!(b.front.n_max, DEMO_N_MAX);
         assert!(!spec.ddr(), "the demo's delay line is in block RAM");
-        // N_max follows smartagg_hdl::configs's rule for the SPCImager 150×
+        // N_max follows smartagg_hdl::designs's rule for the SPCImager 150×
         // window, and fits block RAM as that rule sizes it: at most half of
         // the XC6SLX45's.
-        let full = smartagg_hdl::configs::Design::new(PresetName::Spcimager, 150).unwrap();
+        let full = smartagg_hdl::designs::Design::new(PresetName::Spcimager, 150).unwrap();
         assert_eq!(
             DEMO_N_MAX,
-            smartagg_hdl::configs::block_ram_n_max(full.n_window),
+            smartagg_hdl::designs::block_ram_n_max(full.n_window),
             "N = {}",
             full.n_window
         );

@@ -622,7 +622,7 @@ fn full_planes() -> usize {
 #[test]
 fn spcimager150_full_field_equals_the_model() {
     let design =
-        smartagg_hdl::configs::Design::new(smartagg_model::params::PresetName::Spcimager, 150)
+        smartagg_hdl::designs::Design::new(smartagg_model::params::PresetName::Spcimager, 150)
             .unwrap();
     assert!(design.threshold_hold < design.threshold_int);
     let spec = DesignSpec::new(Config::Spcimager150, FULL.0, FULL.1)

@@ -7,14 +7,14 @@
 //! at up to a word of P = 16 pixels every clock (10 % of the clocks
 //! skipped at random), so a bit-plane takes ≈ W·H/P / 0.9 ≈ 5,300 clocks
 //! (W·H/P = 4,800). The registers and the association radius are the
-//! shipped design's defaults, the field design's (`smartagg_hdl::configs::
+//! shipped design's defaults, the field design's (`smartagg_hdl::designs::
 //! Design`: N, T_open, T_hold < T_open, END_TRIM = ⌊N/2⌋, r_assoc,
 //! L_min = 1), so the hysteresis and the trimmed sums of the full field
 //! are what runs. Prints the
 //! coverage counters, clocks per bit-plane and simulated cycles per second
 //! (speed is printed, never asserted).
 
-use smartagg_hdl::configs::{DelayLineKind, Design};
+use smartagg_hdl::designs::{DelayLineKind, Design};
 use smartagg_model::params::PresetName;
 use smartagg_sim::designs::{Config, DesignSpec, FULL, P};
 use smartagg_sim::harness::{Case, Cosim, Source};

@@ -62,7 +62,7 @@ pub fn open(spec: &str) -> Result<Box<dyn PacketSource>, TransportError> {
         .map_err(|e| TransportError::BadSource(format!("--source cosim:{spec}: {e}")))?;
     let config = Config::for_preset(name, 150).map_err(|e| sim_err("preset", e))?;
     // The association radius is a generation constant: the shipped design's.
-    let shipped = smartagg_hdl::configs::Design::new(name, 150)
+    let shipped = smartagg_hdl::designs::Design::new(name, 150)
         .map_err(|e| sim_err("the shipped design", e))?;
     let design = DesignSpec::new(config, FULL.0, FULL.1)
         .and_then(|d| d.with_r_assoc(shipped.config.r_assoc))

@@ -1,5 +1,5 @@
 //! `smartagg hdl`: the gateware of a preset at an objective
-//! (`smartagg_hdl::configs`).
+//! (`smartagg_hdl::designs`).
 //!
 //! * `hdl generate` writes the design's Verilog (`top.v`, its hash in
 //!   `top.v.hash`), its Verilator configuration (`top.vlt`: the waivers of
@@ -19,7 +19,7 @@
 
 use anyhow::{bail, Context};
 use serde::Serialize;
-use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind};
+use smartagg_hdl::designs::{text_hash, DelayLineKind, Design, TopKind};
 use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::lint_waivers::{verilator_config, VLT_FILE};
 use smartagg_hdl::synth::{

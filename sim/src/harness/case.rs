@@ -81,12 +81,12 @@ impl Case {
     }
 
     /// The bit-planes replayed with a shipped design's register defaults,
-    /// the field design's ([`smartagg_hdl::configs::Design`]): its N, the
+    /// the field design's ([`smartagg_hdl::designs::Design`]): its N, the
     /// open level T_open as T_int, the hold level T_hold, its END_TRIM
     /// (⌊N/2⌋), L_min = 1 and
     /// L_max = 10,000 (the model's default). The design's r_assoc is a
     /// generation parameter: pass it to [`crate::designs::DesignSpec::with_r_assoc`].
-    pub fn design_defaults(design: &smartagg_hdl::configs::Design, planes: Vec<BitPlane>) -> Case {
+    pub fn design_defaults(design: &smartagg_hdl::designs::Design, planes: Vec<BitPlane>) -> Case {
         let t = |v: u64| u32::try_from(v).unwrap_or(u32::MAX);
         Case {
             threshold_hold: Some(t(design.threshold_hold)),

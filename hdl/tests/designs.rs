@@ -1,10 +1,10 @@
-//! The generated designs of `smartagg_hdl::configs`: every (preset,
+//! The generated designs of `smartagg_hdl::designs`: every (preset,
 //! objective) generates, its widths match its type, its kernel is the
 //! model's; the SPCImager 150× top passes Verilator lint with its generated
 //! `top.vlt` (all four are linted by `tests/verilog.rs` and by `cargo run -p
 //! smartagg-hdl --release --example resources -- lint`).
 
-use smartagg_hdl::configs::{text_hash, DelayLineKind, Design, TopKind};
+use smartagg_hdl::designs::{text_hash, DelayLineKind, Design, TopKind};
 use smartagg_hdl::device::{XC6SLX150, XC6SLX45};
 use smartagg_hdl::synth::verilator_lint;
 use smartagg_model::field_design;
