@@ -33,7 +33,8 @@
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::device::{device_for, Device};
 use crate::front_half::verilog;
-use crate::xem6310::{Xem6310Top, Xem6310TopOnChip, XemCore, XemCoreOnChip};
+use crate::xem6310::{Xem6310Top, Xem6310TopOnChip};
+use crate::xem6310_core::{XemCore, XemCoreOnChip};
 use smartagg_model::field_design;
 use smartagg_model::params::{Preset, PresetName};
 use smartagg_model::stats::{self, DetectionInputs};

@@ -50,7 +50,9 @@
 //!   STOP;
 //! * [`pipeline`]: stream control, hot-pixel mask, delay line, front half
 //!   and back half, with its configurations;
-//! * [`xem6310`]: the XEM6310 top around the pipeline, with the
+//! * [`xem6310_core`]: the register map, the pipeline and the replay, mask
+//!   and packet pipes between the FrontPanel endpoints (what the
+//!   co-simulation drives); [`xem6310`]: the XEM6310 top around it, with the
 //!   FrontPanel endpoints as black boxes ([`frontpanel`]) and the DDR2
 //!   controller as a black box or the DDR2 pins parked ([`mig_ddr2`]).
 //!
@@ -63,6 +65,7 @@ pub mod blink_tracker;
 pub mod bram;
 pub mod candidates;
 pub mod config;
+pub mod const_mul;
 pub mod delay_line;
 pub mod delay_line_ddr;
 pub mod designs;
@@ -89,6 +92,7 @@ pub mod stream_control;
 pub mod synth;
 pub mod threshold;
 pub mod xem6310;
+pub mod xem6310_core;
 
 /// The model crate this gateware mirrors.
 pub use smartagg_model as model;

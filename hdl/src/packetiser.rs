@@ -46,7 +46,7 @@
 //! the reflected byte table of polynomial 0x82F63B78 (linear in v).
 
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
-use crate::spatial_filter::ConstMul;
+use crate::const_mul::ConstMul;
 use crate::stream::{lanes, EnableRegs};
 use rust_hdl::prelude::*;
 use smartagg_model::packet::VERSION as PACKET_VERSION;

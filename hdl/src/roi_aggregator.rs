@@ -67,7 +67,7 @@ use crate::blink_tracker::COORD_BITS;
 use crate::bram::{Bram, RamStyle};
 use crate::config::MAX_SLOTS;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
-use crate::spatial_filter::ConstMul;
+use crate::const_mul::ConstMul;
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 

@@ -14,7 +14,7 @@ use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::mcb_model::McbModel;
 use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::registers::{self, control, status, wire_in, wire_out};
-use smartagg_hdl::xem6310::{TestXemCore, TestXemCoreOnChip};
+use smartagg_hdl::xem6310_core::{TestXemCore, TestXemCoreOnChip};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packetiser::encode_stream;
