@@ -49,15 +49,34 @@ use crate::hot_pixel_mask::HotPixelMask;
 use crate::stream_control::StreamControl;
 use rust_hdl::prelude::*;
 
-/// The whole pipeline with the block-RAM delay line: from the raw bit-plane
-/// words to the packet bytes. Type parameters: the front half's
-/// (`P, DAW, CW, CAW, VW, HW, LAW`, see [`crate::front_half`]) and the back
-/// half's (`RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW`, see
-/// [`BackHalf`] and [`BackHalfConfig`]).
+/// Declares a whole pipeline ([`Pipeline`], [`PipelineDdr`]) around a delay
+/// line: one text for both, since the XEM6310 core reads either's ports by
+/// name ([`crate::xem6310_core`]). What differs is named: the delay line's
+/// type and its address-width parameter (`$dw`), what else START waits for
+/// (`gate`), the MCB port wired to the delay line (its inputs, its outputs
+/// and the signal `mem_ready` follows) or left idle (each output's
+/// constant), and the delay line's faults. The update's statements are
+/// written here, not passed in: `self` in a macro's argument is not the
+/// `self` of a method the macro writes.
+macro_rules! pipeline_block {
+    (
+        $(#[$attr:meta])*
+        $name:ident, $dw:ident,
+        delay: { $($delay:tt)* },
+        fault_doc: $fault_doc:literal,
+        mem_ready_doc: $mem_ready_doc:literal,
+        gate: [$($gate:ident),*],
+        mcb_in: [$($mcb_in:ident),*],
+        mcb_out: [$($mcb_out:ident),*],
+        ready_from: [$($ready_from:ident)?],
+        faults: [$($fault:ident),*],
+        idle: [$($idle:ident = { $($idle_value:tt)* }),*]
+    ) => {
+$(#[$attr])*
 #[derive(LogicBlock)]
-pub struct Pipeline<
+pub struct $name<
     const P: usize,
-    const DAW: usize,
+    const $dw: usize,
     const CW: usize,
     const CAW: usize,
     const VW: usize,
@@ -136,15 +155,13 @@ pub struct Pipeline<
     pub framing_error: Signal<Out, Bit>,
     /// Records were lost (Overflow records tell how many).
     pub overflowed: Signal<Out, Bit>,
-    /// An internal buffer overflowed.
+    #[doc = $fault_doc]
     pub fault: Signal<Out, Bit>,
     /// The mask load port is open: no stream is starting or running. Loads
     /// while it is low are ignored, so the mask a stream uses is the one
     /// loaded before its START.
     pub mask_loadable: Signal<Out, Bit>,
-    /// Always high: no DDR2 to wait for. This and the MCB port below are
-    /// [`PipelineDdr`]'s, idle here (inputs unread, outputs 0), so that one
-    /// XEM6310 core ([`crate::xem6310`]) serves both delay lines.
+    #[doc = $mem_ready_doc]
     pub mem_ready: Signal<Out, Bit>,
     /// MCB: calibration done.
     pub calib_done: Signal<In, Bit>,
@@ -174,14 +191,14 @@ pub struct Pipeline<
     pub rd_empty: Signal<In, Bit>,
     control: StreamControl<P, CW, HW>,
     mask: HotPixelMask<P, CAW>,
-    delay: DelayLine<P, DAW, CW>,
+    delay: $($delay)*,
     front: FrontHalf<P, CW, CAW, VW, HW, LAW>,
     back: BackHalf<P, CW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
 }
 
 impl<
         const P: usize,
-        const DAW: usize,
+        const $dw: usize,
         const CW: usize,
         const CAW: usize,
         const VW: usize,
@@ -197,12 +214,12 @@ impl<
         const TW: usize,
         const TAW: usize,
         const OAW: usize,
-    > Pipeline<P, DAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
+    > $name<P, $dw, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
 {
     /// The pipeline of a configuration; errors if the type's widths differ.
     pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
         let f = &cfg.front;
-        Ok(Pipeline {
+        Ok($name {
             clock: Default::default(),
             start: Default::default(),
             stop: Default::default(),
@@ -251,7 +268,7 @@ impl<
             rd_empty: Default::default(),
             control: StreamControl::new(cfg)?,
             mask: HotPixelMask::new(f)?,
-            delay: DelayLine::new(f)?,
+            delay: <$($delay)*>::new(f)?,
             front: FrontHalf::new(f)?,
             back: BackHalf::new(cfg)?,
         })
@@ -260,7 +277,7 @@ impl<
 
 impl<
         const P: usize,
-        const DAW: usize,
+        const $dw: usize,
         const CW: usize,
         const CAW: usize,
         const VW: usize,
@@ -277,13 +294,13 @@ impl<
         const TAW: usize,
         const OAW: usize,
     > Logic
-    for Pipeline<P, DAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
+    for $name<P, $dw, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
 {
     #[hdl_gen]
     fn update(&mut self) {
         clock!(self, clock, control, mask, delay, front, back);
         // Control.
-        self.control.start.next = self.start.val();
+        self.control.start.next = self.start.val() $(& self.$gate.val())*;
         self.control.stop.next = self.stop.val();
         self.control.reset.next = self.reset.val();
         self.control.reg_n.next = self.reg_n.val();
@@ -320,6 +337,9 @@ impl<
         self.delay.drain.next = self.mask.out_drain.val();
         self.delay.live.next = self.mask.out_live.val();
         self.delay.side.next = self.mask.out_mask.val();
+        $(self.delay.$mcb_in.next = self.$mcb_in.val();)*
+        $(self.$mcb_out.next = self.delay.$mcb_out.val();)*
+        $(self.mem_ready.next = self.$ready_from.val();)?
         // Stages 1-4.
         self.front.restart.next = self.control.restart.val();
         self.front.threshold.next = self.control.threshold_hw.val();
@@ -368,354 +388,59 @@ impl<
         self.config_error.next = self.control.config_error.val();
         self.framing_error.next = self.control.framing_error.val();
         self.overflowed.next = self.back.overflowed.val();
-        self.fault.next = self.back.fault.val();
-        // The idle MCB port.
-        self.mem_ready.next = true;
-        self.cmd_en.next = false;
-        self.cmd_instr.next = 0.into();
-        self.cmd_bl.next = 0.into();
-        self.cmd_addr.next = 0.into();
-        self.wr_en.next = false;
-        self.wr_mask.next = 0.into();
-        self.wr_data.next = 0.into();
-        self.rd_en.next = false;
+        self.fault.next = self.back.fault.val() $(| self.delay.$fault.val())*;
+        $(self.$idle.next = $($idle_value)*;)*
     }
 }
-
-/// The whole pipeline with the DDR2 delay line ([`DelayLineDdr`]) for
-/// configurations whose N_max planes do not fit block RAM: as [`Pipeline`],
-/// plus the MCB user port, and START waits for the memory's calibration
-/// (`mem_ready`). `PAW`: prefetch FIFO address bits.
-#[derive(LogicBlock)]
-pub struct PipelineDdr<
-    const P: usize,
-    const PAW: usize,
-    const CW: usize,
-    const CAW: usize,
-    const VW: usize,
-    const HW: usize,
-    const LAW: usize,
-    const RAW: usize,
-    const RCW: usize,
-    const CAW2: usize,
-    const BW: usize,
-    const QAW: usize,
-    const QW: usize,
-    const PW: usize,
-    const TW: usize,
-    const TAW: usize,
-    const OAW: usize,
-> {
-    /// Clock.
-    pub clock: Signal<In, Clock>,
-    /// START.
-    pub start: Signal<In, Bit>,
-    /// STOP.
-    pub stop: Signal<In, Bit>,
-    /// RESET.
-    pub reset: Signal<In, Bit>,
-    /// N register.
-    pub reg_n: Signal<In, Bits<32>>,
-    /// T_int register.
-    pub reg_threshold: Signal<In, Bits<32>>,
-    /// T_hold register.
-    pub reg_threshold_hold: Signal<In, Bits<32>>,
-    /// END_TRIM register.
-    pub reg_end_trim: Signal<In, Bits<32>>,
-    /// L_min register.
-    pub reg_l_min: Signal<In, Bits<32>>,
-    /// L_max register.
-    pub reg_l_max: Signal<In, Bits<32>>,
-    /// Plane period register.
-    pub reg_period: Signal<In, Bits<32>>,
-    /// Masked-pixel count register.
-    pub reg_masked: Signal<In, Bits<32>>,
-    /// MASK_ENABLE.
-    pub reg_mask_enable: Signal<In, Bit>,
-    /// Mask load strobe (while stopped).
-    pub load: Signal<In, Bit>,
-    /// Mask word index.
-    pub load_address: Signal<In, Bits<CAW>>,
-    /// Mask word.
-    pub load_data: Signal<In, Bits<P>>,
-    /// A source word.
-    pub in_valid: Signal<In, Bit>,
-    /// First word of a plane.
-    pub in_sop: Signal<In, Bit>,
-    /// Its pixels (pixel i in bit i).
-    pub in_live: Signal<In, Bits<P>>,
-    /// A packet byte is available.
-    pub out_valid: Signal<Out, Bit>,
-    /// The byte.
-    pub out_data: Signal<Out, Bits<8>>,
-    /// Take it.
-    pub out_pop: Signal<In, Bit>,
-    /// Bytes waiting.
-    pub out_count: Signal<Out, Bits<16>>,
-    /// A stream is running.
-    pub running: Signal<Out, Bit>,
-    /// Source words are taken now.
-    pub accepting: Signal<Out, Bit>,
-    /// Source words are taken now and the back half has room for them
-    /// ([`BackHalf`]'s `room`): a source that can wait, such as the replay,
-    /// sends only while this is high and may then send a word every clock.
-    pub ready: Signal<Out, Bit>,
-    /// The stream has ended.
-    pub ended: Signal<Out, Bit>,
-    /// START refused: register out of range.
-    pub config_error: Signal<Out, Bit>,
-    /// `sop` inside a plane.
-    pub framing_error: Signal<Out, Bit>,
-    /// Records were lost (Overflow records tell how many).
-    pub overflowed: Signal<Out, Bit>,
-    /// An internal buffer overflowed, or the DDR2 delay line under-ran.
-    pub fault: Signal<Out, Bit>,
-    /// The mask load port is open: no stream is starting or running. Loads
-    /// while it is low are ignored, so the mask a stream uses is the one
-    /// loaded before its START.
-    pub mask_loadable: Signal<Out, Bit>,
-    /// The DDR2 memory has calibrated (START waits for it).
-    pub mem_ready: Signal<Out, Bit>,
-    /// MCB: calibration done.
-    pub calib_done: Signal<In, Bit>,
-    /// MCB port: command enable.
-    pub cmd_en: Signal<Out, Bit>,
-    /// MCB port: instruction.
-    pub cmd_instr: Signal<Out, Bits<3>>,
-    /// MCB port: burst length − 1.
-    pub cmd_bl: Signal<Out, Bits<6>>,
-    /// MCB port: byte address.
-    pub cmd_addr: Signal<Out, Bits<30>>,
-    /// MCB port: command FIFO full.
-    pub cmd_full: Signal<In, Bit>,
-    /// MCB port: write enable.
-    pub wr_en: Signal<Out, Bit>,
-    /// MCB port: write mask.
-    pub wr_mask: Signal<Out, Bits<4>>,
-    /// MCB port: write data.
-    pub wr_data: Signal<Out, Bits<32>>,
-    /// MCB port: write FIFO full.
-    pub wr_full: Signal<In, Bit>,
-    /// MCB port: read enable.
-    pub rd_en: Signal<Out, Bit>,
-    /// MCB port: read data.
-    pub rd_data: Signal<In, Bits<32>>,
-    /// MCB port: read FIFO empty.
-    pub rd_empty: Signal<In, Bit>,
-    control: StreamControl<P, CW, HW>,
-    mask: HotPixelMask<P, CAW>,
-    delay: DelayLineDdr<P, CW, PAW>,
-    front: FrontHalf<P, CW, CAW, VW, HW, LAW>,
-    back: BackHalf<P, CW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
+    };
 }
 
-impl<
-        const P: usize,
-        const PAW: usize,
-        const CW: usize,
-        const CAW: usize,
-        const VW: usize,
-        const HW: usize,
-        const LAW: usize,
-        const RAW: usize,
-        const RCW: usize,
-        const CAW2: usize,
-        const BW: usize,
-        const QAW: usize,
-        const QW: usize,
-        const PW: usize,
-        const TW: usize,
-        const TAW: usize,
-        const OAW: usize,
-    > PipelineDdr<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
-{
-    /// The pipeline of a configuration; errors if the type's widths differ.
-    pub fn new(cfg: &BackHalfConfig) -> Result<Self, GatewareError> {
-        let f = &cfg.front;
-        Ok(PipelineDdr {
-            clock: Default::default(),
-            start: Default::default(),
-            stop: Default::default(),
-            reset: Default::default(),
-            reg_n: Default::default(),
-            reg_threshold: Default::default(),
-            reg_threshold_hold: Default::default(),
-            reg_end_trim: Default::default(),
-            reg_l_min: Default::default(),
-            reg_l_max: Default::default(),
-            reg_period: Default::default(),
-            reg_masked: Default::default(),
-            reg_mask_enable: Default::default(),
-            load: Default::default(),
-            load_address: Default::default(),
-            load_data: Default::default(),
-            in_valid: Default::default(),
-            in_sop: Default::default(),
-            in_live: Default::default(),
-            out_valid: Default::default(),
-            out_data: Default::default(),
-            out_pop: Default::default(),
-            out_count: Default::default(),
-            running: Default::default(),
-            accepting: Default::default(),
-            ready: Default::default(),
-            ended: Default::default(),
-            config_error: Default::default(),
-            framing_error: Default::default(),
-            overflowed: Default::default(),
-            fault: Default::default(),
-            mask_loadable: Default::default(),
-            mem_ready: Default::default(),
-            calib_done: Default::default(),
-            cmd_en: Default::default(),
-            cmd_instr: Default::default(),
-            cmd_bl: Default::default(),
-            cmd_addr: Default::default(),
-            cmd_full: Default::default(),
-            wr_en: Default::default(),
-            wr_mask: Default::default(),
-            wr_data: Default::default(),
-            wr_full: Default::default(),
-            rd_en: Default::default(),
-            rd_data: Default::default(),
-            rd_empty: Default::default(),
-            control: StreamControl::new(cfg)?,
-            mask: HotPixelMask::new(f)?,
-            delay: DelayLineDdr::new(f)?,
-            front: FrontHalf::new(f)?,
-            back: BackHalf::new(cfg)?,
-        })
-    }
-}
+pipeline_block!(
+    /// The whole pipeline with the block-RAM delay line: from the raw bit-plane
+    /// words to the packet bytes. Type parameters: the front half's
+    /// (`P, DAW, CW, CAW, VW, HW, LAW`, see [`crate::front_half`]) and the back
+    /// half's (`RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW`, see
+    /// [`BackHalf`] and [`BackHalfConfig`]).
+    Pipeline, DAW,
+    delay: { DelayLine<P, DAW, CW> },
+    fault_doc: "An internal buffer overflowed.",
+    mem_ready_doc: "Always high: no DDR2 to wait for. This and the MCB port below are \
+        [`PipelineDdr`]'s, idle here (inputs unread, outputs 0), so that one \
+        XEM6310 core ([`crate::xem6310_core`]) serves both delay lines.",
+    gate: [],
+    mcb_in: [],
+    mcb_out: [],
+    ready_from: [],
+    faults: [],
+    idle: [
+        mem_ready = { true },
+        cmd_en = { false },
+        cmd_instr = { 0.into() },
+        cmd_bl = { 0.into() },
+        cmd_addr = { 0.into() },
+        wr_en = { false },
+        wr_mask = { 0.into() },
+        wr_data = { 0.into() },
+        rd_en = { false }
+    ]
+);
 
-impl<
-        const P: usize,
-        const PAW: usize,
-        const CW: usize,
-        const CAW: usize,
-        const VW: usize,
-        const HW: usize,
-        const LAW: usize,
-        const RAW: usize,
-        const RCW: usize,
-        const CAW2: usize,
-        const BW: usize,
-        const QAW: usize,
-        const QW: usize,
-        const PW: usize,
-        const TW: usize,
-        const TAW: usize,
-        const OAW: usize,
-    > Logic
-    for PipelineDdr<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>
-{
-    #[hdl_gen]
-    fn update(&mut self) {
-        clock!(self, clock, control, mask, delay, front, back);
-        // Control.
-        self.control.start.next = self.start.val() & self.calib_done.val();
-        self.control.stop.next = self.stop.val();
-        self.control.reset.next = self.reset.val();
-        self.control.reg_n.next = self.reg_n.val();
-        self.control.reg_threshold.next = self.reg_threshold.val();
-        self.control.reg_threshold_hold.next = self.reg_threshold_hold.val();
-        self.control.reg_end_trim.next = self.reg_end_trim.val();
-        self.control.reg_l_min.next = self.reg_l_min.val();
-        self.control.reg_l_max.next = self.reg_l_max.val();
-        self.control.reg_period.next = self.reg_period.val();
-        self.control.reg_masked.next = self.reg_masked.val();
-        self.control.reg_mask_enable.next = self.reg_mask_enable.val();
-        self.control.back_done.next = self.back.done.val();
-        self.control.in_valid.next = self.in_valid.val();
-        self.control.in_sop.next = self.in_sop.val();
-        self.control.in_live.next = self.in_live.val();
-        // Stage 0: hot-pixel mask.
-        // The mask is latched with the registers: loads only while stopped.
-        self.mask_loadable.next = self.control.idle.val();
-        self.mask.load.next = self.load.val() & self.mask_loadable.val();
-        self.mask.load_address.next = self.load_address.val();
-        self.mask.load_data.next = self.load_data.val();
-        self.mask.valid.next = self.control.w_valid.val();
-        self.mask.sop.next = self.control.w_sop.val();
-        self.mask.flush.next = self.control.w_flush.val();
-        self.mask.drain.next = self.control.w_drain.val();
-        self.mask.enable.next = self.control.mask_enable.val();
-        self.mask.live.next = self.control.w_live.val();
-        // Stage 1a: delay line.
-        self.delay.restart.next = self.control.restart.val();
-        self.delay.n_window.next = self.control.n_window.val();
-        self.delay.valid.next = self.mask.out_valid.val();
-        self.delay.sop.next = self.mask.out_sop.val();
-        self.delay.flush.next = self.mask.out_flush.val();
-        self.delay.drain.next = self.mask.out_drain.val();
-        self.delay.live.next = self.mask.out_live.val();
-        self.delay.side.next = self.mask.out_mask.val();
-        self.delay.calib_done.next = self.calib_done.val();
-        self.delay.cmd_full.next = self.cmd_full.val();
-        self.delay.wr_full.next = self.wr_full.val();
-        self.delay.rd_data.next = self.rd_data.val();
-        self.delay.rd_empty.next = self.rd_empty.val();
-        self.cmd_en.next = self.delay.cmd_en.val();
-        self.cmd_instr.next = self.delay.cmd_instr.val();
-        self.cmd_bl.next = self.delay.cmd_bl.val();
-        self.cmd_addr.next = self.delay.cmd_addr.val();
-        self.wr_en.next = self.delay.wr_en.val();
-        self.wr_mask.next = self.delay.wr_mask.val();
-        self.wr_data.next = self.delay.wr_data.val();
-        self.rd_en.next = self.delay.rd_en.val();
-        self.mem_ready.next = self.calib_done.val();
-        // Stages 1-4.
-        self.front.restart.next = self.control.restart.val();
-        self.front.threshold.next = self.control.threshold_hw.val();
-        self.front.threshold_hold.next = self.control.threshold_hold_hw.val();
-        self.front.valid.next = self.delay.out_valid.val();
-        self.front.flush.next = self.delay.out_flush.val();
-        self.front.x.next = self.delay.out_x.val();
-        self.front.y.next = self.delay.out_y.val();
-        self.front.idx.next = self.delay.out_idx.val();
-        self.front.live.next = self.delay.out_live.val();
-        self.front.delayed.next = self.delay.out_delayed.val();
-        // Stages 5-7.
-        self.back.restart.next = self.control.restart.val();
-        self.back.emit_start.next = self.control.starting.val();
-        self.back.n_window.next = self.control.n_window.val();
-        self.back.threshold.next = self.control.threshold.val();
-        self.back.threshold_hold.next = self.control.threshold_hold.val();
-        self.back.end_trim.next = self.control.end_trim.val();
-        self.back.l_min.next = self.control.l_min.val();
-        self.back.l_max.next = self.control.l_max.val();
-        self.back.plane_period.next = self.control.plane_period.val();
-        self.back.masked_pixels.next = self.control.masked_pixels.val();
-        self.back.stopping.next = self.control.stopping.val();
-        self.back.planes_total.next = self.control.planes_total.val();
-        self.back.fh_valid.next = self.front.out_valid.val();
-        self.back.fh_flush.next = self.front.out_flush.val();
-        self.back.fh_x.next = self.front.out_x.val();
-        self.back.fh_y.next = self.front.out_y.val();
-        for i in 0..P {
-            self.back.fh_above[i].next = self.front.above[i].val();
-            self.back.fh_cand[i].next = self.front.candidate[i].val();
-        }
-        self.back.raw_valid.next =
-            self.delay.out_valid.val() & (!self.delay.out_flush.val() | self.delay.out_drain.val());
-        self.back.raw_x.next = self.delay.out_x.val();
-        self.back.raw_delayed.next = self.delay.out_delayed.val();
-        self.back.raw_mask.next = self.delay.out_side.val();
-        self.back.out_pop.next = self.out_pop.val();
-        self.out_valid.next = self.back.out_valid.val();
-        self.out_data.next = self.back.out_data.val();
-        self.out_count.next = self.back.out_count.val();
-        self.running.next = self.control.running.val();
-        self.accepting.next = self.control.accepting.val();
-        self.ready.next = self.control.accepting.val() & self.back.room.val();
-        self.ended.next = self.control.ended.val();
-        self.config_error.next = self.control.config_error.val();
-        self.framing_error.next = self.control.framing_error.val();
-        self.overflowed.next = self.back.overflowed.val();
-        self.fault.next =
-            self.back.fault.val() | self.delay.underrun.val() | self.delay.write_error.val();
-    }
-}
+pipeline_block!(
+    /// The whole pipeline with the DDR2 delay line ([`DelayLineDdr`]) for
+    /// configurations whose N_max planes do not fit block RAM: as [`Pipeline`],
+    /// plus the MCB user port, and START waits for the memory's calibration
+    /// (`mem_ready`). `PAW`: prefetch FIFO address bits.
+    PipelineDdr, PAW,
+    delay: { DelayLineDdr<P, CW, PAW> },
+    fault_doc: "An internal buffer overflowed, or the DDR2 delay line under-ran.",
+    mem_ready_doc: "The DDR2 memory has calibrated (START waits for it).",
+    gate: [calib_done],
+    mcb_in: [calib_done, cmd_full, wr_full, rd_data, rd_empty],
+    mcb_out: [cmd_en, cmd_instr, cmd_bl, cmd_addr, wr_en, wr_mask, wr_data, rd_en],
+    ready_from: [calib_done],
+    faults: [underrun, write_error],
+    idle: []
+);
 
 /// The small simulation configuration: the front half's
 /// [`crate::front_half::test_config`] (16×6, P = 4, k1 = [1 4 6 4 1],
