@@ -32,8 +32,9 @@
 //!   per lane, read-modify-write `S += b_new − b_old`;
 //! * [`spatial_filter::SpatialFilter`]: vertical pass first (k − 1 line
 //!   buffers of counts), then horizontal; pre-added symmetric taps and
-//!   constant multipliers, shift-and-add over signed digits or, for the
-//!   costliest, the device's DSP48A1 slices; zero padding on all four edges;
+//!   constant multipliers ([`const_mul::ConstMul`]: shift-and-add over
+//!   signed digits or, for the costliest, the device's DSP48A1 slices);
+//!   zero padding on all four edges;
 //! * [`threshold::Threshold`] and [`candidates::Candidates`]: `H ≥ T_hold`
 //!   (the tracker's on/off bits), and `H ≥ T_int` with the 3×3 maximum and
 //!   the model's raster tie rule (candidates), two line buffers of H;
@@ -49,7 +50,9 @@
 //!   the source gated at plane boundaries, the drain and flush planes after
 //!   STOP;
 //! * [`pipeline`]: stream control, hot-pixel mask, delay line, front half
-//!   and back half, with its configurations;
+//!   and back half, with its configurations ([`pipeline::Pipeline`] and
+//!   [`pipeline::PipelineDdr`], one text for the two delay lines);
+//! * [`designs`]: the shipped designs, one per (preset, objective);
 //! * [`xem6310_core`]: the register map, the pipeline and the replay, mask
 //!   and packet pipes between the FrontPanel endpoints (what the
 //!   co-simulation drives); [`xem6310`]: the XEM6310 top around it, with the
