@@ -223,7 +223,7 @@ always @(*) read_data = words[read_address];
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::Bench;
+    use crate::testbench::bench::Bench;
 
     #[test]
     fn lut_ram_reads_now_and_writes_at_the_edge() {
@@ -233,7 +233,7 @@ mod tests {
             b.uut.write_data.next = v.to_bits();
             b.uut.write_enable.next = true;
             b.uut.read_address.next = a.to_bits();
-            crate::bench::settle(&mut b.uut);
+            crate::testbench::bench::settle(&mut b.uut);
             // Before the edge: the old word (zero).
             assert_eq!(b.uut.read_data.val().to_u64(), 0);
             b.tick();
@@ -242,7 +242,7 @@ mod tests {
         b.uut.write_enable.next = false;
         for (a, v) in [(2u64, 12u64), (0, 5), (1, 9), (3, 0)] {
             b.uut.read_address.next = a.to_bits();
-            crate::bench::settle(&mut b.uut);
+            crate::testbench::bench::settle(&mut b.uut);
             assert_eq!(b.uut.read_data.val().to_u64(), v, "word {a}");
         }
     }

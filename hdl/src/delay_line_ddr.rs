@@ -11,7 +11,7 @@
 //! `wr_mask`, `wr_data`, `wr_full`) and the read data FIFO (`rd_en`,
 //! `rd_data`, `rd_empty`, first word falling through), on the pipeline
 //! clock. One port keeps reads and writes in issue order, which the read
-//! rules below rely on. [`crate::mcb_model::McbModel`] is a behavioural
+//! rules below rely on. [`crate::testbench::mcb_model::McbModel`] is a behavioural
 //! model of the port for simulation: command latency, one word per clock, periodic refresh gaps,
 //! and garbage in every word never written.
 //!

@@ -63,7 +63,6 @@
 
 pub mod back_half;
 pub mod bank_pool;
-pub mod bench;
 pub mod blink_tracker;
 pub mod bram;
 pub mod candidates;
@@ -79,7 +78,6 @@ pub mod frontpanel;
 pub mod hot_pixel_mask;
 pub mod lint_waivers;
 pub mod lut_levels;
-pub mod mcb_model;
 pub mod mig_ddr2;
 pub mod packetiser;
 pub mod pipeline;
@@ -93,6 +91,7 @@ pub mod spatial_filter;
 pub mod stream;
 pub mod stream_control;
 pub mod synth;
+pub mod testbench;
 pub mod threshold;
 pub mod xem6310;
 pub mod xem6310_core;

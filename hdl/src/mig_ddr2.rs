@@ -11,7 +11,7 @@
 //! bidirectional user port p0, differential 100 MHz system clock,
 //! `c3_sys_rst_i` active high) and leave the declaration out. A part of the
 //! XEM6310 top ([`crate::xem6310`]); in simulation the MCB user port is
-//! served by the behavioural MCB ([`crate::mcb_model`]).
+//! served by the behavioural MCB ([`crate::testbench::mcb_model`]).
 
 use rust_hdl::prelude::*;
 

@@ -6,7 +6,7 @@
 //! **Simulation.** [`XemCore`] is the unit the co-simulation drives: its
 //! ports are the endpoints' user sides (wire values, trigger pulses, pipe
 //! strobes) and the MCB user port, so it is simulated against the model with
-//! the behavioural MCB ([`crate::mcb_model::McbModel`]); FrontPanel's
+//! the behavioural MCB ([`crate::testbench::mcb_model::McbModel`]); FrontPanel's
 //! host protocol itself is Opal Kelly's and is not modelled.
 //!
 //! **Replay** (`SOURCE_REPLAY`): the host sends whole planes in whole

@@ -8,9 +8,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::candidates::Candidates;
 use smartagg_hdl::config::GatewareConfig;
+use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
 use smartagg_model::candidates::{find, Candidate};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::threshold::above;

@@ -5,7 +5,7 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::settle;
+use smartagg_hdl::testbench::bench::settle;
 
 #[test]
 fn csd_digits_make_the_weight_with_the_fewest_terms() {

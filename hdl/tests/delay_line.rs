@@ -6,9 +6,9 @@
 mod common;
 
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line::DelayLine;
+use smartagg_hdl::testbench::bench::{Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine as ModelDelayLine;
 
@@ -60,7 +60,7 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
             };
             sent += 1;
         }
-        smartagg_hdl::bench::settle(u);
+        smartagg_hdl::testbench::bench::settle(u);
         if u.out_valid.val() && u.out_drain.val() {
             assert!(u.out_flush.val(), "drain words are flush downstream");
             got_drain.push(u.out_delayed.val().to_u64());

@@ -7,10 +7,10 @@
 mod common;
 
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line_ddr::DelayLineDdr;
-use smartagg_hdl::mcb_model::McbModel;
+use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
+use smartagg_hdl::testbench::mcb_model::McbModel;
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine as ModelDelayLine;
 use smartagg_model::plane::BitPlane;

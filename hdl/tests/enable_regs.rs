@@ -6,8 +6,8 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::stream::EnableRegs;
+use smartagg_hdl::testbench::bench::{settle, Bench};
 
 #[test]
 fn enable_regs_load_only_when_enabled_and_hold_otherwise() {

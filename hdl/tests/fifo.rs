@@ -5,9 +5,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::bram::RamStyle;
 use smartagg_hdl::fifo::Fifo;
+use smartagg_hdl::testbench::bench::{settle, Bench};
 use std::collections::VecDeque;
 
 fn run(style: RamStyle, push_p: f64, pop_p: f64, seed: u64, min_popped: usize) {

@@ -5,9 +5,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
+use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask as ModelMask;
 use smartagg_model::plane::BitPlane;

@@ -11,9 +11,9 @@ mod common;
 use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench};
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig};
 use smartagg_hdl::packetiser::Packetiser;
+use smartagg_hdl::testbench::bench::{settle, Bench};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::packet::{decode_all, encode_record, Encoder};
 use smartagg_model::record::{

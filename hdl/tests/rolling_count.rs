@@ -6,9 +6,9 @@
 mod common;
 
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::rolling_count::RollingCount;
+use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine;
 use smartagg_model::plane::BitPlane;

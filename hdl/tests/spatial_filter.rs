@@ -7,9 +7,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::{settle, Bench, Stalls};
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::spatial_filter::SpatialFilter;
+use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::spatial_filter::SpatialFilter as ModelFilter;
 

@@ -5,7 +5,7 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::bench::settle;
+use smartagg_hdl::testbench::bench::settle;
 use smartagg_hdl::threshold::Threshold;
 use smartagg_model::threshold::above;
 

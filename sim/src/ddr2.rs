@@ -3,7 +3,7 @@
 //! DDR2 delay line runs at Verilator speed.
 //!
 //! Behaviour (the protocol of Xilinx UG388 as the gateware uses it, and the
-//! same rules as `smartagg_hdl::mcb_model::McbModel`): a 4-entry command
+//! same rules as `smartagg_hdl::testbench::mcb_model::McbModel`): a 4-entry command
 //! FIFO executed in order, 64-word write and read data FIFOs, a command's
 //! first word no sooner than `LATENCY` clocks after it was issued, one word
 //! per clock, a refresh gap of `REFRESH_GAP` clocks every `REFRESH_EVERY`
