@@ -112,16 +112,6 @@ pub enum SensorLoadError {
         #[source]
         source: CalibrationError,
     },
-    /// The calibration's maps are not a usable sensor
-    /// ([`SensorMaps::validate`]).
-    #[error("calibration {}", path.display())]
-    Invalid {
-        /// The folder.
-        path: PathBuf,
-        /// The first bad map or value.
-        #[source]
-        why: SensorMapsError,
-    },
 }
 
 impl SensorCalibration {
@@ -150,17 +140,12 @@ impl SensorCalibration {
             cal.planes,
             smartagg_model::packet::crc32c(&bytes)
         );
+        // `Calibration::load` has checked the maps' sizes and values; the
+        // study checks them again where any sensor enters (`with_sensor`).
         let sensor = CalibratedSensor {
             maps: cal.sensor_maps(),
             critical_dcr: CalibratedSensor::critical_dcr_of(cal.hot_criterion),
         };
-        sensor
-            .maps
-            .validate()
-            .map_err(|why| SensorLoadError::Invalid {
-                path: path.to_path_buf(),
-                why,
-            })?;
         Ok(SensorCalibration {
             id,
             sensor: Some(Arc::new(sensor)),

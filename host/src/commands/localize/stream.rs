@@ -186,10 +186,8 @@ pub(super) fn localize_rois(args: &Args, s: &Setup) -> anyhow::Result<(LocTable,
                     .as_ref()
                     .map(|st| st.plane_period_ns as f64 * 1e-9)
                     .unwrap_or(c.tau_s);
-                let maps = c.sensor_maps();
-                maps.validate()
-                    .with_context(|| format!("calibration {}", dir.display()))?;
-                (Some(maps), period)
+                // `load` has checked the maps' sizes and values.
+                (Some(c.sensor_maps()), period)
             }
             AnyCalibration::Frame(_) => bail!(
                 "{} is a frame-camera calibration; blink-ROI packets need a SPAD calibration",
