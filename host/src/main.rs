@@ -4,8 +4,6 @@
 use clap::{Parser, Subcommand};
 
 mod commands;
-mod figure;
-mod picasso;
 mod setup;
 mod stream_info;
 

@@ -21,7 +21,9 @@
 //!   or fiducials.
 //! * Exchange: ThunderSTORM CSV ([`table`]), the pages of an ROI export
 //!   ([`export`]; TIFF input and output is `smartagg_io`'s),
-//!   normalised-Gaussian rendering to PNG with a scale bar ([`render`]).
+//!   normalised-Gaussian rendering ([`render`]); with the crate's features,
+//!   Picasso's HDF5 tables (`picasso`) and publishable PNG figures with a
+//!   colour map and a scale bar (`figure`).
 //! * [`synth`]: simulated ROIs and frames with known truth.
 //!
 //! Coordinates: ROI pixel `i` spans `[i, i + 1)` (ImageJ convention), so a
@@ -44,11 +46,15 @@ pub mod erf;
 pub mod error;
 pub mod export;
 pub(crate) mod fastmath;
+#[cfg(feature = "figure")]
+pub mod figure;
 pub mod fit;
 pub mod frames;
 pub mod linalg;
 pub mod lm;
 pub mod merge;
+#[cfg(feature = "picasso")]
+pub mod picasso;
 pub mod psf;
 pub mod record_fit;
 pub mod render;

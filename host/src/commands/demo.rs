@@ -512,10 +512,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ropts.width = (side / ropts.pixel_nm).ceil() as usize;
     ropts.height = ropts.width;
     let (image, _) = render::render(&points, &ropts)?;
-    let (png_bytes, _) = crate::figure::figure_png(
+    let (png_bytes, _) = smartagg_localize::figure::figure_png(
         &image,
-        &crate::figure::FigureOptions {
-            colormap: crate::figure::Colormap::Gray,
+        &smartagg_localize::figure::FigureOptions {
+            colormap: smartagg_localize::figure::Colormap::Gray,
             saturate: 0.5,
             scale_bar: true,
         },

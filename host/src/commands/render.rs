@@ -8,7 +8,7 @@
 //! A Picasso table is in camera pixels: its pixel size comes from
 //! `--camera-pixel-nm`, else from `Pixelsize` in its YAML sidecar, and its
 //! uncertainty is `sqrt((lpx² + lpy²)/2)`, as the CSV's.
-//! `--out x.png`: a figure ([`crate::figure`]: `--colormap`, a scale bar
+//! `--out x.png`: a figure ([`smartagg_localize::figure`]: `--colormap`, a scale bar
 //! and its label in DejaVu Sans unless `--no-scale-bar`, `--saturate`
 //! percent of the non-empty pixels saturated, the pixel size in pHYs).
 //! `--out x.tif`, or `--tiff x.tif` beside the PNG: the density itself
@@ -31,9 +31,10 @@ use smartagg_localize::LocalizeError;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use crate::figure::{figure_png, Colormap, FigureOptions};
-use crate::{picasso, setup};
+use crate::setup;
 use smartagg_io::output::{refuse_overwriting, same_file, AtomicFile};
+use smartagg_localize::figure::{figure_png, Colormap, FigureOptions};
+use smartagg_localize::picasso;
 
 /// Leaves out the points too far from the median position (or too blurred)
 /// for one image of at most [`MAX_PIXELS`] pixels at `pixel_nm`; returns

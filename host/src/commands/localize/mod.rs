@@ -1,7 +1,7 @@
 //! `smartagg localize`: molecule positions from blink-ROI packets (`.rois`)
 //! or from a TIFF stack of frames, written as a ThunderSTORM CSV table
 //! (`--out x.csv`) or as Picasso HDF5 with its YAML sidecar (`--out
-//! x.hdf5` or `.h5`; [`crate::picasso`] says how the columns map).
+//! x.hdf5` or `.h5`; [`smartagg_localize::picasso`] says how the columns map).
 //!
 //! * **ROI packets** (from `smartagg aggregate` or `download`): each blink
 //!   record is fitted where it is; position = ROI origin + fitted position,
@@ -322,7 +322,7 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
     smartagg_io::output::refuse_overwriting(&args.out, &[&args.input])?;
     let format = out_format(&args.out)?;
     if format == OutFormat::Picasso {
-        let yaml = crate::picasso::sidecar_path(&args.out);
+        let yaml = smartagg_localize::picasso::sidecar_path(&args.out);
         smartagg_io::output::refuse_overwriting(&yaml, &[&args.input])?;
         if args.export_tiff.as_ref() == Some(&yaml) {
             bail!("--export-tiff is {}, the sidecar of --out", yaml.display());
@@ -365,7 +365,7 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
                 .commit()?;
         }
         OutFormat::Picasso => {
-            let meta = crate::picasso::PicassoMeta {
+            let meta = smartagg_localize::picasso::PicassoMeta {
                 width: extent.width,
                 height: extent.height,
                 frames: extent.frames,
@@ -374,8 +374,9 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
                 data_type: extent.data_type,
                 estimator: format!("{:?}", args.estimator).to_lowercase(),
                 blinks: extent.blinks,
+                generated_by: format!("smartagg v{} localize", env!("CARGO_PKG_VERSION")),
             };
-            crate::picasso::write(&args.out, &table, &meta)?;
+            smartagg_localize::picasso::write(&args.out, &table, &meta)?;
             if failed > 0 && !args.drop_failed {
                 eprintln!(
                     "note: Picasso draws every row: its {failed} failed fits are flagged in the fit_status column (filter fit_status = 0 in Picasso Filter, or localize with --drop-failed)"
@@ -392,7 +393,7 @@ fn run_in_pool(args: Args) -> anyhow::Result<()> {
         if format == OutFormat::Picasso {
             format!(
                 " and {}",
-                crate::picasso::sidecar_path(&args.out).display()
+                smartagg_localize::picasso::sidecar_path(&args.out).display()
             )
         } else {
             String::new()

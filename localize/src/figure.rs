@@ -7,14 +7,42 @@
 //! `openUsingImageIO`) and read no calibration from it: the pHYs chunk
 //! serves other viewers; the 32-bit TIFF (`render --tiff`, with ImageJ's
 //! calibration tags) is the file to measure in Fiji.
+//!
+//! Built with the crate's `figure` feature (plotters and the system's
+//! fontconfig and FreeType); its `clap` feature lets a command line take a
+//! [`Colormap`] by name.
 
-use anyhow::{bail, Context};
+use crate::error::LocalizeError;
+use crate::render::{display_max, length_label, nice_length, Image};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use smartagg_localize::render::{display_max, length_label, nice_length, Image};
+
+/// Why a figure could not be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum FigureError {
+    /// The image has no pixels, or more than a PNG holds a side.
+    #[error("cannot draw a {0}x{1} image")]
+    Size(usize, usize),
+    /// The display range could not be set (`saturate` out of range).
+    #[error(transparent)]
+    Range(#[from] LocalizeError),
+    /// The font engine or the drawing failed; the message says which.
+    #[error("{0}")]
+    Draw(String),
+    /// The PNG encoder failed at `step`.
+    #[error("{step}")]
+    Png {
+        /// Which part of the PNG.
+        step: &'static str,
+        /// The encoder's error.
+        #[source]
+        source: png::EncodingError,
+    },
+}
 
 /// Colour maps of `render --colormap`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Colormap {
     /// Black to white.
     Gray,
@@ -90,10 +118,10 @@ fn sizes(w: usize, h: usize) -> (u32, usize, usize) {
 pub fn figure_rgb(
     img: &Image,
     opts: &FigureOptions,
-) -> anyhow::Result<(Vec<u8>, Option<ScaleBar>)> {
+) -> Result<(Vec<u8>, Option<ScaleBar>), FigureError> {
     let (w, h) = (img.width, img.height);
     if w == 0 || h == 0 || w > u32::MAX as usize || h > u32::MAX as usize {
-        bail!("cannot draw a {w}x{h} image");
+        return Err(FigureError::Size(w, h));
     }
     let vmax = f64::from(display_max(&img.data, opts.saturate)?);
     let mut rgb = Vec::with_capacity(w * h * 3);
@@ -128,9 +156,9 @@ pub fn figure_rgb(
             .color(&WHITE)
             .pos(Pos::new(HPos::Center, VPos::Bottom));
         let (tw, th) = area.estimate_text_size(&label, &style).map_err(|e| {
-            anyhow::anyhow!(
+            FigureError::Draw(format!(
                 "the font for the scale bar's label (fonts-dejavu-core, through fontconfig): {e}"
-            )
+            ))
         })?;
         let (tw, th) = (tw as usize, th as usize);
         // Centred over the bar, kept inside the image; left out if too big.
@@ -139,11 +167,11 @@ pub fn figure_rgb(
             // tw + 2·margin ≤ w, so the clamp's bounds are ordered.
             let cx = ((rect[0] + rect[2]) / 2).clamp(margin + tw / 2, w - margin - tw / 2);
             area.draw_text(&label, &style, (cx as i32, bottom as i32))
-                .map_err(|e| anyhow::anyhow!("drawing the scale bar's label: {e}"))?;
+                .map_err(|e| FigureError::Draw(format!("drawing the scale bar's label: {e}")))?;
             font_px = font;
         }
         area.present()
-            .map_err(|e| anyhow::anyhow!("drawing the scale bar: {e}"))?;
+            .map_err(|e| FigureError::Draw(format!("drawing the scale bar: {e}")))?;
     }
     Ok((
         rgb,
@@ -156,12 +184,16 @@ pub fn figure_rgb(
     ))
 }
 
+fn png_err(step: &'static str) -> impl FnOnce(png::EncodingError) -> FigureError {
+    move |source| FigureError::Png { step, source }
+}
+
 /// The figure as an 8-bit RGB PNG with the pixel size in pHYs (pixels per
 /// metre, rounded) and in a `Comment` text chunk.
 pub fn figure_png(
     img: &Image,
     opts: &FigureOptions,
-) -> anyhow::Result<(Vec<u8>, Option<ScaleBar>)> {
+) -> Result<(Vec<u8>, Option<ScaleBar>), FigureError> {
     let (rgb, bar) = figure_rgb(img, opts)?;
     let mut out = Vec::new();
     {
@@ -184,10 +216,10 @@ pub fn figure_png(
                     .unwrap_or_default()
             ),
         )
-        .context("PNG text chunk")?;
-        let mut wr = enc.write_header().context("PNG header")?;
-        wr.write_image_data(&rgb).context("PNG data")?;
-        wr.finish().context("PNG end")?;
+        .map_err(png_err("PNG text chunk"))?;
+        let mut wr = enc.write_header().map_err(png_err("PNG header"))?;
+        wr.write_image_data(&rgb).map_err(png_err("PNG data"))?;
+        wr.finish().map_err(png_err("PNG end"))?;
     }
     Ok((out, bar))
 }
