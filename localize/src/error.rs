@@ -55,9 +55,6 @@ pub enum LocalizeError {
         /// What went wrong.
         why: String,
     },
-    /// A PNG that cannot be written.
-    #[error("PNG: {0}")]
-    Png(String),
     /// A localisation table that cannot be parsed.
     #[error("table line {line}: {why}")]
     Table {

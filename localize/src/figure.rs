@@ -321,4 +321,47 @@ mod tests {
         assert!(none.is_none());
         assert!(plain.iter().all(|&v| v == 0));
     }
+
+    #[test]
+    fn the_png_holds_the_density_and_the_pixel_size() {
+        // Two localisations 80 nm apart, rendered at 5 nm.
+        use crate::render::{render, Point, RenderOptions};
+        let pts: Vec<Point> = [200.0, 280.0]
+            .iter()
+            .map(|&x_nm| Point {
+                x_nm,
+                y_nm: 150.0,
+                sigma_nm: 8.0,
+            })
+            .collect();
+        let (img, _) = render(&pts, &RenderOptions::covering(&pts, 5.0, 2.0).unwrap()).unwrap();
+        let opts = FigureOptions {
+            colormap: Colormap::Gray,
+            saturate: 0.5,
+            scale_bar: false,
+        };
+        let (bytes, bar) = figure_png(&img, &opts).unwrap();
+        assert!(bar.is_none());
+        let mut reader = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        let dims = reader.info().pixel_dims.unwrap();
+        // 5 nm pixels: 2 × 10⁸ per metre.
+        assert_eq!((dims.xppu, dims.unit), (200_000_000, png::Unit::Meter));
+        let mut buf = vec![0; reader.output_buffer_size()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!(
+            (info.width as usize, info.height as usize),
+            (img.width, img.height)
+        );
+        let grey = |x_nm: f64| {
+            let i = ((x_nm - img.origin_x_nm) / img.pixel_nm) as usize;
+            let j = ((150.0 - img.origin_y_nm) / img.pixel_nm) as usize;
+            buf[(j * img.width + i) * 3]
+        };
+        // Each peak near full scale, nothing between them.
+        assert!(grey(200.0) > 200, "{}", grey(200.0));
+        assert!(grey(280.0) > 200, "{}", grey(280.0));
+        assert_eq!(grey(240.0), 0);
+    }
 }

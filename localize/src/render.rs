@@ -8,10 +8,11 @@
 //! clamped below at `min_sigma_nm` (default 2 nm) so that a zero uncertainty
 //! cannot make a singular stamp; below half a pixel the stamp is one pixel.
 //!
-//! The PNG is 8-bit grey: density divided by its `(100 − saturate)`th
-//! percentile over non-empty pixels (default 0.5 % saturated), with a white
-//! scale bar (1, 2 or 5 × 10ⁿ nm, about a fifth of the width) and its label
-//! in the lower-right corner.
+//! For display, the density is divided by its `(100 − saturate)`th
+//! percentile over non-empty pixels ([`display_max`], default 0.5 %
+//! saturated); the scale bar is 1, 2 or 5 × 10ⁿ nm, about a fifth of the
+//! width ([`nice_length`], [`length_label`]). The PNG figure with its colour
+//! map and scale bar is the `figure` module's (crate feature `figure`).
 
 use crate::erf::erf;
 use crate::error::{check_option, LocalizeError};
@@ -209,20 +210,6 @@ fn weights(c: f64, s: f64, a: usize, b: usize, out: &mut Vec<f64>) {
     }
 }
 
-/// The scale bar drawn on a PNG.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ScaleBar {
-    /// Length, nm.
-    pub length_nm: f64,
-    /// Length, image pixels.
-    pub length_px: usize,
-    /// Its label, e.g. "500 nm" or "1 µm".
-    pub label: String,
-    /// Whether the label fitted in the image (the bar is always drawn when
-    /// at least 2 pixels long).
-    pub label_drawn: bool,
-}
-
 /// The density shown as full scale: the `(100 − saturate)`th percentile of
 /// the non-empty pixels (1 for an empty image), so that `saturate` percent
 /// of them saturate.
@@ -241,43 +228,6 @@ pub fn display_max(data: &[f32], saturate_percent: f64) -> Result<f32, LocalizeE
     let k = k.min(nonzero.len() - 1);
     let (_, v, _) = nonzero.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
     Ok(if *v > 0.0 { *v } else { 1.0 })
-}
-
-/// 8-bit grey pixels of the image with a scale bar, ready for PNG.
-pub fn to_gray8(img: &Image, saturate_percent: f64) -> Result<(Vec<u8>, ScaleBar), LocalizeError> {
-    let vmax = display_max(&img.data, saturate_percent)?;
-    let mut px: Vec<u8> = img
-        .data
-        .iter()
-        .map(|&v| ((v / vmax).clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    let bar = draw_scale_bar(&mut px, img.width, img.height, img.pixel_nm);
-    Ok((px, bar))
-}
-
-/// Encodes an image as an 8-bit grey PNG with a scale bar.
-pub fn to_png(img: &Image, saturate_percent: f64) -> Result<(Vec<u8>, ScaleBar), LocalizeError> {
-    let (px, bar) = to_gray8(img, saturate_percent)?;
-    let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, img.width as u32, img.height as u32);
-        enc.set_color(png::ColorType::Grayscale);
-        enc.set_depth(png::BitDepth::Eight);
-        // Physical pixel size, so that viewers can show the scale.
-        let ppm = (1e9 / img.pixel_nm).round().clamp(1.0, u32::MAX as f64) as u32;
-        enc.set_pixel_dims(Some(png::PixelDimensions {
-            xppu: ppm,
-            yppu: ppm,
-            unit: png::Unit::Meter,
-        }));
-        let mut w = enc
-            .write_header()
-            .map_err(|e| LocalizeError::Png(e.to_string()))?;
-        w.write_image_data(&px)
-            .map_err(|e| LocalizeError::Png(e.to_string()))?;
-        w.finish().map_err(|e| LocalizeError::Png(e.to_string()))?;
-    }
-    Ok((out, bar))
 }
 
 /// A "nice" length (1, 2 or 5 × 10ⁿ nm) close to `target` nm.
@@ -310,79 +260,6 @@ pub fn length_label(nm: f64) -> String {
         }
     } else {
         format!("{nm:.0} nm")
-    }
-}
-
-fn draw_scale_bar(px: &mut [u8], w: usize, h: usize, pixel_nm: f64) -> ScaleBar {
-    let length_nm = nice_length(w as f64 * pixel_nm / 5.0);
-    let length_px = (length_nm / pixel_nm).round() as usize;
-    let label = length_label(length_nm);
-    let margin = (w.min(h) / 20).max(1);
-    let thick = (h / 100).max(2);
-    let mut label_drawn = false;
-    if length_px >= 2 && length_px + 2 * margin <= w && thick + 2 * margin <= h {
-        let x1 = w - margin;
-        let x0 = x1 - length_px;
-        let y1 = h - margin;
-        let y0 = y1 - thick;
-        for y in y0..y1 {
-            px[y * w + x0..y * w + x1].fill(255);
-        }
-        // Label above the bar, right-aligned, glyph scale ~h/60.
-        let scale = (h / 60).max(1);
-        let text_w = label.chars().count() * 6 * scale;
-        let text_h = 7 * scale;
-        if text_w <= w.saturating_sub(margin) && y0 >= text_h + scale + margin / 2 {
-            let ty = y0 - scale - text_h;
-            let tx = x1.saturating_sub(text_w);
-            for (ci, ch) in label.chars().enumerate() {
-                let glyph = glyph(ch);
-                for (row, bits) in glyph.iter().enumerate() {
-                    for col in 0..5 {
-                        if bits & (0b10000 >> col) != 0 {
-                            for dy in 0..scale {
-                                for dx in 0..scale {
-                                    let x = tx + (ci * 6 + col) * scale + dx;
-                                    let y = ty + row * scale + dy;
-                                    if x < w && y < h {
-                                        px[y * w + x] = 255;
-                                    }
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            label_drawn = true;
-        }
-    }
-    ScaleBar {
-        length_nm,
-        length_px,
-        label,
-        label_drawn,
-    }
-}
-
-/// 5×7 bitmap glyphs (rows top to bottom, 5 bits each) of the characters a
-/// scale-bar label needs.
-fn glyph(c: char) -> [u8; 7] {
-    match c {
-        '0' => [0x0e, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0e],
-        '1' => [0x04, 0x0c, 0x04, 0x04, 0x04, 0x04, 0x0e],
-        '2' => [0x0e, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1f],
-        '3' => [0x1f, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0e],
-        '4' => [0x02, 0x06, 0x0a, 0x12, 0x1f, 0x02, 0x02],
-        '5' => [0x1f, 0x10, 0x1e, 0x01, 0x01, 0x11, 0x0e],
-        '6' => [0x06, 0x08, 0x10, 0x1e, 0x11, 0x11, 0x0e],
-        '7' => [0x1f, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
-        '8' => [0x0e, 0x11, 0x11, 0x0e, 0x11, 0x11, 0x0e],
-        '9' => [0x0e, 0x11, 0x11, 0x0f, 0x01, 0x02, 0x0c],
-        '.' => [0x00, 0x00, 0x00, 0x00, 0x00, 0x0c, 0x0c],
-        'n' => [0x00, 0x00, 0x16, 0x19, 0x11, 0x11, 0x11],
-        'm' => [0x00, 0x00, 0x1a, 0x15, 0x15, 0x11, 0x11],
-        'µ' => [0x00, 0x00, 0x11, 0x11, 0x11, 0x13, 0x1d],
-        _ => [0; 7],
     }
 }
 
