@@ -73,6 +73,10 @@ pub enum LocalizeError {
         /// Largest pixel count allowed.
         limit: u64,
     },
+    /// A table that could not be rewritten in place (its text and the
+    /// rows read from it disagree).
+    #[error("{0}")]
+    Rewrite(&'static str),
     /// Input/output failure.
     #[error("I/O: {0}")]
     Io(#[from] std::io::Error),

@@ -12,6 +12,7 @@
 //! fontconfig and FreeType); its `clap` feature lets a command line take a
 //! [`Colormap`] by name.
 
+use crate::drift::{DriftEstimate, SegmentDrift};
 use crate::error::LocalizeError;
 use crate::render::{display_max, length_label, nice_length, Image};
 use plotters::prelude::*;
@@ -184,6 +185,10 @@ pub fn figure_rgb(
     ))
 }
 
+fn draw_err(e: impl std::fmt::Display) -> FigureError {
+    FigureError::Draw(format!("drawing the drift plot: {e}"))
+}
+
 fn png_err(step: &'static str) -> impl FnOnce(png::EncodingError) -> FigureError {
     move |source| FigureError::Png { step, source }
 }
@@ -222,6 +227,89 @@ pub fn figure_png(
         wr.finish().map_err(png_err("PNG end"))?;
     }
     Ok((out, bar))
+}
+
+/// A drift trajectory drawn as a 900×520 PNG: dx and dy (nm) against time
+/// (seconds when `frame_s`, the length of a time unit, is known, else in
+/// `unit`s).
+pub fn drift_png(
+    est: &DriftEstimate,
+    frame_s: Option<f64>,
+    unit: &str,
+) -> Result<Vec<u8>, FigureError> {
+    let (w, h) = (900u32, 520u32);
+    let scale = frame_s.unwrap_or(1.0);
+    let x_desc = if frame_s.is_some() {
+        "time (s)".to_string()
+    } else {
+        format!("time ({unit})")
+    };
+    let pts = |f: fn(&SegmentDrift) -> f64| -> Vec<(f64, f64)> {
+        est.segments
+            .iter()
+            .map(|g| (g.t_mean * scale, f(g)))
+            .collect()
+    };
+    let (xs, ys) = (pts(|g| g.dx_nm), pts(|g| g.dy_nm));
+    let t0 = est.segments.first().map_or(0.0, |g| g.t_start * scale);
+    let t1 = est
+        .segments
+        .last()
+        .map_or(1.0, |g| g.t_end * scale)
+        .max(t0 + 1e-9);
+    let (mut lo, mut hi) = (0.0f64, 0.0f64);
+    for &(_, v) in xs.iter().chain(&ys) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    let pad = ((hi - lo) * 0.1).max(5.0);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption("Estimated stage drift", ("sans-serif", 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(t0..t1, (lo - pad)..(hi + pad))
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc("drift (nm)")
+            .draw()
+            .map_err(draw_err)?;
+        for (series, colour, name) in [(&xs, BLUE, "dx"), (&ys, RED, "dy")] {
+            chart
+                .draw_series(LineSeries::new(
+                    series.iter().copied(),
+                    colour.stroke_width(2),
+                ))
+                .map_err(draw_err)?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+            chart
+                .draw_series(series.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+                .map_err(draw_err)?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(draw_err)?;
+        root.present().map_err(draw_err)?;
+    }
+    let mut png_bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut png_bytes, w, h);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut wr = enc.write_header().map_err(png_err("PNG header"))?;
+        wr.write_image_data(&buf).map_err(png_err("PNG data"))?;
+    }
+    Ok(png_bytes)
 }
 
 #[cfg(test)]

@@ -220,6 +220,53 @@ pub struct CsvTable {
 }
 
 impl CsvTable {
+    /// `text`, the CSV this table was read from, with columns `cx` and `cy`
+    /// of every data row replaced by `x − dx`, `y − dy` (`(dx, dy) =
+    /// shift(row)`), every other byte kept: a table corrected in place
+    /// (drift). Rows are found as [`CsvTable::read`] finds them (the first
+    /// non-blank line is the header, blank lines skipped).
+    pub fn rewrite_xy(
+        &self,
+        text: &[u8],
+        cx: usize,
+        cy: usize,
+        shift: impl Fn(&[f64]) -> (f64, f64),
+    ) -> Result<Vec<u8>, LocalizeError> {
+        let text =
+            std::str::from_utf8(text).map_err(|_| LocalizeError::Rewrite("not UTF-8 text"))?;
+        let mut out = String::with_capacity(text.len() + text.len() / 8);
+        let mut header_seen = false;
+        let mut rows = self.rows.iter();
+        for line in text.split_inclusive('\n') {
+            let content = line.trim_end_matches(['\n', '\r']);
+            let ending = &line[content.len()..];
+            if content.trim_start_matches('\u{feff}').trim().is_empty() || !header_seen {
+                header_seen |= !content.trim_start_matches('\u{feff}').trim().is_empty();
+                out.push_str(line);
+                continue;
+            }
+            let r = rows
+                .next()
+                .ok_or(LocalizeError::Rewrite("more rows than the table read"))?;
+            let (dx, dy) = shift(r);
+            let mut fields: Vec<String> = content.split(',').map(str::to_string).collect();
+            let keep_space = |old: &str, new: String| {
+                // Keep any padding around the number.
+                let lead = &old[..old.len() - old.trim_start().len()];
+                let trail = &old[old.trim_end().len()..];
+                format!("{lead}{new}{trail}")
+            };
+            fields[cx] = keep_space(&fields[cx], format_decimal(r[cx] - dx, 3));
+            fields[cy] = keep_space(&fields[cy], format_decimal(r[cy] - dy, 3));
+            out.push_str(&fields.join(","));
+            out.push_str(ending);
+        }
+        if rows.next().is_some() {
+            return Err(LocalizeError::Rewrite("fewer rows than the table read"));
+        }
+        Ok(out.into_bytes())
+    }
+
     /// Index of the first column with one of these names.
     pub fn column(&self, names: &[&str]) -> Option<usize> {
         names
@@ -340,5 +387,21 @@ mod tests {
         assert_eq!(num(-0.0001, 3), "0");
         assert_eq!(num(f64::NAN, 3), "0");
         assert_eq!(num(1234.56789, 2), "1234.57");
+    }
+
+    #[test]
+    fn rewriting_changes_x_and_y_only() {
+        let text = "\u{feff}\"id\",\"frame\",\"x [nm]\",\"y [nm]\",\"q\"\r\n\r\n1,3,100.5,200,7.125\r\n2,4, 10 ,20,8\n";
+        let t = CsvTable::read(text.as_bytes()).unwrap();
+        let out = t
+            .rewrite_xy(text.as_bytes(), 2, 3, |r| (r[1], -1.0))
+            .unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "\u{feff}\"id\",\"frame\",\"x [nm]\",\"y [nm]\",\"q\"\r\n\r\n1,3,97.5,201,7.125\r\n2,4, 6 ,21,8\n"
+        );
+        // A text that is not the table's is refused, not half rewritten.
+        let e = t.rewrite_xy(b"a,b\n1,2\n", 0, 1, |_| (0.0, 0.0));
+        assert!(matches!(e, Err(LocalizeError::Rewrite(_))), "{e:?}");
     }
 }

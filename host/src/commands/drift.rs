@@ -24,10 +24,8 @@
 //!   against time (skipped with a warning where no font is available).
 
 use anyhow::{bail, Context};
-use plotters::prelude::*;
-use smartagg_localize::drift::{self, DriftEstimate, DriftOptions, DriftPoint};
-use smartagg_localize::table::{format_decimal, CsvTable};
-use std::fmt::Write as _;
+use smartagg_localize::drift::{self, DriftOptions, DriftPoint};
+use smartagg_localize::table::CsvTable;
 use std::path::{Path, PathBuf};
 
 use smartagg_io::output::{refuse_overwriting, AtomicFile};
@@ -92,19 +90,6 @@ fn beside(out: &Path, ext: &str) -> PathBuf {
     out.with_extension(ext)
 }
 
-/// The time column(s) of a table: a (start, end) pair or one column.
-fn time_columns(t: &CsvTable) -> Option<(usize, usize, String)> {
-    for (a, b) in [
-        ("t_start [plane]", "t_end [plane]"),
-        ("t_s [plane]", "t_e [plane]"),
-    ] {
-        if let (Some(i), Some(j)) = (t.column(&[a]), t.column(&[b])) {
-            return Some((i, j, "plane".into()));
-        }
-    }
-    t.column(&["frame"]).map(|i| (i, i, "frame".into()))
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Every option and output path is checked before anything is read.
@@ -160,7 +145,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         })
     };
     let (cx, cy) = (col("x [nm]")?, col("y [nm]")?);
-    let (ta, tb, unit) = time_columns(&table).with_context(|| {
+    let (ta, tb, unit) = drift::time_columns(&table).with_context(|| {
         format!(
             "{} has no time column (\"t_start [plane]\" and \"t_end [plane]\", or \"frame\")",
             args.table.display()
@@ -208,10 +193,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         format!("{}: drift correction ({m})", args.table.display())
     })?;
 
-    let corrected = rewrite(&text, &table, cx, cy, |r| est.at(time(r)))
+    let corrected = table
+        .rewrite_xy(&text, cx, cy, |r| est.at(time(r)))
         .with_context(|| format!("rewriting {}", args.table.display()))?;
-    let csv = trajectory_csv(&est, args.frame_s);
-    let png = plot_png(&est, args.frame_s, &unit);
+    let csv = est.trajectory_csv(args.frame_s);
+    let png = smartagg_localize::figure::drift_png(&est, args.frame_s, &unit);
 
     // All files are started before any is renamed into place: a folder
     // that does not exist stops the run with nothing written.
@@ -263,159 +249,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         plot.display()
     );
     Ok(())
-}
-
-/// The input's bytes with x and y of every data row replaced by `x − dx`,
-/// `y − dy`; every other byte kept. Rows are found as `CsvTable::read`
-/// finds them (the first non-blank line is the header, blank lines skipped).
-fn rewrite(
-    text: &[u8],
-    table: &CsvTable,
-    cx: usize,
-    cy: usize,
-    drift_at: impl Fn(&[f64]) -> (f64, f64),
-) -> anyhow::Result<Vec<u8>> {
-    let text = std::str::from_utf8(text).context("not UTF-8 text")?;
-    let mut out = String::with_capacity(text.len() + text.len() / 8);
-    let mut header_seen = false;
-    let mut rows = table.rows.iter();
-    for line in text.split_inclusive('\n') {
-        let content = line.trim_end_matches(['\n', '\r']);
-        let ending = &line[content.len()..];
-        if content.trim_start_matches('\u{feff}').trim().is_empty() || !header_seen {
-            header_seen |= !content.trim_start_matches('\u{feff}').trim().is_empty();
-            out.push_str(line);
-            continue;
-        }
-        let r = rows.next().context("more rows than the table read")?;
-        let (dx, dy) = drift_at(r);
-        let mut fields: Vec<String> = content.split(',').map(str::to_string).collect();
-        let keep_space = |old: &str, new: String| {
-            // Keep any padding around the number.
-            let lead = &old[..old.len() - old.trim_start().len()];
-            let trail = &old[old.trim_end().len()..];
-            format!("{lead}{new}{trail}")
-        };
-        fields[cx] = keep_space(&fields[cx], format_decimal(r[cx] - dx, 3));
-        fields[cy] = keep_space(&fields[cy], format_decimal(r[cy] - dy, 3));
-        out.push_str(&fields.join(","));
-        out.push_str(ending);
-    }
-    if rows.next().is_some() {
-        bail!("fewer rows than the table read");
-    }
-    Ok(out.into_bytes())
-}
-
-/// The trajectory as CSV, one row per segment.
-fn trajectory_csv(est: &DriftEstimate, frame_s: Option<f64>) -> String {
-    let mut s = String::from("segment,t_start,t_end,t_mean,t_mean_s,localisations,dx_nm,dy_nm\n");
-    for (k, g) in est.segments.iter().enumerate() {
-        let secs = frame_s.map_or(String::new(), |f| format_decimal(g.t_mean * f, 6));
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{secs},{},{},{}",
-            k + 1,
-            format_decimal(g.t_start, 3),
-            format_decimal(g.t_end, 3),
-            format_decimal(g.t_mean, 3),
-            g.count,
-            format_decimal(g.dx_nm, 3),
-            format_decimal(g.dy_nm, 3)
-        );
-    }
-    s
-}
-
-/// The trajectory drawn as PNG bytes.
-fn plot_png(est: &DriftEstimate, frame_s: Option<f64>, unit: &str) -> Result<Vec<u8>, String> {
-    let (w, h) = (900u32, 520u32);
-    let scale = frame_s.unwrap_or(1.0);
-    let x_desc = if frame_s.is_some() {
-        "time (s)".to_string()
-    } else {
-        format!("time ({unit})")
-    };
-    let pts = |f: fn(&drift::SegmentDrift) -> f64| -> Vec<(f64, f64)> {
-        est.segments
-            .iter()
-            .map(|g| (g.t_mean * scale, f(g)))
-            .collect()
-    };
-    let (xs, ys) = (pts(|g| g.dx_nm), pts(|g| g.dy_nm));
-    let t0 = est.segments.first().map_or(0.0, |g| g.t_start * scale);
-    let t1 = est
-        .segments
-        .last()
-        .map_or(1.0, |g| g.t_end * scale)
-        .max(t0 + 1e-9);
-    let (mut lo, mut hi) = (0.0f64, 0.0f64);
-    for &(_, v) in xs.iter().chain(&ys) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    let pad = ((hi - lo) * 0.1).max(5.0);
-    let mut buf = vec![0u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption("Estimated stage drift", ("sans-serif", 22))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(60)
-            .build_cartesian_2d(t0..t1, (lo - pad)..(hi + pad))
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc(x_desc)
-            .y_desc("drift (nm)")
-            .draw()
-            .map_err(|e| e.to_string())?;
-        for (series, colour, name) in [(&xs, BLUE, "dx"), (&ys, RED, "dy")] {
-            chart
-                .draw_series(LineSeries::new(
-                    series.iter().copied(),
-                    colour.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
-            chart
-                .draw_series(series.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-                .map_err(|e| e.to_string())?;
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    let mut png_bytes = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut png_bytes, w, h);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut wr = enc.write_header().map_err(|e| e.to_string())?;
-        wr.write_image_data(&buf).map_err(|e| e.to_string())?;
-    }
-    Ok(png_bytes)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rewriting_changes_x_and_y_only() {
-        let text = "\u{feff}\"id\",\"frame\",\"x [nm]\",\"y [nm]\",\"q\"\r\n\r\n1,3,100.5,200,7.125\r\n2,4, 10 ,20,8\n";
-        let t = CsvTable::read(text.as_bytes()).unwrap();
-        let out = rewrite(text.as_bytes(), &t, 2, 3, |r| (r[1], -1.0)).unwrap();
-        assert_eq!(
-            String::from_utf8(out).unwrap(),
-            "\u{feff}\"id\",\"frame\",\"x [nm]\",\"y [nm]\",\"q\"\r\n\r\n1,3,97.5,201,7.125\r\n2,4, 6 ,21,8\n"
-        );
-    }
 }

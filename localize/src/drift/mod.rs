@@ -32,6 +32,8 @@ mod tests;
 pub use fiducials::fiducials;
 pub use rcc::rcc;
 
+use crate::table::{format_decimal, CsvTable};
+use std::fmt::Write as _;
 use thiserror::Error;
 
 /// Fewest segments an estimate uses.
@@ -227,6 +229,28 @@ pub struct DriftEstimate {
 }
 
 impl DriftEstimate {
+    /// The trajectory as CSV, one row per segment (`t_mean_s` filled when
+    /// the length of a time unit, `frame_s` seconds, is known).
+    pub fn trajectory_csv(&self, frame_s: Option<f64>) -> String {
+        let mut s =
+            String::from("segment,t_start,t_end,t_mean,t_mean_s,localisations,dx_nm,dy_nm\n");
+        for (k, g) in self.segments.iter().enumerate() {
+            let secs = frame_s.map_or(String::new(), |f| format_decimal(g.t_mean * f, 6));
+            let _ = writeln!(
+                s,
+                "{},{},{},{},{secs},{},{},{}",
+                k + 1,
+                format_decimal(g.t_start, 3),
+                format_decimal(g.t_end, 3),
+                format_decimal(g.t_mean, 3),
+                g.count,
+                format_decimal(g.dx_nm, 3),
+                format_decimal(g.dy_nm, 3)
+            );
+        }
+        s
+    }
+
     /// The drift at time `t`, nm: linear between the segments' mean times,
     /// extrapolated linearly beyond the first and last.
     pub fn at(&self, t: f64) -> (f64, f64) {
@@ -251,6 +275,21 @@ impl DriftEstimate {
             }
         }
     }
+}
+
+/// The time column(s) of a localisation table: a blink table's (start,
+/// end) pair in bit-planes, or a frame table's `frame` (twice), with the
+/// unit's name. A localisation's time is the middle of the two.
+pub fn time_columns(t: &CsvTable) -> Option<(usize, usize, String)> {
+    for (a, b) in [
+        ("t_start [plane]", "t_end [plane]"),
+        ("t_s [plane]", "t_e [plane]"),
+    ] {
+        if let (Some(i), Some(j)) = (t.column(&[a]), t.column(&[b])) {
+            return Some((i, j, "plane".into()));
+        }
+    }
+    t.column(&["frame"]).map(|i| (i, i, "frame".into()))
 }
 
 /// Segment time bounds and the points of each segment.
