@@ -53,6 +53,7 @@
 //!   and back half, with its configurations ([`pipeline::Pipeline`] and
 //!   [`pipeline::PipelineDdr`], one text for the two delay lines);
 //! * [`designs`]: the shipped designs, one per (preset, objective);
+//!   [`ise`]: each one's ISE 14.7 project script;
 //! * [`xem6310_core`]: the register map, the pipeline and the replay, mask
 //!   and packet pipes between the FrontPanel endpoints (what the
 //!   co-simulation drives); [`xem6310`]: the XEM6310 top around it, with the
@@ -76,6 +77,7 @@ pub mod fifo;
 pub mod front_half;
 pub mod frontpanel;
 pub mod hot_pixel_mask;
+pub mod ise;
 pub mod lint_waivers;
 pub mod lut_levels;
 pub mod mig_ddr2;
