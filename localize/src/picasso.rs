@@ -42,6 +42,7 @@
 //! `photons`, `sx`, `sy`, `ellipticity` and needs `Width`, `Height` and
 //! `Frames` to be non-zero.
 
+use crate::render::TablePoints;
 use crate::table::{LocTable, Localization};
 use hdf5_metno as hdf5;
 use hdf5_metno::H5Type;
@@ -419,6 +420,30 @@ pub struct PicassoLocs {
     pub fit_status: Option<Vec<u32>>,
     /// `Pixelsize` of the sidecar, nm, when it has one.
     pub pixel_nm: Option<f64>,
+}
+
+impl PicassoLocs {
+    /// The rows as points to render, nm (`pixel_nm`: the camera pixel in
+    /// the sample plane), σ the mean of `lpx` and `lpy` in quadrature; rows
+    /// whose `fit_status` is not 0 are left out unless `include_failed`.
+    pub fn points(&self, pixel_nm: f64, include_failed: bool) -> TablePoints {
+        let mut out = TablePoints {
+            points: Vec::with_capacity(self.rows.len()),
+            ..Default::default()
+        };
+        for (i, r) in self.rows.iter().enumerate() {
+            if let Some(s) = &self.fit_status {
+                if s[i] != 0 && !include_failed {
+                    out.failed += 1;
+                    continue;
+                }
+            }
+            let [x, y, lpx, lpy] = r.map(f64::from);
+            let lp = ((lpx * lpx + lpy * lpy) / 2.0).sqrt();
+            out.push(x * pixel_nm, y * pixel_nm, lp * pixel_nm);
+        }
+        out
+    }
 }
 
 /// Whether the file starts with the HDF5 signature.

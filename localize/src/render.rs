@@ -16,6 +16,7 @@
 
 use crate::erf::erf;
 use crate::error::{check_option, LocalizeError};
+use crate::table::CsvTable;
 
 /// Largest image rendered (pixels).
 pub const MAX_PIXELS: u64 = 200_000_000;
@@ -210,6 +211,106 @@ fn weights(c: f64, s: f64, a: usize, b: usize, out: &mut Vec<f64>) {
     }
 }
 
+/// The points of a localisation table to render, and the rows left out.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TablePoints {
+    /// The localisations to render, nm.
+    pub points: Vec<Point>,
+    /// Rows left out as failed fits (`fit_status` ≠ 0).
+    pub failed: usize,
+    /// Rows without a finite position.
+    pub unusable: usize,
+    /// Rows that are not rows of numbers (counted by the reader).
+    pub not_numbers: usize,
+}
+
+/// A column a table lacks: the names it may go by, and the table's columns.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("has no column {} (columns: {})", names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(" or "), columns.join(", "))]
+pub struct MissingColumn {
+    /// The names the column may go by.
+    pub names: &'static [&'static str],
+    /// The table's columns.
+    pub columns: Vec<String>,
+}
+
+impl TablePoints {
+    /// Keeps a point with a finite position; counts the others.
+    pub fn push(&mut self, x_nm: f64, y_nm: f64, sigma_nm: f64) {
+        if x_nm.is_finite() && y_nm.is_finite() {
+            self.points.push(Point {
+                x_nm,
+                y_nm,
+                sigma_nm,
+            });
+        } else {
+            self.unusable += 1;
+        }
+    }
+
+    /// The points of a ThunderSTORM CSV table (nm): `x [nm]`, `y [nm]` and
+    /// the uncertainty as the Gaussian's σ; rows whose `fit_status` is not
+    /// 0 are left out unless `include_failed`. `not_numbers`: rows the
+    /// reader skipped.
+    pub fn from_csv(
+        t: &CsvTable,
+        not_numbers: usize,
+        include_failed: bool,
+    ) -> Result<TablePoints, MissingColumn> {
+        let col = |names: &'static [&'static str]| {
+            t.column(names).ok_or_else(|| MissingColumn {
+                names,
+                columns: t.columns.clone(),
+            })
+        };
+        let (cx, cy) = (col(&["x [nm]"])?, col(&["y [nm]"])?);
+        let cu = col(&[
+            "uncertainty [nm]",
+            "uncertainty_xy [nm]",
+            "uncertainty_xy",
+            "uncertainty",
+        ])?;
+        let cs = t.column(&["fit_status"]);
+        let mut out = TablePoints {
+            points: Vec::with_capacity(t.rows.len()),
+            not_numbers,
+            ..Default::default()
+        };
+        for r in &t.rows {
+            if let Some(c) = cs {
+                if r[c] != 0.0 && !include_failed {
+                    out.failed += 1;
+                    continue;
+                }
+            }
+            out.push(r[cx], r[cy], r[cu]);
+        }
+        Ok(out)
+    }
+}
+
+/// Leaves out the points too far from the median position (or too blurred)
+/// for one image of at most [`MAX_PIXELS`] pixels at `pixel_nm`; returns
+/// how many were left out.
+pub fn drop_outliers(points: &mut Vec<Point>, pixel_nm: f64) -> usize {
+    if points.is_empty() {
+        return 0;
+    }
+    let median = |f: fn(&Point) -> f64| {
+        let mut v: Vec<f64> = points.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (mx, my) = (median(|p| p.x_nm), median(|p| p.y_nm));
+    // A square image of MAX_PIXELS, with room for the margins.
+    let half = 0.35 * (MAX_PIXELS as f64).sqrt() * pixel_nm;
+    let before = points.len();
+    points.retain(|p| {
+        (p.x_nm - mx).abs() <= half && (p.y_nm - my).abs() <= half && p.sigma_nm <= half / 8.0
+    });
+    before - points.len()
+}
+
 /// The density shown as full scale: the `(100 − saturate)`th percentile of
 /// the non-empty pixels (1 for an empty image), so that `saturate` percent
 /// of them saturate.
@@ -295,5 +396,47 @@ mod tests {
         assert_eq!(skipped, 0);
         let total: f64 = img.data.iter().map(|&v| v as f64).sum();
         assert!((total - 2.0).abs() < 1e-5, "{total}");
+    }
+
+    #[test]
+    fn table_points_leave_out_failed_fits_and_count_the_rest() {
+        let text = "\"x [nm]\",\"y [nm]\",\"uncertainty [nm]\",\"fit_status\"\n1,2,3,0\n4,5,6,2\nnan,1,1,0\n";
+        let t = CsvTable::read(text.as_bytes()).unwrap();
+        let p = TablePoints::from_csv(&t, 7, false).unwrap();
+        assert_eq!(
+            (p.points.len(), p.failed, p.unusable, p.not_numbers),
+            (1, 1, 1, 7)
+        );
+        assert_eq!(
+            p.points[0],
+            Point {
+                x_nm: 1.0,
+                y_nm: 2.0,
+                sigma_nm: 3.0
+            }
+        );
+        assert_eq!(TablePoints::from_csv(&t, 0, true).unwrap().points.len(), 2);
+        let t = CsvTable::read("\"x [nm]\",\"q\"\n1,2\n".as_bytes()).unwrap();
+        let e = TablePoints::from_csv(&t, 0, false).unwrap_err().to_string();
+        assert_eq!(e, "has no column \"y [nm]\" (columns: x [nm], q)");
+    }
+
+    #[test]
+    fn outliers_far_from_the_median_are_left_out() {
+        let p = |x_nm: f64, sigma_nm: f64| Point {
+            x_nm,
+            y_nm: 0.0,
+            sigma_nm,
+        };
+        let mut pts = vec![
+            p(0.0, 1.0),
+            p(10.0, 1.0),
+            p(20.0, 1.0),
+            p(1e9, 1.0),
+            p(5.0, 1e9),
+        ];
+        assert_eq!(drop_outliers(&mut pts, 10.0), 2);
+        assert_eq!(pts.len(), 3);
+        assert_eq!(drop_outliers(&mut Vec::new(), 10.0), 0);
     }
 }

@@ -25,7 +25,9 @@
 //! never over the table itself.
 
 use anyhow::{bail, Context};
-use smartagg_localize::render::{render, Image, Point, RenderOptions, MAX_PIXELS};
+use smartagg_localize::render::{
+    drop_outliers, render, Image, RenderOptions, TablePoints, MAX_PIXELS,
+};
 use smartagg_localize::table::CsvTable;
 use smartagg_localize::LocalizeError;
 use std::io::{BufWriter, Write};
@@ -35,25 +37,6 @@ use crate::setup;
 use smartagg_io::output::{refuse_overwriting, same_file, AtomicFile};
 use smartagg_localize::figure::{figure_png, Colormap, FigureOptions};
 use smartagg_localize::picasso;
-
-/// Leaves out the points too far from the median position (or too blurred)
-/// for one image of at most [`MAX_PIXELS`] pixels at `pixel_nm`; returns
-/// how many were left out.
-fn drop_outliers(points: &mut Vec<Point>, pixel_nm: f64) -> usize {
-    let median = |f: fn(&Point) -> f64| {
-        let mut v: Vec<f64> = points.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let (mx, my) = (median(|p| p.x_nm), median(|p| p.y_nm));
-    // A square image of MAX_PIXELS, with room for the margins.
-    let half = 0.35 * (MAX_PIXELS as f64).sqrt() * pixel_nm;
-    let before = points.len();
-    points.retain(|p| {
-        (p.x_nm - mx).abs() <= half && (p.y_nm - my).abs() <= half && p.sigma_nm <= half / 8.0
-    });
-    before - points.len()
-}
 
 /// Arguments of `smartagg render`.
 #[derive(clap::Args, Debug)]
@@ -100,16 +83,8 @@ fn ext(p: &Path) -> String {
         .to_ascii_lowercase()
 }
 
-/// Points read from a table, and what was left out.
-struct Read {
-    points: Vec<Point>,
-    failed: usize,
-    unusable: usize,
-    not_numbers: usize,
-}
-
 /// Reads a ThunderSTORM CSV table.
-fn read_csv(args: &Args) -> anyhow::Result<Read> {
+fn read_csv(args: &Args) -> anyhow::Result<TablePoints> {
     let file = std::fs::File::open(&args.table)
         .with_context(|| format!("opening {}", args.table.display()))?;
     let (t, bad_rows) = CsvTable::read_skipping_bad_rows(std::io::BufReader::new(file))
@@ -121,63 +96,12 @@ fn read_csv(args: &Args) -> anyhow::Result<Read> {
             bad_rows.len()
         );
     }
-    let col = |names: &[&str]| -> anyhow::Result<usize> {
-        t.column(names).with_context(|| {
-            format!(
-                "{} has no column {} (columns: {})",
-                args.table.display(),
-                names
-                    .iter()
-                    .map(|n| format!("\"{n}\""))
-                    .collect::<Vec<_>>()
-                    .join(" or "),
-                t.columns.join(", ")
-            )
-        })
-    };
-    let (cx, cy) = (col(&["x [nm]"])?, col(&["y [nm]"])?);
-    let cu = col(&[
-        "uncertainty [nm]",
-        "uncertainty_xy [nm]",
-        "uncertainty_xy",
-        "uncertainty",
-    ])?;
-    let cs = t.column(&["fit_status"]);
-    let mut out = Read {
-        points: Vec::with_capacity(t.rows.len()),
-        failed: 0,
-        unusable: 0,
-        not_numbers: bad_rows.len(),
-    };
-    for r in &t.rows {
-        if let Some(c) = cs {
-            if r[c] != 0.0 && !args.include_failed {
-                out.failed += 1;
-                continue;
-            }
-        }
-        out.push(r[cx], r[cy], r[cu]);
-    }
-    Ok(out)
-}
-
-impl Read {
-    /// Keeps a point with a finite position; counts the others.
-    fn push(&mut self, x_nm: f64, y_nm: f64, sigma_nm: f64) {
-        if x_nm.is_finite() && y_nm.is_finite() {
-            self.points.push(Point {
-                x_nm,
-                y_nm,
-                sigma_nm,
-            });
-        } else {
-            self.unusable += 1;
-        }
-    }
+    TablePoints::from_csv(&t, bad_rows.len(), args.include_failed)
+        .map_err(|m| anyhow::anyhow!("{} {m}", args.table.display()))
 }
 
 /// Reads a Picasso HDF5 table, converting camera pixels to nm.
-fn read_hdf5(args: &Args) -> anyhow::Result<Read> {
+fn read_hdf5(args: &Args) -> anyhow::Result<TablePoints> {
     let locs = picasso::read(&args.table)?;
     let pixel_nm = match (args.camera_pixel_nm, locs.pixel_nm) {
         (Some(p), _) | (None, Some(p)) => p,
@@ -187,24 +111,7 @@ fn read_hdf5(args: &Args) -> anyhow::Result<Read> {
             picasso::sidecar_path(&args.table).display()
         ),
     };
-    let mut out = Read {
-        points: Vec::with_capacity(locs.rows.len()),
-        failed: 0,
-        unusable: 0,
-        not_numbers: 0,
-    };
-    for (i, r) in locs.rows.iter().enumerate() {
-        if let Some(s) = &locs.fit_status {
-            if s[i] != 0 && !args.include_failed {
-                out.failed += 1;
-                continue;
-            }
-        }
-        let [x, y, lpx, lpy] = r.map(f64::from);
-        let lp = ((lpx * lpx + lpy * lpy) / 2.0).sqrt();
-        out.push(x * pixel_nm, y * pixel_nm, lp * pixel_nm);
-    }
-    Ok(out)
+    Ok(locs.points(pixel_nm, args.include_failed))
 }
 
 /// Writes the density as a calibrated 32-bit float TIFF beside `target`.
@@ -253,7 +160,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         scale_bar: !args.no_scale_bar,
     };
     smartagg_localize::error::check_option("saturate", args.saturate, 0.0, 100.0)?;
-    let Read {
+    let TablePoints {
         mut points,
         failed,
         unusable,
@@ -426,6 +333,7 @@ mod tests {
 
     #[test]
     fn tiff_holds_the_density_with_imagej_calibration_and_png_its_phys() {
+        use smartagg_localize::render::Point;
         use tiff::decoder::{Decoder, DecodingResult};
         use tiff::tags::Tag;
         let pts: Vec<Point> = (0..40)
