@@ -8,6 +8,8 @@
 //! serves other viewers; the 32-bit TIFF (`render --tiff`, with ImageJ's
 //! calibration tags) is the file to measure in Fiji.
 //!
+//! Also the plot of a drift trajectory ([`drift_png`]).
+//!
 //! Built with the crate's `figure` feature (plotters and the system's
 //! fontconfig and FreeType); its `clap` feature lets a command line take a
 //! [`Colormap`] by name.
@@ -451,5 +453,29 @@ mod tests {
         assert!(grey(200.0) > 200, "{}", grey(200.0));
         assert!(grey(280.0) > 200, "{}", grey(280.0));
         assert_eq!(grey(240.0), 0);
+    }
+
+    #[test]
+    fn a_drift_plot_is_a_png_of_its_size() {
+        let seg = |k: f64| SegmentDrift {
+            t_start: 10.0 * k,
+            t_end: 10.0 * (k + 1.0),
+            t_mean: 10.0 * k + 5.0,
+            count: 100,
+            dx_nm: 3.0 * k,
+            dy_nm: -2.0 * k,
+        };
+        let est = DriftEstimate {
+            segments: (0..3).map(|k| seg(k as f64)).collect(),
+            bin_nm: 15.0,
+            used: 3,
+            total: 3,
+            residual_rms_nm: 1.0,
+        };
+        let bytes = drift_png(&est, Some(1e-4), "plane").unwrap();
+        let reader = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        assert_eq!((reader.info().width, reader.info().height), (900, 520));
     }
 }
