@@ -269,6 +269,16 @@ fn extra(table: &LocTable, name: &str) -> Result<usize, PicassoError> {
         .ok_or_else(|| PicassoError::MissingColumn(name.into()))
 }
 
+/// Writes the `/locs` dataset of `rows`, packed (no padding in the file).
+fn write_rows<T: H5Type>(file: &hdf5::File, rows: &[T], path: &Path) -> Result<(), PicassoError> {
+    file.new_dataset_builder()
+        .packed(true)
+        .with_data(rows)
+        .create(DATASET)
+        .map(|_| ())
+        .map_err(hdf5_err(|| format!("writing {}", path.display())))
+}
+
 /// Writes `table` as Picasso HDF5 at `path` and its YAML sidecar beside it,
 /// each written beside its target and renamed into place when complete.
 pub fn write(path: &Path, table: &LocTable, meta: &PicassoMeta) -> Result<(), PicassoError> {
@@ -319,11 +329,7 @@ pub fn write(path: &Path, table: &LocTable, meta: &PicassoMeta) -> Result<(), Pi
                     }
                 })
                 .collect();
-            file.new_dataset_builder()
-                .packed(true)
-                .with_data(&rows)
-                .create(DATASET)
-                .map_err(hdf5_err(|| format!("writing {}", path.display())))?;
+            write_rows(&file, &rows, path)?;
         } else {
             let rows: Vec<FrameRow> = table
                 .rows
@@ -346,11 +352,7 @@ pub fn write(path: &Path, table: &LocTable, meta: &PicassoMeta) -> Result<(), Pi
                     }
                 })
                 .collect();
-            file.new_dataset_builder()
-                .packed(true)
-                .with_data(&rows)
-                .create(DATASET)
-                .map_err(hdf5_err(|| format!("writing {}", path.display())))?;
+            write_rows(&file, &rows, path)?;
         }
         file.close()
             .map_err(hdf5_err(|| format!("writing {}", path.display())))?;

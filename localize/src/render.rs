@@ -16,7 +16,7 @@
 
 use crate::erf::erf;
 use crate::error::{check_option, LocalizeError};
-use crate::table::CsvTable;
+use crate::table::{CsvTable, MissingColumn};
 
 /// Largest image rendered (pixels).
 pub const MAX_PIXELS: u64 = 200_000_000;
@@ -224,16 +224,6 @@ pub struct TablePoints {
     pub not_numbers: usize,
 }
 
-/// A column a table lacks: the names it may go by, and the table's columns.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("has no column {} (columns: {})", names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(" or "), columns.join(", "))]
-pub struct MissingColumn {
-    /// The names the column may go by.
-    pub names: &'static [&'static str],
-    /// The table's columns.
-    pub columns: Vec<String>,
-}
-
 impl TablePoints {
     /// Keeps a point with a finite position; counts the others.
     pub fn push(&mut self, x_nm: f64, y_nm: f64, sigma_nm: f64) {
@@ -257,14 +247,8 @@ impl TablePoints {
         not_numbers: usize,
         include_failed: bool,
     ) -> Result<TablePoints, MissingColumn> {
-        let col = |names: &'static [&'static str]| {
-            t.column(names).ok_or_else(|| MissingColumn {
-                names,
-                columns: t.columns.clone(),
-            })
-        };
-        let (cx, cy) = (col(&["x [nm]"])?, col(&["y [nm]"])?);
-        let cu = col(&[
+        let (cx, cy) = (t.require(&["x [nm]"])?, t.require(&["y [nm]"])?);
+        let cu = t.require(&[
             "uncertainty [nm]",
             "uncertainty_xy [nm]",
             "uncertainty_xy",

@@ -210,6 +210,16 @@ fn num(v: f64, digits: usize) -> String {
 /// about 100 bytes).
 pub const MAX_LINE_BYTES: usize = 1 << 20;
 
+/// A column a table lacks: the names it may go by, and the table's columns.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("has no column {} (columns: {})", names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(" or "), columns.join(", "))]
+pub struct MissingColumn {
+    /// The names the column may go by.
+    pub names: &'static [&'static str],
+    /// The table's columns.
+    pub columns: Vec<String>,
+}
+
 /// A numeric table read from CSV: column names and rows of numbers.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CsvTable {
@@ -272,6 +282,15 @@ impl CsvTable {
         names
             .iter()
             .find_map(|n| self.columns.iter().position(|c| c.eq_ignore_ascii_case(n)))
+    }
+
+    /// [`CsvTable::column`], or an error that names the column sought and
+    /// the table's columns.
+    pub fn require(&self, names: &'static [&'static str]) -> Result<usize, MissingColumn> {
+        self.column(names).ok_or_else(|| MissingColumn {
+            names,
+            columns: self.columns.clone(),
+        })
     }
 
     /// Reads a numeric CSV table (comma separated, header first, quoted or

@@ -135,16 +135,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         std::fs::read(&args.table).with_context(|| format!("reading {}", args.table.display()))?;
     let table =
         CsvTable::read(&text[..]).with_context(|| format!("reading {}", args.table.display()))?;
-    let col = |name: &str| {
-        table.column(&[name]).with_context(|| {
-            format!(
-                "{} has no column \"{name}\" (columns: {})",
-                args.table.display(),
-                table.columns.join(", ")
-            )
-        })
+    let col = |names: &'static [&'static str]| {
+        table
+            .require(names)
+            .map_err(|m| anyhow::anyhow!("{} {m}", args.table.display()))
     };
-    let (cx, cy) = (col("x [nm]")?, col("y [nm]")?);
+    let (cx, cy) = (col(&["x [nm]"])?, col(&["y [nm]"])?);
     let (ta, tb, unit) = drift::time_columns(&table).with_context(|| {
         format!(
             "{} has no time column (\"t_start [plane]\" and \"t_end [plane]\", or \"frame\")",
