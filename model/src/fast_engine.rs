@@ -27,6 +27,7 @@
 //!   any chunk length and thread count, and memory is bounded by the chunk
 //!   length, the threads, N and the field, not by the stream's length.
 
+mod above;
 mod block;
 mod parallel;
 
@@ -36,6 +37,7 @@ use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
 use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
+use above::{pixels_near, AboveHold};
 use block::{add_row, below_run, scan_block};
 
 /// The instruction sets [`FastFrontEnd`] is compiled for; the fastest one
@@ -114,8 +116,8 @@ pub struct FastFrontEnd {
     filtered: Vec<u32>,
     /// Scratch of the dense horizontal pass.
     horiz: Vec<u32>,
-    /// Raster indices with H ≥ T_hold, ascending.
-    above: Vec<u32>,
+    /// The pixels with H ≥ T_hold.
+    above: AboveHold,
     candidates: Vec<Candidate>,
     /// The instruction set the pushes run (the same code compiled for it).
     isa: Isa,
@@ -153,7 +155,7 @@ impl FastFrontEnd {
             counts: vec![0; cfg.width * cfg.height],
             filtered: vec![0; stride * (cfg.height + 2 * pad)],
             horiz: vec![0; cfg.width * cfg.height],
-            above: Vec::new(),
+            above: AboveHold::default(),
             candidates: Vec::new(),
             isa: Isa::detect(),
             dense_planes: 0,
@@ -195,6 +197,14 @@ impl FastFrontEnd {
         }
         fe.recompute_dense();
         fe.scan::<PORTABLE>();
+    }
+
+    /// Finds the pixels at the hold level as a bitmap too, from the next
+    /// plane on, for the planes that a worker hands on in that form.
+    fn keep_above_bits(&mut self) {
+        if self.above.bits.is_empty() {
+            self.above.keep_bits(self.width * self.height);
+        }
     }
 
     /// The same front end without the AVX2 build: the portable code, on any
@@ -243,9 +253,9 @@ impl FastFrontEnd {
         u32::from(self.counts[y * self.width + x])
     }
 
-    /// Raster indices of the pixels with `H_t ≥ T_int`, ascending.
+    /// Raster indices of the pixels with `H_t ≥ T_hold` (the hold level), ascending.
     pub fn above(&self) -> &[u32] {
-        &self.above
+        &self.above.pixels
     }
 
     /// `H = K ⊛ S` over the whole field from the counts: a horizontal pass
@@ -523,7 +533,8 @@ impl FastFrontEnd {
             for x in x0..w {
                 let c = c0 + x;
                 if f[c] >= thr {
-                    above.push((y * w + x) as u32);
+                    above.pixels.push((y * w + x) as u32);
+                    above.set_bit(y * w + x);
                     if f[c] >= open && is_max(c) {
                         candidates.push(Candidate {
                             x: x as u16,
@@ -556,22 +567,12 @@ impl FrontEnd for FastFrontEnd {
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
-        above_near(&self.above, self.width, self.height, x, y)
+        pixels_near(&self.above.pixels, self.width, self.height, x, y)
     }
 
     fn candidates(&self) -> &[Candidate] {
         &self.candidates
     }
-}
-
-/// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.
-fn above_near(above: &[u32], width: usize, height: usize, x: usize, y: usize) -> bool {
-    let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
-    (y.saturating_sub(1)..=(y + 1).min(height - 1)).any(|yy| {
-        let (lo, hi) = ((yy * width + x0) as u32, (yy * width + x1) as u32);
-        let i = above.partition_point(|&a| a < lo);
-        i < above.len() && above[i] <= hi
-    })
 }
 
 /// The fast engine, single-threaded: the golden pipeline with [`FastFrontEnd`].

@@ -7,6 +7,7 @@
 //! `#[inline]`: without it the front end, in another module, called them
 //! and ran 3–5 % slower).
 
+use super::above::AboveHold;
 use super::AVX2;
 use crate::candidates::Candidate;
 
@@ -50,7 +51,7 @@ fn add_lanes<const L: usize>(row: &mut [u32], w: &[u32]) {
 #[inline(always)]
 pub(super) fn scan_block<const ISA: u8>(
     f: &[u32],
-    above: &mut Vec<u32>,
+    above: &mut AboveHold,
     candidates: &mut Vec<Candidate>,
     (y, w, s): (usize, usize, usize),
     c0: usize,
@@ -70,12 +71,13 @@ pub(super) fn scan_block<const ISA: u8>(
     #[cfg(target_arch = "x86_64")]
     if ISA >= AVX2 {
         // SAFETY: as above.
-        unsafe { push_bits8_avx2(above, ab, (y * w + x0) as u32) };
+        unsafe { push_bits8_avx2(&mut above.pixels, ab, (y * w + x0) as u32) };
     } else {
-        push_bits(above, ab, y * w + x0, |i| i as u32);
+        push_bits(&mut above.pixels, ab, y * w + x0, |i| i as u32);
     }
     #[cfg(not(target_arch = "x86_64"))]
-    push_bits(above, ab, y * w + x0, |i| i as u32);
+    push_bits(&mut above.pixels, ab, y * w + x0, |i| i as u32);
+    above.set_bits8(ab, y * w + x0);
     push_bits(candidates, cands, x0, |x| Candidate {
         x: x as u16,
         y: y as u16,

@@ -3,7 +3,8 @@
 //! 5–7); and [`FrontResults`], the workers' results kept for a second back
 //! end.
 
-use super::{above_near, FastFrontEnd};
+use super::above::AbovePlane;
+use super::FastFrontEnd;
 use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
@@ -18,7 +19,7 @@ use std::sync::Arc;
 #[derive(Debug, Clone, Default)]
 struct PlaneFront {
     candidates: Vec<Candidate>,
-    above: Vec<u32>,
+    above: AbovePlane,
 }
 
 /// Replays precomputed stages 1–4 to the tracker (stage 5) of the back end.
@@ -37,12 +38,12 @@ impl ReplayFrontEnd {
             .queue
             .pop_front()
             .expect("a precomputed front end per plane");
-        // The tracker's 3×3 tests binary-search the plane's pixels at the
-        // hold level: a worker wrote them a while ago, and on a large field
-        // (thousands of them) each search would wait on memory. Fetch the
+        // The tracker's 3×3 tests read the plane's pixels at the hold
+        // level: a worker wrote them a while ago, and on a large field
+        // (thousands of them) each test would wait on memory. Fetch the
         // next plane's while this one is tracked.
         if let Some(next) = self.queue.front() {
-            crate::plane::prefetch(&next.above);
+            next.above.prefetch();
         }
     }
 }
@@ -53,7 +54,7 @@ impl FrontEnd for ReplayFrontEnd {
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
-        above_near(&self.current.above, self.width, self.height, x, y)
+        self.current.above.near(self.width, self.height, x, y)
     }
 
     fn candidates(&self) -> &[Candidate] {
@@ -452,6 +453,7 @@ fn chunk_fronts(
             &planes[j - h]
         }
     };
+    fe.keep_above_bits();
     fe.rewarm(history.iter().copied());
     planes
         .iter()
@@ -461,7 +463,7 @@ fn chunk_fronts(
             fe.push(p, delayed);
             PlaneFront {
                 candidates: fe.candidates.clone(),
-                above: fe.above.clone(),
+                above: fe.above.handed_on(),
             }
         })
         .collect()
