@@ -607,7 +607,9 @@ fn bench_aggregate_streams_the_scene_asked_for() {
             "{scene:?}:\n{out}"
         );
         assert!(
-            out.contains("RSS MiB") && out.contains(" records, "),
+            out.contains("RSS MiB")
+                && out.contains(" records, ")
+                && out.contains("all 2000 planes through the engine in "),
             "{out}"
         );
     }

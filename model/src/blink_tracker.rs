@@ -257,24 +257,25 @@ impl BlinkTracker {
         let mut opened: Vec<usize> = Vec::new();
         let mut drops: Option<Drops> = None;
         // The anchors that absorb a candidate: tracks active at the end of
-        // t − 1, then each track this plane opens ([`Anchors`] compares a
-        // candidate with those of its band of rows only).
+        // t − 1, then each track this plane opens. (Dense scenes bring tens of
+        // candidates per plane against full slots: a flat list of anchors,
+        // its x and y apart so that they compare as vectors, keeps this stage
+        // a small share of the fast engine's time.)
         let mut anchors = std::mem::take(&mut self.anchors);
         anchors.clear();
         for (s, &active) in self.slots.iter().zip(&self.active_prev) {
             if let Slot::Busy(seg) = s {
                 if active {
-                    anchors.all.push(seg.anchor_x, seg.anchor_y);
+                    anchors.push(seg.anchor_x, seg.anchor_y);
                 }
             }
         }
-        anchors.begin();
         // Slots free at the end of t − 1, lowest first; each is taken once.
         // Only the slot taken changes, and the search goes on past it, so
         // searching as it goes finds the same slots as listing them first.
         let mut first_free = 0;
         for c in candidates {
-            if anchors.near(c.x, c.y, self.r_assoc) {
+            if anchors.any_within(c.x, c.y, self.r_assoc) {
                 continue;
             }
             let free = (first_free..self.slots.len())
@@ -294,7 +295,7 @@ impl BlinkTracker {
                         end_flags: 0,
                         confirmed: false,
                     });
-                    anchors.opened(c.x, c.y);
+                    anchors.push(c.x, c.y);
                     opened.push(i);
                 }
                 None => {
@@ -422,94 +423,14 @@ impl BlinkTracker {
     }
 }
 
-/// The anchors that absorb a plane's candidates ([`BlinkTracker::associate`]).
-///
-/// Candidates come in raster order, so only the anchors within `r_assoc`
-/// rows of the candidate's row can absorb it: the *band*, which follows the
-/// candidates down the field. A crowded plane brings hundreds of candidates
-/// against every slot's anchor (the SPAD512S has hundreds of slots), and
-/// each is compared with the few anchors of its band instead of all of
-/// them. Candidates out of raster order (no front end gives them) are
-/// compared with every anchor: the same answer either way.
-#[derive(Debug, Clone, Default)]
-struct Anchors {
-    /// Every anchor: the tracks active at the end of the previous plane,
-    /// then those this plane opened.
-    all: AnchorList,
-    /// The anchors of the previous plane's tracks by row, (y, x), and the
-    /// first of them not yet in the band.
-    by_row: Vec<(u32, u32)>,
-    next: usize,
-    /// The anchors within `r` rows of `row`.
-    band: AnchorList,
-    /// The row of the last candidate, while they come in raster order.
-    row: Option<u32>,
-    /// Whether a candidate came before one of an earlier row.
-    out_of_order: bool,
-}
-
-impl Anchors {
-    fn clear(&mut self) {
-        self.all.clear();
-        self.band.clear();
-        self.by_row.clear();
-        self.next = 0;
-        self.row = None;
-        self.out_of_order = false;
-    }
-
-    /// Orders the anchors in `all` by row; the band starts empty.
-    fn begin(&mut self) {
-        self.by_row
-            .extend(self.all.y.iter().zip(&self.all.x).map(|(&y, &x)| (y, x)));
-        self.by_row.sort_unstable();
-    }
-
-    /// An anchor opened by the candidate just tested (so on its row).
-    fn opened(&mut self, x: u16, y: u16) {
-        self.all.push(x, y);
-        if !self.out_of_order {
-            self.band.push(x, y);
-        }
-    }
-
-    /// Whether an anchor lies within `r` of (x, y) on both axes.
-    fn near(&mut self, x: u16, y: u16, r: u32) -> bool {
-        let y32 = u32::from(y);
-        if self.row.is_some_and(|row| y32 < row) {
-            self.out_of_order = true;
-        }
-        if self.out_of_order {
-            return self.all.any_within(x, y, r);
-        }
-        if self.row != Some(y32) {
-            // The band moves down to row y: anchors more than r rows above
-            // leave it, those up to r rows below enter.
-            self.row = Some(y32);
-            self.band.retain(|ay| ay + r >= y32);
-            while let Some(&(ay, ax)) = self.by_row.get(self.next) {
-                if ay > y32 + r {
-                    break;
-                }
-                if ay + r >= y32 {
-                    self.band.x.push(ax);
-                    self.band.y.push(ay);
-                }
-                self.next += 1;
-            }
-        }
-        self.band.any_within(x, y, r)
-    }
-}
-
 /// Track anchors, their x and y in lists of their own.
 #[derive(Debug, Clone, Default)]
-struct AnchorList {
+struct Anchors {
     x: Vec<u32>,
     y: Vec<u32>,
 }
 
-impl AnchorList {
+impl Anchors {
     fn clear(&mut self) {
         self.x.clear();
         self.y.clear();
@@ -518,20 +439,6 @@ impl AnchorList {
     fn push(&mut self, x: u16, y: u16) {
         self.x.push(x.into());
         self.y.push(y.into());
-    }
-
-    /// Keeps the anchors whose row passes `keep`.
-    fn retain(&mut self, keep: impl Fn(u32) -> bool) {
-        let mut k = 0;
-        for i in 0..self.y.len() {
-            if keep(self.y[i]) {
-                self.x[k] = self.x[i];
-                self.y[k] = self.y[i];
-                k += 1;
-            }
-        }
-        self.x.truncate(k);
-        self.y.truncate(k);
     }
 
     /// Whether an anchor lies within `r` of (x, y) on both axes. `|a − c| ≤
@@ -633,7 +540,7 @@ mod tests {
             (x, y) in (any::<u16>(), any::<u16>()),
             r in 0u32..=255,
         ) {
-            let mut list = AnchorList::default();
+            let mut list = Anchors::default();
             // Some anchors near the candidate, so that both answers occur.
             let close = near.iter().filter_map(|&(dx, dy)| {
                 Some((u16::try_from(x as i32 + dx).ok()?, u16::try_from(y as i32 + dy).ok()?))
@@ -653,10 +560,9 @@ mod tests {
         #![proptest_config(ProptestConfig::with_cases(400))]
         /// Any slot states (busy or free, active or not at the end of the
         /// previous plane, anchors on a small field so that neighbours are
-        /// common, rows up to 40 so that the band of rows moves) and any
-        /// raster-ordered candidates, or the same candidates out of order
-        /// (`swap`): the same slots open, the same drops, the same slot
-        /// states and counters as the oracle.
+        /// common) and any raster-ordered candidates, or the same candidates
+        /// with two swapped: the same slots open, the same drops, the same
+        /// slot states and counters as the oracle.
         #[test]
         fn association_equals_the_stated_rule(
             slots in proptest::collection::vec(

@@ -199,12 +199,10 @@ impl FastFrontEnd {
         fe.scan::<PORTABLE>();
     }
 
-    /// Finds the pixels at the hold level as a bitmap too, from the next
-    /// plane on, for the planes that a worker hands on in that form.
+    /// Keeps a bitmap of the pixels at the hold level, for the crowded
+    /// planes that a worker hands on in that form.
     fn keep_above_bits(&mut self) {
-        if self.above.bits.is_empty() {
-            self.above.keep_bits(self.width * self.height);
-        }
+        self.above.keep_bits(self.width * self.height);
     }
 
     /// The same front end without the AVX2 build: the portable code, on any

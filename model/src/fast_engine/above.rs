@@ -3,33 +3,43 @@
 //! of [`run_parallel`](super::run_parallel) hands them to the tracker.
 
 /// The pixels of a plane at or above the hold level, as the front end's scan
-/// finds them: their raster indices, ascending, and, if asked for
-/// ([`AboveHold::keep_bits`]), the same pixels as a bitmap.
+/// finds them: their raster indices, ascending, and, for a worker
+/// ([`AboveHold::keep_bits`]) on a crowded field, the same pixels as a
+/// bitmap.
 #[derive(Debug, Clone, Default)]
 pub(super) struct AboveHold {
     /// Raster indices, ascending.
     pub(super) pixels: Vec<u32>,
-    /// Pixel i at bit `i % 64` of word `i / 64`; empty unless kept.
-    pub(super) bits: Vec<u64>,
+    /// Pixel i at bit `i % 64` of word `i / 64`: empty unless kept, and
+    /// this plane's only while `bits_on`.
+    bits: Vec<u64>,
+    /// Whether the scan sets the bitmap as it goes: the previous plane was
+    /// crowded, so this one likely is (a sparse plane pays nothing for it).
+    bits_on: bool,
 }
 
 impl AboveHold {
-    /// Keeps the bitmap too, for a field of `pixels` pixels.
+    /// Keeps a bitmap for a field of `pixels` pixels, for the planes handed
+    /// on in that form ([`AboveHold::handed_on`]).
     pub(super) fn keep_bits(&mut self, pixels: usize) {
-        self.bits = vec![0; pixels.div_ceil(64)];
+        if self.bits.is_empty() {
+            self.bits = vec![0; pixels.div_ceil(64)];
+        }
     }
 
     /// Empties both forms for the next plane.
     pub(super) fn clear(&mut self) {
         self.pixels.clear();
-        self.bits.fill(0);
+        if self.bits_on {
+            self.bits.fill(0);
+        }
     }
 
     /// Pixel `i` (the list is pushed by the caller) in the bitmap.
     #[inline(always)]
     pub(super) fn set_bit(&mut self, i: usize) {
-        if let Some(w) = self.bits.get_mut(i / 64) {
-            *w |= 1 << (i % 64);
+        if self.bits_on {
+            self.bits[i / 64] |= 1 << (i % 64);
         }
     }
 
@@ -38,7 +48,7 @@ impl AboveHold {
     #[inline(always)]
     pub(super) fn set_bits8(&mut self, mask: u32, i: usize) {
         let mask = u64::from(mask & 0xff);
-        if self.bits.is_empty() || mask == 0 {
+        if !self.bits_on || mask == 0 {
             return;
         }
         let (w, sh) = (i / 64, i % 64);
@@ -54,12 +64,22 @@ impl AboveHold {
     /// The form a worker hands on: the bitmap when the list would be
     /// larger (a crowded plane: in the dense test scene 31,000 pixels, 125
     /// KB as a list, 9.6 KB as bits), the list otherwise.
-    pub(super) fn handed_on(&self) -> AbovePlane {
-        if !self.bits.is_empty() && self.pixels.len() > 2 * self.bits.len() {
+    pub(super) fn handed_on(&mut self) -> AbovePlane {
+        let crowded = !self.bits.is_empty() && self.pixels.len() > 2 * self.bits.len();
+        let form = if crowded {
+            if !self.bits_on {
+                // The first crowded plane after sparse ones: from the list.
+                self.bits.fill(0);
+                for &p in &self.pixels {
+                    self.bits[p as usize / 64] |= 1 << (p % 64);
+                }
+            }
             AbovePlane::Bits(self.bits.clone())
         } else {
             AbovePlane::Pixels(self.pixels.clone())
-        }
+        };
+        self.bits_on = crowded;
+        form
     }
 }
 
@@ -153,11 +173,16 @@ mod tests {
             let on: Vec<bool> = (0..n).map(|i| seed.get(i).is_some_and(|&b| b < 40)).collect();
             let mut one = AboveHold::default();
             one.keep_bits(n);
-            let mut eight = AboveHold::default();
-            eight.keep_bits(n);
+            one.bits_on = true;
+            let mut eight = one.clone();
+            // The list alone: its bitmap is made when it is handed on.
+            let mut listed = AboveHold::default();
+            listed.keep_bits(n);
             for (i, _) in on.iter().enumerate().filter(|(_, &o)| o) {
                 one.pixels.push(i as u32);
                 one.set_bit(i);
+                listed.pixels.push(i as u32);
+                listed.set_bit(i);
             }
             for i in (0..n).step_by(8) {
                 let mask = (0..8).filter(|&l| i + l < n && on[i + l]).fold(0u32, |m, l| m | 1 << l);
@@ -168,13 +193,25 @@ mod tests {
             let want = (y.saturating_sub(1)..=(y + 1).min(h - 1))
                 .any(|yy| (x.saturating_sub(1)..=(x + 1).min(w - 1)).any(|xx| on[yy * w + xx]));
             prop_assert_eq!(pixels_near(&one.pixels, w, h, x, y), want);
+            let one_pixels = one.pixels.clone();
             prop_assert_eq!(bits_near(&one.bits, w, h, x, y), want);
-            let handed = one.handed_on();
-            prop_assert_eq!(handed.near(w, h, x, y), want);
-            prop_assert_eq!(
-                matches!(handed, AbovePlane::Bits(_)),
-                one.pixels.len() > 2 * one.bits.len()
-            );
+            let crowded = one.pixels.len() > 2 * one.bits.len();
+            for held in [&mut one, &mut listed] {
+                let handed = held.handed_on();
+                prop_assert_eq!(handed.near(w, h, x, y), want);
+                match handed {
+                    AbovePlane::Bits(b) => {
+                        prop_assert!(crowded);
+                        prop_assert_eq!(&b, &eight.bits);
+                    }
+                    AbovePlane::Pixels(p) => {
+                        prop_assert!(!crowded);
+                        prop_assert_eq!(&p, &one_pixels);
+                    }
+                }
+                // The next plane's scan sets the bitmap if this one was crowded.
+                prop_assert_eq!(held.bits_on, crowded);
+            }
         }
     }
 }
