@@ -119,29 +119,21 @@ impl AbovePlane {
     }
 }
 
-/// The 3×3 around (x, y) clipped to the field, as a raster range per row.
-fn rows_around(
-    width: usize,
-    height: usize,
-    x: usize,
-    y: usize,
-) -> impl Iterator<Item = (usize, usize)> {
-    let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
-    (y.saturating_sub(1)..=(y + 1).min(height - 1))
-        .map(move |yy| (yy * width + x0, yy * width + x1))
-}
-
 /// Whether any pixel of the 3×3 around (x, y) is in the ascending list `above`.
 pub(super) fn pixels_near(above: &[u32], width: usize, height: usize, x: usize, y: usize) -> bool {
-    rows_around(width, height, x, y).any(|(lo, hi)| {
-        let i = above.partition_point(|&a| a < lo as u32);
-        i < above.len() && above[i] <= hi as u32
+    let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
+    (y.saturating_sub(1)..=(y + 1).min(height - 1)).any(|yy| {
+        let (lo, hi) = ((yy * width + x0) as u32, (yy * width + x1) as u32);
+        let i = above.partition_point(|&a| a < lo);
+        i < above.len() && above[i] <= hi
     })
 }
 
 /// Whether any pixel of the 3×3 around (x, y) is set in the bitmap `bits`.
 fn bits_near(bits: &[u64], width: usize, height: usize, x: usize, y: usize) -> bool {
-    rows_around(width, height, x, y).any(|(lo, hi)| {
+    let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
+    (y.saturating_sub(1)..=(y + 1).min(height - 1)).any(|yy| {
+        let (lo, hi) = (yy * width + x0, yy * width + x1);
         // At most three bits, in one word or two.
         let span = (1u64 << (hi - lo + 1)) - 1;
         let (w, sh) = (lo / 64, lo % 64);
