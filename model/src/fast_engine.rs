@@ -20,8 +20,9 @@
 //! * [`run_parallel`] splits the stream into time chunks. H at plane t depends
 //!   only on planes `t−N+1 … t`, so a worker can start a chunk anywhere after
 //!   warming its counts up on the N planes before it; the workers' per-plane
-//!   results (candidates and above-threshold pixels) then feed the one
-//!   sequential tracker, which is cheap. A reader thread pulls the planes
+//!   results (candidates and the pixels at the hold level, as a list or,
+//!   on a crowded plane, as a bitmap: `fast_engine/above.rs`) then feed the
+//!   one sequential tracker, which is cheap. A reader thread pulls the planes
 //!   meanwhile, and each worker takes the next chunk as soon as it is free.
 //!   The output is byte-identical to the single-threaded golden pipeline for
 //!   any chunk length and thread count, and memory is bounded by the chunk
