@@ -609,8 +609,22 @@ fn bench_aggregate_streams_the_scene_asked_for() {
         assert!(
             out.contains("RSS MiB")
                 && out.contains(" records, ")
-                && out.contains("all 2000 planes through the engine in "),
+                && out.contains("all 2000 planes through the engine in ")
+                && out.contains("reader/tracker/sums/workers"),
             "{out}"
+        );
+        // The last row (all planes read) names each role's CPU: every
+        // thread is alive then, and the two workers have a lowest and a
+        // highest.
+        let last = out
+            .lines()
+            .find(|l| l.trim_start().starts_with("2000 "))
+            .unwrap_or_else(|| panic!("no row at 2000 planes:\n{out}"));
+        let roles = last.split_whitespace().last().unwrap_or("");
+        let parts: Vec<&str> = roles.split(['/', '-']).collect();
+        assert!(
+            parts.len() == 5 && parts.iter().all(|p| p.parse::<f64>().is_ok()),
+            "{last}"
         );
     }
     let e = err(&stream(Some("spad512s")));

@@ -32,7 +32,10 @@ mod above;
 mod block;
 mod parallel;
 
-pub use parallel::{default_chunk, run_parallel, FrontResults, ParallelError};
+pub use parallel::{
+    default_chunk, run_parallel, FrontResults, ParallelError, READER_THREAD, TRACKER_THREAD,
+    WORKER_THREAD,
+};
 
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;

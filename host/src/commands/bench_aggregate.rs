@@ -11,7 +11,8 @@
 use crate::setup::{self, PipelineArgs};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::fast_engine::{
-    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa,
+    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa, READER_THREAD,
+    TRACKER_THREAD, WORKER_THREAD,
 };
 use smartagg_model::packetiser::Packetiser;
 use smartagg_model::params::{Camera, Preset, PresetName};
@@ -21,6 +22,7 @@ use smartagg_model::plane::BitPlane;
 use smartagg_model::record::Record;
 use smartagg_scene::scene::{Blinking, Layout, OnTime, Scene};
 use smartagg_scene::spad::SpadSimulator;
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// Arguments of `smartagg bench aggregate`.
@@ -133,6 +135,72 @@ fn cpu_seconds() -> Option<f64> {
     let utime: f64 = f.get(11)?.parse().ok()?;
     let stime: f64 = f.get(12)?.parse().ok()?;
     Some((utime + stime) / 100.0)
+}
+
+/// CPU ticks (1/100 s, the kernel's USER_HZ) used so far by each live thread
+/// of this process, user + system: thread id → (name, ticks); `None` off
+/// Linux. A thread that ends while it is read is left out.
+fn thread_ticks() -> Option<BTreeMap<u32, (String, u64)>> {
+    let mut out = BTreeMap::new();
+    for entry in std::fs::read_dir("/proc/self/task").ok()?.flatten() {
+        let dir = entry.path();
+        let Some(tid) = dir
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(|n| n.parse().ok())
+        else {
+            continue;
+        };
+        let (Ok(stat), Ok(comm)) = (
+            std::fs::read_to_string(dir.join("stat")),
+            std::fs::read_to_string(dir.join("comm")),
+        ) else {
+            continue;
+        };
+        let ticks = stat.rfind(')').and_then(|at| {
+            let f: Vec<&str> = stat.get(at + 2..)?.split_whitespace().collect();
+            Some(f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?)
+        });
+        if let Some(ticks) = ticks {
+            out.insert(tid, (comm.trim().to_string(), ticks));
+        }
+    }
+    Some(out)
+}
+
+/// Each role's CPU between two [`thread_ticks`] `seconds` apart, in percent
+/// of one core: `reader/tracker/sums/workers` (the sums run in this, the
+/// calling, thread; the workers as their lowest–highest), `-` for a role with
+/// no thread. Where the planes/s stop growing with the threads, the role at
+/// 100 % is the one that holds them back.
+fn role_cpu(
+    before: &BTreeMap<u32, (String, u64)>,
+    after: &BTreeMap<u32, (String, u64)>,
+    seconds: f64,
+) -> String {
+    let pid = std::process::id();
+    let (mut reader, mut tracker, mut sums, mut workers) = (None, None, None, Vec::new());
+    for (tid, (name, t1)) in after {
+        // A thread born in the interval used all its ticks in it.
+        let t0 = before.get(tid).map_or(0, |(_, t)| *t);
+        let pct = t1.saturating_sub(t0) as f64 / seconds.max(1e-9);
+        match name.as_str() {
+            READER_THREAD => reader = Some(pct),
+            TRACKER_THREAD => tracker = Some(pct),
+            WORKER_THREAD => workers.push(pct),
+            _ if *tid == pid => sums = Some(pct),
+            _ => {}
+        }
+    }
+    let one = |p: Option<f64>| p.map_or("-".to_string(), |p| format!("{p:.0}"));
+    let w = match workers.iter().copied().reduce(f64::min) {
+        Some(lo) => {
+            let hi = workers.iter().copied().fold(lo, f64::max);
+            format!("{lo:.0}-{hi:.0}")
+        }
+        None => "-".into(),
+    };
+    format!("{}/{}/{}/{w}", one(reader), one(tracker), one(sums))
 }
 
 /// The 1-minute load average, to judge how shared the machine was.
@@ -491,9 +559,10 @@ fn stream(
     let mut packetiser = Packetiser::new();
     let mut buf = Vec::new();
     println!(
-        "{:>10} {:>8} {:>10} {:>11} {:>8} {:>8}",
+        "{:>10} {:>8} {:>10} {:>11} {:>8} {:>8}  CPU % since the last row: reader/tracker/sums/workers",
         "planes", "seconds", "planes/s", "planes/CPUs", "RSS MiB", "HWM MiB"
     );
+    let mut last = (Instant::now(), thread_ticks());
     let mib = |f: &str| status_mib(f).map_or("-".into(), |v| format!("{v:.1}"));
     let src = std::iter::from_fn(|| {
         if done == planes {
@@ -503,8 +572,14 @@ fn stream(
         done += 1;
         if done.is_multiple_of(report_every) {
             let (rate, cpu) = t.rates(done as usize);
+            let now = (Instant::now(), thread_ticks());
+            let roles = match (&last.1, &now.1) {
+                (Some(a), Some(b)) => role_cpu(a, b, (now.0 - last.0).as_secs_f64()),
+                _ => "-".into(),
+            };
+            last = now;
             println!(
-                "{:>10} {:>8.1} {:>10.0} {:>11} {:>8} {:>8}",
+                "{:>10} {:>8.1} {:>10.0} {:>11} {:>8} {:>8}  {roles}",
                 done,
                 t.wall.elapsed().as_secs_f64(),
                 rate,

@@ -146,6 +146,29 @@ impl FrontResults {
     }
 }
 
+/// The name of [`run_parallel`]'s reader thread (what `top -H` and
+/// `/proc/PID/task/*/comm` show; `smartagg bench aggregate --stream` reports
+/// the CPU of each role by these names). The ROI sums and the records run in
+/// the thread that called [`run_parallel`].
+pub const READER_THREAD: &str = "sa-reader";
+/// The name of each of [`run_parallel`]'s worker threads (stages 1–4).
+pub const WORKER_THREAD: &str = "sa-worker";
+/// The name of [`run_parallel`]'s tracker thread (stage 5).
+pub const TRACKER_THREAD: &str = "sa-tracker";
+
+/// Spawns `f` in `scope` as a thread named `name`; like `scope.spawn`, it
+/// panics if the system cannot start a thread.
+fn spawn_named<'scope, T: Send + 'scope>(
+    scope: &'scope std::thread::Scope<'scope, '_>,
+    name: &str,
+    f: impl FnOnce() -> T + Send + 'scope,
+) -> std::thread::ScopedJoinHandle<'scope, T> {
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn_scoped(scope, f)
+        .expect("the system could not start a thread")
+}
+
 /// Planes of a chunk and the tracker's decisions at each, on their way from
 /// the tracker's thread to the sums: a few hundred at a time, so that the
 /// sums start soon after the tracker (a chunk can be thousands of planes).
@@ -176,7 +199,7 @@ where
 {
     let (tx, rx) = std::sync::mpsc::sync_channel::<Tracked>(4);
     std::thread::scope(|scope| {
-        let tracker = scope.spawn(move || -> TrackEnd {
+        let tracker = spawn_named(scope, TRACKER_THREAD, move || -> TrackEnd {
             let mut tracking = Tracking::new(cfg);
             let mut front = ReplayFrontEnd {
                 width: cfg.width,
@@ -301,87 +324,91 @@ where
     let worker_cfg = &cfg;
     std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
         let reader_cfg = cfg.clone();
-        let reader = scope.spawn(move || -> Result<(), ParallelError<E>> {
-            let mut planes = planes;
-            let mut history: VecDeque<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)> =
-                VecDeque::new();
-            let (w, h) = (reader_cfg.width, reader_cfg.height);
-            // Every chunk read, while anyone holds it: a chunk only the pool
-            // holds is filled again in place, so that planes are not
-            // allocated here and freed in bursts by another thread (on some
-            // machines the heap then returns its pages and every chunk
-            // faults them in again).
-            let mut pool: Vec<Arc<Vec<BitPlane>>> = Vec::new();
-            for index in 0.. {
-                let mut batch = pool
-                    .iter()
-                    .position(|c| Arc::strong_count(c) == 1)
-                    .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
-                    .unwrap_or_default();
-                let mut filled = 0;
-                while filled < chunk {
-                    match planes.next() {
-                        // A plane of another size never reaches a worker.
-                        Some(Ok(p)) if (p.borrow().width(), p.borrow().height()) != (w, h) => {
-                            let p = p.borrow();
-                            return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
-                                plane: (index * chunk + filled) as u64,
-                                got_w: p.width(),
-                                got_h: p.height(),
-                                want_w: w,
-                                want_h: h,
-                            }));
-                        }
-                        Some(Ok(p)) => {
-                            let (p, mask) = (p.borrow(), reader_cfg.hot_mask.as_ref());
-                            match batch.get_mut(filled) {
-                                Some(buf) => buf.copy_masked(p, mask),
-                                None => batch.push(match mask {
-                                    Some(m) => m.apply(p),
-                                    None => p.clone(),
-                                }),
+        let reader = spawn_named(
+            scope,
+            READER_THREAD,
+            move || -> Result<(), ParallelError<E>> {
+                let mut planes = planes;
+                let mut history: VecDeque<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)> =
+                    VecDeque::new();
+                let (w, h) = (reader_cfg.width, reader_cfg.height);
+                // Every chunk read, while anyone holds it: a chunk only the pool
+                // holds is filled again in place, so that planes are not
+                // allocated here and freed in bursts by another thread (on some
+                // machines the heap then returns its pages and every chunk
+                // faults them in again).
+                let mut pool: Vec<Arc<Vec<BitPlane>>> = Vec::new();
+                for index in 0.. {
+                    let mut batch = pool
+                        .iter()
+                        .position(|c| Arc::strong_count(c) == 1)
+                        .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
+                        .unwrap_or_default();
+                    let mut filled = 0;
+                    while filled < chunk {
+                        match planes.next() {
+                            // A plane of another size never reaches a worker.
+                            Some(Ok(p)) if (p.borrow().width(), p.borrow().height()) != (w, h) => {
+                                let p = p.borrow();
+                                return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
+                                    plane: (index * chunk + filled) as u64,
+                                    got_w: p.width(),
+                                    got_h: p.height(),
+                                    want_w: w,
+                                    want_h: h,
+                                }));
                             }
-                            filled += 1;
+                            Some(Ok(p)) => {
+                                let (p, mask) = (p.borrow(), reader_cfg.hot_mask.as_ref());
+                                match batch.get_mut(filled) {
+                                    Some(buf) => buf.copy_masked(p, mask),
+                                    None => batch.push(match mask {
+                                        Some(m) => m.apply(p),
+                                        None => p.clone(),
+                                    }),
+                                }
+                                filled += 1;
+                            }
+                            Some(Err(e)) => return Err(ParallelError::Source(e)),
+                            None => break,
                         }
-                        Some(Err(e)) => return Err(ParallelError::Source(e)),
-                        None => break,
+                    }
+                    batch.truncate(filled);
+                    if batch.is_empty() {
+                        break;
+                    }
+                    let full = batch.len() == chunk;
+                    let batch = Arc::new(batch);
+                    pool.push(batch.clone());
+                    let job_history: Vec<_> = history.iter().cloned().collect();
+                    // The last N planes read: ranges of this and earlier chunks.
+                    history.push_back((batch.clone(), 0..batch.len()));
+                    let held: usize = history.iter().map(|(_, r)| r.len()).sum();
+                    let mut excess = held.saturating_sub(n);
+                    while excess > 0 {
+                        let front = history.front_mut().expect("planes beyond N are held");
+                        let drop = excess.min(front.1.len());
+                        front.1.start += drop;
+                        excess -= drop;
+                        if front.1.is_empty() {
+                            history.pop_front();
+                        }
+                    }
+                    let job = Job {
+                        index,
+                        history: job_history,
+                        planes: batch,
+                    };
+                    if credit_rx.recv().is_err() || job_tx.send(job).is_err() || !full {
+                        break;
                     }
                 }
-                batch.truncate(filled);
-                if batch.is_empty() {
-                    break;
-                }
-                let full = batch.len() == chunk;
-                let batch = Arc::new(batch);
-                pool.push(batch.clone());
-                let job_history: Vec<_> = history.iter().cloned().collect();
-                // The last N planes read: ranges of this and earlier chunks.
-                history.push_back((batch.clone(), 0..batch.len()));
-                let held: usize = history.iter().map(|(_, r)| r.len()).sum();
-                let mut excess = held.saturating_sub(n);
-                while excess > 0 {
-                    let front = history.front_mut().expect("planes beyond N are held");
-                    let drop = excess.min(front.1.len());
-                    front.1.start += drop;
-                    excess -= drop;
-                    if front.1.is_empty() {
-                        history.pop_front();
-                    }
-                }
-                let job = Job {
-                    index,
-                    history: job_history,
-                    planes: batch,
-                };
-                if credit_rx.recv().is_err() || job_tx.send(job).is_err() || !full {
-                    break;
-                }
-            }
-            Ok(())
-        });
+                Ok(())
+            },
+        );
         for _ in 0..threads {
             let (rx, tx) = (job_rx.clone(), done_tx.clone());
-            scope.spawn(move || {
+            spawn_named(scope, WORKER_THREAD, move || {
                 let mut fe = FastFrontEnd::new(worker_cfg);
                 loop {
                     let job = match rx.lock() {
