@@ -203,12 +203,6 @@ impl FastFrontEnd {
         fe.scan::<PORTABLE>();
     }
 
-    /// Keeps a bitmap of the pixels at the hold level, for the crowded
-    /// planes that a worker hands on in that form.
-    fn keep_above_bits(&mut self) {
-        self.above.keep_bits(self.width * self.height);
-    }
-
     /// The same front end without the AVX2 build: the portable code, on any
     /// CPU (for testing it where AVX2 exists, and for comparing speeds).
     pub fn portable(self) -> FastFrontEnd {

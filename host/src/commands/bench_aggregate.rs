@@ -129,12 +129,18 @@ fn status_mib(field: &str) -> Option<f64> {
 /// from `/proc/self/stat` in clock ticks of 1/100 s; `None` off Linux.
 fn cpu_seconds() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    Some(stat_ticks(&s)? as f64 / 100.0)
+}
+
+/// User + system clock ticks (1/100 s, the kernel's USER_HZ) of a process's
+/// or thread's `stat` line.
+fn stat_ticks(stat: &str) -> Option<u64> {
     // Fields after the command name, which is in parentheses and may hold spaces.
-    let rest = &s[s.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let utime: f64 = f.get(11)?.parse().ok()?;
-    let stime: f64 = f.get(12)?.parse().ok()?;
-    Some((utime + stime) / 100.0)
+    let f: Vec<&str> = stat
+        .get(stat.rfind(')')? + 2..)?
+        .split_whitespace()
+        .collect();
+    Some(f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?)
 }
 
 /// CPU ticks (1/100 s, the kernel's USER_HZ) used so far by each live thread
@@ -157,11 +163,7 @@ fn thread_ticks() -> Option<BTreeMap<u32, (String, u64)>> {
         ) else {
             continue;
         };
-        let ticks = stat.rfind(')').and_then(|at| {
-            let f: Vec<&str> = stat.get(at + 2..)?.split_whitespace().collect();
-            Some(f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?)
-        });
-        if let Some(ticks) = ticks {
+        if let Some(ticks) = stat_ticks(&stat) {
             out.insert(tid, (comm.trim().to_string(), ticks));
         }
     }

@@ -480,7 +480,7 @@ fn chunk_fronts(
             &planes[j - h]
         }
     };
-    fe.keep_above_bits();
+    fe.above.keep_bits(cfg.width * cfg.height);
     fe.rewarm(history.iter().copied());
     planes
         .iter()
