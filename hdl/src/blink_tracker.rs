@@ -54,14 +54,14 @@
 //!
 //! **Pipeline** (so that no path between registers is deeper than a few
 //! LUTs). A word goes through three registered stages, one item per clock:
-//! * the *item* stage (`x_…`) takes the head word's lowest candidate lane
-//!   not yet taken (`done_mask`), or the word itself when it has none, and
-//!   pops the word with its last item;
+//! * the *item* stage ([`ItemStage`]) takes the head word's lowest
+//!   candidate lane not yet taken, or the word itself when it has none,
+//!   and pops the word with its last item;
 //! * the *compare* stage (`r_…`) holds, per slot, whether the candidate is
 //!   in the slot's association window (`bnd`, stored when the slot opened:
 //!   the opening candidate's own window), whether the word hits its 3x3
 //!   window, and whether the word's row ends that window; and what an
-//!   opening would write;
+//!   opening would write ([`OpeningWindows`]);
 //! * the *decide* stage acts on it in Run: the association against the
 //!   current flags, the opening or drop, the hits, the end-of-row step.
 //!
@@ -79,15 +79,16 @@
 //!
 //! **Walk pipeline.** A walk also runs in three stages, one slot per clock:
 //! the read stage takes slot `walk`'s flags and anchor through the
-//! multiplexer, and its word from `walk_mem`, into W1; W1 computes what the
-//! walk does (the comparisons with L_min, L_max and N − end_trim, the cut, the
-//! completion, the record's planes, the slot's next state and words) into
-//! W2; W2 waits for the sweep and the bank, pushes the record and writes
-//! the slot. W2 writes slot k while the read stage reads k + 1 or k + 2, and
-//! a walk starts reading once the previous writer of its slots is done (the
-//! decide stage, or the previous walk's W2), so no stage reads a slot that
-//! an earlier one has yet to write; the one exception, with a single slot,
-//! is the word written as the next walk's read of it is issued (`wm_fwd`).
+//! multiplexer, and its word from [`WalkMemory`], into W1; W1
+//! ([`WalkStep`]) computes what the walk does (the comparisons with L_min,
+//! L_max and N − end_trim, the cut, the completion, the record's planes,
+//! the slot's next state and words) into W2; W2 waits for the sweep and the bank, pushes the record
+//! and writes the slot. W2 writes slot k while the read stage reads k + 1
+//! or k + 2, and a walk starts reading once the previous writer of its
+//! slots is done (the decide stage, or the previous walk's W2), so no
+//! stage reads a slot that an earlier one has yet to write; the one
+//! exception, with a single slot, is the word written as the next walk's
+//! read of it is issued ([`WalkMemory`] forwards it).
 //!
 //! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
 //! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
@@ -152,7 +153,16 @@
 //! `dage ≤ N − end_trim`), emits the finished segments in slot order and
 //! then StreamEnd.
 
-use crate::bram::{Bram, RamStyle};
+mod item_stage;
+mod opening;
+mod walk_memory;
+mod walk_step;
+
+pub use item_stage::ItemStage;
+pub use opening::OpeningWindows;
+pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
+pub use walk_step::{walk_word, WalkStep};
+
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
@@ -359,10 +369,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     state: DFF<TrackerState>,
     t: DFF<Bits<48>>,
     rows: DFF<Bits<16>>,
-    done_mask: DFF<Bits<P>>,
     /// The read stage's slot; 0 whenever no walk reads (a walk ends, and a
     /// restart leaves it, at 0), so that a walk starts without writing it
-    /// and `walk_mem`'s read address does not wait on the state machine.
+    /// and `walk_words`' read address does not wait on the state machine.
     walk: DFF<Bits<8>>,
     lost: DFF<Bits<32>>,
     drops: DFF<Bits<32>>,
@@ -394,19 +403,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// candidate must fall in: x from 0, x to 10, y from 20, y to 30
     /// (written when the slot opens: the opening candidate's own window).
     bnd: Vec<DFF<Bits<64>>>,
-    // The item stage (see "Pipeline" in the module doc): one candidate lane
-    // of the head word, or the word itself when it has none.
-    x_valid: DFF<Bit>,
-    x_cand: DFF<Bit>,
-    x_last: DFF<Bit>,
-    x_eor: DFF<Bit>,
-    x_lastrow: DFF<Bit>,
-    x_cx: DFF<Bits<COORD_BITS>>,
-    x_yc: DFF<Bits<COORD_BITS>>,
-    x_xc: DFF<Bits<COORD_BITS>>,
-    x_ym1: DFF<Bits<COORD_BITS>>,
-    x_yp1: DFF<Bits<COORD_BITS>>,
-    x_above: DFF<Bits<P>>,
+    /// The item stage (see "Pipeline" in the module doc): one candidate
+    /// lane of the head word, or the word itself when it has none.
+    items: ItemStage<P>,
+    /// What an opening by the item stage's candidate writes.
+    opening: OpeningWindows<P>,
     // The compare stage: the item, what it does to each slot (bit i: slot
     // i), and what an opening writes.
     r_valid: DFF<Bit>,
@@ -441,25 +442,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     opened_nx: Signal<Local, Bits<MAX_SLOTS>>,
     hit_nx: Signal<Local, Bits<MAX_SLOTS>>,
     ev_bridge_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    /// The fields that only the walks read, one 39-bit word per slot in LUT
-    /// RAM (bits 0–17 age, 18–35 dage, 36 conf, 37 cont, 38 trunc), read at
-    /// the read stage's next slot so that the word is there when it is.
-    walk_mem: Bram<39, 8>,
-    /// A copy of `walk_mem` (written with it) read at the slot after
-    /// `walk`: with `walk_mem` read at `walk` itself, the word of either
-    /// next slot is there without the read address waiting on whether the
-    /// walk moves on (`rd`, behind the W2 stage's back-pressure); `wm_adv`
-    /// picks one. 39 × M bits of LUT RAM for a shallower path.
-    walk_mem_next: Bram<39, 8>,
-    /// The walk moved on to the next slot on the previous clock: the word
-    /// read is `walk_mem_next`'s.
-    wm_adv: DFF<Bit>,
-    /// The word written on the previous clock, for a read of the slot just
-    /// written: only with M = 1, where a walk's last step writes slot 0 in
-    /// the clock the next walk issues its read of slot 0 (`one_slot`: for
-    /// M > 1 synthesis removes the bypass).
-    wm_fwd: DFF<Bit>,
-    wm_last: DFF<Bits<39>>,
+    /// The fields that only the walks read, one word per slot in LUT RAM,
+    /// read a clock ahead at the read stage's slot.
+    walk_words: WalkMemory,
+    /// What the walk does to the slot in W1.
+    step: WalkStep,
     /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
     sv: Vec<DFF<Bits<64>>>,
     /// The walks' constants: N − end_trim (the `dage` at which a dropped
@@ -515,7 +502,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// `finish` ends a live track; it ends it unconfirmed.
     w2_fin_end: DFF<Bit>,
     w2_fin_unconf: DFF<Bit>,
-    /// The slot's word for `walk_mem`.
+    /// The slot's word for `walk_words`.
     w2_word: DFF<Bits<39>>,
     // Combinational.
     run: Signal<Local, Bit>,
@@ -523,8 +510,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The decide stage takes the plane's last item.
     end_item: Signal<Local, Bit>,
     r_from_x: Signal<Local, Bit>,
-    x_ready: Signal<Local, Bit>,
-    x_take: Signal<Local, Bit>,
     s_cx: Signal<Local, Bits<COORD_BITS>>,
     s_cy: Signal<Local, Bits<COORD_BITS>>,
     near_v: Signal<Local, Bits<MAX_SLOTS>>,
@@ -532,48 +517,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     frow_v: Signal<Local, Bits<MAX_SLOTS>>,
     free_v: Signal<Local, Bits<MAX_SLOTS>>,
     on_v: Signal<Local, Bits<MAX_SLOTS>>,
-    o_bnd: Signal<Local, Bits<64>>,
     /// An opening's ROI view `pre` flag (plane t ≥ N), at its offset.
     sh_pre: Signal<Local, Bits<64>>,
-    rem: Signal<Local, Bits<P>>,
-    low: Signal<Local, Bits<P>>,
-    has_cand: Signal<Local, Bit>,
-    more: Signal<Local, Bit>,
-    /// Some lane below the one being looked at is a candidate.
-    seen: Signal<Local, Bit>,
-    in_xc: Signal<Local, Bits<COORD_BITS>>,
-    in_yc: Signal<Local, Bits<COORD_BITS>>,
-    lane: Signal<Local, Bits<COORD_BITS>>,
-    cx: Signal<Local, Bits<COORD_BITS>>,
-    cx_lo: Signal<Local, Bits<COORD_BITS>>,
-    cx_hi: Signal<Local, Bits<COORD_BITS>>,
-    cy_lo: Signal<Local, Bits<COORD_BITS>>,
-    cy_hi: Signal<Local, Bits<COORD_BITS>>,
-    lo_col: Signal<Local, Bits<COORD_BITS>>,
-    hi_col: Signal<Local, Bits<COORD_BITS>>,
-    o_wl: Signal<Local, Bits<COORD_BITS>>,
-    o_wh: Signal<Local, Bits<COORD_BITS>>,
-    lo_lane: Signal<Local, Bits<COORD_BITS>>,
-    hi_lane: Signal<Local, Bits<COORD_BITS>>,
-    m_lo: Signal<Local, Bits<P>>,
-    m_hi: Signal<Local, Bits<P>>,
-    o_ml: Signal<Local, Bits<P>>,
-    o_mh: Signal<Local, Bits<P>>,
-    o_frow: Signal<Local, Bits<COORD_BITS>>,
-    /// An opened slot's `geo` word without its bank, its `win` word and its
-    /// ROI view entry without its bank.
-    o_geo: Signal<Local, Bits<64>>,
-    o_win: Signal<Local, Bits<64>>,
-    o_sh: Signal<Local, Bits<64>>,
-    y_m1: Signal<Local, Bits<COORD_BITS>>,
-    y_p1: Signal<Local, Bits<COORD_BITS>>,
-    eor: Signal<Local, Bit>,
     par: Signal<Local, Bit>,
     par1: Signal<Local, Bit>,
     t_m1: Signal<Local, Bits<48>>,
     t_p1: Signal<Local, Bits<48>>,
     t_ge_n: Signal<Local, Bit>,
-    t1_ge_n: Signal<Local, Bit>,
     n32: Signal<Local, Bits<AGE_BITS>>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
@@ -590,38 +540,14 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w_busy: Signal<Local, Bit>,
     w_live: Signal<Local, Bit>,
     w_dip: Signal<Local, Bit>,
-    w_conf: Signal<Local, Bit>,
-    w_cont: Signal<Local, Bit>,
-    w_trunc: Signal<Local, Bit>,
     w_pend: Signal<Local, Bit>,
     w_opened: Signal<Local, Bit>,
     w_bridge: Signal<Local, Bit>,
-    w_age: Signal<Local, Bits<AGE_BITS>>,
-    w_dage: Signal<Local, Bits<AGE_BITS>>,
     w_ax: Signal<Local, Bits<COORD_BITS>>,
     w_ay: Signal<Local, Bits<COORD_BITS>>,
     w_bank: Signal<Local, Bits<BW>>,
-    w_conf1: Signal<Local, Bit>,
-    w_dage1: Signal<Local, Bits<AGE_BITS>>,
-    w_cut: Signal<Local, Bit>,
-    w_unconf: Signal<Local, Bit>,
-    w_comp: Signal<Local, Bit>,
-    w_fconf: Signal<Local, Bit>,
-    w_flags: Signal<Local, Bits<8>>,
     w_word: Signal<Local, Bits<39>>,
-    wr_age: Signal<Local, Bits<AGE_BITS>>,
-    wr_dage: Signal<Local, Bits<AGE_BITS>>,
-    wr_conf: Signal<Local, Bit>,
-    wr_cont: Signal<Local, Bit>,
-    wr_trunc: Signal<Local, Bit>,
-    n_busy: Signal<Local, Bit>,
-    n_live: Signal<Local, Bit>,
-    n_cont: Signal<Local, Bit>,
-    n_age: Signal<Local, Bits<AGE_BITS>>,
-    n_dage: Signal<Local, Bits<AGE_BITS>>,
     n_bank: Signal<Local, Bits<BW>>,
-    n_pre: Signal<Local, Bit>,
-    n_fresh: Signal<Local, Bit>,
     /// `n_bank` at the bank's offset of `geo` and of the ROI view entry.
     n_bank_w: Signal<Local, Bits<64>>,
     /// The walked slot's ROI view entry for plane t + 1.
@@ -636,18 +562,12 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
-    rec_tc: Signal<Local, Bits<48>>,
-    rec_td: Signal<Local, Bits<48>>,
     absorbed: Signal<Local, Bit>,
     w1_ready: Signal<Local, Bit>,
     w2_ready: Signal<Local, Bit>,
     rd: Signal<Local, Bit>,
     /// The read stage's slot, one-hot.
     sel_v: Signal<Local, Bits<MAX_SLOTS>>,
-    ge_lmin: Signal<Local, Bit>,
-    ge_lmin1: Signal<Local, Bit>,
-    ge_lmax1: Signal<Local, Bit>,
-    ge_nc: Signal<Local, Bit>,
     // Constants.
     slot_id: Vec<Constant<Bits<8>>>,
     /// Slot i's first bank, i, at the bank's offset of `geo`.
@@ -660,21 +580,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     win_used: Constant<Bits<64>>,
     sh_used: Constant<Bits<64>>,
     geo_keep: Constant<Bits<64>>,
-    /// An opened slot's ROI view flag: fresh (`pre` too if `t ≥ N`:
-    /// `sh_pre`).
-    sh_open: Constant<Bits<64>>,
     /// One bit per slot.
     slot_bits: Constant<Bits<MAX_SLOTS>>,
-    lane_id: Vec<Constant<Bits<COORD_BITS>>>,
-    all_lanes: Constant<Bits<P>>,
-    log2p: Constant<Bits<8>>,
-    pm1: Constant<Bits<COORD_BITS>>,
-    r_assoc: Constant<Bits<COORD_BITS>>,
-    last_col: Constant<Bits<COORD_BITS>>,
-    last_row: Constant<Bits<COORD_BITS>>,
-    last_word: Constant<Bits<16>>,
     last_slot: Constant<Bits<8>>,
-    one_slot: Constant<Bit>,
     _m: usize,
 }
 
@@ -730,8 +638,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
         let geo_used = !((ones(slot_word::BANK_BITS_MAX) << slot_word::BANK) & !bank_bits);
         let win_used = ones(P) | (ones(P) << 32);
         let sh_used = ones(shadow::BANK + BW) | (1u64 << shadow::PRE) | (1u64 << shadow::FRESH);
-        let c16 = |v: u64| Constant::new(v.to_bits());
-        let cc = |v: u64| Constant::new(v.to_bits());
         Ok(BlinkTracker {
             clock: Default::default(),
             restart: Default::default(),
@@ -778,7 +684,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             state: Default::default(),
             t: Default::default(),
             rows: Default::default(),
-            done_mask: Default::default(),
             walk: Default::default(),
             lost: Default::default(),
             drops: Default::default(),
@@ -803,17 +708,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             geo: lanes(m),
             win: lanes(m),
             bnd: lanes(m),
-            x_valid: Default::default(),
-            x_cand: Default::default(),
-            x_last: Default::default(),
-            x_eor: Default::default(),
-            x_lastrow: Default::default(),
-            x_cx: Default::default(),
-            x_yc: Default::default(),
-            x_xc: Default::default(),
-            x_ym1: Default::default(),
-            x_yp1: Default::default(),
-            x_above: Default::default(),
             r_valid: Default::default(),
             r_cand: Default::default(),
             r_last: Default::default(),
@@ -840,11 +734,10 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             opened_nx: Default::default(),
             hit_nx: Default::default(),
             ev_bridge_nx: Default::default(),
-            walk_mem: Bram::new(m, RamStyle::Distributed),
-            walk_mem_next: Bram::new(m, RamStyle::Distributed),
-            wm_adv: Default::default(),
-            wm_fwd: Default::default(),
-            wm_last: Default::default(),
+            walk_words: WalkMemory::new(m),
+            step: WalkStep::default(),
+            items: ItemStage::new(cfg),
+            opening: OpeningWindows::new(cfg),
             sv: lanes(2 * m),
             n_mc: Default::default(),
             mc_one: Default::default(),
@@ -894,8 +787,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             d_go: Default::default(),
             end_item: Default::default(),
             r_from_x: Default::default(),
-            x_ready: Default::default(),
-            x_take: Default::default(),
             s_cx: Default::default(),
             s_cy: Default::default(),
             near_v: Default::default(),
@@ -903,44 +794,12 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             frow_v: Default::default(),
             free_v: Default::default(),
             on_v: Default::default(),
-            o_bnd: Default::default(),
             sh_pre: Default::default(),
-            rem: Default::default(),
-            low: Default::default(),
-            has_cand: Default::default(),
-            more: Default::default(),
-            seen: Default::default(),
-            in_xc: Default::default(),
-            in_yc: Default::default(),
-            lane: Default::default(),
-            cx: Default::default(),
-            cx_lo: Default::default(),
-            cx_hi: Default::default(),
-            cy_lo: Default::default(),
-            cy_hi: Default::default(),
-            lo_col: Default::default(),
-            hi_col: Default::default(),
-            o_wl: Default::default(),
-            o_wh: Default::default(),
-            lo_lane: Default::default(),
-            hi_lane: Default::default(),
-            m_lo: Default::default(),
-            m_hi: Default::default(),
-            o_ml: Default::default(),
-            o_mh: Default::default(),
-            o_frow: Default::default(),
-            o_geo: Default::default(),
-            o_win: Default::default(),
-            o_sh: Default::default(),
-            y_m1: Default::default(),
-            y_p1: Default::default(),
-            eor: Default::default(),
             par: Default::default(),
             par1: Default::default(),
             t_m1: Default::default(),
             t_p1: Default::default(),
             t_ge_n: Default::default(),
-            t1_ge_n: Default::default(),
             n32: Default::default(),
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
@@ -954,38 +813,14 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w_busy: Default::default(),
             w_live: Default::default(),
             w_dip: Default::default(),
-            w_conf: Default::default(),
-            w_cont: Default::default(),
-            w_trunc: Default::default(),
             w_pend: Default::default(),
             w_opened: Default::default(),
             w_bridge: Default::default(),
-            w_age: Default::default(),
-            w_dage: Default::default(),
             w_ax: Default::default(),
             w_ay: Default::default(),
             w_bank: Default::default(),
-            w_conf1: Default::default(),
-            w_dage1: Default::default(),
-            w_cut: Default::default(),
-            w_unconf: Default::default(),
-            w_comp: Default::default(),
-            w_fconf: Default::default(),
-            w_flags: Default::default(),
             w_word: Default::default(),
-            wr_age: Default::default(),
-            wr_dage: Default::default(),
-            wr_conf: Default::default(),
-            wr_cont: Default::default(),
-            wr_trunc: Default::default(),
-            n_busy: Default::default(),
-            n_live: Default::default(),
-            n_cont: Default::default(),
-            n_age: Default::default(),
-            n_dage: Default::default(),
             n_bank: Default::default(),
-            n_pre: Default::default(),
-            n_fresh: Default::default(),
             n_bank_w: Default::default(),
             n_sh: Default::default(),
             fin_keep: Default::default(),
@@ -994,17 +829,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             we_fin: Default::default(),
             we_drain: Default::default(),
             we_emit: Default::default(),
-            rec_tc: Default::default(),
-            rec_td: Default::default(),
             absorbed: Default::default(),
             w1_ready: Default::default(),
             w2_ready: Default::default(),
             rd: Default::default(),
             sel_v: Default::default(),
-            ge_lmin: Default::default(),
-            ge_lmin1: Default::default(),
-            ge_lmax1: Default::default(),
-            ge_nc: Default::default(),
             slot_id: (0..m)
                 .map(|i| Constant::new((i as u64).to_bits()))
                 .collect(),
@@ -1016,18 +845,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             win_used: Constant::new(win_used.to_bits()),
             sh_used: Constant::new(sh_used.to_bits()),
             geo_keep: Constant::new((geo_used & !bank_bits).to_bits()),
-            sh_open: Constant::new((1u64 << shadow::FRESH).to_bits()),
             slot_bits: Constant::new(((1u64 << m) - 1).to_bits()),
-            lane_id: (0..P).map(|j| cc(j as u64)).collect(),
-            all_lanes: Constant::new(Bits::<P>::mask()),
-            log2p: Constant::new((cfg.log2_p() as u64).to_bits()),
-            pm1: cc(P as u64 - 1),
-            r_assoc: cc(cfg.r_assoc as u64),
-            last_col: cc(f.width as u64 - 1),
-            last_row: cc(f.height as u64 - 1),
-            last_word: c16(f.words_per_row() as u64 - 1),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
-            one_slot: Constant::new(m == 1),
             _m: m,
         })
     }
@@ -1044,7 +863,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             state,
             t,
             rows,
-            done_mask,
             walk,
             lost,
             drops,
@@ -1057,20 +875,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             c_cuts,
             bank_err,
             bank_waits,
-            wm_fwd,
-            wm_adv,
-            wm_last,
-            x_valid,
-            x_cand,
-            x_last,
-            x_eor,
-            x_lastrow,
-            x_cx,
-            x_yc,
-            x_xc,
-            x_ym1,
-            x_yp1,
-            x_above,
             r_valid,
             r_cand,
             r_last,
@@ -1133,8 +937,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             w2_fin_unconf,
             w2_word
         );
-        self.walk_mem.clock.next = self.clock.val();
-        self.walk_mem_next.clock.next = self.clock.val();
+        self.walk_words.clock.next = self.clock.val();
+        self.items.clock.next = self.clock.val();
         // (The flags' `d` is their `_nx`, assigned at the end.)
         clock!(self, clock, busy, live, dip, pend, aprev, fprev, opened, hit, ev_bridge);
         self.busy_nx.next = self.busy.q.val();
@@ -1176,7 +980,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.lmin_p1.d.next = bit_cast::<18, 32>(self.l_min.val()) + 1;
         self.lmax_m1.d.next = bit_cast::<18, 32>(self.l_max.val()) - 1;
         self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
-        self.t1_ge_n.next = self.t_p1.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
         self.drain_end.d.next = self.t_p1.val() == self.p_plus_n.val();
         self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
@@ -1199,121 +1002,24 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val() & self.r_lastrow.q.val();
         self.r_from_x.next =
             !self.replay.q.val() & (!self.r_valid.q.val() | self.run.val()) & !self.end_item.val();
-        self.x_ready.next = !self.x_valid.q.val() | self.r_from_x.val();
-        self.x_take.next = self.x_ready.val() & self.in_valid.val() & !self.in_flush.val();
 
-        // ---- The head word: candidate lanes, lowest first.
-        self.rem.next = self.in_cand.val() & !self.done_mask.q.val();
-        self.low.next = self.rem.val() & (!self.rem.val() + 1);
-        self.has_cand.next = self.rem.val().any();
-        // At least two candidate lanes left, as plain logic rather than
-        // `rem & (rem − 1)`: no carry chain, so the mapping can flatten it
-        // (the head word's pop waits on it).
-        self.more.next = false;
-        self.seen.next = false;
-        for j in 0..P {
-            if self.rem.val().get_bit(j) {
-                if self.seen.val() {
-                    self.more.next = true;
-                }
-                self.seen.next = true;
-            }
-        }
-        self.lane.next = 0.into();
-        for j in 0..P {
-            if self.low.val().get_bit(j) {
-                self.lane.next = self.lane_id[j].val();
-            }
-        }
-        self.in_xc.next = bit_cast::<10, 16>(self.in_x.val());
-        self.in_yc.next = bit_cast::<10, 16>(self.in_y.val());
-        self.cx.next = (self.in_xc.val() << self.log2p.val()) | self.lane.val();
-        self.eor.next = self.in_x.val() == self.last_word.val();
-        // Rows y − 1 .. y + 1 see the word.
-        self.y_m1.next = 0.into();
-        if self.in_yc.val() != 0 {
-            self.y_m1.next = self.in_yc.val() - 1;
-        }
-        self.y_p1.next = self.in_yc.val() + 1;
+        // ---- Item stage: the head word's next item.
+        self.items.restart.next = self.restart.val();
+        self.items.in_valid.next = self.in_valid.val();
+        self.items.in_above.next = self.in_above.val();
+        self.items.in_cand.next = self.in_cand.val();
+        self.items.in_x.next = self.in_x.val();
+        self.items.in_y.next = self.in_y.val();
+        self.items.in_flush.next = self.in_flush.val();
+        self.items.take.next = self.r_from_x.val();
+        self.in_pop.next = self.items.pop.val();
         // The ROI view of plane t − 1 may be overwritten (see `swept`).
         self.view_free.next = self.swept.val() >= self.t.q.val();
 
-        // ---- Item stage.
-        self.in_pop.next = false;
-        self.x_valid.d.next = self.x_valid.q.val() & !self.r_from_x.val();
-        if self.x_take.val() {
-            self.x_valid.d.next = true;
-            self.x_cand.d.next = self.has_cand.val();
-            self.x_last.d.next = !self.more.val();
-            self.x_eor.d.next = self.eor.val();
-            self.x_lastrow.d.next = self.in_yc.val() == self.last_row.val();
-            self.x_cx.d.next = self.cx.val();
-            self.x_yc.d.next = self.in_yc.val();
-            self.x_xc.d.next = self.in_xc.val();
-            self.x_ym1.d.next = self.y_m1.val();
-            self.x_yp1.d.next = self.y_p1.val();
-            self.x_above.d.next = self.in_above.val();
-            if self.more.val() {
-                self.done_mask.d.next = self.done_mask.q.val() | self.low.val();
-            } else {
-                self.in_pop.next = true;
-                self.done_mask.d.next = 0.into();
-            }
-        }
-
-        // ---- What an opening by the item writes: its association window
-        // [c − r, c + r] in x and y, and the 3x3 window of the new anchor,
-        // columns [cx − 1, cx + 1] clipped, as lane masks of the (at most
-        // two) words that hold them.
-        self.cx_lo.next = 0.into();
-        if self.x_cx.q.val() >= self.r_assoc.val() {
-            self.cx_lo.next = self.x_cx.q.val() - self.r_assoc.val();
-        }
-        self.cx_hi.next = self.x_cx.q.val() + self.r_assoc.val();
-        self.cy_lo.next = 0.into();
-        if self.x_yc.q.val() >= self.r_assoc.val() {
-            self.cy_lo.next = self.x_yc.q.val() - self.r_assoc.val();
-        }
-        self.cy_hi.next = self.x_yc.q.val() + self.r_assoc.val();
-        self.lo_col.next = 0.into();
-        if self.x_cx.q.val() != 0 {
-            self.lo_col.next = self.x_cx.q.val() - 1;
-        }
-        self.hi_col.next = self.x_cx.q.val() + 1;
-        if self.x_cx.q.val() == self.last_col.val() {
-            self.hi_col.next = self.x_cx.q.val();
-        }
-        self.o_wl.next = self.lo_col.val() >> self.log2p.val();
-        self.o_wh.next = self.hi_col.val() >> self.log2p.val();
-        self.lo_lane.next = self.lo_col.val() & self.pm1.val();
-        self.hi_lane.next = self.hi_col.val() & self.pm1.val();
-        self.m_lo.next = self.all_lanes.val() << self.lo_lane.val();
-        self.m_hi.next = self.all_lanes.val() >> (self.pm1.val() - self.hi_lane.val());
-        self.o_ml.next = self.m_lo.val();
-        self.o_mh.next = self.m_hi.val();
-        if self.o_wl.val() == self.o_wh.val() {
-            self.o_ml.next = self.m_lo.val() & self.m_hi.val();
-            self.o_mh.next = self.m_lo.val() & self.m_hi.val();
-        }
-        self.o_frow.next = self.x_yc.q.val() + 1;
-        if self.x_lastrow.q.val() {
-            self.o_frow.next = self.x_yc.q.val();
-        }
-        // (Offsets: `slot_word` and `shadow`; literals for hdl_gen.)
-        self.o_geo.next = bit_cast::<64, 10>(self.x_cx.q.val())
-            | (bit_cast::<64, 10>(self.x_yc.q.val()) << 10)
-            | (bit_cast::<64, 10>(self.o_wl.val()) << 34)
-            | (bit_cast::<64, 10>(self.o_wh.val()) << 44)
-            | (bit_cast::<64, 10>(self.o_frow.val()) << 54);
-        self.o_win.next =
-            bit_cast::<64, P>(self.o_ml.val()) | (bit_cast::<64, P>(self.o_mh.val()) << 32);
-        self.o_sh.next = bit_cast::<64, 10>(self.x_cx.q.val())
-            | (bit_cast::<64, 10>(self.x_yc.q.val()) << 10)
-            | self.sh_open.val();
-        self.o_bnd.next = bit_cast::<64, 10>(self.cx_lo.val())
-            | (bit_cast::<64, 10>(self.cx_hi.val()) << 10)
-            | (bit_cast::<64, 10>(self.cy_lo.val()) << 20)
-            | (bit_cast::<64, 10>(self.cy_hi.val()) << 30);
+        // ---- What an opening by the item writes.
+        self.opening.cx.next = self.items.cx.val();
+        self.opening.cy.next = self.items.yc.val();
+        self.opening.lastrow.next = self.items.lastrow.val();
 
         // ---- Compare stage: per slot, whether the candidate falls in its
         // association window, whether the word hits its 3x3 window, and
@@ -1321,8 +1027,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // streamed. Computed only when the stage loads (in a simulator the
         // 32 slots' comparators cost most of the tracker's time, and most
         // clocks bring no word).
-        self.s_cx.next = self.x_cx.q.val();
-        self.s_cy.next = self.x_yc.q.val();
+        self.s_cx.next = self.items.cx.val();
+        self.s_cy.next = self.items.yc.val();
         if self.replay.q.val() {
             self.s_cx.next = self.r_cx.q.val();
             self.s_cy.next = self.r_yc.q.val();
@@ -1330,7 +1036,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.near_v.next = 0.into();
         self.hw_v.next = 0.into();
         self.frow_v.next = 0.into();
-        if self.replay.q.val() | (self.r_from_x.val() & self.x_valid.q.val()) {
+        if self.replay.q.val() | (self.r_from_x.val() & self.items.valid.val()) {
             for i in 0..self._m {
                 self.near_v.next = self.near_v.val().replace_bit(
                     i,
@@ -1341,17 +1047,19 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 );
                 self.hw_v.next = self.hw_v.val().replace_bit(
                     i,
-                    (self.geo[i].q.val().get_bits::<10>(10) >= self.x_ym1.q.val())
-                        & (self.geo[i].q.val().get_bits::<10>(10) <= self.x_yp1.q.val())
-                        & (((self.x_xc.q.val() == self.geo[i].q.val().get_bits::<10>(34))
-                            & (self.x_above.q.val() & self.win[i].q.val().get_bits::<P>(0)).any())
-                            | ((self.x_xc.q.val() == self.geo[i].q.val().get_bits::<10>(44))
-                                & (self.x_above.q.val() & self.win[i].q.val().get_bits::<P>(32))
-                                    .any())),
+                    (self.geo[i].q.val().get_bits::<10>(10) >= self.items.ym1.val())
+                        & (self.geo[i].q.val().get_bits::<10>(10) <= self.items.yp1.val())
+                        & (((self.items.xc.val() == self.geo[i].q.val().get_bits::<10>(34))
+                            & (self.items.above.val() & self.win[i].q.val().get_bits::<P>(0))
+                                .any())
+                            | ((self.items.xc.val() == self.geo[i].q.val().get_bits::<10>(44))
+                                & (self.items.above.val()
+                                    & self.win[i].q.val().get_bits::<P>(32))
+                                .any())),
                 );
                 self.frow_v.next = self.frow_v.val().replace_bit(
                     i,
-                    self.geo[i].q.val().get_bits::<10>(54) == self.x_yc.q.val(),
+                    self.geo[i].q.val().get_bits::<10>(54) == self.items.yc.val(),
                 );
             }
         }
@@ -1362,20 +1070,20 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.r_valid.d.next = false;
         }
         if self.r_from_x.val() {
-            self.r_valid.d.next = self.x_valid.q.val();
-            self.r_cand.d.next = self.x_cand.q.val();
-            self.r_last.d.next = self.x_last.q.val();
-            self.r_eor.d.next = self.x_eor.q.val();
-            self.r_lastrow.d.next = self.x_lastrow.q.val();
-            self.r_cx.d.next = self.x_cx.q.val();
-            self.r_yc.d.next = self.x_yc.q.val();
+            self.r_valid.d.next = self.items.valid.val();
+            self.r_cand.d.next = self.items.cand.val();
+            self.r_last.d.next = self.items.last.val();
+            self.r_eor.d.next = self.items.eor.val();
+            self.r_lastrow.d.next = self.items.lastrow.val();
+            self.r_cx.d.next = self.items.cx.val();
+            self.r_yc.d.next = self.items.yc.val();
             self.r_near.d.next = self.near_v.val();
             self.r_hw.d.next = self.hw_v.val();
             self.r_frow.d.next = self.frow_v.val();
-            self.r_geo.d.next = self.o_geo.val();
-            self.r_win.d.next = self.o_win.val();
-            self.r_sh.d.next = self.o_sh.val();
-            self.r_bnd.d.next = self.o_bnd.val();
+            self.r_geo.d.next = self.opening.geo.val();
+            self.r_win.d.next = self.opening.win.val();
+            self.r_sh.d.next = self.opening.sh.val();
+            self.r_bnd.d.next = self.opening.bnd.val();
         }
 
         // ---- Decide stage: the item against the slots as they are now. An
@@ -1395,8 +1103,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & !self.fpick_any.q.val();
         self.do_fin.next = self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val();
         self.sh_pre.next = bit_cast::<64, 1>(self.t_ge_n.val().into()) << 62;
-        self.replay.d.next =
-            self.do_open.val() & self.x_valid.q.val() & self.x_cand.q.val() & self.r_from_x.val();
+        self.replay.d.next = self.do_open.val()
+            & self.items.valid.val()
+            & self.items.cand.val()
+            & self.r_from_x.val();
 
         // ---- The walks (see "Walk pipeline" in the module doc): the read
         // stage takes the slot at `walk` into W1, W1 decides what the walk
@@ -1438,7 +1148,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.rd.next = self.rd_on.q.val() & self.w1_ready.val();
 
         // Read stage: the slot's state through one multiplexer; the fields
-        // only the walks read come from its word in `walk_mem`, read a clock
+        // only the walks read come from its word in `walk_words`, read a clock
         // ahead (at `walk.d`).
         self.w_busy.next = false;
         self.w_live.next = false;
@@ -1466,13 +1176,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
         }
-        self.w_word.next = self.walk_mem.read_data.val();
-        if self.wm_adv.q.val() {
-            self.w_word.next = self.walk_mem_next.read_data.val();
-        }
-        if self.wm_fwd.q.val() {
-            self.w_word.next = self.wm_last.q.val();
-        }
+        self.w_word.next = self.walk_words.word.val();
         self.w1_valid.d.next = self.w1_valid.q.val() & !self.w2_ready.val();
         if self.rd.val() {
             self.w1_valid.d.next = true;
@@ -1496,128 +1200,23 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // W1: what the walk makes of the slot. A slot opened in this plane
-        // has not been walked since: its word is a previous track's, and the
-        // opening's values (age 0, unconfirmed, no continuation, not
-        // truncated) stand in for it (so that the opening needs no second
-        // write port; `dage` means nothing until the drop).
-        self.w_age.next = self.w1_word.q.val().get_bits::<18>(0);
-        self.w_dage.next = self.w1_word.q.val().get_bits::<18>(18);
-        self.w_conf.next = self.w1_word.q.val().get_bit(36);
-        self.w_cont.next = self.w1_word.q.val().get_bit(37);
-        self.w_trunc.next = self.w1_word.q.val().get_bit(38);
-        if self.w1_opened.q.val() {
-            self.w_age.next = 0.into();
-            self.w_conf.next = false;
-            self.w_cont.next = false;
-            self.w_trunc.next = false;
-        }
-        self.ge_lmin.next = self.w_age.val() >= self.lmin.q.val();
-        self.ge_lmin1.next = self.w_age.val() >= self.lmin_p1.q.val();
-        self.ge_lmax1.next = self.w_age.val() >= self.lmax_m1.q.val();
-        // A blink that ended in this plane (its on/off step found the second
-        // plane below: `pend`) ended at t_drop = t − 1, confirmed if it lasted
-        // L_min planes.
-        self.w_conf1.next = self.w_conf.val();
-        self.w_dage1.next = self.w_dage.val();
-        if self.w1_pend.q.val() {
-            self.w_conf1.next = self.w_cont.val() | self.ge_lmin1.val();
-            self.w_dage1.next = 1.into();
-        }
-        // A dropped segment's last plane, t_drop − end_trim, leaves the
-        // window (is summed) at plane t_drop + N − end_trim: `dage1 ≥ N −
-        // end_trim` (dage1 = t − t_drop in this plane: 1 for a `pend` drop,
-        // compared through a register rather than behind the multiplexer).
-        self.ge_nc.next = self.w_dage.val() >= self.n_mc.q.val();
-        if self.w1_pend.q.val() {
-            self.ge_nc.next = self.mc_one.q.val();
-        }
-        // Cut at L_max; an ended track unconfirmed is freed, a confirmed one
-        // completes once it has summed its last plane.
-        self.w_cut.next = self.w1_busy.q.val()
-            & self.w1_live.q.val()
-            & !self.w1_dip.q.val()
-            & self.ge_lmax1.val();
-        self.w_unconf.next = self.w1_busy.q.val() & !self.w1_live.q.val() & !self.w_conf1.val();
-        self.w_comp.next = self.w_cut.val()
-            | (self.w1_busy.q.val()
-                & !self.w1_live.q.val()
-                & self.w_conf1.val()
-                & self.ge_nc.val());
-        // The model's `finish`: a live track is confirmed if it lasted L_min planes.
-        self.w_fconf.next = self.w_cont.val()
-            | (!self.w1_dip.q.val() & self.ge_lmin.val())
-            | (self.w1_dip.q.val() & self.ge_lmin1.val());
-        // Record flag bits (model `flags`): CUT 0x04, CONTINUATION 0x08, TRUNCATED 0x10.
-        self.w_flags.next = 0.into();
-        if self.w_cut.val() {
-            self.w_flags.next = self.w_flags.val() | 4;
-        }
-        if self.w_cont.val() {
-            self.w_flags.next = self.w_flags.val() | 8;
-        }
-        if self.w_trunc.val() {
-            self.w_flags.next = self.w_flags.val() | 16;
-        }
-        self.rec_tc.next = self.t.q.val() - bit_cast::<48, 18>(self.w_age.val());
-        self.rec_td.next = self.t.q.val() - bit_cast::<48, 18>(self.w_dage1.val());
-        if self.w_cut.val() {
-            self.rec_td.next = self.t.q.val();
-        }
-        // The slot after the walk, ages advanced to plane t + 1: a cut blink
-        // goes on as a continuation from t + 1 (age 0 at t + 1); a
-        // completed or unconfirmed one frees the slot.
-        self.n_busy.next = self.w1_busy.q.val() & !self.w_unconf.val();
-        if self.w_comp.val() & !self.w_cut.val() {
-            self.n_busy.next = false;
-        }
-        self.n_live.next = self.w1_live.q.val() | self.w_cut.val();
-        self.n_cont.next = self.w_cont.val() | self.w_cut.val();
-        self.n_age.next = self.w_age.val() + 1;
-        self.n_dage.next = self.w_dage1.val() + 1;
-        if self.w_cut.val() {
-            self.n_age.next = 0.into();
-            self.n_dage.next = 1.into();
-        }
-        // A drain plane ends no track: the slot only ages.
-        if self.state.q.val() == TrackerState::DrainWalk {
-            self.n_busy.next = self.w1_busy.q.val();
-        }
-        // Its ROI view for plane t + 1 (≥ t_cross of a busy slot's
-        // segment): sum B_{t+1−N} if t + 1 ≥ N and the segment is live, or
-        // truncated by the stream end (every drain plane), or dropped with
-        // dage(t + 1) = dage1 + 1 ≤ N − end_trim (at the end of a real
-        // plane a dropped segment still busy has not completed, so this
-        // holds; in a drain plane it may not). The first plane of a
-        // segment after a cut (the opening writes its own).
-        self.n_pre.next = self.n_busy.val()
-            & self.t1_ge_n.val()
-            & (self.n_live.val() | self.w_trunc.val() | !self.ge_nc.val());
-        self.n_fresh.next = self.n_busy.val() & self.w_cut.val();
-        // What the walk writes back to the slot's word: the end of a plane
-        // its next state, the stream end's `finish` the end of a live track
-        // (at t − 1 = p − 1, truncated), a drain plane's end the ages.
-        self.wr_age.next = self.n_age.val();
-        self.wr_dage.next = self.n_dage.val();
-        self.wr_conf.next = self.w_conf.val();
-        self.wr_cont.next = self.w_cont.val();
-        self.wr_trunc.next = self.w_trunc.val();
-        if self.state.q.val() == TrackerState::Walk {
-            self.wr_conf.next = self.w_conf1.val() | self.w_cut.val();
-            self.wr_cont.next = self.n_cont.val();
-            if self.w_cut.val() {
-                self.wr_trunc.next = false;
-            }
-        }
-        if self.state.q.val() == TrackerState::Finish {
-            self.wr_age.next = self.w_age.val();
-            self.wr_dage.next = self.w_dage.val();
-            if self.w1_busy.q.val() & self.w1_live.q.val() {
-                self.wr_dage.next = 1.into();
-                self.wr_trunc.next = true;
-                self.wr_conf.next = self.w_fconf.val();
-            }
-        }
+        // W1: what the walk makes of the slot.
+        self.step.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
+        self.step.finish.next = self.state.q.val() == TrackerState::Finish;
+        self.step.drain.next = self.state.q.val() == TrackerState::DrainWalk;
+        self.step.busy.next = self.w1_busy.q.val();
+        self.step.live.next = self.w1_live.q.val();
+        self.step.dip.next = self.w1_dip.q.val();
+        self.step.pend.next = self.w1_pend.q.val();
+        self.step.opened.next = self.w1_opened.q.val();
+        self.step.word.next = self.w1_word.q.val();
+        self.step.t.next = self.t.q.val();
+        self.step.t1_ge_n.next = (self.t.q.val() + 1) >= bit_cast::<48, NW>(self.n_window.val());
+        self.step.lmin.next = self.lmin.q.val();
+        self.step.lmin_p1.next = self.lmin_p1.q.val();
+        self.step.lmax_m1.next = self.lmax_m1.q.val();
+        self.step.n_mc.next = self.n_mc.q.val();
+        self.step.mc_one.next = self.mc_one.q.val();
         self.w2_valid.d.next = self.w2_valid.q.val() & !self.w2_ready.val();
         if self.w2_ready.val() {
             self.w2_valid.d.next = self.w1_valid.q.val();
@@ -1629,24 +1228,19 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.w2_ax.d.next = self.w1_ax.q.val();
             self.w2_ay.d.next = self.w1_ay.q.val();
             self.w2_bank.d.next = self.w1_bank.q.val();
-            self.w2_cut.d.next = self.w_cut.val();
-            self.w2_unconf.d.next = self.w_unconf.val();
-            self.w2_comp.d.next = self.w_comp.val();
-            self.w2_flags.d.next = self.w_flags.val();
-            self.w2_tc.d.next = self.rec_tc.val();
-            self.w2_td.d.next = self.rec_td.val();
-            self.w2_n_busy.d.next = self.n_busy.val();
-            self.w2_n_live.d.next = self.n_live.val();
-            self.w2_n_pre.d.next = self.n_pre.val();
-            self.w2_n_fresh.d.next = self.n_fresh.val();
-            self.w2_fin_end.d.next = self.w1_busy.q.val() & self.w1_live.q.val();
-            self.w2_fin_unconf.d.next =
-                self.w1_busy.q.val() & self.w1_live.q.val() & !self.w_fconf.val();
-            self.w2_word.d.next = bit_cast::<39, 18>(self.wr_age.val())
-                | (bit_cast::<39, 18>(self.wr_dage.val()) << 18)
-                | (bit_cast::<39, 1>(self.wr_conf.val().into()) << 36)
-                | (bit_cast::<39, 1>(self.wr_cont.val().into()) << 37)
-                | (bit_cast::<39, 1>(self.wr_trunc.val().into()) << 38);
+            self.w2_cut.d.next = self.step.cut.val();
+            self.w2_unconf.d.next = self.step.unconf.val();
+            self.w2_comp.d.next = self.step.comp.val();
+            self.w2_flags.d.next = self.step.flags.val();
+            self.w2_tc.d.next = self.step.tc.val();
+            self.w2_td.d.next = self.step.td.val();
+            self.w2_n_busy.d.next = self.step.n_busy.val();
+            self.w2_n_live.d.next = self.step.n_live.val();
+            self.w2_n_pre.d.next = self.step.n_pre.val();
+            self.w2_n_fresh.d.next = self.step.n_fresh.val();
+            self.w2_fin_end.d.next = self.step.fin_end.val();
+            self.w2_fin_unconf.d.next = self.step.fin_unconf.val();
+            self.w2_word.d.next = self.step.word_next.val();
         }
 
         // ---- Record port defaults.
@@ -1706,13 +1300,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
             self.fin_keep.next = self.fin_keep.val().replace_bit(63, false);
         }
-        self.walk_mem.write_address.next = self.w2_slot.q.val();
-        self.walk_mem.write_enable.next =
+        self.walk_words.write_slot.next = self.w2_slot.q.val();
+        self.walk_words.write_enable.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
-        self.walk_mem.write_data.next = self.w2_word.q.val();
-        self.walk_mem_next.write_address.next = self.walk_mem.write_address.val();
-        self.walk_mem_next.write_enable.next = self.walk_mem.write_enable.val();
-        self.walk_mem_next.write_data.next = self.walk_mem.write_data.val();
+        self.walk_words.write_data.next = self.w2_word.q.val();
 
         match self.state.q.val() {
             TrackerState::Start => {
@@ -1787,9 +1378,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             TrackerState::Drain => {
                 if self.in_valid.val() {
                     self.in_pop.next = true;
-                    if self.in_flush.val() & self.eor.val() {
+                    if self.in_flush.val() & self.items.head_eor.val() {
                         self.rows.d.next = self.in_y.val() + 1;
-                        if self.in_yc.val() == self.last_row.val() {
+                        if self.items.head_lastrow.val() {
                             self.rd_on.d.next = true;
                             self.state.d.next = TrackerState::DrainWalk;
                         }
@@ -1966,8 +1557,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             self.t.d.next = 0.into();
             self.rows.d.next = 0.into();
-            self.done_mask.d.next = 0.into();
-            self.x_valid.d.next = false;
             self.r_valid.d.next = false;
             self.replay.d.next = false;
             self.rd_on.d.next = false;
@@ -2012,22 +1601,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.hit.d.next = self.hit_nx.val();
         self.ev_bridge.d.next = self.ev_bridge_nx.val();
 
-        // Read the word of the slot the walk is at on the next clock: `walk.d`
-        // is `walk` (or 0 at a restart) unless the walk moves on, to the
-        // next slot (0 after the last).
-        self.walk_mem.read_address.next = self.walk.q.val();
-        if self.restart.val() {
-            self.walk_mem.read_address.next = 0.into();
-        }
-        self.walk_mem_next.read_address.next = self.walk.q.val() + 1;
-        if self.walk.q.val() == self.last_slot.val() {
-            self.walk_mem_next.read_address.next = 0.into();
-        }
-        self.wm_adv.d.next = self.rd.val() & !self.restart.val();
-        self.wm_fwd.d.next = self.one_slot.val()
-            & self.walk_mem.write_enable.val()
-            & (self.walk.d.val() == self.w2_slot.q.val());
-        self.wm_last.d.next = self.walk_mem.write_data.val();
+        // The walk words of the slot the read stage is at on the next clock.
+        self.walk_words.restart.next = self.restart.val();
+        self.walk_words.slot.next = self.walk.q.val();
+        self.walk_words.slot_next.next = self.walk.d.val();
+        self.walk_words.advance.next = self.rd.val();
 
         self.plane.next = self.t.q.val();
         self.rows_done.next = self.rows.q.val();

@@ -41,7 +41,8 @@
 //! * [`front_half`]: the chain, its configurations and its Verilog.
 //!
 //! ## Back-half blocks (stages 5–7) and the whole pipeline
-//! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`]), the ROI
+//! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`], with
+//!   its item stage, opening windows, walk memory and walk step), the ROI
 //!   aggregator and its bank pool ([`roi_aggregator`], [`bank_pool`]), the
 //!   record queue and finisher ([`record_queue::RecordQueue`],
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser

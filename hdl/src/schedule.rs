@@ -8,8 +8,10 @@
 //! packetiser computes its push from that count (likewise the tracker's
 //! record push and the record queue's count, the delay line's prefetch FIFO,
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
-//! multiplier). No signal depends on itself — rust-hdl's `check_all` rules
-//! that out signal by signal — but Verilator flags the processes
+//! multiplier; the blink tracker's item stage, opening windows and walk
+//! memory, which it both drives and reads). No signal depends on itself —
+//! rust-hdl's `check_all` rules that out signal by signal — but Verilator
+//! flags the processes
 //! `UNOPTFLAT` and re-runs them until they settle, among them the blink
 //! tracker's and the packetiser's, the two largest of the design: they ran
 //! up to three times a clock.
@@ -28,6 +30,29 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
     (
         "(clock,restart,push,push_data,pop,out_valid,out_data,room,count,overflow);",
         &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
+    ),
+    // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
+    // opening windows and walk step, whose outputs the tracker reads back
+    // (the item stage's `pop` is a function of `take`), and the locals
+    // `take` is computed from (functions of the tracker's registers).
+    (
+        "fb_pop,blinks,unconfirmed,dropped,bridged,cuts,bank_error);",
+        &[
+            "items$*",
+            "opening$*",
+            "step$*",
+            "run",
+            "d_go",
+            "end_item",
+            "r_from_x",
+        ],
+    ),
+    // crate::blink_tracker::WalkMemory: its word, a function of its
+    // registers and memories, which the tracker reads while it drives the
+    // read and write ports.
+    (
+        "(clock,restart,slot,slot_next,advance,word,write_enable,write_slot,write_data);",
+        &["word"],
     ),
     // rust-hdl's AsynchronousFIFO (the sensor port): a wiring-only process.
     (
@@ -76,17 +101,30 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
 /// state, read back by the XEM6310 core to drive `load`); the ROI
 /// aggregator's bank-base multiplier operand (a register's value), whose
 /// product the aggregator's process reads. A name ending in `$` stands for
-/// every element of that vector (`lane$0`, `lane$1`, …).
+/// every element of that vector (`lane$0`, `lane$1`, …); one ending in
+/// `$*` for every signal of that child but its clock (`items$take`, …: in
+/// a parent the child's inputs are its `reg`s; a clock isolated in a
+/// process of its own is no longer seen as the clock, and the child's
+/// registers stop).
 const ANY_MODULE_SIGNALS: &[&str] = &["mask_loadable", "bank_base$x"];
 
 /// The signal `name` is one of `list`'s.
 fn listed(list: &[&str], name: &str) -> bool {
-    list.iter().any(|&l| match l.strip_suffix('$') {
-        Some(vector) => name
-            .strip_prefix(vector)
-            .and_then(|rest| rest.strip_prefix('$'))
-            .is_some_and(|index| !index.is_empty() && index.bytes().all(|b| b.is_ascii_digit())),
-        None => l == name,
+    list.iter().any(|&l| {
+        if let Some(child) = l.strip_suffix('*') {
+            return name
+                .strip_prefix(child)
+                .is_some_and(|port| !port.is_empty() && port != "clock");
+        }
+        match l.strip_suffix('$') {
+            Some(vector) => name
+                .strip_prefix(vector)
+                .and_then(|rest| rest.strip_prefix('$'))
+                .is_some_and(|index| {
+                    !index.is_empty() && index.bytes().all(|b| b.is_ascii_digit())
+                }),
+            None => l == name,
+        }
     })
 }
 
@@ -151,6 +189,11 @@ mod tests {
         assert!(!listed(&["rsel$"], "rsel_q$1"));
         assert!(listed(&["par"], "par"));
         assert!(!listed(&["par"], "par1"));
+        assert!(listed(&["items$*"], "items$take"));
+        assert!(!listed(&["items$*"], "items$clock"));
+        assert!(!listed(&["items$*"], "items$"));
+        assert!(!listed(&["items$*"], "items"));
+        assert!(!listed(&["items$*"], "item$take"));
     }
 
     #[test]
