@@ -154,11 +154,13 @@
 //! then StreamEnd.
 
 mod item_stage;
+mod layout;
 mod opening;
 mod walk_memory;
 mod walk_step;
 
 pub use item_stage::ItemStage;
+pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
 pub use opening::OpeningWindows;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_step::{walk_word, WalkStep};
@@ -166,68 +168,6 @@ pub use walk_step::{walk_word, WalkStep};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
-
-/// Bits of a slot's ages (`age` and `dage`, and of the L_min, L_max and
-/// N − end_trim they are compared with): they stay below
-/// L_max,max + 2·N_max + 2 (a segment is cut at L_max, completes at most N
-/// planes after its drop, and the stream end adds N drain planes), which
-/// [`BlinkTracker::new`] checks against 2^18.
-/// (`update` writes the width as the literal 18 where rust-hdl's `hdl_gen`
-/// needs a number; the signal types make the compiler check the two agree.)
-pub const AGE_BITS: usize = 18;
-
-/// Bits of the tracker's pixel coordinates (anchors, window columns and
-/// rows, association bounds): fields up to [`MAX_FIELD`] pixels a side with
-/// room for `x + r_assoc` (checked by [`BlinkTracker::new`]). The ports keep
-/// 16-bit coordinates; only the per-slot state is this narrow (the M slots'
-/// anchors, windows and ROI view are most of the tracker's registers).
-/// (`update` writes the width as the literal 10, like [`AGE_BITS`].)
-pub const COORD_BITS: usize = 10;
-
-/// Offsets of the fields of a slot's `geo` word (one 64-bit register per
-/// slot): the anchor, the window's two word columns and its last row, and
-/// the counter bank (at most 14 bits). `update` writes them as literals
-/// where rust-hdl's `hdl_gen` needs a number.
-pub mod slot_word {
-    /// Anchor column (`COORD_BITS`).
-    pub const AX: usize = 0;
-    /// Anchor row.
-    pub const AY: usize = 10;
-    /// Counter bank (`BW` bits, at most [`BANK_BITS_MAX`]).
-    pub const BANK: usize = 20;
-    /// Bits the bank may take in the word.
-    pub const BANK_BITS_MAX: usize = 14;
-    /// Word column of the window's low word.
-    pub const WL: usize = 34;
-    /// Word column of the window's high word.
-    pub const WH: usize = 44;
-    /// Row at whose end the window has streamed.
-    pub const FROW: usize = 54;
-}
-
-/// Offsets of the fields of a ROI view entry, the words
-/// [`BlinkTracker::sh`] publishes and the ROI aggregator reads. The anchor
-/// and the bank sit where they sit in a slot's `geo` word, so that an
-/// opening copies the bank without a shift.
-pub mod shadow {
-    /// Anchor column (`COORD_BITS`).
-    pub const AX: usize = 0;
-    /// Anchor row.
-    pub const AY: usize = 10;
-    /// Counter bank (`BW` bits).
-    pub const BANK: usize = 20;
-    /// Sum the delayed plane `B_{t−N}` (the only plane a segment sums).
-    pub const PRE: usize = 62;
-    /// First plane of the segment (its opening plane, or the plane after a
-    /// cut): the counters and the ROI's mask flags start from zero. The
-    /// aggregator sweeps the ROI in this plane even without `PRE` (an
-    /// opening at `t < N`), so that they start there.
-    pub const FRESH: usize = 63;
-}
-
-/// The widest and tallest field the tracker's [`COORD_BITS`] hold, pixels
-/// (the SPCImager's is 320×240; the largest camera preset's 512×512).
-pub const MAX_FIELD: usize = 512;
 
 /// Kinds of the record descriptors the tracker pushes (see [`crate::packetiser`]).
 pub mod record_kind {

@@ -9,7 +9,7 @@
 //! above bits OR into the 3×3 windows anchored there), whether it ends its
 //! row and whether that row is the field's last.
 
-use super::COORD_BITS;
+use super::layout::COORD_BITS;
 use crate::config::BackHalfConfig;
 use rust_hdl::prelude::*;
 

@@ -12,7 +12,7 @@
 //! (without the bank; `FRESH` set), `bnd` x from 0, x to 10, y from 20,
 //! y to 30.
 
-use super::{shadow, slot_word, COORD_BITS};
+use super::layout::{shadow, slot_word, COORD_BITS};
 use crate::config::BackHalfConfig;
 use rust_hdl::prelude::*;
 

@@ -11,11 +11,12 @@
 //! walk's constants are registers of L_min, L_min + 1, L_max − 1 and
 //! N − end_trim.
 
-use super::AGE_BITS;
+use super::layout::AGE_BITS;
+use super::walk_memory::WALK_WORD_BITS;
 use rust_hdl::prelude::*;
 
 /// Bit offsets of a slot's walk word (see
-/// [`WALK_WORD_BITS`](super::WALK_WORD_BITS)): age, dage, and the
+/// [`WALK_WORD_BITS`]): age, dage, and the
 /// confirmation, continuation and truncation flags. `update` writes them
 /// as literals where rust-hdl's `hdl_gen` needs a number.
 pub mod walk_word {
@@ -34,7 +35,7 @@ pub mod walk_word {
 const _: () = assert!(
     walk_word::DAGE == AGE_BITS
         && walk_word::CONF == 2 * AGE_BITS
-        && walk_word::TRUNC + 1 == super::WALK_WORD_BITS
+        && walk_word::TRUNC + 1 == WALK_WORD_BITS
 );
 
 /// One slot's walk step.
