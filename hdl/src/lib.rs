@@ -46,7 +46,9 @@
 //!   aggregator and its bank pool ([`roi_aggregator`], [`bank_pool`]), the
 //!   record queue and finisher ([`record_queue::RecordQueue`],
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
-//!   stage), the packetiser ([`packetiser`]) and the output FIFO;
+//!   stage), the packetiser ([`packetiser`], with its count streamer,
+//!   Rice choice and code, bit packer, prefix bytes, count-block head and
+//!   CRC step) and the output FIFO;
 //! * [`stream_control::StreamControl`]: START's register check and latch,
 //!   the source gated at plane boundaries, the drain and flush planes after
 //!   STOP;

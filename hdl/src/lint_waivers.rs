@@ -214,6 +214,12 @@ fn declared_name(line: &str) -> Option<&str> {
         .iter()
         .find_map(|k| t.strip_prefix(k))?;
     let body = body.strip_suffix(';')?;
+    // A signal isolated for Verilator's scheduling (`crate::schedule`)
+    // carries the metacomment after its name.
+    let body = body
+        .trim_end()
+        .strip_suffix(crate::schedule::ISOLATE)
+        .unwrap_or(body);
     if body.contains('=') || body.contains(',') || body.contains('(') {
         return None;
     }
@@ -410,5 +416,14 @@ endmodule
             .filter(|l| l.starts_with("lint_off"))
             .all(|l| l.contains("-lines ")));
         assert_eq!(c, verilator_config(v));
+    }
+
+    #[test]
+    fn an_isolated_declaration_keeps_its_name() {
+        let isolated = format!("    reg  [71:0] shifted {};", crate::schedule::ISOLATE);
+        assert_eq!(declared_name(&isolated), Some("shifted"));
+        assert_eq!(declared_name("    reg  [71:0] shifted;"), Some("shifted"));
+        assert_eq!(declared_name("    output reg  full;"), Some("full"));
+        assert_eq!(declared_name("    wire  x = y;"), None);
     }
 }

@@ -9,12 +9,12 @@
 //! record push and the record queue's count, the delay line's prefetch FIFO,
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the blink tracker's item stage, opening windows and walk
-//! memory, which it both drives and reads). No signal depends on itself —
-//! rust-hdl's `check_all` rules that out signal by signal — but Verilator
-//! flags the processes
-//! `UNOPTFLAT` and re-runs them until they settle, among them the blink
-//! tracker's and the packetiser's, the two largest of the design: they ran
-//! up to three times a clock.
+//! memory, which it both drives and reads; the packetiser's bit packer,
+//! whose flags choose the command the packetiser gives it). No signal
+//! depends on itself — rust-hdl's `check_all` rules that out signal by
+//! signal — but Verilator flags the processes `UNOPTFLAT` and re-runs them
+//! until they settle, among them the blink tracker's and the packetiser's,
+//! the two largest of the design: they ran up to three times a clock.
 //!
 //! [`isolate_false_loops`] marks the signals that cut those loops with
 //! Verilator's `/*verilator isolate_assignments*/`, which moves their
@@ -46,6 +46,12 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "end_item",
             "r_from_x",
         ],
+    ),
+    // crate::packetiser::BitPacker: its flags and byte, functions of its
+    // registers, which the packetiser reads to choose the packer's command.
+    (
+        "(clock,start,send,append,code,len,pad,full,empty,next_byte);",
+        &["full", "empty", "next_byte", "shifted", "low", "pad_shift"],
     ),
     // crate::blink_tracker::WalkMemory: its word, a function of its
     // registers and memories, which the tracker reads while it drives the
