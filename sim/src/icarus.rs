@@ -512,6 +512,45 @@ fn io<T>(what: impl Into<String>, r: std::io::Result<T>) -> Result<T, IcarusErro
     })
 }
 
+/// Wall time after which `vvp` is stopped. The testbench ends every wait
+/// after a limit of simulated clocks, but a zero-delay loop (two processes
+/// waking each other without simulated time passing) never reaches it:
+/// the run would hang. Twenty minutes is about 14 times the longest run on
+/// the 2-core CI machine (86 s).
+pub const VVP_WALL_LIMIT: std::time::Duration = std::time::Duration::from_secs(20 * 60);
+
+/// Runs `cmd` with its standard output and error into the file `log`;
+/// returns that text, or `None` when the command ran past `limit` (it is
+/// killed).
+pub fn run_with_wall_limit(
+    cmd: &mut Command,
+    log: &Path,
+    limit: std::time::Duration,
+) -> Result<Option<String>, IcarusError> {
+    let program = cmd.get_program().to_string_lossy().into_owned();
+    let what = || format!("running {program}");
+    let out = io(
+        format!("creating {}", log.display()),
+        std::fs::File::create(log),
+    )?;
+    let err = io(what(), out.try_clone())?;
+    let mut child = io(what(), cmd.stdout(out).stderr(err).spawn())?;
+    let t0 = std::time::Instant::now();
+    loop {
+        if io(what(), child.try_wait())?.is_some() {
+            break;
+        }
+        if t0.elapsed() > limit {
+            child.kill().ok();
+            child.wait().ok();
+            return Ok(None);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let text = io(format!("reading {}", log.display()), std::fs::read(log))?;
+    Ok(Some(String::from_utf8_lossy(&text).into_owned()))
+}
+
 /// A fresh directory for one run: `$CARGO_TARGET_DIR/icarus/` (or the
 /// workspace's `target/icarus/`), named by process and time.
 fn run_dir() -> Result<PathBuf, IcarusError> {
@@ -581,24 +620,28 @@ pub fn run_verilog(
         });
     }
     let t1 = std::time::Instant::now();
-    let s = io(
-        "running vvp",
-        Command::new("vvp")
-            .arg("-n")
-            .arg(&vvp)
-            .arg(format!("+cmds={}", cmd_file.display()))
-            .arg(format!("+out={}", out_file.display()))
-            .output(),
-    )?;
+    let mut vvp_cmd = Command::new("vvp");
+    vvp_cmd
+        .arg("-n")
+        .arg(&vvp)
+        .arg(format!("+cmds={}", cmd_file.display()))
+        .arg(format!("+out={}", out_file.display()));
+    let log = run_with_wall_limit(&mut vvp_cmd, &dir.join("vvp.log"), VVP_WALL_LIMIT);
     let sim_seconds = t1.elapsed().as_secs_f64();
-    let log = format!(
-        "{}{}",
-        String::from_utf8_lossy(&s.stdout),
-        String::from_utf8_lossy(&s.stderr)
-    );
     let sim_err = |detail: String| IcarusError::Sim {
         dir: dir.clone(),
         detail,
+    };
+    let log = match log? {
+        Some(log) => log,
+        None => {
+            return Err(sim_err(format!(
+                "vvp ran past its wall-clock limit of {} s and was stopped: a \
+                 zero-delay loop (processes that wake each other without \
+                 simulated time passing) never reaches the testbench's clock limit",
+                VVP_WALL_LIMIT.as_secs()
+            )))
+        }
     };
     if let Some(line) = log.lines().find(|l| l.starts_with("TB-ERROR")) {
         return Err(sim_err(line.to_string()));
@@ -689,6 +732,52 @@ mod tests {
                 other => panic!("{bad}: {other:?}"),
             }
         }
+    }
+
+    /// A design whose two processes wake each other without simulated time
+    /// passing is stopped at the wall-clock limit; one that finishes is read.
+    #[test]
+    fn a_zero_delay_loop_is_stopped_at_the_wall_clock_limit() {
+        let dir = run_dir().unwrap();
+        let cases = [
+            (
+                "loop",
+                "module t; reg a = 0, b = 0;\n\
+                 always @(a) begin b = 1; b = 0; end\n\
+                 always @(b) begin a = 1; a = 0; end\n\
+                 initial #1 a = 1;\n\
+                 endmodule\n",
+                None,
+            ),
+            (
+                "done",
+                "module t; initial begin #5 $display(\"T-DONE\"); $finish; end endmodule\n",
+                Some("T-DONE"),
+            ),
+        ];
+        for (name, verilog, want) in cases {
+            let src = dir.join(format!("{name}.v"));
+            let out = dir.join(format!("{name}.vvp"));
+            std::fs::write(&src, verilog).unwrap();
+            let c = Command::new("iverilog")
+                .args(["-g2012", "-o"])
+                .arg(&out)
+                .arg(&src)
+                .output()
+                .unwrap();
+            assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stderr));
+            let log = run_with_wall_limit(
+                Command::new("vvp").arg("-n").arg(&out),
+                &dir.join(format!("{name}.log")),
+                std::time::Duration::from_secs(2),
+            )
+            .unwrap();
+            match want {
+                None => assert!(log.is_none(), "{name}: {log:?}"),
+                Some(text) => assert!(log.as_deref().unwrap_or("").contains(text), "{log:?}"),
+            }
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
