@@ -15,7 +15,7 @@
 //! offset of pass 2, `start_scan` (after it), `step` (a clock of Choose; `last`
 //! says the clock scans the last k).
 
-use super::RiceLengths;
+use super::rice_lengths::RiceLengths;
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
