@@ -125,10 +125,6 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
         "delay$out_side",
         "delay-line outputs the test front half does not read",
     ),
-    (
-        "rsel_v",
-        "slot-release vector of MAX_SLOTS bits, of which the M slots' are read",
-    ),
     // Unused bits of wide temporaries and inputs.
     ("rshift", "shift temporaries wider than the value kept"),
     ("mshift", "shift temporaries wider than the value kept"),
@@ -144,7 +140,7 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
     ("crc_shift", "CRC shift register of which a byte is read"),
     ("len$*", "length registers wider than the length kept"),
     ("tr_plane", "plane counter of which the low bits are read"),
-    ("win_d", "window bits beyond the kernel side"),
+    ("row$delayed", "ROI row bits beyond the ROI side"),
     ("read_address", "block-RAM addresses wider than the memory"),
     ("write_address", "block-RAM addresses wider than the memory"),
     (

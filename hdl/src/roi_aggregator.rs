@@ -18,33 +18,28 @@
 //! sweep fell a whole ring behind) sets the sticky `overrun` flag.
 //!
 //! **Sweep.** For each raw row, the slots whose ROI covers it and that sum
-//! this plane (`pre`) or start in it (`fresh`) are taken one per clock
-//! (lowest slot first): the R bits of the row at columns `ax − h … ax + h`
-//! are cut from the two words that hold them (the ring keeps even and odd
-//! words in separate banks, so both are read in one clock; columns outside
-//! the sensor read 0), and the R counters of that ROI row are read,
-//! incremented by `delayed·pre`, and written back the next clock. Four stages, so
-//! that no path between registers is long: S0 picks the slot (the lowest
-//! bit of `rel`) and registers its index; SV reads its view entry through
-//! a binary multiplexer (4:1 steps, a LUT each; the AND-OR over one-hot
-//! selects it replaces made the SPCImager 150× aggregator 2,890 rather than
-//! 2,159 LUTs, `cargo run -p smartagg-hdl --release --example resources --
-//! agg150`, `abc-d7`, with the subtraction below); SA
-//! computes the word and counter addresses; S1 adds and writes. The view
-//! of plane t stays untouched until the sweep has finished t, so reading
-//! it at SV is as good as at the row's start; `planes_done` and the rows
-//! the writer may reuse lag the sweep's own counters by the two clocks
-//! that SV and SA add. A slot covers row `ra` when
-//! `0 ≤ (ra + h) − ay ≤ 2h`, one subtraction a slot. `need` and `rhi`
-//! (what row `ra` waits for, and `ra + h`) move with `ra` instead of being
-//! computed from it. In the first
-//! plane of a segment (`fresh`) the old counts read as zero, so counters
-//! never need clearing; as every segment is swept in its first plane (even
-//! an opening at `t < N`, which sums nothing yet), its counters and mask
-//! flags are its own from then on, and a segment that sums no plane at all
-//! reads zero counts. ROI rows outside the sensor are never swept; the
-//! packetiser reads them as 0. The MASKED flag is the OR of the mask bits
-//! of the ROI, kept beside each counter row.
+//! this plane (`pre`) or start in it (`fresh`) ([`RowCover`]) are taken one
+//! per clock, lowest slot first: the R bits of the row at columns
+//! `ax − h … ax + h` are cut from the two words that hold them (even and
+//! odd words in separate banks, both read in one clock; columns outside the
+//! sensor read 0), and the R counters of that ROI row are read, incremented
+//! by `delayed·pre`, and written back the next clock. Four stages, so that
+//! no path between registers is long: S0 picks the slot ([`LowestSlot`])
+//! and registers its index; SV reads its view entry ([`ViewMux`]); SA
+//! computes the word and counter addresses; S1 cuts the ROI row
+//! ([`RoiRow`]), adds and writes. The view of plane t stays untouched until
+//! the sweep has finished t, so reading it at SV is as good as at the
+//! row's start; `planes_done` and the rows the writer may reuse lag the
+//! sweep's own counters by the two clocks that SV and SA add. `need` and
+//! `rhi` (what row `ra` waits for, and `ra + h`) move with `ra` instead of
+//! being computed from it. In the first plane of a segment (`fresh`) the
+//! old counts read as zero, so counters never need clearing; as every
+//! segment is swept in its first plane (even an opening at `t < N`, which
+//! sums nothing yet), its counters and mask flags are its own from then
+//! on, and a segment that sums no plane at all reads zero counts. ROI rows
+//! outside the sensor are never swept; the packetiser reads them as 0. The
+//! MASKED flag is the OR of the mask bits of the ROI, kept beside each
+//! counter row.
 //!
 //! **Counters: block RAM.** R memories (one per ROI column) of
 //! `(M + Q)·R` counter rows of RCW bits, plus one 1-bit memory for the mask
@@ -62,6 +57,11 @@
 //! clocks: its walk, and its replays after openings):
 //! [`BackHalfConfig::default_row_slack`].
 
+mod lowest_slot;
+mod roi_row;
+mod row_cover;
+mod view_mux;
+
 pub use crate::bank_pool::BankPool;
 use crate::blink_tracker::COORD_BITS;
 use crate::bram::{Bram, RamStyle};
@@ -69,10 +69,11 @@ use crate::config::MAX_SLOTS;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::const_mul::ConstMul;
 use crate::stream::lanes;
+pub use lowest_slot::LowestSlot;
+pub use roi_row::RoiRow;
+pub use row_cover::RowCover;
 use rust_hdl::prelude::*;
-
-// The view multiplexer is written for 32 slots (literal offsets for hdl_gen).
-const _: () = assert!(MAX_SLOTS == 32);
+pub use view_mux::ViewMux;
 
 /// The ROI aggregator. `P`: pixels per word; `RAW`: row-buffer bank address
 /// bits; `RCW`: counter bits; `CAW`: counter address bits; `BW`: bank bits.
@@ -128,6 +129,14 @@ pub struct RoiAggregator<
     cnt: Vec<Bram<RCW, CAW>>,
     msk: Bram<1, CAW>,
     bank_base: ConstMul<CAW>,
+    /// A row's start: the slots it visits.
+    row_cover: RowCover,
+    /// S0: the lowest slot of `rel`.
+    pick: LowestSlot,
+    /// SV: the selected entry of the ROI view.
+    views: ViewMux,
+    /// S1: the ROI row's bits from the two ring words.
+    row: RoiRow<P>,
     // Writer.
     wbase: DFF<Bits<RAW>>,
     wslot: DFF<Bits<16>>,
@@ -157,7 +166,7 @@ pub struct RoiAggregator<
     // slot priority logic; the entry is read through a binary multiplexer.
     v_valid: DFF<Bit>,
     /// The selected entry: bit 5 the plane's parity, bits 0–4 the slot.
-    v_idx: DFF<Bits<8>>,
+    v_idx: DFF<Bits<6>>,
     v_row_hi: DFF<Bits<COORD_BITS>>,
     v_rbase: DFF<Bits<RAW>>,
     // Address stage (SA): the selected slot's view, registered after the
@@ -193,58 +202,24 @@ pub struct RoiAggregator<
     go: Signal<Local, Bit>,
     /// `rhi + 1`.
     rhi1: Signal<Local, Bits<COORD_BITS>>,
-    /// The lowest slot of `rel` (one-hot).
-    rsel_v: Signal<Local, Bits<MAX_SLOTS>>,
-    /// Prefix ORs of `rel` over 2, 4, 8, 16 slots, and over every lower slot.
-    pre1: Signal<Local, Bits<MAX_SLOTS>>,
-    pre2: Signal<Local, Bits<MAX_SLOTS>>,
-    pre4: Signal<Local, Bits<MAX_SLOTS>>,
-    pre8: Signal<Local, Bits<MAX_SLOTS>>,
-    taken: Signal<Local, Bits<MAX_SLOTS>>,
-    rest: Signal<Local, Bits<MAX_SLOTS>>,
-    any_rel: Signal<Local, Bit>,
     rest_any: Signal<Local, Bit>,
-    now_rel: Vec<Signal<Local, Bit>>,
-    /// `now_rel` packed, bit i: slot i.
-    now_v: Signal<Local, Bits<MAX_SLOTS>>,
     row_done: Signal<Local, Bit>,
     s0: Signal<Local, Bit>,
-    /// The selected slot's index (binary), from `rsel_v`.
-    slot_idx: Signal<Local, Bits<8>>,
-    /// The view multiplexer, one level per index bit: `vm0` holds the 64
-    /// entries at `parity·32 + slot` (absent slots read 0), `vm1` … `vm5`
-    /// halve it, selecting by bits 0 … 4 of `v_idx`; bit 5 picks the root.
-    vm0: Vec<Signal<Local, Bits<64>>>,
-    vm1: Vec<Signal<Local, Bits<64>>>,
-    vm2: Vec<Signal<Local, Bits<64>>>,
-    vm3: Vec<Signal<Local, Bits<64>>>,
-    vm4: Vec<Signal<Local, Bits<64>>>,
-    vm5: Vec<Signal<Local, Bits<64>>>,
-    /// Masks of the slots whose index has bit b set, b = 0 … 4.
-    idx_b0: Constant<Bits<MAX_SLOTS>>,
-    idx_b1: Constant<Bits<MAX_SLOTS>>,
-    idx_b2: Constant<Bits<MAX_SLOTS>>,
-    idx_b3: Constant<Bits<MAX_SLOTS>>,
-    idx_b4: Constant<Bits<MAX_SLOTS>>,
+    /// The selected entry: the lowest slot's index, the plane's parity at
+    /// bit 5.
+    slot_idx: Signal<Local, Bits<6>>,
     dy: Signal<Local, Bits<COORD_BITS>>,
     x0p: Signal<Local, Bits<16>>,
     wq: Signal<Local, Bits<16>>,
     half_wq: Signal<Local, Bits<16>>,
     odd_addr: Signal<Local, Bits<16>>,
     caddr: Signal<Local, Bits<CAW>>,
-    lo_d: Signal<Local, Bits<P>>,
-    lo_m: Signal<Local, Bits<P>>,
-    hi_d: Signal<Local, Bits<P>>,
-    hi_m: Signal<Local, Bits<P>>,
-    win_d: Signal<Local, Bits<P>>,
-    win_m: Signal<Local, Bits<P>>,
     inc: Vec<Signal<Local, Bits<RCW>>>,
     old: Vec<Signal<Local, Bits<RCW>>>,
     old_m: Signal<Local, Bit>,
     any_m: Signal<Local, Bit>,
     // Constants.
     h_c: Constant<Bits<COORD_BITS>>,
-    two_h: Constant<Bits<COORD_BITS>>,
     /// `min(h + 2, H)`: `need` of row 0.
     need0: Constant<Bits<16>>,
     p_minus_h: Constant<Bits<16>>,
@@ -310,6 +285,10 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             // for the SPCImager.
             msk: Bram::new(counter_rows, RamStyle::Block),
             bank_base: ConstMul::new(r as u32),
+            row_cover: RowCover::new(m, h),
+            pick: LowestSlot::new(),
+            views: ViewMux::new(m),
+            row: Default::default(),
             wbase: Default::default(),
             wslot: Default::default(),
             gw: Default::default(),
@@ -350,49 +329,21 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             trig: Default::default(),
             go: Default::default(),
             rhi1: Default::default(),
-            rsel_v: Default::default(),
-            pre1: Default::default(),
-            pre2: Default::default(),
-            pre4: Default::default(),
-            pre8: Default::default(),
-            taken: Default::default(),
-            rest: Default::default(),
-            any_rel: Default::default(),
             rest_any: Default::default(),
-            now_rel: lanes(m),
-            now_v: Default::default(),
             row_done: Default::default(),
             s0: Default::default(),
             slot_idx: Default::default(),
-            vm0: lanes(2 * MAX_SLOTS),
-            vm1: lanes(MAX_SLOTS),
-            vm2: lanes(MAX_SLOTS / 2),
-            vm3: lanes(MAX_SLOTS / 4),
-            vm4: lanes(MAX_SLOTS / 8),
-            vm5: lanes(MAX_SLOTS / 16),
-            idx_b0: Constant::new(0xAAAA_AAAAu64.to_bits()),
-            idx_b1: Constant::new(0xCCCC_CCCCu64.to_bits()),
-            idx_b2: Constant::new(0xF0F0_F0F0u64.to_bits()),
-            idx_b3: Constant::new(0xFF00_FF00u64.to_bits()),
-            idx_b4: Constant::new(0xFFFF_0000u64.to_bits()),
             dy: Default::default(),
             x0p: Default::default(),
             wq: Default::default(),
             half_wq: Default::default(),
             odd_addr: Default::default(),
             caddr: Default::default(),
-            lo_d: Default::default(),
-            lo_m: Default::default(),
-            hi_d: Default::default(),
-            hi_m: Default::default(),
-            win_d: Default::default(),
-            win_m: Default::default(),
             inc: lanes(r),
             old: lanes(r),
             old_m: Default::default(),
             any_m: Default::default(),
             h_c: Constant::new((h as u64).to_bits()),
-            two_h: Constant::new((2 * h as u64).to_bits()),
             need0: c16((h as u64 + 2).min(f.height as u64)),
             p_minus_h: c16((P - h) as u64),
             pw: c16(P as u64),
@@ -479,73 +430,21 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.go.next = self.trig.val() & !self.sweeping.q.val();
 
         // ---- Slots whose ROI covers row ra and that sum this plane or start
-        // in it (`pre` or `fresh`): read
-        // only when a row's sweep starts (and computed only then, which
-        // costs nothing in hardware and saves a simulator the 32 slots'
-        // comparisons on the other clocks).
-        self.now_v.next = 0.into();
-        for i in 0..self._m {
-            self.now_rel[i].next = false;
+        // in it ([`RowCover`]): read only when a row's sweep starts.
+        for q in 0..(2 * self._m) {
+            // (Offsets: `shadow`; literals for hdl_gen.)
+            self.row_cover.anchor_rows[q].next = self.sh[q].val().get_bits::<10>(10);
+            self.row_cover.sums_or_starts[q].next =
+                self.sh[q].val().get_bit(62) | self.sh[q].val().get_bit(63);
         }
-        if self.go.val() {
-            for mm in self._m..(self._m + 1) {
-                for i in 0..self._m {
-                    // (Offsets: `shadow`; literals for hdl_gen.)
-                    // Rows ay − h … ay + h cover ra iff 0 ≤ (ra + h) − ay ≤ 2h:
-                    // one subtraction modulo 2^10, as a difference below zero
-                    // wraps to at least 2^10 − 511 > 2h (rows are below 512).
-                    if self.par.val() {
-                        self.now_rel[i].next = (self.sh[i + mm].val().get_bit(62)
-                            | self.sh[i + mm].val().get_bit(63))
-                            & ((self.rhi.q.val() - self.sh[i + mm].val().get_bits::<10>(10))
-                                <= self.two_h.val());
-                    } else {
-                        self.now_rel[i].next = (self.sh[i].val().get_bit(62)
-                            | self.sh[i].val().get_bit(63))
-                            & ((self.rhi.q.val() - self.sh[i].val().get_bits::<10>(10))
-                                <= self.two_h.val());
-                    }
-                    self.now_v.next = self.now_v.val().replace_bit(i, self.now_rel[i].val());
-                }
-            }
-        }
+        self.row_cover.parity.next = self.par.val();
+        self.row_cover.row_hi.next = self.rhi.q.val();
+        self.row_cover.enable.next = self.go.val();
 
-        // ---- The lowest relevant slot, and its view.
-        // `taken` (bit i: a slot below i is relevant) is a prefix OR in five
-        // doubling steps: a tree a few LUTs deep, where the chain
-        // `taken[i + 1] = taken[i] | rel[i]` was 32 ORs deep and
-        // `rel & (!rel + 1)` a 32-bit carry chain.
-        self.pre1.next = self.rel.q.val() | (self.rel.q.val() << 1);
-        self.pre2.next = self.pre1.val() | (self.pre1.val() << 2);
-        self.pre4.next = self.pre2.val() | (self.pre2.val() << 4);
-        self.pre8.next = self.pre4.val() | (self.pre4.val() << 8);
-        self.taken.next = (self.pre8.val() | (self.pre8.val() << 16)) << 1;
-        self.rsel_v.next = self.rel.q.val() & !self.taken.val();
-        self.rest.next = self.rel.q.val() & self.taken.val();
-        self.any_rel.next = self.rel.q.val().any();
-        self.s0.next = self.sweeping.q.val() & self.any_rel.val();
-        // Its index, bit b the OR of the one-hot bits whose slot has bit b.
-        self.slot_idx.next = 0.into();
-        self.slot_idx.next = self
-            .slot_idx
-            .val()
-            .replace_bit(0, (self.rsel_v.val() & self.idx_b0.val()).any());
-        self.slot_idx.next = self
-            .slot_idx
-            .val()
-            .replace_bit(1, (self.rsel_v.val() & self.idx_b1.val()).any());
-        self.slot_idx.next = self
-            .slot_idx
-            .val()
-            .replace_bit(2, (self.rsel_v.val() & self.idx_b2.val()).any());
-        self.slot_idx.next = self
-            .slot_idx
-            .val()
-            .replace_bit(3, (self.rsel_v.val() & self.idx_b3.val()).any());
-        self.slot_idx.next = self
-            .slot_idx
-            .val()
-            .replace_bit(4, (self.rsel_v.val() & self.idx_b4.val()).any());
+        // ---- S0: the lowest relevant slot ([`LowestSlot`]).
+        self.pick.slots.next = self.rel.q.val();
+        self.s0.next = self.sweeping.q.val() & self.pick.any.val();
+        self.slot_idx.next = bit_cast::<6, 5>(self.pick.index.val());
         self.slot_idx.next = self.slot_idx.val().replace_bit(5, self.par.val());
 
         // ---- S0 → SV: the selected entry's index and its row, registered
@@ -555,76 +454,17 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.v_row_hi.d.next = self.rhi.q.val();
         self.v_rbase.d.next = self.rbase.q.val();
 
-        // ---- SV: the entry, through a binary multiplexer of 4:1 steps a
-        // LUT each (an AND-OR over the 64 entries costs twice the LUTs).
-        // Entries of plane t stay untouched until the sweep has finished t
-        // (`planes_done` lags S1), so reading one at SV is as good as at
-        // the row's start. (Literal offsets for hdl_gen: 32 = MAX_SLOTS.)
-        for n in 0..64 {
-            self.vm0[n].next = 0.into();
+        // ---- SV → SA: the selected slot's view ([`ViewMux`]) and its row,
+        // registered. Entries of plane t stay untouched until the sweep has
+        // finished t (`planes_done` lags S1), so reading one at SV is as
+        // good as at the row's start.
+        for q in 0..(2 * self._m) {
+            self.views.entries[q].next = self.sh[q].val();
         }
-        for n in 0..32 {
-            self.vm1[n].next = 0.into();
-        }
-        for n in 0..16 {
-            self.vm2[n].next = 0.into();
-        }
-        for n in 0..8 {
-            self.vm3[n].next = 0.into();
-        }
-        for n in 0..4 {
-            self.vm4[n].next = 0.into();
-        }
-        for n in 0..2 {
-            self.vm5[n].next = 0.into();
-        }
-        // (Computed only for a valid index: nothing in hardware, and a
-        // simulator skips 127 words on the other clocks.)
-        if self.v_valid.q.val() {
-            for mm in self._m..(self._m + 1) {
-                for i in 0..self._m {
-                    self.vm0[i].next = self.sh[i].val();
-                    self.vm0[i + 32].next = self.sh[i + mm].val();
-                }
-            }
-            for n in 0..32 {
-                self.vm1[n].next = self.vm0[2 * n].val();
-                if self.v_idx.q.val().get_bit(0) {
-                    self.vm1[n].next = self.vm0[2 * n + 1].val();
-                }
-            }
-            for n in 0..16 {
-                self.vm2[n].next = self.vm1[2 * n].val();
-                if self.v_idx.q.val().get_bit(1) {
-                    self.vm2[n].next = self.vm1[2 * n + 1].val();
-                }
-            }
-            for n in 0..8 {
-                self.vm3[n].next = self.vm2[2 * n].val();
-                if self.v_idx.q.val().get_bit(2) {
-                    self.vm3[n].next = self.vm2[2 * n + 1].val();
-                }
-            }
-            for n in 0..4 {
-                self.vm4[n].next = self.vm3[2 * n].val();
-                if self.v_idx.q.val().get_bit(3) {
-                    self.vm4[n].next = self.vm3[2 * n + 1].val();
-                }
-            }
-            for n in 0..2 {
-                self.vm5[n].next = self.vm4[2 * n].val();
-                if self.v_idx.q.val().get_bit(4) {
-                    self.vm5[n].next = self.vm4[2 * n + 1].val();
-                }
-            }
-        }
-
-        // ---- SV → SA: the selected slot's view and its row, registered.
+        self.views.valid.next = self.v_valid.q.val();
+        self.views.index.next = self.v_idx.q.val();
         self.a_valid.d.next = self.v_valid.q.val();
-        self.a_view.d.next = self.vm5[0].val();
-        if self.v_idx.q.val().get_bit(5) {
-            self.a_view.d.next = self.vm5[1].val();
-        }
+        self.a_view.d.next = self.views.entry.val();
         self.a_row_hi.d.next = self.v_row_hi.q.val();
         self.a_rbase.d.next = self.v_rbase.q.val();
 
@@ -670,41 +510,24 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         self.s1_odd.d.next = self.wq.val().get_bit(0);
         self.s1_addr.d.next = self.caddr.val();
 
-        // ---- S1: the R columns of the ROI row, added to its counters.
-        // Word a = wq − 1 (left) is even when wq is odd.
-        self.lo_d.next = 0.into();
-        self.lo_m.next = 0.into();
-        self.hi_d.next = 0.into();
-        self.hi_m.next = 0.into();
-        if self.s1_lo_ok.q.val() {
-            if self.s1_odd.q.val() {
-                self.lo_d.next = self.ring[0].read_data.val();
-                self.lo_m.next = self.ring[1].read_data.val();
-            } else {
-                self.lo_d.next = self.ring[2].read_data.val();
-                self.lo_m.next = self.ring[3].read_data.val();
-            }
-        }
-        if self.s1_hi_ok.q.val() {
-            if self.s1_odd.q.val() {
-                self.hi_d.next = self.ring[2].read_data.val();
-                self.hi_m.next = self.ring[3].read_data.val();
-            } else {
-                self.hi_d.next = self.ring[0].read_data.val();
-                self.hi_m.next = self.ring[1].read_data.val();
-            }
-        }
-        self.win_d.next =
-            (self.lo_d.val() >> self.s1_off.q.val()) | (self.hi_d.val() << self.s1_sh_hi.q.val());
-        self.win_m.next =
-            (self.lo_m.val() >> self.s1_off.q.val()) | (self.hi_m.val() << self.s1_sh_hi.q.val());
+        // ---- S1: the R columns of the ROI row ([`RoiRow`]), added to its
+        // counters.
+        self.row.even_delayed.next = self.ring[0].read_data.val();
+        self.row.even_mask.next = self.ring[1].read_data.val();
+        self.row.odd_delayed.next = self.ring[2].read_data.val();
+        self.row.odd_mask.next = self.ring[3].read_data.val();
+        self.row.wq_odd.next = self.s1_odd.q.val();
+        self.row.lo_ok.next = self.s1_lo_ok.q.val();
+        self.row.hi_ok.next = self.s1_hi_ok.q.val();
+        self.row.off.next = self.s1_off.q.val();
+        self.row.sh_hi.next = self.s1_sh_hi.q.val();
         for dx in 0..self._r {
             self.old[dx].next = self.cnt[dx].read_data.val();
             if self.s1_fresh.q.val() {
                 self.old[dx].next = 0.into();
             }
             self.inc[dx].next = 0.into();
-            if self.s1_pre.q.val() & self.win_d.val().get_bit(dx) {
+            if self.s1_pre.q.val() & self.row.delayed.val().get_bit(dx) {
                 self.inc[dx].next = 1.into();
             }
             self.cnt[dx].write_address.next = self.s1_addr.q.val();
@@ -713,7 +536,7 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
             self.rd_counts[dx].next = self.cnt[dx].read_data.val();
         }
         self.old_m.next = self.msk.read_data.val().any() & !self.s1_fresh.q.val();
-        self.any_m.next = (self.win_m.val() & self.roi_mask.val()).any();
+        self.any_m.next = (self.row.mask.val() & self.roi_mask.val()).any();
         self.msk.write_address.next = self.s1_addr.q.val();
         self.msk.write_data.next = (self.old_m.val() | self.any_m.val()).into();
         self.msk.write_enable.next = self.s1_valid.q.val();
@@ -723,14 +546,14 @@ impl<const P: usize, const RAW: usize, const RCW: usize, const CAW: usize, const
         // relevant slot (at least one; a row no slot covers is done on the
         // clock after its start, which reads `rel` rather than an OR of the
         // comparisons it is loaded from); the row is done with its last slot.
-        self.rest_any.next = self.rest.val().any();
+        self.rest_any.next = self.pick.rest.val().any();
         self.row_done.next = false;
         if self.go.val() {
             self.sweeping.d.next = true;
-            self.rel.d.next = self.now_v.val();
+            self.rel.d.next = self.row_cover.slots.val();
         }
         if self.sweeping.q.val() {
-            self.rel.d.next = self.rest.val();
+            self.rel.d.next = self.pick.rest.val();
             if !self.rest_any.val() {
                 self.sweeping.d.next = false;
                 self.row_done.next = true;

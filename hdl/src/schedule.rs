@@ -8,7 +8,8 @@
 //! packetiser computes its push from that count (likewise the tracker's
 //! record push and the record queue's count, the delay line's prefetch FIFO,
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
-//! multiplier; the blink tracker's item stage, opening windows and walk
+//! multiplier; the ROI aggregator's row cover, lowest slot, view
+//! multiplexer and ROI row; the blink tracker's item stage, opening windows and walk
 //! memory, which it both drives and reads; the packetiser's bit packer,
 //! whose flags choose the command the packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
@@ -22,9 +23,10 @@
 //! tool: yosys synthesises, and `smartagg hdl generate` writes, the same
 //! logic, and the lint test runs without the `UNOPTFLAT` waiver.
 
-/// Modules (known by the port list rust-hdl writes) and, in each, the
-/// signals to isolate: outputs that are functions of the module's registers
-/// only, and the locals they are computed from.
+/// Modules (known by a part of the port list rust-hdl writes: its end, or
+/// ports found in that module only) and, in each, the signals to isolate:
+/// outputs that are functions of the module's registers only, and the
+/// locals they are computed from.
 const MODULE_RULES: &[(&str, &[&str])] = &[
     // crate::fifo::Fifo.
     (
@@ -45,6 +47,23 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "d_go",
             "end_item",
             "r_from_x",
+        ],
+    ),
+    // crate::roi_aggregator::RoiAggregator: the inputs of its row cover,
+    // lowest slot, view multiplexer and ROI row, whose outputs it reads
+    // back, and the locals they are computed from (functions of its
+    // registers and inputs). Its port list ends with R counter lanes.
+    (
+        ",overrun,backlog,rd_req,rd_addr,rd_grant,",
+        &[
+            "row_cover$*",
+            "pick$*",
+            "views$*",
+            "row$*",
+            "go",
+            "trig",
+            "dplane",
+            "par",
         ],
     ),
     // crate::packetiser::BitPacker: its flags and byte, functions of its
@@ -163,7 +182,7 @@ pub fn isolate_false_loops(verilog: &str) -> (String, usize) {
         if body.starts_with("module ") {
             rule = MODULE_RULES
                 .iter()
-                .find(|(ports, _)| body.ends_with(ports))
+                .find(|(ports, _)| body.contains(ports))
                 .map_or(&[], |(_, signals)| signals);
         }
         let mark = reg_name(body)
@@ -232,5 +251,26 @@ mod tests {
         assert!(lines[10].contains(ISOLATE));
         assert!(!lines[11].contains(ISOLATE), "wires are not marked");
         assert_eq!(out.replace(&format!(" {ISOLATE}"), ""), v);
+    }
+
+    #[test]
+    fn a_rule_known_by_ports_inside_the_list_applies_to_that_module_only() {
+        let v = "module top$agg(clock,overrun,backlog,rd_req,rd_addr,rd_grant,rd_counts$0,rd_masked);\n\
+                 \x20   reg  go;\n\
+                 \x20   reg  [31:0] pick$slots;\n\
+                 \x20   reg  ra;\n\
+                 endmodule\n\
+                 module top$pkt(clock,rd_req,rd_addr,rd_grant,rd_counts$0,rd_masked);\n\
+                 \x20   reg  go;\n\
+                 endmodule\n";
+        let (out, n) = isolate_false_loops(v);
+        assert_eq!(n, 2);
+        let lines: Vec<&str> = out.lines().collect();
+        assert!(lines[1].contains(ISOLATE) && lines[2].contains(ISOLATE));
+        assert!(!lines[3].contains(ISOLATE));
+        assert!(
+            !lines[6].contains(ISOLATE),
+            "the packetiser's `go` is left alone"
+        );
     }
 }
