@@ -620,3 +620,41 @@ fn stream(
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ticks(threads: &[(u32, &str, u64)]) -> BTreeMap<u32, (String, u64)> {
+        threads
+            .iter()
+            .map(|&(tid, name, t)| (tid, (name.to_string(), t)))
+            .collect()
+    }
+
+    #[test]
+    fn role_cpu_names_each_role_and_dashes_a_missing_one() {
+        let pid = std::process::id();
+        let before = ticks(&[
+            (pid, "smartagg", 100),
+            (pid + 1, READER_THREAD, 10),
+            (pid + 2, WORKER_THREAD, 0),
+            (pid + 3, WORKER_THREAD, 5),
+        ]);
+        // The tracker is born in the interval (all its ticks count); a
+        // thread of no role is left out.
+        let after = ticks(&[
+            (pid, "smartagg", 150),
+            (pid + 1, READER_THREAD, 110),
+            (pid + 2, WORKER_THREAD, 20),
+            (pid + 3, WORKER_THREAD, 85),
+            (pid + 4, TRACKER_THREAD, 30),
+            (pid + 5, "other", 999),
+        ]);
+        assert_eq!(role_cpu(&before, &after, 1.0), "100/30/50/20-80");
+        assert_eq!(role_cpu(&before, &after, 2.0), "50/15/25/10-40");
+        assert_eq!(role_cpu(&before, &before, 1.0), "0/-/0/0-0");
+        let alone = ticks(&[(pid, "smartagg", 7)]);
+        assert_eq!(role_cpu(&alone, &alone, 1.0), "-/-/0/-");
+    }
+}
