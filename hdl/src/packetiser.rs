@@ -71,7 +71,7 @@ mod rice_lengths;
 pub use bit_packer::BitPacker;
 pub use count_block_head::{CountBlockHead, HEAD_BYTES};
 pub use count_streamer::CountStreamer;
-pub use crc32c_step::{crc32c_bit_entries, Crc32cStep};
+pub use crc32c_step::Crc32cStep;
 pub use prefix_bytes::PrefixBytes;
 pub use rice_choice::RiceChoice;
 pub use rice_code::RiceCode;

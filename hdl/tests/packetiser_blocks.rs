@@ -39,12 +39,6 @@ use smartagg_hdl::testbench::bench::{settle, Bench};
 use smartagg_model::packet::crc32c;
 use smartagg_model::rice::{choose, code_len, encode_counts, varint_len};
 
-/// Settles the inputs set since the last clock, then clocks.
-fn clock<B: Block>(b: &mut Bench<B>) {
-    settle(&mut b.uut);
-    b.tick();
-}
-
 /// A random value below 2^bits, of a random magnitude (log-uniform bits).
 fn magnitude(rng: &mut impl Rng, bits: u32) -> u64 {
     let b = rng.gen_range(0..=bits);
@@ -146,7 +140,7 @@ fn prefix_case(bytes: usize, seed: u64) {
             "cycle {cycle}: byte {index} of {bytes} (read {read})"
         );
         nonzero += (want != 0) as usize;
-        clock(&mut b);
+        b.tick();
         if load {
             regs = d;
             loads += 1;
@@ -179,7 +173,7 @@ fn head_case<const RCW: usize>(r: usize, seed: u64) {
         let u = &mut b.uut;
         u.base.next = (base as u64).to_bits();
         u.k.next = (k as u64).to_bits();
-        clock(&mut b);
+        b.tick();
         settle(&mut b.uut);
         let u = &b.uut;
         let n = varint_len(base);
@@ -258,7 +252,7 @@ fn code_case<const RCW: usize>(r: usize, seed: u64) {
         let codes = &block[varint_len(base) + 1..];
         // The masks are registers of k: a clock after k is set.
         b.uut.k.next = (k as u64).to_bits();
-        clock(&mut b);
+        b.tick();
         let mut bits: Vec<bool> = Vec::new();
         for &c in &counts {
             let d = c - base;
@@ -304,7 +298,7 @@ fn bit_packer_sends_the_codes_bits_msb_first_then_pads() {
     let mut rng = common::rng(51);
     let mut b = Bench::new(BitPacker::default(), |u| &mut u.clock);
     b.uut.start.next = true;
-    clock(&mut b);
+    b.tick();
     b.uut.start.next = false;
     let mut queue: std::collections::VecDeque<bool> = Default::default();
     let (mut sent, mut padded, mut appended) = (0usize, 0usize, 0usize);
@@ -346,7 +340,7 @@ fn bit_packer_sends_the_codes_bits_msb_first_then_pads() {
         u.pad.next = pad;
         u.code.next = code.to_bits();
         u.len.next = (len as u64).to_bits();
-        clock(&mut b);
+        b.tick();
     }
     assert!(
         sent > 10_000 && padded > 200 && appended > 3000,
@@ -397,7 +391,7 @@ fn streamer_case(cfg: &BackHalfConfig, seed: u64) {
         u.bank.next = (bank as u64).to_bits();
         u.anchor_row.next = (ay as u64).to_bits();
         u.start.next = true;
-        clock(&mut b);
+        b.tick();
         b.uut.start.next = false;
         let (mut got, mut masked, mut arriving) = (Vec::new(), 0usize, None::<usize>);
         for cycle in 0.. {
@@ -442,7 +436,7 @@ fn streamer_case(cfg: &BackHalfConfig, seed: u64) {
                 );
                 arriving = Some(dy);
             }
-            clock(&mut b);
+            b.tick();
         }
         assert_eq!(got, want, "ROI {roi}: bank {bank}, anchor row {ay}");
         assert_eq!(masked, want_masked, "ROI {roi}: masked rows");
@@ -472,7 +466,7 @@ fn choice_case<const RCW: usize>(r: usize, seed: u64) {
         let counts = random_roi(&mut rng, r, RCW as u32, 0.2);
         let (base, k, bits) = choose(&counts);
         b.uut.clear.next = true;
-        clock(&mut b);
+        b.tick();
         b.uut.clear.next = false;
         let mut offsets = counts.iter().map(|&c| c - base);
         let mut left = counts.len();
@@ -486,20 +480,20 @@ fn choice_case<const RCW: usize>(r: usize, seed: u64) {
             };
             b.uut.offset.next = (d as u64).to_bits();
             b.uut.offset_valid.next = valid;
-            clock(&mut b);
+            b.tick();
         }
         b.uut.offset_valid.next = false;
         // Stage L, then the add.
-        clock(&mut b);
-        clock(&mut b);
+        b.tick();
+        b.tick();
         b.uut.start_scan.next = true;
-        clock(&mut b);
+        b.tick();
         b.uut.start_scan.next = false;
         b.uut.step.next = true;
         for scan in 0..kn {
             settle(&mut b.uut);
             assert_eq!(b.uut.last.val(), scan == kn - 1, "ROI {roi}: scan {scan}");
-            clock(&mut b);
+            b.tick();
         }
         b.uut.step.next = false;
         settle(&mut b.uut);

@@ -7,7 +7,7 @@
 use rust_hdl::prelude::*;
 
 /// The reflected CRC-32C table's entries of the single-bit bytes 2⁰ … 2⁷.
-pub fn crc32c_bit_entries() -> [u32; 8] {
+fn crc32c_bit_entries() -> [u32; 8] {
     let mut t = [0u32; 8];
     for (i, e) in t.iter_mut().enumerate() {
         let mut c = 1u32 << i;

@@ -33,7 +33,10 @@ impl<B: Block> Bench<B> {
     }
 
     /// One rising and one falling edge; the inputs set before it are taken.
+    /// They are settled first: without it a register could take an input
+    /// before a change of it has gone through a sub-block.
     pub fn tick(&mut self) {
+        settle(&mut self.uut);
         (self.clock)(&mut self.uut).next = Clock { clk: true };
         settle(&mut self.uut);
         (self.clock)(&mut self.uut).next = Clock { clk: false };
