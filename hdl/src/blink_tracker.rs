@@ -60,10 +60,11 @@
 //! * the *compare* stage (`r_…`) holds, per slot, whether the candidate is
 //!   in the slot's association window (`bnd`, stored when the slot opened:
 //!   the opening candidate's own window), whether the word hits its 3x3
-//!   window, and whether the word's row ends that window; and what an
-//!   opening would write ([`OpeningWindows`]);
+//!   window, and whether the word's row ends that window ([`SlotCompare`]);
+//!   and what an opening would write ([`OpeningWindows`]);
 //! * the *decide* stage acts on it in Run: the association against the
-//!   current flags, the opening or drop, the hits, the end-of-row step.
+//!   current flags, the opening or drop, the hits, the end-of-row step
+//!   ([`OnOffStep`]).
 //!
 //! Only an opening changes what the compare stage reads (the new slot's
 //! window), and only for a candidate: a candidate compared in the clock of
@@ -79,7 +80,7 @@
 //!
 //! **Walk pipeline.** A walk also runs in three stages, one slot per clock:
 //! the read stage takes slot `walk`'s flags and anchor through the
-//! multiplexer, and its word from [`WalkMemory`], into W1; W1
+//! multiplexer ([`SlotMux`]), and its word from [`WalkMemory`], into W1; W1
 //! ([`WalkStep`]) computes what the walk does (the comparisons with L_min,
 //! L_max and N − end_trim, the cut, the completion, the record's planes,
 //! the slot's next state and words) into W2; W2 waits for the sweep and the bank, pushes the record
@@ -155,13 +156,19 @@
 
 mod item_stage;
 mod layout;
+mod on_off_step;
 mod opening;
+mod slot_compare;
+mod slot_mux;
 mod walk_memory;
 mod walk_step;
 
 pub use item_stage::ItemStage;
 pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
+pub use on_off_step::OnOffStep;
 pub use opening::OpeningWindows;
+pub use slot_compare::SlotCompare;
+pub use slot_mux::SlotMux;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_step::{walk_word, WalkStep};
 
@@ -348,6 +355,10 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     items: ItemStage<P>,
     /// What an opening by the item stage's candidate writes.
     opening: OpeningWindows<P>,
+    /// The compare stage's comparisons of the item with every slot.
+    compare: SlotCompare<P>,
+    /// The on/off step of the slots whose window ends with the decided row.
+    on_off: OnOffStep,
     // The compare stage: the item, what it does to each slot (bit i: slot
     // i), and what an opening writes.
     r_valid: DFF<Bit>,
@@ -385,6 +396,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The fields that only the walks read, one word per slot in LUT RAM,
     /// read a clock ahead at the read stage's slot.
     walk_words: WalkMemory,
+    /// The read stage's multiplexer: the walked slot's state.
+    read: SlotMux<BW>,
     /// What the walk does to the slot in W1.
     step: WalkStep,
     /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
@@ -452,9 +465,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     r_from_x: Signal<Local, Bit>,
     s_cx: Signal<Local, Bits<COORD_BITS>>,
     s_cy: Signal<Local, Bits<COORD_BITS>>,
-    near_v: Signal<Local, Bits<MAX_SLOTS>>,
-    hw_v: Signal<Local, Bits<MAX_SLOTS>>,
-    frow_v: Signal<Local, Bits<MAX_SLOTS>>,
     free_v: Signal<Local, Bits<MAX_SLOTS>>,
     on_v: Signal<Local, Bits<MAX_SLOTS>>,
     /// An opening's ROI view `pre` flag (plane t ≥ N), at its offset.
@@ -476,16 +486,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The walk holds a Blink this clock: the record queue has room but the
     /// free list shows no bank yet (observed by the tests).
     pub bank_wait: Signal<Local, Bit>,
-    // The walked slot (`w_`: its state; then what the walk makes of it).
-    w_busy: Signal<Local, Bit>,
-    w_live: Signal<Local, Bit>,
-    w_dip: Signal<Local, Bit>,
-    w_pend: Signal<Local, Bit>,
-    w_opened: Signal<Local, Bit>,
-    w_bridge: Signal<Local, Bit>,
-    w_ax: Signal<Local, Bits<COORD_BITS>>,
-    w_ay: Signal<Local, Bits<COORD_BITS>>,
-    w_bank: Signal<Local, Bits<BW>>,
+    // The walked slot's walk word (its state comes through `read`), and
+    // what the walk makes of it.
     w_word: Signal<Local, Bits<39>>,
     n_bank: Signal<Local, Bits<BW>>,
     /// `n_bank` at the bank's offset of `geo` and of the ROI view entry.
@@ -506,10 +508,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     w1_ready: Signal<Local, Bit>,
     w2_ready: Signal<Local, Bit>,
     rd: Signal<Local, Bit>,
-    /// The read stage's slot, one-hot.
-    sel_v: Signal<Local, Bits<MAX_SLOTS>>,
     // Constants.
-    slot_id: Vec<Constant<Bits<8>>>,
     /// Slot i's first bank, i, at the bank's offset of `geo`.
     bank_init: Vec<Constant<Bits<64>>>,
     /// The bank's bits of `geo` and of a ROI view entry.
@@ -675,9 +674,12 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             hit_nx: Default::default(),
             ev_bridge_nx: Default::default(),
             walk_words: WalkMemory::new(m),
+            read: SlotMux::new(m),
             step: WalkStep::default(),
             items: ItemStage::new(cfg),
             opening: OpeningWindows::new(cfg),
+            compare: SlotCompare::new(m),
+            on_off: OnOffStep::new(m),
             sv: lanes(2 * m),
             n_mc: Default::default(),
             mc_one: Default::default(),
@@ -729,9 +731,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             r_from_x: Default::default(),
             s_cx: Default::default(),
             s_cy: Default::default(),
-            near_v: Default::default(),
-            hw_v: Default::default(),
-            frow_v: Default::default(),
             free_v: Default::default(),
             on_v: Default::default(),
             sh_pre: Default::default(),
@@ -750,15 +749,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             can_push: Default::default(),
             need_bank: Default::default(),
             bank_wait: Default::default(),
-            w_busy: Default::default(),
-            w_live: Default::default(),
-            w_dip: Default::default(),
-            w_pend: Default::default(),
-            w_opened: Default::default(),
-            w_bridge: Default::default(),
-            w_ax: Default::default(),
-            w_ay: Default::default(),
-            w_bank: Default::default(),
             w_word: Default::default(),
             n_bank: Default::default(),
             n_bank_w: Default::default(),
@@ -773,10 +763,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             w1_ready: Default::default(),
             w2_ready: Default::default(),
             rd: Default::default(),
-            sel_v: Default::default(),
-            slot_id: (0..m)
-                .map(|i| Constant::new((i as u64).to_bits()))
-                .collect(),
             bank_init: (0..m)
                 .map(|i| Constant::new(((i as u64) << slot_word::BANK).to_bits()))
                 .collect(),
@@ -964,47 +950,33 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // ---- Compare stage: per slot, whether the candidate falls in its
         // association window, whether the word hits its 3x3 window, and
         // whether the word's row is the one at whose end the window has
-        // streamed. Computed only when the stage loads (in a simulator the
-        // 32 slots' comparators cost most of the tracker's time, and most
-        // clocks bring no word).
+        // streamed ([`SlotCompare`]), when the stage loads.
         self.s_cx.next = self.items.cx.val();
         self.s_cy.next = self.items.yc.val();
         if self.replay.q.val() {
             self.s_cx.next = self.r_cx.q.val();
             self.s_cy.next = self.r_yc.q.val();
         }
-        self.near_v.next = 0.into();
-        self.hw_v.next = 0.into();
-        self.frow_v.next = 0.into();
-        if self.replay.q.val() | (self.r_from_x.val() & self.items.valid.val()) {
-            for i in 0..self._m {
-                self.near_v.next = self.near_v.val().replace_bit(
-                    i,
-                    (self.s_cx.val() >= self.bnd[i].q.val().get_bits::<10>(0))
-                        & (self.s_cx.val() <= self.bnd[i].q.val().get_bits::<10>(10))
-                        & (self.s_cy.val() >= self.bnd[i].q.val().get_bits::<10>(20))
-                        & (self.s_cy.val() <= self.bnd[i].q.val().get_bits::<10>(30)),
-                );
-                self.hw_v.next = self.hw_v.val().replace_bit(
-                    i,
-                    (self.geo[i].q.val().get_bits::<10>(10) >= self.items.ym1.val())
-                        & (self.geo[i].q.val().get_bits::<10>(10) <= self.items.yp1.val())
-                        & (((self.items.xc.val() == self.geo[i].q.val().get_bits::<10>(34))
-                            & (self.items.above.val() & self.win[i].q.val().get_bits::<P>(0))
-                                .any())
-                            | ((self.items.xc.val() == self.geo[i].q.val().get_bits::<10>(44))
-                                & (self.items.above.val()
-                                    & self.win[i].q.val().get_bits::<P>(32))
-                                .any())),
-                );
-                self.frow_v.next = self.frow_v.val().replace_bit(
-                    i,
-                    self.geo[i].q.val().get_bits::<10>(54) == self.items.yc.val(),
-                );
-            }
+        for i in 0..self._m {
+            self.compare.bounds[i].next = self.bnd[i].q.val().get_bits::<40>(0);
+            self.compare.anchor_rows[i].next = self.geo[i].q.val().get_bits::<10>(10);
+            self.compare.low_cols[i].next = self.geo[i].q.val().get_bits::<10>(34);
+            self.compare.high_cols[i].next = self.geo[i].q.val().get_bits::<10>(44);
+            self.compare.end_rows[i].next = self.geo[i].q.val().get_bits::<10>(54);
+            self.compare.low_lanes[i].next = self.win[i].q.val().get_bits::<P>(0);
+            self.compare.high_lanes[i].next = self.win[i].q.val().get_bits::<P>(32);
         }
+        self.compare.cx.next = self.s_cx.val();
+        self.compare.cy.next = self.s_cy.val();
+        self.compare.word_col.next = self.items.xc.val();
+        self.compare.row.next = self.items.yc.val();
+        self.compare.row_m1.next = self.items.ym1.val();
+        self.compare.row_p1.next = self.items.yp1.val();
+        self.compare.above.next = self.items.above.val();
+        self.compare.enable.next =
+            self.replay.q.val() | (self.r_from_x.val() & self.items.valid.val());
         if self.replay.q.val() {
-            self.r_near.d.next = self.near_v.val();
+            self.r_near.d.next = self.compare.near.val();
         }
         if self.end_item.val() {
             self.r_valid.d.next = false;
@@ -1017,9 +989,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.r_lastrow.d.next = self.items.lastrow.val();
             self.r_cx.d.next = self.items.cx.val();
             self.r_yc.d.next = self.items.yc.val();
-            self.r_near.d.next = self.near_v.val();
-            self.r_hw.d.next = self.hw_v.val();
-            self.r_frow.d.next = self.frow_v.val();
+            self.r_near.d.next = self.compare.near.val();
+            self.r_hw.d.next = self.compare.hits.val();
+            self.r_frow.d.next = self.compare.row_end.val();
             self.r_geo.d.next = self.opening.geo.val();
             self.r_win.d.next = self.opening.win.val();
             self.r_sh.d.next = self.opening.sh.val();
@@ -1090,48 +1062,35 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // Read stage: the slot's state through one multiplexer; the fields
         // only the walks read come from its word in `walk_words`, read a clock
         // ahead (at `walk.d`).
-        self.w_busy.next = false;
-        self.w_live.next = false;
-        self.w_dip.next = false;
-        self.w_pend.next = false;
-        self.w_opened.next = false;
-        self.w_bridge.next = false;
-        self.w_ax.next = 0.into();
-        self.w_ay.next = 0.into();
-        self.w_bank.next = 0.into();
-        self.sel_v.next = 0.into();
-        if self.rd_on.q.val() {
-            for i in 0..self._m {
-                if self.walk.q.val() == self.slot_id[i].val() {
-                    self.sel_v.next = self.sel_v.val().replace_bit(i, true);
-                    self.w_busy.next = self.busy.q.val().get_bit(i);
-                    self.w_live.next = self.live.q.val().get_bit(i);
-                    self.w_dip.next = self.dip.q.val().get_bit(i);
-                    self.w_pend.next = self.pend.q.val().get_bit(i);
-                    self.w_opened.next = self.opened.q.val().get_bit(i);
-                    self.w_bridge.next = self.ev_bridge.q.val().get_bit(i);
-                    self.w_ax.next = self.geo[i].q.val().get_bits::<10>(0);
-                    self.w_ay.next = self.geo[i].q.val().get_bits::<10>(10);
-                    self.w_bank.next = self.geo[i].q.val().get_bits::<BW>(20);
-                }
-            }
+        self.read.slot.next = self.walk.q.val();
+        self.read.enable.next = self.rd_on.q.val();
+        self.read.busy.next = self.busy.q.val();
+        self.read.live.next = self.live.q.val();
+        self.read.dip.next = self.dip.q.val();
+        self.read.pend.next = self.pend.q.val();
+        self.read.opened.next = self.opened.q.val();
+        self.read.bridges.next = self.ev_bridge.q.val();
+        for i in 0..self._m {
+            self.read.anchor_cols[i].next = self.geo[i].q.val().get_bits::<10>(0);
+            self.read.anchor_rows[i].next = self.geo[i].q.val().get_bits::<10>(10);
+            self.read.banks[i].next = self.geo[i].q.val().get_bits::<BW>(20);
         }
         self.w_word.next = self.walk_words.word.val();
         self.w1_valid.d.next = self.w1_valid.q.val() & !self.w2_ready.val();
         if self.rd.val() {
             self.w1_valid.d.next = true;
-            self.w1_sel.d.next = self.sel_v.val();
+            self.w1_sel.d.next = self.read.selected.val();
             self.w1_slot.d.next = self.walk.q.val();
             self.w1_last.d.next = self.walk.q.val() == self.last_slot.val();
-            self.w1_busy.d.next = self.w_busy.val();
-            self.w1_live.d.next = self.w_live.val();
-            self.w1_dip.d.next = self.w_dip.val();
-            self.w1_pend.d.next = self.w_pend.val();
-            self.w1_opened.d.next = self.w_opened.val();
-            self.w1_bridge.d.next = self.w_bridge.val();
-            self.w1_ax.d.next = self.w_ax.val();
-            self.w1_ay.d.next = self.w_ay.val();
-            self.w1_bank.d.next = self.w_bank.val();
+            self.w1_busy.d.next = self.read.s_busy.val();
+            self.w1_live.d.next = self.read.s_live.val();
+            self.w1_dip.d.next = self.read.s_dip.val();
+            self.w1_pend.d.next = self.read.s_pend.val();
+            self.w1_opened.d.next = self.read.s_opened.val();
+            self.w1_bridge.d.next = self.read.s_bridge.val();
+            self.w1_ax.d.next = self.read.s_ax.val();
+            self.w1_ay.d.next = self.read.s_ay.val();
+            self.w1_bank.d.next = self.read.s_bank.val();
             self.w1_word.d.next = self.w_word.val();
             self.walk.d.next = self.walk.q.val() + 1;
             if self.walk.q.val() == self.last_slot.val() {
@@ -1461,34 +1420,24 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // ---- End of a row: the on/off step of slots whose 3x3 window has streamed.
-        if self.do_fin.val() {
-            for i in 0..self._m {
-                if self.do_fin.val()
-                    & self.aprev.q.val().get_bit(i)
-                    & self.busy.q.val().get_bit(i)
-                    & self.live.q.val().get_bit(i)
-                    & self.r_frow.q.val().get_bit(i)
-                {
-                    if self.on_v.val().get_bit(i) {
-                        if self.dip.q.val().get_bit(i) {
-                            self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                            self.ev_bridge_nx.next = self.ev_bridge_nx.val().replace_bit(i, true);
-                        }
-                    } else if !self.dip.q.val().get_bit(i) {
-                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, true);
-                    } else {
-                        // Second plane below: the blink ended at t − 1 (its
-                        // t_drop and confirmation are settled by the walk;
-                        // its view of plane t stays: it sums B_{t−N} at
-                        // dage = 1 ≤ N − end_trim).
-                        self.live_nx.next = self.live_nx.val().replace_bit(i, false);
-                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                        self.pend_nx.next = self.pend_nx.val().replace_bit(i, true);
-                    }
-                }
-            }
-        }
+        // ---- End of a row: the on/off step of slots whose 3x3 window has
+        // streamed ([`OnOffStep`]). An end of the blink at t − 1 only marks
+        // the slot `pend`: the walk settles its t_drop and confirmation, and
+        // its view of plane t stays (it sums B_{t−N} at dage = 1 ≤
+        // N − end_trim).
+        self.on_off.enable.next = self.do_fin.val();
+        self.on_off.active_before.next = self.aprev.q.val();
+        self.on_off.busy.next = self.busy.q.val();
+        self.on_off.live.next = self.live.q.val();
+        self.on_off.dip.next = self.dip.q.val();
+        self.on_off.row_end.next = self.r_frow.q.val();
+        self.on_off.on.next = self.on_v.val();
+        self.dip_nx.next = (self.dip_nx.val()
+            & !(self.on_off.bridge.val() | self.on_off.ends.val()))
+            | self.on_off.dip_starts.val();
+        self.ev_bridge_nx.next = self.ev_bridge_nx.val() | self.on_off.bridge.val();
+        self.live_nx.next = self.live_nx.val() & !self.on_off.ends.val();
+        self.pend_nx.next = self.pend_nx.val() | self.on_off.ends.val();
 
         if self.restart.val() {
             self.state.d.next = TrackerState::Done;

@@ -9,7 +9,8 @@
 //! record push and the record queue's count, the delay line's prefetch FIFO,
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the ROI aggregator's row cover, lowest slot, view
-//! multiplexer and ROI row; the blink tracker's item stage, opening windows and walk
+//! multiplexer and ROI row; the blink tracker's item stage, opening
+//! windows, slot compare, on/off step, read multiplexer, walk step and walk
 //! memory, which it both drives and reads; the packetiser's bit packer,
 //! whose flags choose the command the packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
@@ -34,19 +35,28 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
     ),
     // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
-    // opening windows and walk step, whose outputs the tracker reads back
-    // (the item stage's `pop` is a function of `take`), and the locals
-    // `take` is computed from (functions of the tracker's registers).
+    // opening windows, slot compare, on/off step, read multiplexer and walk
+    // step, whose outputs the tracker reads back (the item stage's `pop` is
+    // a function of `take`), and the locals they are computed from
+    // (functions of the tracker's registers and of the item stage's
+    // outputs).
     (
         "fb_pop,blinks,unconfirmed,dropped,bridged,cuts,bank_error);",
         &[
             "items$*",
             "opening$*",
             "step$*",
+            "compare$*",
+            "on_off$*",
+            "read$*",
             "run",
             "d_go",
             "end_item",
             "r_from_x",
+            "s_cx",
+            "s_cy",
+            "on_v",
+            "do_fin",
         ],
     ),
     // crate::roi_aggregator::RoiAggregator: the inputs of its row cover,
