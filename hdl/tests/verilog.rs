@@ -185,7 +185,7 @@ fn ucf_places_every_port_of_the_xem6310_top_and_nothing_else() {
 #[test]
 fn xem6310_top_verilog_passes_verilator_lint() {
     let cfg = test_back_config(4, 3, 1).unwrap();
-    let v = verilog(TestXem::new(&cfg).unwrap());
+    let v = on_generation_stack(|| verilog(TestXem::new(&cfg).unwrap()));
     // The black boxes are declared once each.
     assert_eq!(v.matches("module okHost(").count(), 1);
     assert_eq!(v.matches("module smartagg_mig(").count(), 1);

@@ -10,6 +10,7 @@
 mod common;
 
 use rust_hdl::prelude::*;
+use smartagg_hdl::designs::on_generation_stack;
 use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::registers::{self, control, status, wire_in, wire_out};
 use smartagg_hdl::testbench::bench::{settle, Bench};
@@ -143,117 +144,121 @@ macro_rules! through_the_endpoints {
 
             #[test]
             fn host_sees_the_model_stream_through_the_endpoints() {
-                let cfg = test_back_config(4, 3, 1).unwrap();
-                let mut host = Host {
-                    core: Bench::new(<$core>::new(&cfg).unwrap(), |u| &mut u.clock),
-                    mcb: Bench::new(McbModel::new(4, 300, 6, 20, 5), |u| &mut u.clock),
-                    read: Vec::new(),
-                    pending: 0,
-                    issued: false,
-                };
-                // Generation words the host checks before streaming.
-                assert_eq!(host.wire_out(wire_out::VERSION), registers::version_word());
-                assert_eq!(host.wire_out(wire_out::GEOMETRY), (W | H << 16) as u32);
-                assert_eq!(
-                    host.wire_out(wire_out::GENERATION),
-                    5 | 4 << 8 | 3 << 16 | 4 << 24
-                );
-                assert_eq!(
-                    host.wire_out(wire_out::KERNEL_CRC),
-                    registers::kernel_crc(&[1, 4, 6, 4, 1])
-                );
-                assert_eq!(host.wire_out(wire_out::R_ASSOC), 1);
-                assert_eq!(host.wire_out(wire_out::MAX_N), 7);
+                // A whole core outgrows a test thread's 2 MiB stack while it is built.
+                on_generation_stack(|| {
+                    let cfg = test_back_config(4, 3, 1).unwrap();
+                    let mut host = Host {
+                        core: Bench::new(<$core>::new(&cfg).unwrap(), |u| &mut u.clock),
+                        mcb: Bench::new(McbModel::new(4, 300, 6, 20, 5), |u| &mut u.clock),
+                        read: Vec::new(),
+                        pending: 0,
+                        issued: false,
+                    };
+                    // Generation words the host checks before streaming.
+                    assert_eq!(host.wire_out(wire_out::VERSION), registers::version_word());
+                    assert_eq!(host.wire_out(wire_out::GEOMETRY), (W | H << 16) as u32);
+                    assert_eq!(
+                        host.wire_out(wire_out::GENERATION),
+                        5 | 4 << 8 | 3 << 16 | 4 << 24
+                    );
+                    assert_eq!(
+                        host.wire_out(wire_out::KERNEL_CRC),
+                        registers::kernel_crc(&[1, 4, 6, 4, 1])
+                    );
+                    assert_eq!(host.wire_out(wire_out::R_ASSOC), 1);
+                    assert_eq!(host.wire_out(wire_out::MAX_N), 7);
 
-                // A stream with a hot pixel, as in the pipeline tests.
-                let mut rng = common::rng(9);
-                let planes = common::random_planes(&mut rng, W, H, 24, 0.08); // 24 planes = 18 blocks
-                let (mask, _) = HotPixelMask::from_pixels(W, H, &[(3, 2), (12, 4)]);
-                let mut mcfg = PipelineConfig::new(W, H, 4, vec![1, 4, 6, 4, 1], 4, 60);
-                mcfg.slots = 4;
-                mcfg.roi_size = 3;
-                mcfg.l_min = 2;
-                mcfg.l_max = 8;
-                // Hysteresis through wire-in THRESHOLD_HOLD, the field
-                // design's trim through END_TRIM.
-                mcfg.threshold_hold = 30;
-                mcfg.end_trim = 2;
-                mcfg.hot_mask = Some(mask.clone());
-                let records = run(mcfg.clone(), planes.clone()).unwrap();
-                assert!(records
-                    .iter()
-                    .any(|r| matches!(r, smartagg_model::record::Record::Blink(_))));
-                let want = encode_stream(&records).unwrap();
+                    // A stream with a hot pixel, as in the pipeline tests.
+                    let mut rng = common::rng(9);
+                    let planes = common::random_planes(&mut rng, W, H, 24, 0.08); // 24 planes = 18 blocks
+                    let (mask, _) = HotPixelMask::from_pixels(W, H, &[(3, 2), (12, 4)]);
+                    let mut mcfg = PipelineConfig::new(W, H, 4, vec![1, 4, 6, 4, 1], 4, 60);
+                    mcfg.slots = 4;
+                    mcfg.roi_size = 3;
+                    mcfg.l_min = 2;
+                    mcfg.l_max = 8;
+                    // Hysteresis through wire-in THRESHOLD_HOLD, the field
+                    // design's trim through END_TRIM.
+                    mcfg.threshold_hold = 30;
+                    mcfg.end_trim = 2;
+                    mcfg.hot_mask = Some(mask.clone());
+                    let records = run(mcfg.clone(), planes.clone()).unwrap();
+                    assert!(records
+                        .iter()
+                        .any(|r| matches!(r, smartagg_model::record::Record::Blink(_))));
+                    let want = encode_stream(&records).unwrap();
 
-                host.trigger(registers::trigger::RESET);
-                let mask_plane = BitPlane::from_fn(W, H, |x, y| mask.is_masked(x as i64, y as i64));
-                let mut mw = replay_words(&[mask_plane]);
-                mw.resize(4, 0); // one whole block; the padding falls past the plane
-                host.write_pipe(true, &mw);
-                // START at once: it waits for the mask and the memory itself.
-                assert_eq!(
-                    host.wire_out(wire_out::STATUS) & status::MEM_READY == 0,
-                    $ddr2,
-                    "the DDR2 calibrates, block RAM is ready at once"
-                );
-                let wi = [
-                    (
-                        wire_in::CONTROL,
-                        control::SOURCE_REPLAY | control::MASK_ENABLE,
-                    ),
-                    (wire_in::N_WINDOW, 4),
-                    (wire_in::THRESHOLD_INT, 60),
-                    (wire_in::L_MIN, 2),
-                    (wire_in::L_MAX, 8),
-                    (wire_in::PLANE_PERIOD_NS, 100_000),
-                    (wire_in::MASKED_PIXELS, 2),
-                    (wire_in::THRESHOLD_HOLD, 30),
-                    (wire_in::END_TRIM, 2),
-                ];
-                for (a, v) in wi {
-                    host.core.uut.wire_in[a as usize].next = (v as u64).to_bits();
-                }
-                host.trigger(registers::trigger::START);
-                // START waits for the mask pipe to drain (just written) and
-                // the memory's calibration (300 clocks of the model); the
-                // registers' check then takes a clock.
-                let mut clocks = 0;
-                while host.wire_out(wire_out::STATUS) & status::RUNNING == 0 {
+                    host.trigger(registers::trigger::RESET);
+                    let mask_plane =
+                        BitPlane::from_fn(W, H, |x, y| mask.is_masked(x as i64, y as i64));
+                    let mut mw = replay_words(&[mask_plane]);
+                    mw.resize(4, 0); // one whole block; the padding falls past the plane
+                    host.write_pipe(true, &mw);
+                    // START at once: it waits for the mask and the memory itself.
+                    assert_eq!(
+                        host.wire_out(wire_out::STATUS) & status::MEM_READY == 0,
+                        $ddr2,
+                        "the DDR2 calibrates, block RAM is ready at once"
+                    );
+                    let wi = [
+                        (
+                            wire_in::CONTROL,
+                            control::SOURCE_REPLAY | control::MASK_ENABLE,
+                        ),
+                        (wire_in::N_WINDOW, 4),
+                        (wire_in::THRESHOLD_INT, 60),
+                        (wire_in::L_MIN, 2),
+                        (wire_in::L_MAX, 8),
+                        (wire_in::PLANE_PERIOD_NS, 100_000),
+                        (wire_in::MASKED_PIXELS, 2),
+                        (wire_in::THRESHOLD_HOLD, 30),
+                        (wire_in::END_TRIM, 2),
+                    ];
+                    for (a, v) in wi {
+                        host.core.uut.wire_in[a as usize].next = (v as u64).to_bits();
+                    }
+                    host.trigger(registers::trigger::START);
+                    // START waits for the mask pipe to drain (just written) and
+                    // the memory's calibration (300 clocks of the model); the
+                    // registers' check then takes a clock.
+                    let mut clocks = 0;
+                    while host.wire_out(wire_out::STATUS) & status::RUNNING == 0 {
+                        let st = host.wire_out(wire_out::STATUS);
+                        assert_eq!(st & status::CONFIG_ERROR, 0);
+                        host.clock();
+                        clocks += 1;
+                        assert!(clocks < 1_000, "never RUNNING");
+                    }
+                    host.write_pipe(false, &replay_words(&planes));
+                    host.trigger(registers::trigger::STOP);
+                    let mut cycles = 0;
+                    while host.wire_out(wire_out::STATUS) & status::ENDED == 0
+                        || host.wire_out(wire_out::FIFO_BYTES) > 0
+                    {
+                        host.read_blocks();
+                        host.clock();
+                        cycles += 1;
+                        assert!(cycles < 200_000, "stream did not end");
+                    }
                     let st = host.wire_out(wire_out::STATUS);
-                    assert_eq!(st & status::CONFIG_ERROR, 0);
-                    host.clock();
-                    clocks += 1;
-                    assert!(clocks < 1_000, "never RUNNING");
-                }
-                host.write_pipe(false, &replay_words(&planes));
-                host.trigger(registers::trigger::STOP);
-                let mut cycles = 0;
-                while host.wire_out(wire_out::STATUS) & status::ENDED == 0
-                    || host.wire_out(wire_out::FIFO_BYTES) > 0
-                {
-                    host.read_blocks();
-                    host.clock();
-                    cycles += 1;
-                    assert!(cycles < 200_000, "stream did not end");
-                }
-                let st = host.wire_out(wire_out::STATUS);
-                assert_eq!(
-                    st & (status::FAULT
-                        | status::OVERFLOWED
-                        | status::CONFIG_ERROR
-                        | status::FRAMING_ERROR),
-                    0,
-                    "status {st:#x}"
-                );
-                // Every byte of the model, then zero padding to a whole block.
-                let n = want.len();
-                assert!(
-                    host.read.len() >= n
-                        && host.read.len().is_multiple_of(16)
-                        && host.read.len() - n < 16
-                );
-                assert_eq!(&host.read[..n], &want[..]);
-                assert!(host.read[n..].iter().all(|&b| b == 0));
+                    assert_eq!(
+                        st & (status::FAULT
+                            | status::OVERFLOWED
+                            | status::CONFIG_ERROR
+                            | status::FRAMING_ERROR),
+                        0,
+                        "status {st:#x}"
+                    );
+                    // Every byte of the model, then zero padding to a whole block.
+                    let n = want.len();
+                    assert!(
+                        host.read.len() >= n
+                            && host.read.len().is_multiple_of(16)
+                            && host.read.len() - n < 16
+                    );
+                    assert_eq!(&host.read[..n], &want[..]);
+                    assert!(host.read[n..].iter().all(|&b| b == 0));
+                });
             }
         }
     };
