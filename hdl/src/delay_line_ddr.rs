@@ -19,6 +19,12 @@
 //! the plane's `W·H/32` 32-bit words, each packing `K = 32/P` stream words
 //! (stream word k in bits `k·P …`).
 //!
+//! **Blocks.** This block keeps the planes (slots and the zero rule), the
+//! prefetch FIFO, the output register and the port's multiplexer; its
+//! [`WriteSide`] packs and writes the planes, its [`ReadSide`] reads them
+//! back into the FIFO (`delay_line_ddr/`, each with its own test in
+//! `hdl/tests/delay_line_ddr_sides.rs`).
+//!
 //! **Reads run ahead.** Stream plane t ≥ N needs plane t − N, in slot
 //! t mod N. The read side walks the written planes in order, one burst
 //! (up to 32 words, an eighth of a plane for small planes) at a time, into a
@@ -65,6 +71,12 @@ use crate::config::{GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::stream::RasterPosition;
 use rust_hdl::prelude::*;
+
+mod read_side;
+mod write_side;
+
+pub use read_side::ReadSide;
+pub use write_side::WriteSide;
 
 /// Largest burst, words (`cmd_bl` + 1 at most 64).
 pub const BURST_WORDS: usize = 32;
@@ -148,6 +160,8 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     pub write_error: Signal<Out, Bit>,
     pos: RasterPosition,
     pf: Fifo<32, PAW>,
+    write_side: WriteSide<P, NW>,
+    read_side: ReadSide<NW>,
     /// N − 1, latched with N.
     n_last: DFF<Bits<NW>>,
     planes: DFF<Bits<NW>>,
@@ -156,42 +170,7 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     /// the zero rule reaches the FIFO pop from a register).
     young: DFF<Bit>,
     wslot: DFF<Bits<NW>>,
-    // Read side: the next burst to read (slot, first word, whether it is
-    // the plane's last), whether it may be read (decided from the clock
-    // before), and the read command waiting for the port.
-    rslot: DFF<Bits<NW>>,
-    rword: DFF<Bits<16>>,
-    rfinal: DFF<Bit>,
-    ahead: DFF<Bits<16>>,
-    wissued: DFF<Bits<16>>,
-    outstanding: DFF<Bits<16>>,
-    discard: DFF<Bits<16>>,
-    readable: DFF<Bit>,
-    room_ok: DFF<Bit>,
-    rpend: DFF<Bit>,
-    rpend_addr: DFF<Bits<30>>,
-    rpend_bl: DFF<Bits<6>>,
-    // Write side.
-    acc: DFF<Bits<32>>,
-    wcount: DFF<Bits<8>>,
-    wstart: DFF<Bits<16>>,
-    wword: DFF<Bits<16>>,
-    pend: DFF<Bit>,
-    pend_addr: DFF<Bits<30>>,
-    pend_bl: DFF<Bits<6>>,
-    /// The waiting write belongs to the stream before a restart: it still
-    /// goes out (its data is in the MCB's write FIFO) but counts for nothing.
-    pend_old: DFF<Bit>,
-    /// The waiting write is its plane's last burst.
-    pend_last: DFF<Bit>,
-    /// A burst cut short by a restart: its words are in the write FIFO
-    /// without a command, so one goes out for them (old stream, old slot)
-    /// before the new stream's first.
-    spend: DFF<Bit>,
-    spend_addr: DFF<Bits<30>>,
-    spend_bl: DFF<Bits<6>>,
     under: DFF<Bit>,
-    werr: DFF<Bit>,
     // Output registers.
     v1: DFF<Bit>,
     f1: DFF<Bit>,
@@ -210,37 +189,9 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     last_sub: Signal<Local, Bit>,
     shifted: Signal<Local, Bits<32>>,
     delayed_now: Signal<Local, Bits<P>>,
-    rlen: Signal<Local, Bits<16>>,
-    rnext: Signal<Local, Bits<16>>,
-    fill: Signal<Local, Bit>,
-    rcmd_go: Signal<Local, Bit>,
-    scmd_go: Signal<Local, Bit>,
-    wfin: Signal<Local, Bit>,
-    rfin: Signal<Local, Bit>,
-    pushed: Signal<Local, Bit>,
-    out_add: Signal<Local, Bits<16>>,
-    written: Signal<Local, Bit>,
-    rcmd_addr: Signal<Local, Bits<30>>,
-    wcmd_go: Signal<Local, Bit>,
     pop_now: Signal<Local, Bit>,
-    transfer: Signal<Local, Bit>,
-    live32: Signal<Local, Bits<32>>,
-    acc_next: Signal<Local, Bits<32>>,
-    wdue: Signal<Local, Bit>,
-    waddr: Signal<Local, Bits<30>>,
-    // Constants.
     log2p: Constant<Bits<8>>,
     sub_last: Constant<Bits<16>>,
-    log2k: Constant<Bits<8>>,
-    plane_words: Constant<Bits<16>>,
-    last_word: Constant<Bits<16>>,
-    burst: Constant<Bits<16>>,
-    last_start: Constant<Bits<16>>,
-    last_len: Constant<Bits<16>>,
-    one_burst: Constant<Bit>,
-    slot_shift: Constant<Bits<8>>,
-    cap: Constant<Bits<16>>,
-    last_stream_word: Constant<Bits<32>>,
 }
 
 impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW> {
@@ -290,9 +241,6 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
                 "planes of {plane_words} words read in one-word bursts need a read command every clock at P = {P}"
             )));
         }
-        let last_start = plane_words.div_ceil(burst) * burst - burst;
-        let c16 = |v: u64| Constant::new(v.to_bits());
-        let c8 = |v: u64| Constant::new(v.to_bits());
         Ok(DelayLineDdr {
             clock: Default::default(),
             restart: Default::default(),
@@ -329,37 +277,14 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             write_error: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
             pf: Fifo::new(RamStyle::Block),
+            write_side: WriteSide::new(plane_words, burst, slot_bits),
+            read_side: ReadSide::new(plane_words, burst, slot_bits, cap),
             n_last: Default::default(),
             planes: Default::default(),
             zero: Default::default(),
             young: Default::default(),
             wslot: Default::default(),
-            rslot: Default::default(),
-            rword: Default::default(),
-            rfinal: Default::default(),
-            ahead: Default::default(),
-            wissued: Default::default(),
-            outstanding: Default::default(),
-            discard: Default::default(),
-            readable: Default::default(),
-            room_ok: Default::default(),
-            rpend: Default::default(),
-            rpend_addr: Default::default(),
-            rpend_bl: Default::default(),
-            acc: Default::default(),
-            wcount: Default::default(),
-            wstart: Default::default(),
-            wword: Default::default(),
-            pend: Default::default(),
-            pend_addr: Default::default(),
-            pend_bl: Default::default(),
-            pend_old: Default::default(),
-            pend_last: Default::default(),
-            spend: Default::default(),
-            spend_addr: Default::default(),
-            spend_bl: Default::default(),
             under: Default::default(),
-            werr: Default::default(),
             v1: Default::default(),
             f1: Default::default(),
             d1: Default::default(),
@@ -376,36 +301,9 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             last_sub: Default::default(),
             shifted: Default::default(),
             delayed_now: Default::default(),
-            rlen: Default::default(),
-            rnext: Default::default(),
-            fill: Default::default(),
-            rcmd_go: Default::default(),
-            scmd_go: Default::default(),
-            wfin: Default::default(),
-            rfin: Default::default(),
-            pushed: Default::default(),
-            out_add: Default::default(),
-            written: Default::default(),
-            rcmd_addr: Default::default(),
-            wcmd_go: Default::default(),
             pop_now: Default::default(),
-            transfer: Default::default(),
-            live32: Default::default(),
-            acc_next: Default::default(),
-            wdue: Default::default(),
-            waddr: Default::default(),
-            log2p: c8(P.trailing_zeros() as u64),
-            sub_last: c16(k as u64 - 1),
-            log2k: c8(k.trailing_zeros() as u64),
-            plane_words: c16(plane_words as u64),
-            last_word: c16(plane_words as u64 - 1),
-            burst: c16(burst as u64),
-            last_start: c16(last_start as u64),
-            last_len: c16((plane_words - last_start) as u64),
-            one_burst: Constant::new(last_start == 0),
-            slot_shift: c8(slot_bits as u64),
-            cap: c16(cap as u64),
-            last_stream_word: Constant::new((cfg.words_per_plane() as u64 - 1).to_bits()),
+            log2p: Constant::new((P.trailing_zeros() as u64).to_bits()),
+            sub_last: Constant::new((k as u64 - 1).to_bits()),
         })
     }
 }
@@ -414,54 +312,18 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self,
-            clock,
-            n_last,
-            planes,
-            zero,
-            young,
-            wslot,
-            rslot,
-            rword,
-            rfinal,
-            ahead,
-            wissued,
-            outstanding,
-            discard,
-            readable,
-            room_ok,
-            rpend,
-            rpend_addr,
-            rpend_bl,
-            acc,
-            wcount,
-            wstart,
-            wword,
-            pend,
-            pend_addr,
-            pend_bl,
-            pend_old,
-            pend_last,
-            spend,
-            spend_addr,
-            spend_bl,
-            under,
-            werr,
-            v1,
-            f1,
-            d1,
-            x1,
-            y1,
-            i1,
-            live1,
-            side1,
-            del1
+            self, clock, n_last, planes, zero, young, wslot, under, v1, f1, d1, x1, y1, i1, live1,
+            side1, del1
         );
         self.pos.clock.next = self.clock.val();
         self.pos.valid.next = self.valid.val();
         self.pos.sop.next = self.sop.val();
         self.pf.clock.next = self.clock.val();
         self.pf.restart.next = self.restart.val();
+        self.write_side.clock.next = self.clock.val();
+        self.write_side.restart.next = self.restart.val();
+        self.read_side.clock.next = self.clock.val();
+        self.read_side.restart.next = self.restart.val();
 
         // ---- Planes: slot and the zero rule, as the block-RAM delay line.
         self.stored.next = self.valid.val() & !self.flush.val();
@@ -494,170 +356,42 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             self.under.d.next = true;
         }
 
-        // ---- Write side: pack K live words, one burst at a time.
-        self.live32.next =
-            bit_cast::<32, P>(self.live.val()) << (self.sw.val() << self.log2p.val());
-        self.acc_next.next = self.acc.q.val() | self.live32.val();
-        if self.sw.val() == 0 {
-            self.acc_next.next = self.live32.val();
-        }
-        self.wr_en.next = false;
+        // ---- Write side: the live words of stored planes, into the slot.
+        self.write_side.take.next = self.valid.val() & !self.flush.val() & !self.drain.val();
+        self.write_side.sub.next = self.sw.val();
+        self.write_side.last_sub.next = self.last_sub.val();
+        self.write_side.live.next = self.live.val();
+        self.write_side.slot.next = self.slot_now.val();
+        self.write_side.wr_full.next = self.wr_full.val();
+        self.write_side.cmd_full.next = self.cmd_full.val();
+        self.wr_en.next = self.write_side.wr_en.val();
         self.wr_mask.next = 0.into();
-        self.wr_data.next = self.acc_next.val();
-        self.wdue.next = false;
-        if self.valid.val() & !self.flush.val() & !self.drain.val() {
-            self.acc.d.next = self.acc_next.val();
-            if self.last_sub.val() {
-                self.wr_en.next = true;
-                if self.wr_full.val() {
-                    self.werr.d.next = true;
-                }
-                self.wcount.d.next = self.wcount.q.val() + 1;
-                self.wword.d.next = self.wword.q.val() + 1;
-                if (bit_cast::<16, 8>(self.wcount.q.val()) + 1 == self.burst.val())
-                    | (self.wword.q.val() == self.last_word.val())
-                {
-                    self.wdue.next = true;
-                    self.wcount.d.next = 0.into();
-                    self.wstart.d.next = self.wword.q.val() + 1;
-                    if self.wword.q.val() == self.last_word.val() {
-                        self.wword.d.next = 0.into();
-                        self.wstart.d.next = 0.into();
-                    }
-                }
-            }
-        }
-        self.waddr.next = (bit_cast::<30, NW>(self.slot_now.val()) << self.slot_shift.val())
-            | (bit_cast::<30, 16>(self.wstart.q.val()) << 2);
-        // A write command follows its last data word by one clock (UG388:
-        // the data must be in the write FIFO first) and has priority.
-        self.wcmd_go.next = self.pend.q.val() & !self.cmd_full.val();
-        self.wfin.next = false;
-        if self.wcmd_go.val() {
-            self.pend.d.next = false;
-            self.pend_old.d.next = false;
-        }
-        self.scmd_go.next = self.spend.q.val() & !self.pend.q.val() & !self.cmd_full.val();
-        if self.scmd_go.val() {
-            self.spend.d.next = false;
-        }
-        if self.wcmd_go.val() & !self.pend_old.q.val() {
-            // Writes issued so far of the plane being written.
-            self.wissued.d.next =
-                self.wissued.q.val() + bit_cast::<16, 6>(self.pend_bl.q.val()) + 1;
-            if self.pend_last.q.val() {
-                self.wissued.d.next = 0.into();
-                self.wfin.next = true;
-            }
-        }
-        if self.wdue.val() {
-            // (A write still waiting would go out after this one, or not at
-            // all: flagged.)
-            if (self.pend.q.val() & !self.wcmd_go.val())
-                | (self.spend.q.val() & !self.scmd_go.val())
-            {
-                self.werr.d.next = true;
-            }
-            self.pend.d.next = true;
-            self.pend_old.d.next = false;
-            self.pend_addr.d.next = self.waddr.val();
-            self.pend_bl.d.next = bit_cast::<6, 8>(self.wcount.q.val());
-            self.pend_last.d.next = self.wword.q.val() == self.last_word.val();
-        }
+        self.wr_data.next = self.write_side.wr_data.val();
 
         // ---- Read side: bursts of written planes into the prefetch FIFO.
-        // A read is decided (`fill`) on one clock and waits in `rpend` for
-        // the port. Whether the next burst is written and has room comes
-        // from registers computed on the clock before: a decision blocks
-        // the next clock's (`rpend` is set), and between decisions those
-        // flags only lag towards caution (more writes issued, more words
-        // popped), so the decision path starts at registers.
-        self.rlen.next = self.burst.val();
-        if self.rfinal.q.val() {
-            self.rlen.next = self.last_len.val();
-        }
-        // `ahead`: planes the writer has completed beyond the one being
-        // read (never negative; the sign is checked all the same).
-        self.written.next = ((self.ahead.q.val() != 0) & !self.ahead.q.val().get_bit(15))
-            | ((self.ahead.q.val() == 0)
-                & (self.rword.q.val() + self.rlen.val() <= self.wissued.q.val()));
-        self.readable.d.next = self.written.val();
-        self.room_ok.d.next =
-            self.pf.count.val() + self.outstanding.q.val() + self.rlen.val() <= self.cap.val();
-        self.fill.next = self.calib_done.val()
-            & !self.rpend.q.val()
-            & self.readable.q.val()
-            & self.room_ok.q.val()
-            & !self.restart.val();
-        self.rcmd_addr.next = (bit_cast::<30, NW>(self.rslot.q.val()) << self.slot_shift.val())
-            | (bit_cast::<30, 16>(self.rword.q.val()) << 2);
-        // The port: a waiting write first (it follows its data; a burst cut
-        // short by a restart after it), then the waiting read; all from
-        // registers.
-        self.rcmd_go.next =
-            self.rpend.q.val() & !self.pend.q.val() & !self.spend.q.val() & !self.cmd_full.val();
-        self.cmd_en.next =
-            (self.pend.q.val() | self.spend.q.val() | self.rpend.q.val()) & !self.cmd_full.val();
-        self.cmd_instr.next = 1.into();
-        self.cmd_bl.next = self.rpend_bl.q.val();
-        self.cmd_addr.next = self.rpend_addr.q.val();
-        if self.spend.q.val() {
-            self.cmd_instr.next = 0.into();
-            self.cmd_bl.next = self.spend_bl.q.val();
-            self.cmd_addr.next = self.spend_addr.q.val();
-        }
-        if self.pend.q.val() {
-            self.cmd_instr.next = 0.into();
-            self.cmd_bl.next = self.pend_bl.q.val();
-            self.cmd_addr.next = self.pend_addr.q.val();
-        }
-        if self.rcmd_go.val() {
-            self.rpend.d.next = false;
-        }
-        self.rnext.next = self.rword.q.val() + self.burst.val();
-        self.rfin.next = self.fill.val() & self.rfinal.q.val();
-        if self.fill.val() {
-            self.rpend.d.next = true;
-            self.rpend_addr.d.next = self.rcmd_addr.val();
-            self.rpend_bl.d.next = bit_cast::<6, 16>(self.rlen.val() - 1);
-            self.rword.d.next = self.rnext.val();
-            self.rfinal.d.next = self.rnext.val() == self.last_start.val();
-            if self.rfinal.q.val() {
-                self.rword.d.next = 0.into();
-                self.rfinal.d.next = self.one_burst.val();
-                if self.rslot.q.val() == self.n_last.q.val() {
-                    self.rslot.d.next = 0.into();
-                } else {
-                    self.rslot.d.next = self.rslot.q.val() + 1;
-                }
-            }
-        }
-        if self.wfin.val() & !self.rfin.val() {
-            self.ahead.d.next = self.ahead.q.val() + 1;
-        }
-        if self.rfin.val() & !self.wfin.val() {
-            self.ahead.d.next = self.ahead.q.val() - 1;
-        }
-        // Only words this block asked for (a port that powers up showing a
-        // word does not unbalance the count); none move on a restart's
-        // clock, so that the count handed to `discard` is exact.
-        self.transfer.next = !self.rd_empty.val()
-            & !self.restart.val()
-            & ((self.outstanding.q.val() != 0) | (self.discard.q.val() != 0));
-        self.rd_en.next = self.transfer.val();
-        self.pushed.next = self.transfer.val() & (self.discard.q.val() == 0);
-        self.pf.push.next = self.pushed.val();
+        self.read_side.calib_done.next = self.calib_done.val();
+        self.read_side.n_last.next = self.n_last.q.val();
+        self.read_side.issued.next = self.write_side.issued.val();
+        self.read_side.plane_done.next = self.write_side.plane_done.val();
+        self.read_side.fifo_count.next = self.pf.count.val();
+        self.read_side.write_waiting.next = self.write_side.waiting.val();
+        self.read_side.cmd_full.next = self.cmd_full.val();
+        self.read_side.rd_empty.next = self.rd_empty.val();
+        self.rd_en.next = self.read_side.rd_en.val();
+        self.pf.push.next = self.read_side.push.val();
         self.pf.push_data.next = self.rd_data.val();
-        self.out_add.next = 0.into();
-        if self.fill.val() {
-            self.out_add.next = self.rlen.val();
-        }
-        self.outstanding.d.next = self.outstanding.q.val() + self.out_add.val();
-        if self.pushed.val() {
-            self.outstanding.d.next = self.outstanding.q.val() + self.out_add.val() - 1;
-        }
-        if self.transfer.val() & (self.discard.q.val() != 0) {
-            self.discard.d.next = self.discard.q.val() - 1;
+
+        // ---- The port: a waiting write first (it follows its data; a
+        // burst cut short by a restart after it), then the waiting read.
+        self.cmd_en.next =
+            (self.write_side.waiting.val() | self.read_side.waiting.val()) & !self.cmd_full.val();
+        self.cmd_instr.next = 1.into();
+        self.cmd_bl.next = self.read_side.cmd_bl.val();
+        self.cmd_addr.next = self.read_side.cmd_addr.val();
+        if self.write_side.waiting.val() {
+            self.cmd_instr.next = 0.into();
+            self.cmd_bl.next = self.write_side.cmd_bl.val();
+            self.cmd_addr.next = self.write_side.cmd_addr.val();
         }
 
         // ---- Output register (one clock, as the block-RAM delay line).
@@ -681,36 +415,7 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             self.young.d.next = self.n_window.val() != 0;
             self.planes.d.next = 0.into();
             self.wslot.d.next = 0.into();
-            self.rslot.d.next = 0.into();
-            self.rword.d.next = 0.into();
-            self.rfinal.d.next = self.one_burst.val();
-            self.ahead.d.next = 0.into();
-            self.wissued.d.next = 0.into();
-            self.readable.d.next = false;
-            self.room_ok.d.next = false;
-            self.outstanding.d.next = 0.into();
-            // Reads still on their way belong to the old stream, and so does
-            // a read still waiting in `rpend` (it goes out; `outstanding`
-            // counts it).
-            self.discard.d.next = self.discard.q.val() + self.outstanding.q.val();
-            self.wcount.d.next = 0.into();
-            self.wstart.d.next = 0.into();
-            self.wword.d.next = 0.into();
-            // A write waiting for the port, and the words of a burst cut
-            // short, are the old stream's: they still go out, first.
-            self.pend_old.d.next = self.pend.q.val() & !self.wcmd_go.val();
             self.under.d.next = false;
-            self.werr.d.next = false;
-            if self.wcount.q.val() != 0 {
-                // Two cut bursts waiting at once (restarts faster than the
-                // port takes commands) cannot both be kept: flagged.
-                if self.spend.q.val() & !self.scmd_go.val() {
-                    self.werr.d.next = true;
-                }
-                self.spend.d.next = true;
-                self.spend_addr.d.next = self.waddr.val();
-                self.spend_bl.d.next = bit_cast::<6, 8>(self.wcount.q.val() - 1);
-            }
             self.v1.d.next = false;
         }
         self.out_valid.next = self.v1.q.val();
@@ -723,6 +428,6 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         self.out_side.next = self.side1.q.val();
         self.out_delayed.next = self.del1.q.val();
         self.underrun.next = self.under.q.val();
-        self.write_error.next = self.werr.q.val();
+        self.write_error.next = self.write_side.error.val();
     }
 }

@@ -3,8 +3,9 @@
 //! The whole smart-aggregation pipeline as rust-hdl blocks, each in the file
 //! named like its twin in `model/src/` and simulated against that model stage
 //! bit for bit (`hdl/tests/`): the streaming front half — hot-pixel mask,
-//! delay line (block RAM, or DDR2 for large N: [`delay_line_ddr`]), rolling
-//! count, spatial filter, threshold and candidates ([`front_half`]) — and the
+//! delay line (block RAM, or DDR2 for large N: [`delay_line_ddr`], with its
+//! write and read sides), rolling count, spatial filter, threshold and
+//! candidates ([`front_half`]) — and the
 //! back half — blink tracker, ROI aggregator and packetiser, which writes the
 //! packet stream of `model/PACKETS.md` ([`pipeline`]); the XEM6310 top with
 //! its register map ([`xem6310`], [`registers`]); Verilog generation,
