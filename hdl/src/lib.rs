@@ -50,8 +50,8 @@
 //!   record queue and finisher ([`record_queue::RecordQueue`],
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
 //!   stage), the packetiser ([`packetiser`], with its count streamer,
-//!   Rice choice and code, bit packer, prefix bytes, count-block head and
-//!   CRC step) and the output FIFO;
+//!   Rice choice and code, bit packer, record prefix, prefix bytes,
+//!   count-block head and CRC step) and the output FIFO;
 //! * [`stream_control::StreamControl`]: START's register check and latch,
 //!   the source gated at plane boundaries, the drain and flush planes after
 //!   STOP;

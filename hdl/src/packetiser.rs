@@ -20,7 +20,7 @@
 //! acts on its second clock).
 //!
 //! **Every packet** is its prefix — header and fixed payload, a byte lane
-//! each, assembled here by record kind — loaded into [`PrefixBytes`] once
+//! each, laid out by record kind in [`RecordPrefix`] — loaded into [`PrefixBytes`] once
 //! and read out a byte a clock ("this byte is the prefix's last" is a
 //! register), then a Blink's codes, then the CRC-32C, to which
 //! [`Crc32cStep`] adds a byte a clock.
@@ -39,9 +39,10 @@
 //! flight then).
 //!
 //! Each sub-block is a file in `packetiser/` with its own test in
-//! `tests/packetiser_blocks.rs`; the state machine, the code pipeline's
-//! registers and each record kind's prefix layout are the packetiser's
-//! own.
+//! `tests/packetiser_blocks.rs` (the record prefix in
+//! `tests/packetiser_prefix.rs`, against the model's encoder); the state
+//! machine, the code pipeline's registers and the lengths are the
+//! packetiser's own.
 //!
 //! **Outputs without transients.** A sub-block assigns each output once an
 //! evaluation (a value with a default and an override is built in a local
@@ -57,13 +58,13 @@
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
-use smartagg_model::packet::VERSION as PACKET_VERSION;
 
 mod bit_packer;
 mod count_block_head;
 mod count_streamer;
 mod crc32c_step;
 mod prefix_bytes;
+mod record_prefix;
 mod rice_choice;
 mod rice_code;
 mod rice_lengths;
@@ -73,6 +74,7 @@ pub use count_block_head::{CountBlockHead, HEAD_BYTES};
 pub use count_streamer::CountStreamer;
 pub use crc32c_step::Crc32cStep;
 pub use prefix_bytes::PrefixBytes;
+pub use record_prefix::RecordPrefix;
 pub use rice_choice::RiceChoice;
 pub use rice_code::RiceCode;
 pub use rice_lengths::RiceLengths;
@@ -227,6 +229,8 @@ pub struct Packetiser<
     /// Pass 2 and Choose: the k with the fewest code bits.
     choice: RiceChoice<RCW>,
     // Emission.
+    /// The header and fixed payload of the record and of an Overflow packet.
+    record_prefix: RecordPrefix<NW>,
     /// The packet's prefix bytes, loaded once a packet (see `prefix_load`)
     /// and read out a byte a clock.
     prefix: PrefixBytes,
@@ -272,14 +276,8 @@ pub struct Packetiser<
     /// The record's prefix length minus one.
     rec_prefix_rest: Signal<Local, Bits<16>>,
     need: Signal<Local, Bits<16>>,
-    type_code: Signal<Local, Bits<8>>,
-    n16: Signal<Local, Bits<16>>,
-    /// END_TRIM widened to its StreamStart field.
-    trim32: Signal<Local, Bits<32>>,
-    rec_prefix: Vec<Signal<Local, Bits<8>>>,
-    ovf_prefix: Vec<Signal<Local, Bits<8>>>,
-    /// The prefix registers load this clock: with `ovf_prefix` if
-    /// `prefix_ovf`, else `rec_prefix`.
+    /// The prefix registers load this clock: with the Overflow packet's
+    /// prefix if `prefix_ovf`, else the record's.
     prefix_load: Signal<Local, Bit>,
     prefix_ovf: Signal<Local, Bit>,
     the_byte: Signal<Local, Bits<8>>,
@@ -293,11 +291,8 @@ pub struct Packetiser<
     free_b: Signal<Local, Bit>,
     free_c: Signal<Local, Bit>,
     // Constants.
-    start_bytes: Vec<Constant<Bits<8>>>,
+    /// Bytes of a StreamStart packet but its CRC.
     start_len: Constant<Bits<16>>,
-    /// The packet format version ([`PACKET_VERSION`]), every header's byte 2.
-    version: Constant<Bits<8>>,
-    roi_side: Constant<Bits<8>>,
     /// Covers every k scanned ([`rice_candidates`]; a power of two minus one).
     k_mask: Constant<Bits<8>>,
     all_ones: Constant<Bits<RCW>>,
@@ -305,12 +300,6 @@ pub struct Packetiser<
     _r: usize,
     /// Bytes of the assembled header and fixed payload (PW / 8).
     _pb: usize,
-    /// Byte offsets in StreamStart of the plane period, masked pixels and
-    /// T_hold.
-    _o_period: usize,
-    _o_masked: usize,
-    _o_hold: usize,
-    _o_trim: usize,
 }
 
 impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const PW: usize>
@@ -328,22 +317,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         let r = cfg.roi_size;
         let k = f.kernel.len();
         let kn = rice_candidates(RCW);
-        // The constant bytes of StreamStart: header (seq and the registers
-        // are added at run time) and the generation parameters.
-        let start_payload = 41 + 2 * k;
-        let mut sb = vec![0u8; 10 + start_payload];
-        sb[..4].copy_from_slice(&[0x53, 0x41, PACKET_VERSION, 0x01]);
-        sb[8..10].copy_from_slice(&(start_payload as u16).to_le_bytes());
-        sb[10..12].copy_from_slice(&(f.width as u16).to_le_bytes());
-        sb[12..14].copy_from_slice(&(f.height as u16).to_le_bytes());
-        sb[30] = cfg.r_assoc as u8;
-        sb[31] = cfg.slots as u8;
-        sb[32] = r as u8;
-        sb[33] = f.kernel_shift;
-        sb[34] = k as u8;
-        for (i, w) in f.kernel.iter().enumerate() {
-            sb[35 + 2 * i..37 + 2 * i].copy_from_slice(&(*w as u16).to_le_bytes());
-        }
         let c8 = |v: u64| Constant::new(v.to_bits());
         Ok(Packetiser {
             clock: Default::default(),
@@ -400,6 +373,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             base: Default::default(),
             masked: Default::default(),
             choice: RiceChoice::new(kn, r),
+            record_prefix: RecordPrefix::new(cfg),
             prefix: PrefixBytes::new(PW / 8),
             crc_step: Default::default(),
             coder: Default::default(),
@@ -427,11 +401,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             payload_len: Default::default(),
             rec_prefix_rest: Default::default(),
             need: Default::default(),
-            type_code: Default::default(),
-            n16: Default::default(),
-            trim32: Default::default(),
-            rec_prefix: lanes(PW / 8),
-            ovf_prefix: lanes(PW / 8),
             prefix_load: Default::default(),
             prefix_ovf: Default::default(),
             the_byte: Default::default(),
@@ -443,20 +412,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             free_a: Default::default(),
             free_b: Default::default(),
             free_c: Default::default(),
-            start_bytes: (0..PW / 8)
-                .map(|j| c8(sb.get(j).copied().unwrap_or(0) as u64))
-                .collect(),
-            start_len: Constant::new(((10 + start_payload) as u64).to_bits()),
-            version: c8(PACKET_VERSION as u64),
-            roi_side: c8(r as u64),
+            start_len: Constant::new(((51 + 2 * k) as u64).to_bits()),
             k_mask: c8(kn.next_power_of_two() as u64 - 1),
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,
             _pb: PW / 8,
-            _o_period: 35 + 2 * k,
-            _o_masked: 39 + 2 * k,
-            _o_hold: 43 + 2 * k,
-            _o_trim: 47 + 2 * k,
         })
     }
 }
@@ -594,21 +554,17 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // ---- Lengths and the assembled header + fixed payload of each kind.
         self.payload_len.next = 37.into();
         self.rec_prefix_rest.next = self.start_len.val() - 1;
-        self.type_code.next = 1.into();
         match self.r_kind.val().index() {
             1 => {
-                self.type_code.next = 2.into();
                 self.payload_len.next =
                     self.head.varint_len.val() + 36 + self.choice.code_bytes.val();
                 self.rec_prefix_rest.next = self.head.varint_len.val() + 45;
             }
             2 => {
-                self.type_code.next = 3.into();
                 self.payload_len.next = 14.into();
                 self.rec_prefix_rest.next = 23.into();
             }
             3 => {
-                self.type_code.next = 4.into();
                 self.payload_len.next = 48.into();
                 self.rec_prefix_rest.next = 57.into();
             }
@@ -624,130 +580,42 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // when `room` was computed from this record's final lengths.
         self.room.d.next = self.fifo_free.val() >= self.need.val();
         self.dec_ready.d.next = self.state.q.val() == PacketState::Decide;
-        // Byte by byte: a byte lane per prefix byte (the same multiplexers as
-        // one wide vector, without the wide shifts that dominated the
-        // packetiser's simulation).
-        for j in 0..self._pb {
-            self.rec_prefix[j].next = 0.into();
-            self.ovf_prefix[j].next = 0.into();
+        // ---- The prefixes, read only when a packet starts (Decide, and Crc
+        // after an Overflow packet), and computed only then.
+        self.record_prefix.enable.next =
+            (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc);
+        self.record_prefix.kind.next = self.r_kind.val();
+        self.record_prefix.seq.next = self.seq_ctr.q.val();
+        self.record_prefix.payload_len.next = self.payload_len.val();
+        self.record_prefix.slot.next = self.r_slot.val();
+        self.record_prefix.flags.next = self.r_flags.val();
+        self.record_prefix.masked.next = self.masked.q.val();
+        self.record_prefix.ax.next = self.r_ax.val();
+        self.record_prefix.ay.next = self.r_ay.val();
+        self.record_prefix.t0.next = self.r_t0.val();
+        self.record_prefix.t1.next = self.r_t1.val();
+        self.record_prefix.ts.next = self.r_ts.val();
+        self.record_prefix.te.next = self.r_te.val();
+        self.record_prefix.planes.next = self.planes_r.q.val();
+        for b in 0..HEAD_BYTES {
+            self.record_prefix.head[b].next = self.head.bytes[b].val();
         }
-        // (Verilog cannot slice an expression: N widened into a signal first.)
-        self.n16.next = bit_cast::<16, NW>(self.n_window.val());
-        self.trim32.next = bit_cast::<32, NW>(self.end_trim.val());
-        // Read only when a packet starts (Decide, and Crc after an Overflow
-        // packet), and computed only then.
-        if (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc) {
-            // Header: magic "SA", version `PACKET_VERSION`, type, sequence number, length.
-            self.rec_prefix[0].next = 0x53.into();
-            self.rec_prefix[1].next = 0x41.into();
-            self.rec_prefix[2].next = self.version.val();
-            self.rec_prefix[3].next = self.type_code.val();
-            for b in 0..4 {
-                self.rec_prefix[4 + b].next = self.seq_ctr.q.val().get_bits::<8>(8 * b);
-            }
-            for b in 0..2 {
-                self.rec_prefix[8 + b].next = self.payload_len.val().get_bits::<8>(8 * b);
-            }
-            match self.r_kind.val().index() {
-                1 => {
-                    self.rec_prefix[10].next = self.r_slot.val();
-                    self.rec_prefix[11].next =
-                        self.r_flags.val() | (bit_cast::<8, 1>(self.masked.q.val().into()) << 1);
-                    for b in 0..2 {
-                        self.rec_prefix[12 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[14 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
-                    }
-                    for b in 0..6 {
-                        self.rec_prefix[16 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[22 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[28 + b].next = self.r_ts.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[34 + b].next = self.r_te.val().get_bits::<8>(8 * b);
-                    }
-                    for b in 0..4 {
-                        self.rec_prefix[40 + b].next = self.planes_r.q.val().get_bits::<8>(8 * b);
-                    }
-                    self.rec_prefix[44].next = self.roi_side.val();
-                    self.rec_prefix[45].next = self.head.bytes[0].val();
-                    self.rec_prefix[46].next = self.head.bytes[1].val();
-                    self.rec_prefix[47].next = self.head.bytes[2].val();
-                    self.rec_prefix[48].next = self.head.bytes[3].val();
-                    self.rec_prefix[49].next = self.head.bytes[4].val();
-                    self.rec_prefix[50].next = self.head.bytes[5].val();
-                }
-                2 => {
-                    for b in 0..6 {
-                        self.rec_prefix[10 + b].next = self.r_t0.val().get_bits::<8>(8 * b);
-                    }
-                    for b in 0..4 {
-                        self.rec_prefix[16 + b].next = self.r_t1.val().get_bits::<8>(8 * b);
-                    }
-                    for b in 0..2 {
-                        self.rec_prefix[20 + b].next = self.r_ax.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[22 + b].next = self.r_ay.val().get_bits::<8>(8 * b);
-                    }
-                }
-                3 => {
-                    for b in 0..8 {
-                        self.rec_prefix[10 + b].next = self.c_planes.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[18 + b].next = self.c_blinks.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[26 + b].next = self.c_unconf.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[34 + b].next = self.c_dropped.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[42 + b].next = self.c_bridged.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[50 + b].next = self.c_cuts.val().get_bits::<8>(8 * b);
-                    }
-                }
-                _ => {
-                    // StreamStart: the generation's constant bytes (field, kernel)
-                    // with the runtime registers in their zero bytes.
-                    for j in 10..self._pb {
-                        self.rec_prefix[j].next = self.start_bytes[j].val();
-                    }
-                    for b in 0..2 {
-                        self.rec_prefix[14 + b].next = self.n16.val().get_bits::<8>(8 * b);
-                    }
-                    for b in 0..4 {
-                        self.rec_prefix[18 + b].next = self.threshold.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[22 + b].next = self.l_min.val().get_bits::<8>(8 * b);
-                        self.rec_prefix[26 + b].next = self.l_max.val().get_bits::<8>(8 * b);
-                    }
-                    for o in self._o_period..(self._o_period + 1) {
-                        for b in 0..4 {
-                            self.rec_prefix[o + b].next =
-                                self.plane_period.val().get_bits::<8>(8 * b);
-                        }
-                    }
-                    for o in self._o_masked..(self._o_masked + 1) {
-                        for b in 0..4 {
-                            self.rec_prefix[o + b].next =
-                                self.masked_pixels.val().get_bits::<8>(8 * b);
-                        }
-                    }
-                    for o in self._o_hold..(self._o_hold + 1) {
-                        for b in 0..4 {
-                            self.rec_prefix[o + b].next =
-                                self.threshold_hold.val().get_bits::<8>(8 * b);
-                        }
-                    }
-                    for o in self._o_trim..(self._o_trim + 1) {
-                        for b in 0..4 {
-                            self.rec_prefix[o + b].next = self.trim32.val().get_bits::<8>(8 * b);
-                        }
-                    }
-                }
-            }
-            // Overflow: header (type 0x7F, the first lost number), length 8,
-            // first lost number and count.
-            self.ovf_prefix[0].next = 0x53.into();
-            self.ovf_prefix[1].next = 0x41.into();
-            self.ovf_prefix[2].next = self.version.val();
-            self.ovf_prefix[3].next = 0x7F.into();
-            self.ovf_prefix[8].next = 8.into();
-            for b in 0..4 {
-                self.ovf_prefix[4 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
-                self.ovf_prefix[10 + b].next = self.pend_first.q.val().get_bits::<8>(8 * b);
-                self.ovf_prefix[14 + b].next = self.pend_cnt.q.val().get_bits::<8>(8 * b);
-            }
-        }
+        self.record_prefix.n_window.next = self.n_window.val();
+        self.record_prefix.threshold.next = self.threshold.val();
+        self.record_prefix.threshold_hold.next = self.threshold_hold.val();
+        self.record_prefix.end_trim.next = self.end_trim.val();
+        self.record_prefix.l_min.next = self.l_min.val();
+        self.record_prefix.l_max.next = self.l_max.val();
+        self.record_prefix.plane_period.next = self.plane_period.val();
+        self.record_prefix.masked_pixels.next = self.masked_pixels.val();
+        self.record_prefix.c_planes.next = self.c_planes.val();
+        self.record_prefix.c_blinks.next = self.c_blinks.val();
+        self.record_prefix.c_unconf.next = self.c_unconf.val();
+        self.record_prefix.c_dropped.next = self.c_dropped.val();
+        self.record_prefix.c_bridged.next = self.c_bridged.val();
+        self.record_prefix.c_cuts.next = self.c_cuts.val();
+        self.record_prefix.lost_first.next = self.pend_first.q.val();
+        self.record_prefix.lost_count.next = self.pend_cnt.q.val();
 
         // ---- The byte of this clock and the CRC.
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
@@ -937,9 +805,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         }
         self.prefix.load.next = self.prefix_load.val();
         for j in 0..self._pb {
-            self.prefix.d[j].next = self.rec_prefix[j].val();
+            self.prefix.d[j].next = self.record_prefix.record[j].val();
             if self.prefix_ovf.val() {
-                self.prefix.d[j].next = self.ovf_prefix[j].val();
+                self.prefix.d[j].next = self.record_prefix.overflow[j].val();
             }
         }
         self.idle.next = (self.state.q.val() == PacketState::Idle) & !self.r_valid.val();
