@@ -524,11 +524,18 @@ impl BackHalfConfig {
         14 + 35 + 5 + 1 + (33 * n).div_ceil(8)
     }
 
+    /// Bytes of the StreamStart packet before its CRC: the header (10) and
+    /// the payload (41, and 2 a kernel tap).
+    pub fn stream_start_bytes(&self) -> usize {
+        51 + 2 * self.front.kernel.len()
+    }
+
     /// Bytes of the header and fixed payload the packetiser assembles before
     /// streaming a packet (`PW = 8 ×` this): the largest of StreamStart
-    /// (10 + 41 + 2k), StreamEnd (10 + 48) and Blink (10 + 35 + 5 + 1).
+    /// ([`Self::stream_start_bytes`]), StreamEnd (10 + 48) and Blink (10 +
+    /// 35 + 5 + 1).
     pub fn prefix_bytes(&self) -> usize {
-        (51 + 2 * self.front.kernel.len()).max(58)
+        self.stream_start_bytes().max(58)
     }
 }
 

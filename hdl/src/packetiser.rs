@@ -315,7 +315,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         GatewareConfig::check_width("Packetiser", "NW", NW, f.count_bits())?;
         GatewareConfig::check_width("Packetiser", "PW", PW, 8 * cfg.prefix_bytes())?;
         let r = cfg.roi_size;
-        let k = f.kernel.len();
         let kn = rice_candidates(RCW);
         let c8 = |v: u64| Constant::new(v.to_bits());
         Ok(Packetiser {
@@ -412,7 +411,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             free_a: Default::default(),
             free_b: Default::default(),
             free_c: Default::default(),
-            start_len: Constant::new(((51 + 2 * k) as u64).to_bits()),
+            start_len: Constant::new((cfg.stream_start_bytes() as u64).to_bits()),
             k_mask: c8(kn.next_power_of_two() as u64 - 1),
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,

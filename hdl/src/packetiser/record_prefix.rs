@@ -126,8 +126,8 @@ impl<const NW: usize> RecordPrefix<NW> {
         let k = f.kernel.len();
         // The constant bytes of StreamStart: header (seq and the registers
         // are added at run time) and the generation parameters.
-        let start_payload = 41 + 2 * k;
-        let mut sb = vec![0u8; 10 + start_payload];
+        let mut sb = vec![0u8; cfg.stream_start_bytes()];
+        let start_payload = sb.len() - 10;
         sb[..4].copy_from_slice(&[0x53, 0x41, PACKET_VERSION, 0x01]);
         sb[8..10].copy_from_slice(&(start_payload as u16).to_le_bytes());
         sb[10..12].copy_from_slice(&(f.width as u16).to_le_bytes());
