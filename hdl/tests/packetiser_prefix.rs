@@ -8,16 +8,17 @@
 
 mod common;
 
+use common::records::{random_blink, random_dropped, random_end};
+
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig};
 use smartagg_hdl::packetiser::RecordPrefix;
 use smartagg_hdl::testbench::bench::settle;
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::packet::encode_record;
-use smartagg_model::record::{
-    flags, BlinkRecord, DroppedRecord, OverflowRecord, Record, StreamEnd, MAX_PLANE,
-};
+use smartagg_model::record::{flags, OverflowRecord, Record, MAX_PLANE};
 
 const NW: usize = 8;
 
@@ -32,7 +33,7 @@ fn config(kernel: &[u32], r: usize) -> (PipelineConfig, BackHalfConfig) {
     (cfg, bh)
 }
 
-fn random_record(rng: &mut impl Rng, cfg: &PipelineConfig, kind: usize) -> Record {
+fn random_record(rng: &mut ChaCha8Rng, cfg: &PipelineConfig, kind: usize) -> Record {
     let r = cfg.roi_size;
     match kind {
         0 => {
@@ -48,42 +49,13 @@ fn random_record(rng: &mut impl Rng, cfg: &PipelineConfig, kind: usize) -> Recor
             Record::Start(s)
         }
         1 => {
-            let t_cross = rng.gen_range(0..=MAX_PLANE);
-            let base: u32 = if rng.gen() {
-                rng.gen()
-            } else {
-                rng.gen_range(0..200)
-            };
-            Record::Blink(BlinkRecord {
-                slot: rng.gen_range(0..32),
-                flags: rng.gen_range(0..16),
-                anchor_x: rng.gen(),
-                anchor_y: rng.gen(),
-                t_cross,
-                t_drop: rng.gen_range(t_cross..=MAX_PLANE),
-                t_s: rng.gen_range(-(1i64 << 47)..(1i64 << 47)),
-                t_e: rng.gen_range(-(1i64 << 47)..(1i64 << 47)),
-                planes_summed: rng.gen(),
-                roi_size: r as u8,
-                counts: (0..r * r)
-                    .map(|_| base.saturating_add(rng.gen_range(0..50)))
-                    .collect(),
-            })
+            let mut b = random_blink(rng, r);
+            // Anchors anywhere in their 16 bits (the lanes' high bytes).
+            (b.anchor_x, b.anchor_y) = (rng.gen(), rng.gen());
+            Record::Blink(b)
         }
-        2 => Record::Dropped(DroppedRecord {
-            plane: rng.gen_range(0..=MAX_PLANE),
-            count: rng.gen(),
-            first_x: rng.gen(),
-            first_y: rng.gen(),
-        }),
-        _ => Record::End(StreamEnd {
-            planes: rng.gen(),
-            blinks: rng.gen(),
-            unconfirmed: rng.gen(),
-            dropped_candidates: rng.gen(),
-            bridged_dips: rng.gen(),
-            cut_segments: rng.gen(),
-        }),
+        2 => Record::Dropped(random_dropped(rng)),
+        _ => Record::End(random_end(rng)),
     }
 }
 

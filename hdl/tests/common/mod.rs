@@ -1,6 +1,8 @@
 //! Shared helpers of the block tests: random planes, words of P pixels.
 #![allow(dead_code)]
 
+pub mod records;
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smartagg_model::plane::BitPlane;
