@@ -9,12 +9,10 @@
 //! Pass 1 finds the minimum `base` and ORs the rows' mask flags into
 //! MASKED. Pass 2 sums each Rice parameter's code lengths, and Choose scans
 //! the totals for the fewest bits ([`RiceChoice`], [`RiceLengths`]; no k
-//! above RCW can win: [`rice_candidates`]). Pass 3 makes the codes in three
-//! registered steps — A the offset from the base (also pass 2's input), B
-//! its quotient by 2^k, C the code ([`RiceCode`]) — and packs them MSB
-//! first into bytes ([`BitPacker`]). A step takes the one before it when it
-//! is empty or its content moves on this clock (`free_*`), so that no path
-//! is deeper than one barrel shifter or thermometer. The base and k enter
+//! above RCW can win: [`rice_candidates`]). Pass 3 makes the codes in the
+//! [`CodePipeline`]'s three registered stages — A the offset from the base
+//! (also pass 2's input), B its quotient by 2^k, C the code ([`RiceCode`])
+//! — and packs them MSB first into bytes ([`BitPacker`]). The base and k enter
 //! the prefix as [`CountBlockHead`]'s bytes; the header's length is known
 //! after pass 2; the room check for the whole packet is a register (Decide
 //! acts on its second clock).
@@ -41,8 +39,7 @@
 //! Each sub-block is a file in `packetiser/` with its own test in
 //! `tests/packetiser_blocks.rs` (the record prefix in
 //! `tests/packetiser_prefix.rs`, against the model's encoder); the state
-//! machine, the code pipeline's registers and the lengths are the
-//! packetiser's own.
+//! machine, the sequence numbers and the lengths are the packetiser's own.
 //!
 //! **Outputs without transients.** A sub-block assigns each output once an
 //! evaluation (a value with a default and an override is built in a local
@@ -60,6 +57,7 @@ use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
 mod bit_packer;
+mod code_pipeline;
 mod count_block_head;
 mod count_streamer;
 mod crc32c_step;
@@ -70,6 +68,7 @@ mod rice_code;
 mod rice_lengths;
 
 pub use bit_packer::BitPacker;
+pub use code_pipeline::CodePipeline;
 pub use count_block_head::{CountBlockHead, HEAD_BYTES};
 pub use count_streamer::CountStreamer;
 pub use crc32c_step::Crc32cStep;
@@ -236,8 +235,8 @@ pub struct Packetiser<
     prefix: PrefixBytes,
     /// The CRC register after the byte of this clock.
     crc_step: Crc32cStep,
-    /// Pass 3, stage C: the code of stage B's offset.
-    coder: RiceCode<RCW>,
+    /// Pass 3 (and pass 2's offsets): counts to Rice codes.
+    code_stages: CodePipeline<RCW>,
     /// The count block's base (LEB128) and k, for the prefix.
     head: CountBlockHead<RCW>,
     /// Prefix bytes after the one of this clock (down-counted).
@@ -259,19 +258,9 @@ pub struct Packetiser<
     room: DFF<Bit>,
     /// Decide's second clock on: `room` speaks of this record.
     dec_ready: DFF<Bit>,
-    // The code pipeline (Codes): A offset, B quotient, C code.
-    ca_v: DFF<Bit>,
-    ca_d: DFF<Bits<RCW>>,
-    cb_v: DFF<Bit>,
-    cb_q: DFF<Bits<32>>,
-    cb_d: DFF<Bits<RCW>>,
-    cc_v: DFF<Bit>,
-    cc_code: DFF<Bits<64>>,
-    cc_len: DFF<Bits<8>>,
     // Combinational.
     is_blink: Signal<Local, Bit>,
     take: Signal<Local, Bit>,
-    dd: Signal<Local, Bits<RCW>>,
     payload_len: Signal<Local, Bits<16>>,
     /// The record's prefix length minus one.
     rec_prefix_rest: Signal<Local, Bits<16>>,
@@ -287,9 +276,6 @@ pub struct Packetiser<
     bk: Signal<Local, Bits<8>>,
     in_codes: Signal<Local, Bit>,
     in_pass2: Signal<Local, Bit>,
-    free_a: Signal<Local, Bit>,
-    free_b: Signal<Local, Bit>,
-    free_c: Signal<Local, Bit>,
     // Constants.
     /// Bytes of a StreamStart packet but its CRC.
     start_len: Constant<Bits<16>>,
@@ -375,7 +361,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             record_prefix: RecordPrefix::new(cfg),
             prefix: PrefixBytes::new(PW / 8),
             crc_step: Default::default(),
-            coder: Default::default(),
+            code_stages: Default::default(),
             head: Default::default(),
             prefix_rest: Default::default(),
             prefix_last: Default::default(),
@@ -386,17 +372,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             packer: Default::default(),
             room: Default::default(),
             dec_ready: Default::default(),
-            ca_v: Default::default(),
-            ca_d: Default::default(),
-            cb_v: Default::default(),
-            cb_q: Default::default(),
-            cb_d: Default::default(),
-            cc_v: Default::default(),
-            cc_code: Default::default(),
-            cc_len: Default::default(),
             is_blink: Default::default(),
             take: Default::default(),
-            dd: Default::default(),
             payload_len: Default::default(),
             rec_prefix_rest: Default::default(),
             need: Default::default(),
@@ -408,9 +385,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             bk: Default::default(),
             in_codes: Default::default(),
             in_pass2: Default::default(),
-            free_a: Default::default(),
-            free_b: Default::default(),
-            free_c: Default::default(),
             start_len: Constant::new((cfg.stream_start_bytes() as u64).to_bits()),
             k_mask: c8(kn.next_power_of_two() as u64 - 1),
             all_ones: Constant::new(Bits::<RCW>::mask()),
@@ -445,25 +419,16 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             crc,
             crc_i,
             room,
-            dec_ready,
-            ca_v,
-            ca_d,
-            cb_v,
-            cb_q,
-            cb_d,
-            cc_v,
-            cc_code,
-            cc_len
+            dec_ready
         );
         self.prefix.clock.next = self.clock.val();
-        self.coder.clock.next = self.clock.val();
         self.packer.clock.next = self.clock.val();
         self.packer.start.next = false;
         self.packer.send.next = false;
         self.packer.append.next = false;
         self.packer.pad.next = false;
-        self.packer.code.next = self.cc_code.q.val();
-        self.packer.len.next = self.cc_len.q.val();
+        self.packer.code.next = self.code_stages.code.val();
+        self.packer.len.next = self.code_stages.len.val();
         self.head.clock.next = self.clock.val();
         self.prefix_load.next = false;
         self.prefix_ovf.next = false;
@@ -483,14 +448,20 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.counts.rd_counts[dx].next = self.rd_counts[dx].val();
         }
         self.counts.rd_masked.next = self.rd_masked.val();
-        // The code pipeline's room (see below: "The codes").
+        // The code pipeline ([`CodePipeline`]): the offsets from the base
+        // (pass 2's input too), then the codes the bit packer appends.
         self.bk.next = self.choice.k.val() & self.k_mask.val();
-        self.coder.k.next = self.bk.val();
         self.in_codes.next = self.state.q.val() == PacketState::Codes;
         self.in_pass2.next = self.state.q.val() == PacketState::Pass2;
-        self.free_c.next = !self.cc_v.q.val() | (self.in_codes.val() & !self.packer.full.val());
-        self.free_b.next = !self.cb_v.q.val() | self.free_c.val();
-        self.free_a.next = !self.ca_v.q.val() | self.free_b.val();
+        self.code_stages.clock.next = self.clock.val();
+        self.code_stages.restart.next = self.restart.val();
+        self.code_stages.pass2.next = self.in_pass2.val();
+        self.code_stages.codes.next = self.in_codes.val();
+        self.code_stages.count.next = self.counts.count.val();
+        self.code_stages.count_valid.next = self.counts.valid.val();
+        self.code_stages.base.next = self.base.q.val();
+        self.code_stages.k.next = self.bk.val();
+        self.code_stages.code_taken.next = self.in_codes.val() & !self.packer.full.val();
         // `take` (set below by the pass that consumes) advances the streamer.
         self.take.next = false;
         match self.state.q.val() {
@@ -501,7 +472,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 self.take.next = true;
             }
             PacketState::Codes => {
-                self.take.next = self.free_a.val();
+                self.take.next = self.code_stages.ready.val();
             }
             _ => {}
         }
@@ -510,41 +481,14 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.masked.d.next = true;
         }
 
-        // ---- Offsets from the base, and the code lengths for every k.
-        self.dd.next = self.counts.count.val() - self.base.q.val();
-        // Pass 2 reads the offsets from stage A of the code pipeline.
+        // ---- The code lengths for every k, of the offsets in stage A.
         self.choice.clock.next = self.clock.val();
         self.choice.restart.next = self.restart.val();
         self.choice.clear.next = false;
         self.choice.start_scan.next = false;
         self.choice.step.next = false;
-        self.choice.offset.next = self.ca_d.q.val();
-        self.choice.offset_valid.next = self.ca_v.q.val() & self.in_pass2.val();
-
-        // ---- The codes (Codes), in three registered steps so that none is
-        // deeper than a barrel shifter or a thermometer: A the offset from
-        // the base (also pass 2's input), B its quotient by 2^k, C the code
-        // and its length, which the bit packer appends. A stage takes the
-        // one before it when it is empty or its content moves on this clock
-        // (`free_*`).
-        // C from B: the code and its length (`RiceCode`).
-        self.coder.quotient.next = self.cb_q.q.val();
-        self.coder.offset.next = self.cb_d.q.val();
-        if self.free_c.val() {
-            self.cc_v.d.next = self.cb_v.q.val();
-            self.cc_code.d.next = self.coder.code.val();
-            self.cc_len.d.next = self.coder.len.val();
-        }
-        if self.free_b.val() {
-            self.cb_v.d.next = self.ca_v.q.val() & self.in_codes.val();
-            self.cb_q.d.next = bit_cast::<32, RCW>(self.ca_d.q.val()) >> self.bk.val();
-            self.cb_d.d.next = self.ca_d.q.val();
-        }
-        if self.free_a.val() {
-            self.ca_v.d.next =
-                (self.in_codes.val() | self.in_pass2.val()) & self.counts.valid.val();
-            self.ca_d.d.next = self.dd.val();
-        }
+        self.choice.offset.next = self.code_stages.a_offset.val();
+        self.choice.offset_valid.next = self.code_stages.a_valid.val() & self.in_pass2.val();
 
         // ---- Count block head in the prefix: base as LEB128, then k.
         self.head.base.next = self.base.q.val();
@@ -679,7 +623,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 // (The last offset is in stage A on the clock the streamer
                 // stops, in stage L on the next, and is added on the clock
                 // that leaves Pass2.)
-                if !self.counts.active.val() & !self.ca_v.q.val() {
+                if !self.counts.active.val() & !self.code_stages.a_valid.val() {
                     self.choice.start_scan.next = true;
                     self.state.d.next = PacketState::Choose;
                 }
@@ -752,9 +696,12 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                     self.out_valid.next = true;
                     self.crc.d.next = self.crc_step.updated.val();
                     self.packer.send.next = true;
-                } else if self.cc_v.q.val() {
+                } else if self.code_stages.c_valid.val() {
                     self.packer.append.next = true;
-                } else if !self.counts.active.val() & !self.ca_v.q.val() & !self.cb_v.q.val() {
+                } else if !self.counts.active.val()
+                    & !self.code_stages.a_valid.val()
+                    & !self.code_stages.b_valid.val()
+                {
                     if !self.packer.empty.val() {
                         self.out_valid.next = true;
                         self.crc.d.next = self.crc_step.updated.val();
@@ -798,9 +745,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.seq_ctr.d.next = self.seq_init.val();
             self.pend_cnt.d.next = 0.into();
             self.ovf_flag.d.next = false;
-            self.ca_v.d.next = false;
-            self.cb_v.d.next = false;
-            self.cc_v.d.next = false;
         }
         self.prefix.load.next = self.prefix_load.val();
         for j in 0..self._pb {

@@ -14,6 +14,9 @@
 //!   model's k and the bytes of its codes after the scan;
 //! * the Rice code: the codes of random ROIs with the model's k, packed MSB
 //!   first, against the model's count block bit for bit;
+//! * the code pipeline: random ROIs as the packetiser feeds them (pass 2's
+//!   offsets, then the codes under random gaps, stalls and restarts), the
+//!   model's count block bit for bit, one code a clock when nothing stalls;
 //! * the count streamer: random ROIs (anchors on every row, half of them at
 //!   the sensor's edges), random grant delays and takes, random data on the read
 //!   port between rows: every count in row-major order (0 off the sensor),
@@ -31,8 +34,8 @@ use rand::Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::config::BackHalfConfig;
 use smartagg_hdl::packetiser::{
-    rice_candidates, BitPacker, CountBlockHead, CountStreamer, Crc32cStep, PrefixBytes, RiceChoice,
-    RiceCode, RiceLengths, HEAD_BYTES,
+    rice_candidates, BitPacker, CodePipeline, CountBlockHead, CountStreamer, Crc32cStep,
+    PrefixBytes, RiceChoice, RiceCode, RiceLengths, HEAD_BYTES,
 };
 use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
 use smartagg_hdl::testbench::bench::{settle, Bench};
@@ -270,15 +273,7 @@ fn code_case<const RCW: usize>(r: usize, seed: u64) {
             bits.extend((0..len).rev().map(|i| code >> i & 1 == 1));
             escapes += (len == 64) as usize;
         }
-        let packed: Vec<u8> = bits
-            .chunks(8)
-            .map(|c| {
-                (0..8).fold(0u8, |a, i| {
-                    a << 1 | c.get(i).copied().unwrap_or(false) as u8
-                })
-            })
-            .collect();
-        assert_eq!(packed, codes, "ROI {roi}: base {base}, k {k}");
+        assert_eq!(pack_bits(&bits), codes, "ROI {roi}: base {base}, k {k}");
         ks.insert(k);
     }
     assert!(escapes > 20 && ks.len() > 8, "{escapes} escapes, k {ks:?}");
@@ -288,6 +283,130 @@ fn code_case<const RCW: usize>(r: usize, seed: u64) {
 fn rice_codes_pack_into_the_models_count_block() {
     code_case::<17>(9, 41);
     code_case::<32>(3, 42);
+}
+
+/// Bits of codes, MSB first, packed into bytes (the last one zero-padded).
+fn pack_bits(bits: &[bool]) -> Vec<u8> {
+    bits.chunks(8)
+        .map(|c| {
+            (0..8).fold(0u8, |a, i| {
+                a << 1 | c.get(i).copied().unwrap_or(false) as u8
+            })
+        })
+        .collect()
+}
+
+/// Random ROIs through the code pipeline as the packetiser drives it: pass
+/// 2 (the offsets stop in stage A), a few clocks of neither, then Codes
+/// with the count streamer's gaps and the bit packer's stalls at random,
+/// and now and then a restart with codes in flight.
+fn code_pipeline_case<const RCW: usize>(r: usize, seed: u64) {
+    let mut rng = common::rng(seed);
+    let mut b = Bench::new(CodePipeline::<RCW>::default(), |u| &mut u.clock);
+    let (mut restarts, mut stalled) = (0, 0);
+    for roi in 0..120 {
+        let counts = random_roi(&mut rng, r, RCW as u32, 0.3);
+        let (base, k, _) = choose(&counts);
+        let mut block = Vec::new();
+        encode_counts(&counts, &mut block);
+        let codes = &block[varint_len(base) + 1..];
+        let full_speed = roi % 4 == 0;
+        // Pass 2: every count is taken; its offset passes through A, in order.
+        b.uut.base.next = (base as u64).to_bits();
+        b.uut.pass2.next = true;
+        let (mut next, mut offsets) = (0, Vec::new());
+        while offsets.len() < counts.len() {
+            let u = &mut b.uut;
+            let valid = next < counts.len() && (full_speed || rng.gen_bool(0.7));
+            u.count_valid.next = valid;
+            u.count.next = (*counts.get(next).unwrap_or(&0) as u64).to_bits();
+            u.code_taken.next = rng.gen_bool(0.5);
+            settle(u);
+            assert!(u.ready.val(), "ROI {roi}: pass 2 stalls");
+            assert!(
+                !u.b_valid.val() && !u.c_valid.val(),
+                "ROI {roi}: pass 2 past A"
+            );
+            if u.a_valid.val() {
+                offsets.push(u.a_offset.val().to_u64() as u32);
+            }
+            next += valid as usize;
+            b.tick();
+            assert!(b.cycles < 1_000_000);
+        }
+        let want: Vec<u32> = counts.iter().map(|c| c - base).collect();
+        assert_eq!(offsets, want, "ROI {roi}: pass 2's offsets");
+        // Choose, Decide, Emit: nothing enters; k is set.
+        b.uut.pass2.next = false;
+        b.uut.k.next = (k as u64).to_bits();
+        for _ in 0..3 {
+            b.uut.count_valid.next = rng.gen_bool(0.5);
+            b.tick();
+            let u = &mut b.uut;
+            assert!(!u.a_valid.val() && !u.b_valid.val() && !u.c_valid.val());
+        }
+        // Codes.
+        b.uut.codes.next = true;
+        let restart_at = rng
+            .gen_bool(0.15)
+            .then(|| rng.gen_range(2..counts.len() + 3));
+        let (mut next, mut bits, mut clocks, mut restarted) = (0, Vec::new(), 0, false);
+        loop {
+            let u = &mut b.uut;
+            let valid = next < counts.len() && (full_speed || rng.gen_bool(0.8));
+            u.count_valid.next = valid;
+            u.count.next = (*counts.get(next).unwrap_or(&0) as u64).to_bits();
+            let taken = full_speed || rng.gen_bool(0.7);
+            u.code_taken.next = taken;
+            settle(u);
+            let (busy, c_valid) = (u.a_valid.val() | u.b_valid.val(), u.c_valid.val());
+            if next == counts.len() && !busy && !c_valid {
+                break;
+            }
+            if c_valid && taken {
+                let len = u.len.val().to_u64() as u32;
+                let code = u.code.val().to_u64();
+                bits.extend((0..len).rev().map(|i| code >> i & 1 == 1));
+            }
+            stalled += (c_valid && !taken) as usize;
+            if valid && u.ready.val() {
+                next += 1;
+            }
+            if restart_at == Some(clocks) {
+                b.uut.restart.next = true;
+                b.tick();
+                b.uut.restart.next = false;
+                let u = &mut b.uut;
+                settle(u);
+                assert!(!u.a_valid.val() && !u.b_valid.val() && !u.c_valid.val());
+                restarts += 1;
+                restarted = true;
+                break;
+            }
+            b.tick();
+            clocks += 1;
+            assert!(clocks < 100_000, "ROI {roi}: the codes never came out");
+        }
+        b.uut.codes.next = false;
+        if restarted {
+            continue;
+        }
+        assert_eq!(pack_bits(&bits), codes, "ROI {roi}: base {base}, k {k}");
+        if full_speed {
+            // One count a clock: the last code leaves three clocks after the last count.
+            assert_eq!(clocks, counts.len() + 3, "ROI {roi}: bubbles");
+        }
+    }
+    assert!(
+        restarts > 5 && stalled > 100,
+        "{restarts} restarts, {stalled} stalls"
+    );
+}
+
+#[test]
+fn code_pipeline_makes_the_models_codes_under_stalls_and_restarts() {
+    code_pipeline_case::<17>(9, 51);
+    code_pipeline_case::<32>(3, 52);
 }
 
 /// Random codes through the packer under the packetiser's rule (a byte out
