@@ -83,8 +83,9 @@
 //! multiplexer ([`SlotMux`]), and its word from [`WalkMemory`], into W1; W1
 //! ([`WalkStep`]) computes what the walk does (the comparisons with L_min,
 //! L_max and N − end_trim, the cut, the completion, the record's planes,
-//! the slot's next state and words) into W2; W2 waits for the sweep and the bank, pushes the record
-//! and writes the slot. W2 writes slot k while the read stage reads k + 1
+//! the slot's next state and words) into W2 (W1 and W2 are
+//! [`WalkStages`]); the tracker waits with W2's slot for the sweep and the
+//! bank, pushes the record and writes the slot. W2 writes slot k while the read stage reads k + 1
 //! or k + 2, and a walk starts reading once the previous writer of its
 //! slots is done (the decide stage, or the previous walk's W2), so no
 //! stage reads a slot that an earlier one has yet to write; the one
@@ -161,6 +162,7 @@ mod opening;
 mod slot_compare;
 mod slot_mux;
 mod walk_memory;
+mod walk_stages;
 mod walk_step;
 
 pub use item_stage::ItemStage;
@@ -170,6 +172,7 @@ pub use opening::OpeningWindows;
 pub use slot_compare::SlotCompare;
 pub use slot_mux::SlotMux;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
+pub use walk_stages::WalkStages;
 pub use walk_step::{walk_word, WalkStep};
 
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
@@ -398,8 +401,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     walk_words: WalkMemory,
     /// The read stage's multiplexer: the walked slot's state.
     read: SlotMux<BW>,
-    /// What the walk does to the slot in W1.
-    step: WalkStep,
     /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
     sv: Vec<DFF<Bits<64>>>,
     /// The walks' constants: N − end_trim (the `dage` at which a dropped
@@ -416,47 +417,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// changes only at the end of a walk, and the drain walk that reads it
     /// ends at least M + 2 clocks later.
     drain_end: DFF<Bit>,
-    // The walk pipeline: the read stage is on (`walk` is its slot); W1
-    // holds a slot's state, W2 what the walk does to it.
+    /// The walk pipeline's read stage is on (`walk` is its slot).
     rd_on: DFF<Bit>,
-    w1_valid: DFF<Bit>,
-    w1_sel: DFF<Bits<MAX_SLOTS>>,
-    w1_slot: DFF<Bits<8>>,
-    w1_last: DFF<Bit>,
-    w1_busy: DFF<Bit>,
-    w1_live: DFF<Bit>,
-    w1_dip: DFF<Bit>,
-    w1_pend: DFF<Bit>,
-    w1_opened: DFF<Bit>,
-    w1_bridge: DFF<Bit>,
-    w1_ax: DFF<Bits<COORD_BITS>>,
-    w1_ay: DFF<Bits<COORD_BITS>>,
-    w1_bank: DFF<Bits<BW>>,
-    w1_word: DFF<Bits<39>>,
-    w2_valid: DFF<Bit>,
-    w2_sel: DFF<Bits<MAX_SLOTS>>,
-    w2_slot: DFF<Bits<8>>,
-    w2_last: DFF<Bit>,
-    w2_busy: DFF<Bit>,
-    w2_bridge: DFF<Bit>,
-    w2_ax: DFF<Bits<COORD_BITS>>,
-    w2_ay: DFF<Bits<COORD_BITS>>,
-    w2_bank: DFF<Bits<BW>>,
-    w2_cut: DFF<Bit>,
-    w2_unconf: DFF<Bit>,
-    w2_comp: DFF<Bit>,
-    w2_flags: DFF<Bits<8>>,
-    w2_tc: DFF<Bits<48>>,
-    w2_td: DFF<Bits<48>>,
-    w2_n_busy: DFF<Bit>,
-    w2_n_live: DFF<Bit>,
-    w2_n_pre: DFF<Bit>,
-    w2_n_fresh: DFF<Bit>,
-    /// `finish` ends a live track; it ends it unconfirmed.
-    w2_fin_end: DFF<Bit>,
-    w2_fin_unconf: DFF<Bit>,
-    /// The slot's word for `walk_words`.
-    w2_word: DFF<Bits<39>>,
+    /// Its W1 and W2 stages: the walked slot's state, then what the walk
+    /// does to it.
+    stages: WalkStages<BW>,
     // Combinational.
     run: Signal<Local, Bit>,
     d_go: Signal<Local, Bit>,
@@ -486,9 +451,7 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The walk holds a Blink this clock: the record queue has room but the
     /// free list shows no bank yet (observed by the tests).
     pub bank_wait: Signal<Local, Bit>,
-    // The walked slot's walk word (its state comes through `read`), and
-    // what the walk makes of it.
-    w_word: Signal<Local, Bits<39>>,
+    // What the walk makes of the walked slot.
     n_bank: Signal<Local, Bits<BW>>,
     /// `n_bank` at the bank's offset of `geo` and of the ROI view entry.
     n_bank_w: Signal<Local, Bits<64>>,
@@ -505,9 +468,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
     absorbed: Signal<Local, Bit>,
-    w1_ready: Signal<Local, Bit>,
-    w2_ready: Signal<Local, Bit>,
-    rd: Signal<Local, Bit>,
     // Constants.
     /// Slot i's first bank, i, at the bank's offset of `geo`.
     bank_init: Vec<Constant<Bits<64>>>,
@@ -675,7 +635,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             ev_bridge_nx: Default::default(),
             walk_words: WalkMemory::new(m),
             read: SlotMux::new(m),
-            step: WalkStep::default(),
             items: ItemStage::new(cfg),
             opening: OpeningWindows::new(cfg),
             compare: SlotCompare::new(m),
@@ -689,42 +648,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             vf: Default::default(),
             drain_end: Default::default(),
             rd_on: Default::default(),
-            w1_valid: Default::default(),
-            w1_sel: Default::default(),
-            w1_slot: Default::default(),
-            w1_last: Default::default(),
-            w1_busy: Default::default(),
-            w1_live: Default::default(),
-            w1_dip: Default::default(),
-            w1_pend: Default::default(),
-            w1_opened: Default::default(),
-            w1_bridge: Default::default(),
-            w1_ax: Default::default(),
-            w1_ay: Default::default(),
-            w1_bank: Default::default(),
-            w1_word: Default::default(),
-            w2_valid: Default::default(),
-            w2_sel: Default::default(),
-            w2_slot: Default::default(),
-            w2_last: Default::default(),
-            w2_busy: Default::default(),
-            w2_bridge: Default::default(),
-            w2_ax: Default::default(),
-            w2_ay: Default::default(),
-            w2_bank: Default::default(),
-            w2_cut: Default::default(),
-            w2_unconf: Default::default(),
-            w2_comp: Default::default(),
-            w2_flags: Default::default(),
-            w2_tc: Default::default(),
-            w2_td: Default::default(),
-            w2_n_busy: Default::default(),
-            w2_n_live: Default::default(),
-            w2_n_pre: Default::default(),
-            w2_n_fresh: Default::default(),
-            w2_fin_end: Default::default(),
-            w2_fin_unconf: Default::default(),
-            w2_word: Default::default(),
+            stages: Default::default(),
             run: Default::default(),
             d_go: Default::default(),
             end_item: Default::default(),
@@ -749,7 +673,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             can_push: Default::default(),
             need_bank: Default::default(),
             bank_wait: Default::default(),
-            w_word: Default::default(),
             n_bank: Default::default(),
             n_bank_w: Default::default(),
             n_sh: Default::default(),
@@ -760,9 +683,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             we_drain: Default::default(),
             we_emit: Default::default(),
             absorbed: Default::default(),
-            w1_ready: Default::default(),
-            w2_ready: Default::default(),
-            rd: Default::default(),
             bank_init: (0..m)
                 .map(|i| Constant::new(((i as u64) << slot_word::BANK).to_bits()))
                 .collect(),
@@ -784,84 +704,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self,
-            clock,
-            state,
-            t,
-            rows,
-            walk,
-            lost,
-            drops,
-            drop_x,
-            drop_y,
-            c_blinks,
-            c_unconf,
-            c_dropped,
-            c_bridged,
-            c_cuts,
-            bank_err,
-            bank_waits,
-            r_valid,
-            r_cand,
-            r_last,
-            r_eor,
-            r_lastrow,
-            r_cx,
-            r_yc,
-            r_near,
-            r_hw,
-            r_frow,
-            r_geo,
-            r_win,
-            r_sh,
-            r_bnd,
-            replay,
-            fpick,
-            fpick_any,
-            n_mc,
-            mc_one,
-            lmin,
-            lmin_p1,
-            lmax_m1,
-            vf,
-            drain_end,
-            rd_on,
-            w1_valid,
-            w1_sel,
-            w1_slot,
-            w1_last,
-            w1_busy,
-            w1_live,
-            w1_dip,
-            w1_pend,
-            w1_opened,
-            w1_bridge,
-            w1_ax,
-            w1_ay,
-            w1_bank,
-            w1_word,
-            w2_valid,
-            w2_sel,
-            w2_slot,
-            w2_last,
-            w2_busy,
-            w2_bridge,
-            w2_ax,
-            w2_ay,
-            w2_bank,
-            w2_cut,
-            w2_unconf,
-            w2_comp,
-            w2_flags,
-            w2_tc,
-            w2_td,
-            w2_n_busy,
-            w2_n_live,
-            w2_n_pre,
-            w2_n_fresh,
-            w2_fin_end,
-            w2_fin_unconf,
-            w2_word
+            self, clock, state, t, rows, walk, lost, drops, drop_x, drop_y, c_blinks, c_unconf,
+            c_dropped, c_bridged, c_cuts, bank_err, bank_waits, r_valid, r_cand, r_last, r_eor,
+            r_lastrow, r_cx, r_yc, r_near, r_hw, r_frow, r_geo, r_win, r_sh, r_bnd, replay, fpick,
+            fpick_any, n_mc, mc_one, lmin, lmin_p1, lmax_m1, vf, drain_end, rd_on
         );
         self.walk_words.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
@@ -1028,11 +874,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // changes only at the end of a walk, two stages before W2 can act
         // again); a Blink waits for its fresh bank.
         self.vf.d.next = self.view_free.val();
-        self.need_bank.next = self.w2_valid.q.val()
+        self.need_bank.next = self.stages.valid.val()
             & (((self.state.q.val() == TrackerState::Walk)
                 & self.vf.q.val()
-                & self.w2_comp.q.val())
-                | ((self.state.q.val() == TrackerState::Emit) & self.w2_busy.q.val()));
+                & self.stages.comp.val())
+                | ((self.state.q.val() == TrackerState::Emit) & self.stages.busy.val()));
         // The queue has room but the free list shows no bank: the bank of the
         // record the packetiser has just finished is on its way back (the
         // queue counts that record until it is popped, the pool shows the
@@ -1040,24 +886,22 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // lose the record. Room in the queue means at most Q − 1 queued
         // Blinks, so one of the Q spare banks is free or returning.
         self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
-        self.we_walk.next = self.w2_valid.q.val()
+        self.we_walk.next = self.stages.valid.val()
             & (self.state.q.val() == TrackerState::Walk)
             & self.vf.q.val()
             & !self.bank_wait.val();
-        self.we_fin.next = self.w2_valid.q.val() & (self.state.q.val() == TrackerState::Finish);
-        self.we_drain.next = self.w2_valid.q.val()
+        self.we_fin.next = self.stages.valid.val() & (self.state.q.val() == TrackerState::Finish);
+        self.we_drain.next = self.stages.valid.val()
             & (self.state.q.val() == TrackerState::DrainWalk)
             & self.vf.q.val();
-        self.we_emit.next = self.w2_valid.q.val()
+        self.we_emit.next = self.stages.valid.val()
             & (self.state.q.val() == TrackerState::Emit)
             & !self.bank_wait.val();
-        self.w2_ready.next = !self.w2_valid.q.val()
-            | self.we_walk.val()
-            | self.we_fin.val()
-            | self.we_drain.val()
-            | self.we_emit.val();
-        self.w1_ready.next = !self.w1_valid.q.val() | self.w2_ready.val();
-        self.rd.next = self.rd_on.q.val() & self.w1_ready.val();
+        self.stages.clock.next = self.clock.val();
+        self.stages.restart.next = self.restart.val();
+        self.stages.done.next =
+            self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val();
+        self.stages.offer.next = self.rd_on.q.val();
 
         // Read stage: the slot's state through one multiplexer; the fields
         // only the walks read come from its word in `walk_words`, read a clock
@@ -1075,23 +919,20 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.read.anchor_rows[i].next = self.geo[i].q.val().get_bits::<10>(10);
             self.read.banks[i].next = self.geo[i].q.val().get_bits::<BW>(20);
         }
-        self.w_word.next = self.walk_words.word.val();
-        self.w1_valid.d.next = self.w1_valid.q.val() & !self.w2_ready.val();
-        if self.rd.val() {
-            self.w1_valid.d.next = true;
-            self.w1_sel.d.next = self.read.selected.val();
-            self.w1_slot.d.next = self.walk.q.val();
-            self.w1_last.d.next = self.walk.q.val() == self.last_slot.val();
-            self.w1_busy.d.next = self.read.s_busy.val();
-            self.w1_live.d.next = self.read.s_live.val();
-            self.w1_dip.d.next = self.read.s_dip.val();
-            self.w1_pend.d.next = self.read.s_pend.val();
-            self.w1_opened.d.next = self.read.s_opened.val();
-            self.w1_bridge.d.next = self.read.s_bridge.val();
-            self.w1_ax.d.next = self.read.s_ax.val();
-            self.w1_ay.d.next = self.read.s_ay.val();
-            self.w1_bank.d.next = self.read.s_bank.val();
-            self.w1_word.d.next = self.w_word.val();
+        self.stages.s_sel.next = self.read.selected.val();
+        self.stages.s_slot.next = self.walk.q.val();
+        self.stages.s_last.next = self.walk.q.val() == self.last_slot.val();
+        self.stages.s_busy.next = self.read.s_busy.val();
+        self.stages.s_live.next = self.read.s_live.val();
+        self.stages.s_dip.next = self.read.s_dip.val();
+        self.stages.s_pend.next = self.read.s_pend.val();
+        self.stages.s_opened.next = self.read.s_opened.val();
+        self.stages.s_bridge.next = self.read.s_bridge.val();
+        self.stages.s_ax.next = self.read.s_ax.val();
+        self.stages.s_ay.next = self.read.s_ay.val();
+        self.stages.s_bank.next = self.read.s_bank.val();
+        self.stages.s_word.next = self.walk_words.word.val();
+        if self.stages.take.val() {
             self.walk.d.next = self.walk.q.val() + 1;
             if self.walk.q.val() == self.last_slot.val() {
                 self.rd_on.d.next = false;
@@ -1099,48 +940,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // W1: what the walk makes of the slot.
-        self.step.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
-        self.step.finish.next = self.state.q.val() == TrackerState::Finish;
-        self.step.drain.next = self.state.q.val() == TrackerState::DrainWalk;
-        self.step.busy.next = self.w1_busy.q.val();
-        self.step.live.next = self.w1_live.q.val();
-        self.step.dip.next = self.w1_dip.q.val();
-        self.step.pend.next = self.w1_pend.q.val();
-        self.step.opened.next = self.w1_opened.q.val();
-        self.step.word.next = self.w1_word.q.val();
-        self.step.t.next = self.t.q.val();
-        self.step.t1_ge_n.next = (self.t.q.val() + 1) >= bit_cast::<48, NW>(self.n_window.val());
-        self.step.lmin.next = self.lmin.q.val();
-        self.step.lmin_p1.next = self.lmin_p1.q.val();
-        self.step.lmax_m1.next = self.lmax_m1.q.val();
-        self.step.n_mc.next = self.n_mc.q.val();
-        self.step.mc_one.next = self.mc_one.q.val();
-        self.w2_valid.d.next = self.w2_valid.q.val() & !self.w2_ready.val();
-        if self.w2_ready.val() {
-            self.w2_valid.d.next = self.w1_valid.q.val();
-            self.w2_sel.d.next = self.w1_sel.q.val();
-            self.w2_slot.d.next = self.w1_slot.q.val();
-            self.w2_last.d.next = self.w1_last.q.val();
-            self.w2_busy.d.next = self.w1_busy.q.val();
-            self.w2_bridge.d.next = self.w1_bridge.q.val();
-            self.w2_ax.d.next = self.w1_ax.q.val();
-            self.w2_ay.d.next = self.w1_ay.q.val();
-            self.w2_bank.d.next = self.w1_bank.q.val();
-            self.w2_cut.d.next = self.step.cut.val();
-            self.w2_unconf.d.next = self.step.unconf.val();
-            self.w2_comp.d.next = self.step.comp.val();
-            self.w2_flags.d.next = self.step.flags.val();
-            self.w2_tc.d.next = self.step.tc.val();
-            self.w2_td.d.next = self.step.td.val();
-            self.w2_n_busy.d.next = self.step.n_busy.val();
-            self.w2_n_live.d.next = self.step.n_live.val();
-            self.w2_n_pre.d.next = self.step.n_pre.val();
-            self.w2_n_fresh.d.next = self.step.n_fresh.val();
-            self.w2_fin_end.d.next = self.step.fin_end.val();
-            self.w2_fin_unconf.d.next = self.step.fin_unconf.val();
-            self.w2_word.d.next = self.step.word_next.val();
-        }
+        // W1 into W2: what the walk makes of the slot ([`WalkStep`]).
+        self.stages.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
+        self.stages.finish.next = self.state.q.val() == TrackerState::Finish;
+        self.stages.drain.next = self.state.q.val() == TrackerState::DrainWalk;
+        self.stages.t.next = self.t.q.val();
+        self.stages.t1_ge_n.next = (self.t.q.val() + 1) >= bit_cast::<48, NW>(self.n_window.val());
+        self.stages.lmin.next = self.lmin.q.val();
+        self.stages.lmin_p1.next = self.lmin_p1.q.val();
+        self.stages.lmax_m1.next = self.lmax_m1.q.val();
+        self.stages.n_mc.next = self.n_mc.q.val();
+        self.stages.mc_one.next = self.mc_one.q.val();
 
         // ---- Record port defaults.
         self.rec_push.next = false;
@@ -1156,17 +966,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.rec_tag.next = self.t.q.val();
         self.fb_pop.next = false;
         // W2: a walked slot's Blink record.
-        if (self.we_walk.val() & self.w2_comp.q.val()) | (self.we_emit.val() & self.w2_busy.q.val())
+        if (self.we_walk.val() & self.stages.comp.val())
+            | (self.we_emit.val() & self.stages.busy.val())
         {
             self.c_blinks.d.next = self.c_blinks.q.val() + 1;
             self.rec_kind.next = 1.into();
-            self.rec_slot.next = self.w2_slot.q.val();
-            self.rec_flags.next = self.w2_flags.q.val();
-            self.rec_ax.next = bit_cast::<16, 10>(self.w2_ax.q.val());
-            self.rec_ay.next = bit_cast::<16, 10>(self.w2_ay.q.val());
-            self.rec_t0.next = self.w2_tc.q.val();
-            self.rec_t1.next = self.w2_td.q.val();
-            self.rec_bank.next = self.w2_bank.q.val();
+            self.rec_slot.next = self.stages.slot.val();
+            self.rec_flags.next = self.stages.flags.val();
+            self.rec_ax.next = bit_cast::<16, 10>(self.stages.ax.val());
+            self.rec_ay.next = bit_cast::<16, 10>(self.stages.ay.val());
+            self.rec_t0.next = self.stages.tc.val();
+            self.rec_t1.next = self.stages.td.val();
+            self.rec_bank.next = self.stages.bank.val();
             if self.state.q.val() == TrackerState::Emit {
                 self.rec_tag.next = self.t_m1.val();
             }
@@ -1181,28 +992,28 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // The walked slot's bank from now on (and in its ROI view for plane
         // t + 1): a fresh one if it has just handed its bank to a Blink record.
-        self.n_bank.next = self.w2_bank.q.val();
+        self.n_bank.next = self.stages.bank.val();
         if self.fb_pop.val() {
             self.n_bank.next = self.fb_bank.val();
         }
         self.n_bank_w.next = bit_cast::<64, BW>(self.n_bank.val()) << 20;
-        self.n_sh.next = bit_cast::<64, 10>(self.w2_ax.q.val())
-            | (bit_cast::<64, 10>(self.w2_ay.q.val()) << 10)
+        self.n_sh.next = bit_cast::<64, 10>(self.stages.ax.val())
+            | (bit_cast::<64, 10>(self.stages.ay.val()) << 10)
             | self.n_bank_w.val()
-            | (bit_cast::<64, 1>(self.w2_n_pre.q.val().into()) << 62)
-            | (bit_cast::<64, 1>((self.w2_n_fresh.q.val() & self.we_walk.val()).into()) << 63);
+            | (bit_cast::<64, 1>(self.stages.n_pre.val().into()) << 62)
+            | (bit_cast::<64, 1>((self.stages.n_fresh.val() & self.we_walk.val()).into()) << 63);
         // (A value shifted into a wider word is a signal of its own: Verilog
         // widens the operands of `~` before inverting them.)
-        self.n_free.next = !self.w2_n_busy.q.val();
+        self.n_free.next = !self.stages.n_busy.val();
         self.fin_keep.next = self.sh_used.val();
-        if self.w2_fin_unconf.q.val() {
+        if self.stages.fin_unconf.val() {
             self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
             self.fin_keep.next = self.fin_keep.val().replace_bit(63, false);
         }
-        self.walk_words.write_slot.next = self.w2_slot.q.val();
+        self.walk_words.write_slot.next = self.stages.slot.val();
         self.walk_words.write_enable.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
-        self.walk_words.write_data.next = self.w2_word.q.val();
+        self.walk_words.write_data.next = self.stages.word.val();
 
         match self.state.q.val() {
             TrackerState::Start => {
@@ -1229,16 +1040,16 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             TrackerState::Walk => {
                 if self.we_walk.val() {
-                    if self.w2_bridge.q.val() {
+                    if self.stages.bridge.val() {
                         self.c_bridged.d.next = self.c_bridged.q.val() + 1;
                     }
-                    if self.w2_unconf.q.val() {
+                    if self.stages.unconf.val() {
                         self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
-                    if self.w2_cut.q.val() {
+                    if self.stages.cut.val() {
                         self.c_cuts.d.next = self.c_cuts.q.val() + 1;
                     }
-                    if self.w2_last.q.val() {
+                    if self.stages.last.val() {
                         self.state.d.next = TrackerState::WalkEnd;
                     }
                 }
@@ -1266,10 +1077,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 if self.t.q.val() == 0 {
                     self.state.d.next = TrackerState::End;
                 } else if self.we_fin.val() {
-                    if self.w2_fin_unconf.q.val() {
+                    if self.stages.fin_unconf.val() {
                         self.c_unconf.d.next = self.c_unconf.q.val() + 1;
                     }
-                    if self.w2_last.q.val() {
+                    if self.stages.last.val() {
                         self.state.d.next = TrackerState::Drain;
                     }
                 }
@@ -1287,7 +1098,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::DrainWalk => {
-                if self.we_drain.val() & self.w2_last.q.val() {
+                if self.we_drain.val() & self.stages.last.val() {
                     self.t.d.next = self.t_p1.val();
                     self.rows.d.next = 0.into();
                     self.state.d.next = TrackerState::Drain;
@@ -1298,7 +1109,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::Emit => {
-                if self.we_emit.val() & self.w2_last.q.val() {
+                if self.we_emit.val() & self.stages.last.val() {
                     self.state.d.next = TrackerState::End;
                 }
             }
@@ -1324,17 +1135,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // ---- The walks write the walked slot. (Packed registers: each
         // write replaces its bits of `d` as assigned so far.)
-        if self.w2_valid.q.val() {
+        if self.stages.valid.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
-                    if self.w2_sel.q.val().get_bit(i) & self.we_walk.val() {
+                    if self.stages.sel.val().get_bit(i) & self.we_walk.val() {
                         self.busy_nx.next =
-                            self.busy_nx.val().replace_bit(i, self.w2_n_busy.q.val());
+                            self.busy_nx.val().replace_bit(i, self.stages.n_busy.val());
                         self.live_nx.next =
-                            self.live_nx.val().replace_bit(i, self.w2_n_live.q.val());
+                            self.live_nx.val().replace_bit(i, self.stages.n_live.val());
                         self.pend_nx.next = self.pend_nx.val().replace_bit(i, false);
                         self.ev_bridge_nx.next = self.ev_bridge_nx.val().replace_bit(i, false);
-                        if self.w2_cut.q.val() {
+                        if self.stages.cut.val() {
                             self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
                         }
                         self.geo[i].d.next =
@@ -1343,38 +1154,44 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.aprev_nx.next = self
                             .aprev_nx
                             .val()
-                            .replace_bit(i, self.w2_n_busy.q.val() & self.w2_n_live.q.val());
+                            .replace_bit(i, self.stages.n_busy.val() & self.stages.n_live.val());
                         self.fprev_nx.next = self.fprev_nx.val().replace_bit(i, self.n_free.val());
                         self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
                         self.hit_nx.next = self.hit_nx.val().replace_bit(i, false);
                     }
                     // (`opened` too, so that the drain walks and Emit read the
                     // word `finish` writes.)
-                    if self.w2_sel.q.val().get_bit(i) & self.we_fin.val() {
+                    if self.stages.sel.val().get_bit(i) & self.we_fin.val() {
                         self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
                     }
-                    if self.w2_sel.q.val().get_bit(i) & self.we_fin.val() & self.w2_fin_end.q.val()
+                    if self.stages.sel.val().get_bit(i)
+                        & self.we_fin.val()
+                        & self.stages.fin_end.val()
                     {
                         self.live_nx.next = self.live_nx.val().replace_bit(i, false);
                         self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                        if self.w2_fin_unconf.q.val() {
+                        if self.stages.fin_unconf.val() {
                             self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
                         }
                     }
-                    if self.w2_sel.q.val().get_bit(i) & self.we_fin.val() {
+                    if self.stages.sel.val().get_bit(i) & self.we_fin.val() {
                         if self.par.val() {
                             self.sv[i + mm].d.next = self.sv[i + mm].q.val() & self.fin_keep.val();
                         } else {
                             self.sv[i].d.next = self.sv[i].q.val() & self.fin_keep.val();
                         }
                     }
-                    if self.w2_sel.q.val().get_bit(i) & self.we_emit.val() & self.w2_busy.q.val() {
+                    if self.stages.sel.val().get_bit(i)
+                        & self.we_emit.val()
+                        & self.stages.busy.val()
+                    {
                         self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
                         self.geo[i].d.next =
                             (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                     }
                     // The slot's ROI view for plane t + 1.
-                    if self.w2_sel.q.val().get_bit(i) & (self.we_walk.val() | self.we_drain.val()) {
+                    if self.stages.sel.val().get_bit(i) & (self.we_walk.val() | self.we_drain.val())
+                    {
                         if self.par1.val() {
                             self.sv[i + mm].d.next = self.n_sh.val();
                         } else {
@@ -1450,8 +1267,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.replay.d.next = false;
             self.rd_on.d.next = false;
             self.walk.d.next = 0.into();
-            self.w1_valid.d.next = false;
-            self.w2_valid.d.next = false;
             self.lost.d.next = 0.into();
             self.drops.d.next = 0.into();
             self.c_blinks.d.next = 0.into();
@@ -1494,7 +1309,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.walk_words.restart.next = self.restart.val();
         self.walk_words.slot.next = self.walk.q.val();
         self.walk_words.slot_next.next = self.walk.d.val();
-        self.walk_words.advance.next = self.rd.val();
+        self.walk_words.advance.next = self.stages.take.val();
 
         self.plane.next = self.t.q.val();
         self.rows_done.next = self.rows.q.val();

@@ -44,13 +44,13 @@
 //! ## Back-half blocks (stages 5–7) and the whole pipeline
 //! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`], with
 //!   its item stage, opening windows, slot compare, on/off step, read
-//!   multiplexer, walk memory and walk step), the ROI
+//!   multiplexer, walk memory, walk stages and walk step), the ROI
 //!   aggregator ([`roi_aggregator`], with its row cover, lowest slot, view
 //!   multiplexer and ROI row) and its bank pool ([`bank_pool`]), the
 //!   record queue and finisher ([`record_queue::RecordQueue`],
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
 //!   stage), the packetiser ([`packetiser`], with its count streamer,
-//!   Rice choice and code, bit packer, record prefix, prefix bytes,
+//!   Rice choice, code pipeline and Rice code, bit packer, record prefix, prefix bytes,
 //!   count-block head and CRC step) and the output FIFO;
 //! * [`stream_control::StreamControl`]: START's register check and latch,
 //!   the source gated at plane boundaries, the drain and flush planes after

@@ -141,6 +141,10 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
     ("len$*", "length registers wider than the length kept"),
     ("tr_plane", "plane counter of which the low bits are read"),
     ("row$delayed", "ROI row bits beyond the ROI side"),
+    (
+        "stages$sel",
+        "the walked slot's one-hot, of which the tracker reads its M slots' bits",
+    ),
     ("read_address", "block-RAM addresses wider than the memory"),
     ("write_address", "block-RAM addresses wider than the memory"),
     (

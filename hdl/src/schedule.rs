@@ -10,8 +10,8 @@
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the ROI aggregator's row cover, lowest slot, view
 //! multiplexer and ROI row; the blink tracker's item stage, opening
-//! windows, slot compare, on/off step, read multiplexer, walk step and walk
-//! memory, which it both drives and reads; the packetiser's bit packer,
+//! windows, slot compare, on/off step, read multiplexer, walk stages and
+//! walk memory, which it both drives and reads; the packetiser's bit packer,
 //! whose flags choose the command the packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
 //! signal — but Verilator flags the processes `UNOPTFLAT` and re-runs them
@@ -36,16 +36,17 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
     ),
     // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
     // opening windows, slot compare, on/off step, read multiplexer and walk
-    // step, whose outputs the tracker reads back (the item stage's `pop` is
-    // a function of `take`), and the locals they are computed from
-    // (functions of the tracker's registers and of the item stage's
-    // outputs).
+    // stages, whose outputs the tracker reads back (the item stage's `pop`
+    // is a function of `take`, the walk stages' `take` of `done`), and the
+    // locals they are computed from (functions of the tracker's registers,
+    // of its inputs and of the sub-blocks' outputs; `done` is a function
+    // of the `we_*`).
     (
         "fb_pop,blinks,unconfirmed,dropped,bridged,cuts,bank_error);",
         &[
             "items$*",
             "opening$*",
-            "step$*",
+            "stages$*",
             "compare$*",
             "on_off$*",
             "read$*",
@@ -57,6 +58,12 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "s_cy",
             "on_v",
             "do_fin",
+            "need_bank",
+            "bank_wait",
+            "we_walk",
+            "we_fin",
+            "we_drain",
+            "we_emit",
         ],
     ),
     // crate::roi_aggregator::RoiAggregator: the inputs of its row cover,
