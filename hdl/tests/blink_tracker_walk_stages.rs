@@ -60,6 +60,45 @@ struct Walk {
     n_mc: u64,
 }
 
+/// Drives the walk's inputs of a block that has them (`WalkStep`, and
+/// `WalkStages`, which passes them to its own).
+macro_rules! drive_walk {
+    ($u:expr, $w:expr) => {{
+        $u.end_of_plane.next = $w.kind == 0;
+        $u.finish.next = $w.kind == 1;
+        $u.drain.next = $w.kind == 2;
+        $u.t.next = $w.t.to_bits();
+        $u.t1_ge_n.next = $w.t1_ge_n;
+        $u.lmin.next = $w.lmin.to_bits();
+        $u.lmin_p1.next = ($w.lmin + 1).to_bits();
+        $u.lmax_m1.next = $w.lmax_m1.to_bits();
+        $u.n_mc.next = $w.n_mc.to_bits();
+        $u.mc_one.next = $w.n_mc == 1;
+    }};
+}
+
+/// The walk step's outputs of a block that has them, `$word` the name of
+/// its written word.
+macro_rules! step_outputs {
+    ($u:expr, $word:ident) => {
+        Step {
+            cut: $u.cut.val(),
+            unconf: $u.unconf.val(),
+            comp: $u.comp.val(),
+            flags: $u.flags.val().to_u64(),
+            tc: $u.tc.val().to_u64(),
+            td: $u.td.val().to_u64(),
+            n_busy: $u.n_busy.val(),
+            n_live: $u.n_live.val(),
+            n_pre: $u.n_pre.val(),
+            n_fresh: $u.n_fresh.val(),
+            fin_end: $u.fin_end.val(),
+            fin_unconf: $u.fin_unconf.val(),
+            word: $u.$word.val().to_u64(),
+        }
+    };
+}
+
 const M: u64 = 20;
 
 fn random_slot(rng: &mut impl Rng) -> Slot {
@@ -101,38 +140,15 @@ fn random_walk(rng: &mut impl Rng) -> Walk {
 
 /// The walk step of `s` under `w`, from the free-standing block.
 fn step_of(o: &mut WalkStep, s: &Slot, w: &Walk) -> Step {
-    o.end_of_plane.next = w.kind == 0;
-    o.finish.next = w.kind == 1;
-    o.drain.next = w.kind == 2;
+    drive_walk!(o, w);
     o.busy.next = s.busy;
     o.live.next = s.live;
     o.dip.next = s.dip;
     o.pend.next = s.pend;
     o.opened.next = s.opened;
     o.word.next = s.word.to_bits();
-    o.t.next = w.t.to_bits();
-    o.t1_ge_n.next = w.t1_ge_n;
-    o.lmin.next = w.lmin.to_bits();
-    o.lmin_p1.next = (w.lmin + 1).to_bits();
-    o.lmax_m1.next = w.lmax_m1.to_bits();
-    o.n_mc.next = w.n_mc.to_bits();
-    o.mc_one.next = w.n_mc == 1;
     settle(o);
-    Step {
-        cut: o.cut.val(),
-        unconf: o.unconf.val(),
-        comp: o.comp.val(),
-        flags: o.flags.val().to_u64(),
-        tc: o.tc.val().to_u64(),
-        td: o.td.val().to_u64(),
-        n_busy: o.n_busy.val(),
-        n_live: o.n_live.val(),
-        n_pre: o.n_pre.val(),
-        n_fresh: o.n_fresh.val(),
-        fin_end: o.fin_end.val(),
-        fin_unconf: o.fin_unconf.val(),
-        word: o.word_next.val().to_u64(),
-    }
+    step_outputs!(o, word_next)
 }
 
 #[test]
@@ -167,16 +183,7 @@ fn walk_stages_hold_each_slot_and_its_step_in_order_under_stalls_and_restarts() 
         u.s_ay.next = s.ay.to_bits();
         u.s_bank.next = s.bank.to_bits();
         u.s_word.next = s.word.to_bits();
-        u.end_of_plane.next = w.kind == 0;
-        u.finish.next = w.kind == 1;
-        u.drain.next = w.kind == 2;
-        u.t.next = w.t.to_bits();
-        u.t1_ge_n.next = w.t1_ge_n;
-        u.lmin.next = w.lmin.to_bits();
-        u.lmin_p1.next = (w.lmin + 1).to_bits();
-        u.lmax_m1.next = w.lmax_m1.to_bits();
-        u.n_mc.next = w.n_mc.to_bits();
-        u.mc_one.next = w.n_mc == 1;
+        drive_walk!(u, w);
         u.done.next = done;
         u.restart.next = restart;
         settle(u);
@@ -203,21 +210,7 @@ fn walk_stages_hold_each_slot_and_its_step_in_order_under_stalls_and_restarts() 
                 1 << slot.slot,
                 "clock {clock}: one-hot"
             );
-            let got_step = Step {
-                cut: u.cut.val(),
-                unconf: u.unconf.val(),
-                comp: u.comp.val(),
-                flags: u.flags.val().to_u64(),
-                tc: u.tc.val().to_u64(),
-                td: u.td.val().to_u64(),
-                n_busy: u.n_busy.val(),
-                n_live: u.n_live.val(),
-                n_pre: u.n_pre.val(),
-                n_fresh: u.n_fresh.val(),
-                fin_end: u.fin_end.val(),
-                fin_unconf: u.fin_unconf.val(),
-                word: u.word.val().to_u64(),
-            };
+            let got_step = step_outputs!(u, word);
             assert_eq!(got_step, step, "clock {clock}: W2's step");
             out += done as usize;
             stalls += !done as usize;
