@@ -1,6 +1,6 @@
 //! What a walk does to one slot (the W1 stage of the tracker's walk
-//! pipeline, see [`super`]'s doc; combinational, the tracker registers it
-//! in W2): a `pend` drop's t_drop and confirmation, the cut at L_max, the
+//! pipeline, see [`super`]'s doc; combinational, [`WalkStages`](super::WalkStages)
+//! registers it in W2): a `pend` drop's t_drop and confirmation, the cut at L_max, the
 //! unconfirmed free or the completion, the Blink record's flags and
 //! planes, the slot's state for plane t + 1 and its ROI view flags, and
 //! the word written back to the walk memory. The stream end's `finish`
