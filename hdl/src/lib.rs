@@ -51,7 +51,8 @@
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
 //!   stage), the packetiser ([`packetiser`], with its count streamer,
 //!   Rice choice, code pipeline and Rice code, bit packer, record prefix, prefix bytes,
-//!   count-block head and CRC step) and the output FIFO;
+//!   count-block head, CRC step, packet length and sequence numbers) and
+//!   the output FIFO;
 //! * [`stream_control::StreamControl`]: START's register check and latch,
 //!   the source gated at plane boundaries, the drain and flush planes after
 //!   STOP;

@@ -14,8 +14,8 @@
 //! (also pass 2's input), B its quotient by 2^k, C the code ([`RiceCode`])
 //! — and packs them MSB first into bytes ([`BitPacker`]). The base and k enter
 //! the prefix as [`CountBlockHead`]'s bytes; the header's length is known
-//! after pass 2; the room check for the whole packet is a register (Decide
-//! acts on its second clock).
+//! after pass 2 ([`PacketLength`]); the room check for the whole packet is
+//! a register (Decide acts on its second clock).
 //!
 //! **Every packet** is its prefix — header and fixed payload, a byte lane
 //! each, laid out by record kind in [`RecordPrefix`] — loaded into [`PrefixBytes`] once
@@ -23,7 +23,7 @@
 //! register), then a Blink's codes, then the CRC-32C, to which
 //! [`Crc32cStep`] adds a byte a clock.
 //!
-//! **Sequence numbers and overflow.** Every record but Overflow takes the
+//! **Sequence numbers and overflow** ([`SequenceNumbers`]). Every record but Overflow takes the
 //! next number (from `seq_init` at stream start). A record the tracker could
 //! not queue (its record queue full) arrives as `r_lost` on the next one and
 //! is numbered and announced like a record the output FIFO dropped. Before emitting a record
@@ -38,8 +38,9 @@
 //!
 //! Each sub-block is a file in `packetiser/` with its own test in
 //! `tests/packetiser_blocks.rs` (the record prefix in
-//! `tests/packetiser_prefix.rs`, against the model's encoder); the state
-//! machine, the sequence numbers and the lengths are the packetiser's own.
+//! `tests/packetiser_prefix.rs`, against the model's encoder; the sequence
+//! numbers and the packet's lengths in `tests/packetiser_numbers.rs`); the
+//! state machine is the packetiser's own.
 //!
 //! **Outputs without transients.** A sub-block assigns each output once an
 //! evaluation (a value with a default and an override is built in a local
@@ -61,22 +62,26 @@ mod code_pipeline;
 mod count_block_head;
 mod count_streamer;
 mod crc32c_step;
+mod packet_length;
 mod prefix_bytes;
 mod record_prefix;
 mod rice_choice;
 mod rice_code;
 mod rice_lengths;
+mod sequence_numbers;
 
 pub use bit_packer::BitPacker;
 pub use code_pipeline::CodePipeline;
 pub use count_block_head::{CountBlockHead, HEAD_BYTES};
 pub use count_streamer::CountStreamer;
 pub use crc32c_step::Crc32cStep;
+pub use packet_length::PacketLength;
 pub use prefix_bytes::PrefixBytes;
 pub use record_prefix::RecordPrefix;
 pub use rice_choice::RiceChoice;
 pub use rice_code::RiceCode;
 pub use rice_lengths::RiceLengths;
+pub use sequence_numbers::SequenceNumbers;
 
 /// Packetiser states.
 #[derive(Copy, Clone, Debug, PartialEq, LogicState)]
@@ -216,10 +221,8 @@ pub struct Packetiser<
     /// Records were lost since stream start (sticky; Overflow records tell how many).
     pub overflowed: Signal<Out, Bit>,
     state: DFF<PacketState>,
-    seq_ctr: DFF<Bits<32>>,
-    pend_first: DFF<Bits<32>>,
-    pend_cnt: DFF<Bits<32>>,
-    ovf_flag: DFF<Bit>,
+    /// The next sequence number and the records lost, pending announcement.
+    seqs: SequenceNumbers,
     in_ovf: DFF<Bit>,
     /// The ROI's counts, one a clock.
     counts: CountStreamer<RCW, CAW, BW>,
@@ -254,17 +257,11 @@ pub struct Packetiser<
     crc_i: DFF<Bits<8>>,
     /// Pass 3: codes in, bytes out.
     packer: BitPacker,
-    /// The output FIFO has room for the packet (`need`), as of last clock.
-    room: DFF<Bit>,
-    /// Decide's second clock on: `room` speaks of this record.
-    dec_ready: DFF<Bit>,
+    /// The packet's lengths by kind and the registered room check.
+    lengths: PacketLength,
     // Combinational.
     is_blink: Signal<Local, Bit>,
     take: Signal<Local, Bit>,
-    payload_len: Signal<Local, Bits<16>>,
-    /// The record's prefix length minus one.
-    rec_prefix_rest: Signal<Local, Bits<16>>,
-    need: Signal<Local, Bits<16>>,
     /// The prefix registers load this clock: with the Overflow packet's
     /// prefix if `prefix_ovf`, else the record's.
     prefix_load: Signal<Local, Bit>,
@@ -277,8 +274,6 @@ pub struct Packetiser<
     in_codes: Signal<Local, Bit>,
     in_pass2: Signal<Local, Bit>,
     // Constants.
-    /// Bytes of a StreamStart packet but its CRC.
-    start_len: Constant<Bits<16>>,
     /// Covers every k scanned ([`rice_candidates`]; a power of two minus one).
     k_mask: Constant<Bits<8>>,
     all_ones: Constant<Bits<RCW>>,
@@ -349,10 +344,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             idle: Default::default(),
             overflowed: Default::default(),
             state: Default::default(),
-            seq_ctr: Default::default(),
-            pend_first: Default::default(),
-            pend_cnt: Default::default(),
-            ovf_flag: Default::default(),
+            seqs: Default::default(),
             in_ovf: Default::default(),
             counts: CountStreamer::new(cfg),
             base: Default::default(),
@@ -370,13 +362,9 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             crc: Default::default(),
             crc_i: Default::default(),
             packer: Default::default(),
-            room: Default::default(),
-            dec_ready: Default::default(),
+            lengths: PacketLength::new(cfg.stream_start_bytes()),
             is_blink: Default::default(),
             take: Default::default(),
-            payload_len: Default::default(),
-            rec_prefix_rest: Default::default(),
-            need: Default::default(),
             prefix_load: Default::default(),
             prefix_ovf: Default::default(),
             the_byte: Default::default(),
@@ -385,7 +373,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             bk: Default::default(),
             in_codes: Default::default(),
             in_pass2: Default::default(),
-            start_len: Constant::new((cfg.stream_start_bytes() as u64).to_bits()),
             k_mask: c8(kn.next_power_of_two() as u64 - 1),
             all_ones: Constant::new(Bits::<RCW>::mask()),
             _r: r,
@@ -405,10 +392,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self,
             clock,
             state,
-            seq_ctr,
-            pend_first,
-            pend_cnt,
-            ovf_flag,
             in_ovf,
             base,
             masked,
@@ -417,9 +400,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             bidx,
             planes_r,
             crc,
-            crc_i,
-            room,
-            dec_ready
+            crc_i
         );
         self.prefix.clock.next = self.clock.val();
         self.packer.clock.next = self.clock.val();
@@ -494,42 +475,32 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.head.base.next = self.base.q.val();
         self.head.k.next = self.choice.k.val();
 
-        // ---- Lengths and the assembled header + fixed payload of each kind.
-        self.payload_len.next = 37.into();
-        self.rec_prefix_rest.next = self.start_len.val() - 1;
-        match self.r_kind.val().index() {
-            1 => {
-                self.payload_len.next =
-                    self.head.varint_len.val() + 36 + self.choice.code_bytes.val();
-                self.rec_prefix_rest.next = self.head.varint_len.val() + 45;
-            }
-            2 => {
-                self.payload_len.next = 14.into();
-                self.rec_prefix_rest.next = 23.into();
-            }
-            3 => {
-                self.payload_len.next = 48.into();
-                self.rec_prefix_rest.next = 57.into();
-            }
-            _ => {
-                self.payload_len.next = self.start_len.val() - 10;
-            }
-        }
-        self.need.next = self.payload_len.val() + 14;
-        if self.pend_cnt.q.val() != 0 {
-            self.need.next = self.payload_len.val() + 36;
-        }
-        // The room check is registered: Decide acts from its second clock,
-        // when `room` was computed from this record's final lengths.
-        self.room.d.next = self.fifo_free.val() >= self.need.val();
-        self.dec_ready.d.next = self.state.q.val() == PacketState::Decide;
+        // ---- Sequence numbers and losses: commands set by the states below.
+        self.seqs.clock.next = self.clock.val();
+        self.seqs.restart.next = self.restart.val();
+        self.seqs.seq_init.next = self.seq_init.val();
+        self.seqs.take.next = false;
+        self.seqs.lost.next = self.r_lost.val();
+        self.seqs.dropped.next = false;
+        self.seqs.announced.next = false;
+        self.seqs.advance.next = false;
+
+        // ---- The packet's lengths by kind; the room check is registered
+        // (Decide acts from its second clock: `lengths.ready`).
+        self.lengths.clock.next = self.clock.val();
+        self.lengths.kind.next = self.r_kind.val();
+        self.lengths.varint_len.next = self.head.varint_len.val();
+        self.lengths.code_bytes.next = self.choice.code_bytes.val();
+        self.lengths.pending.next = self.seqs.pending.val();
+        self.lengths.fifo_free.next = self.fifo_free.val();
+        self.lengths.decide.next = self.state.q.val() == PacketState::Decide;
         // ---- The prefixes, read only when a packet starts (Decide, and Crc
         // after an Overflow packet), and computed only then.
         self.record_prefix.enable.next =
             (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc);
         self.record_prefix.kind.next = self.r_kind.val();
-        self.record_prefix.seq.next = self.seq_ctr.q.val();
-        self.record_prefix.payload_len.next = self.payload_len.val();
+        self.record_prefix.seq.next = self.seqs.seq.val();
+        self.record_prefix.payload_len.next = self.lengths.payload_len.val();
         self.record_prefix.slot.next = self.r_slot.val();
         self.record_prefix.flags.next = self.r_flags.val();
         self.record_prefix.masked.next = self.masked.q.val();
@@ -557,8 +528,8 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.record_prefix.c_dropped.next = self.c_dropped.val();
         self.record_prefix.c_bridged.next = self.c_bridged.val();
         self.record_prefix.c_cuts.next = self.c_cuts.val();
-        self.record_prefix.lost_first.next = self.pend_first.q.val();
-        self.record_prefix.lost_count.next = self.pend_cnt.q.val();
+        self.record_prefix.lost_first.next = self.seqs.lost_first.val();
+        self.record_prefix.lost_count.next = self.seqs.lost_count.val();
 
         // ---- The byte of this clock and the CRC.
         self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
@@ -586,14 +557,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         match self.state.q.val() {
             PacketState::Idle => {
                 if self.r_valid.val() {
-                    if self.r_lost.val() != 0 {
-                        self.ovf_flag.d.next = true;
-                        if self.pend_cnt.q.val() == 0 {
-                            self.pend_first.d.next = self.seq_ctr.q.val();
-                        }
-                        self.pend_cnt.d.next = self.pend_cnt.q.val() + self.r_lost.val();
-                    }
-                    self.seq_ctr.d.next = self.seq_ctr.q.val() + self.r_lost.val();
+                    self.seqs.take.next = true;
                     if self.is_blink.val() {
                         self.state.d.next = PacketState::Wait;
                     } else {
@@ -635,31 +599,27 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
             }
             PacketState::Decide => {
-                if self.dec_ready.q.val() & self.room.q.val() {
+                if self.lengths.ready.val() & self.lengths.room.val() {
                     self.bidx.d.next = 0.into();
                     self.crc.d.next = 0xFFFF_FFFF_u64.into();
                     self.prefix_load.next = true;
                     // Every prefix has 18 bytes or more: its first is not its last.
                     self.prefix_last.d.next = false;
-                    if self.pend_cnt.q.val() != 0 {
+                    if self.seqs.pending.val() {
                         self.prefix_ovf.next = true;
                         self.prefix_rest.d.next = 17.into();
                         self.in_ovf.d.next = true;
                         self.state.d.next = PacketState::Ovf;
                     } else {
-                        self.prefix_rest.d.next = self.rec_prefix_rest.val();
+                        self.prefix_rest.d.next = self.lengths.prefix_rest.val();
                         self.in_ovf.d.next = false;
                         self.state.d.next = PacketState::Emit;
                     }
-                } else if self.dec_ready.q.val()
+                } else if self.lengths.ready.val()
                     & ((self.r_kind.val() == 1) | (self.r_kind.val() == 2))
                 {
                     // No room for the whole packet: drop the record, count it.
-                    self.ovf_flag.d.next = true;
-                    if self.pend_cnt.q.val() == 0 {
-                        self.pend_first.d.next = self.seq_ctr.q.val();
-                    }
-                    self.pend_cnt.d.next = self.pend_cnt.q.val() + 1;
+                    self.seqs.dropped.next = true;
                     self.state.d.next = PacketState::Finish;
                 }
             }
@@ -718,10 +678,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 if self.crc_i.q.val() == 3 {
                     if self.in_ovf.q.val() {
                         // The Overflow packet is out: now the record.
-                        self.pend_cnt.d.next = 0.into();
+                        self.seqs.announced.next = true;
                         self.in_ovf.d.next = false;
                         self.prefix_load.next = true;
-                        self.prefix_rest.d.next = self.rec_prefix_rest.val();
+                        self.prefix_rest.d.next = self.lengths.prefix_rest.val();
                         self.prefix_last.d.next = false;
                         self.bidx.d.next = 0.into();
                         self.crc.d.next = 0xFFFF_FFFF_u64.into();
@@ -734,7 +694,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             PacketState::Finish => {
                 self.r_pop.next = true;
                 self.fb_ret.next = self.is_blink.val();
-                self.seq_ctr.d.next = self.seq_ctr.q.val() + 1;
+                self.seqs.advance.next = true;
                 self.state.d.next = PacketState::Idle;
             }
             _ => {}
@@ -742,9 +702,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
 
         if self.restart.val() {
             self.state.d.next = PacketState::Idle;
-            self.seq_ctr.d.next = self.seq_init.val();
-            self.pend_cnt.d.next = 0.into();
-            self.ovf_flag.d.next = false;
         }
         self.prefix.load.next = self.prefix_load.val();
         for j in 0..self._pb {
@@ -754,6 +711,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
         }
         self.idle.next = (self.state.q.val() == PacketState::Idle) & !self.r_valid.val();
-        self.overflowed.next = self.ovf_flag.q.val();
+        self.overflowed.next = self.seqs.overflowed.val();
     }
 }

@@ -48,8 +48,9 @@ pub struct Netlist {
     pub resources: Resources,
 }
 
-/// What [`yosys_resources`] measured: the Verilog's floors and one
-/// [`Netlist`] per mapping, in [`MAPPINGS`]' order.
+/// What [`yosys_resources`](super::yosys_resources) measured: the
+/// Verilog's floors and one [`Netlist`] per mapping, in
+/// [`MAPPINGS`](super::MAPPINGS)' order.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Synthesis {
     /// Bits of the design's memories before mapping (yosys `stat` after
@@ -76,8 +77,9 @@ impl Synthesis {
 
     /// The netlist with the fewest LUTs (LUT RAM included) among those
     /// within [`LUT_LEVELS_TARGET`] LUT levels, the first of equals: the
-    /// one to quote, since [`ABC_D7`] and [`ABC_D7_READ_BACK`] map one
-    /// design in two orders and either may be the smaller.
+    /// one to quote, since [`ABC_D7`](super::ABC_D7) and
+    /// [`ABC_D7_READ_BACK`](super::ABC_D7_READ_BACK) map one design in two
+    /// orders and either may be the smaller.
     pub fn smallest_within_levels(&self) -> Option<&Netlist> {
         self.netlists
             .iter()
@@ -149,7 +151,7 @@ pub fn parse_ltp(text: &str) -> Option<u64> {
 }
 
 /// The memory bits and multipliers of the first statistics table of a
-/// yosys log ([`PREPARE`]'s `stat` of the flattened design).
+/// yosys log ([`PREPARE`](super::PREPARE)'s `stat` of the flattened design).
 pub fn parse_floors(log: &str) -> Result<(u64, u64), ToolError> {
     let first = log
         .find("Printing statistics")
