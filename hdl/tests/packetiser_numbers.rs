@@ -8,9 +8,10 @@
 //!   decode with every lost record announced on the device and none lost
 //!   in transport. Then random commands and restarts, clock by clock;
 //! * the packet's lengths: random records of every kind (Blinks with ROIs
-//!   of 3×3 to 31×31 and every varint length, StreamStarts with kernels of
-//!   1 to 31 taps), the payload length and the prefix against the model's
-//!   packet, and the registered room check at, below and above the bytes
+//!   of 3×3 to 31×31 and every varint length; the StreamStart of each
+//!   shipped design and of the test configuration, from the model's
+//!   configuration with that design's kernel), the payload length and the
+//!   prefix against the model's packet, and the registered room check at, below and above the bytes
 //!   needed (with and without an Overflow packet first).
 
 mod common;
@@ -19,8 +20,12 @@ use common::records::{random_blink, random_dropped, random_end};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::config::BackHalfConfig;
+use smartagg_hdl::designs::Design;
 use smartagg_hdl::packetiser::{PacketLength, SequenceNumbers};
+use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::testbench::bench::{settle, Bench};
+use smartagg_model::config::PipelineConfig;
 use smartagg_model::packet::{decode_all, encode_record};
 use smartagg_model::record::{OverflowRecord, Record, StreamStart};
 use smartagg_model::rice::{encode_counts, varint_len};
@@ -202,32 +207,11 @@ fn sequence_numbers_announce_every_loss_as_the_models_decoder_reads_it() {
     assert!(restarts > 300, "{restarts} restarts");
 }
 
-/// A record of `kind` (0 StreamStart, 1 Blink, 2 Dropped, 3 StreamEnd):
-/// the record, and for a Blink the bytes of its base's varint and of its
-/// codes.
-fn record(rng: &mut ChaCha8Rng, kind: u64, kernel_len: usize) -> (Record, usize, usize) {
+/// A record of `kind` (0 `start`, 1 Blink, 2 Dropped, 3 StreamEnd): the
+/// record, and for a Blink the bytes of its base's varint and of its codes.
+fn record(rng: &mut ChaCha8Rng, kind: u64, start: &StreamStart) -> (Record, usize, usize) {
     match kind {
-        0 => (
-            Record::Start(StreamStart {
-                width: 320,
-                height: 240,
-                n_window: rng.gen_range(1..256),
-                threshold_int: rng.gen(),
-                threshold_hold: rng.gen(),
-                end_trim: Some(rng.gen_range(0..8)),
-                l_min: rng.gen(),
-                l_max: rng.gen(),
-                r_assoc: 2,
-                slots: 32,
-                roi_size: 9,
-                kernel_shift: 8,
-                kernel: (0..kernel_len).map(|_| rng.gen()).collect(),
-                plane_period_ns: 100_000,
-                masked_pixels: rng.gen(),
-            }),
-            0,
-            0,
-        ),
+        0 => (Record::Start(start.clone()), 0, 0),
         1 => {
             let r = 2 * rng.gen_range(1..=15) + 1;
             let mut blink = random_blink(rng, r);
@@ -258,13 +242,31 @@ fn packet_lengths_are_the_models_and_the_room_check_is_exact() {
     });
     encode_record(&overflow, 5, &mut ovf).unwrap();
     let (mut varints, mut rooms, mut no_rooms) = ([0; 6], 0, 0);
-    for kernel_len in [1, 3, 9, 17, 31] {
-        // The StreamStart packet but its CRC, as the configuration gives it.
-        let start_bytes = 51 + 2 * kernel_len;
-        let mut b = Bench::new(PacketLength::new(start_bytes), |u| &mut u.clock);
+    let mut configs: Vec<(String, BackHalfConfig)> = Design::all()
+        .unwrap()
+        .into_iter()
+        .map(|d| (d.name(), d.config))
+        .collect();
+    configs.push(("test".into(), test_back_config(4, 3, 1).unwrap()));
+    for (name, cfg) in &configs {
+        // The design's StreamStart, as the model's configuration with its
+        // kernel announces it; the block sized by the gateware's own count.
+        let f = &cfg.front;
+        let start = PipelineConfig::new(
+            f.width,
+            f.height,
+            f.n_max,
+            f.kernel.clone(),
+            f.kernel_shift,
+            1,
+        )
+        .stream_start();
+        let mut b = Bench::new(PacketLength::new(cfg.stream_start_bytes()), |u| {
+            &mut u.clock
+        });
         for i in 0..600 {
             let kind = i % 4;
-            let (rec, v, code_bytes) = record(&mut rng, kind, kernel_len);
+            let (rec, v, code_bytes) = record(&mut rng, kind, &start);
             let mut packet = Vec::new();
             encode_record(&rec, rng.gen(), &mut packet).unwrap();
             varints[v] += 1;
@@ -285,7 +287,7 @@ fn packet_lengths_are_the_models_and_the_room_check_is_exact() {
             // Decide's first clock: the room check is being made.
             u.decide.next = true;
             settle(u);
-            let what = format!("kernel {kernel_len}, record {i} ({kind}): {rec:?}");
+            let what = format!("{name}, record {i} ({kind}): {rec:?}");
             assert_eq!(
                 u.payload_len.val().to_u64() as usize,
                 packet.len() - 14,
