@@ -64,7 +64,7 @@
 //!   and what an opening would write ([`OpeningWindows`]);
 //! * the *decide* stage acts on it in Run: the association against the
 //!   current flags, the opening or drop, the hits, the end-of-row step
-//!   ([`OnOffStep`]).
+//!   ([`OnOffStep`], in [`SlotFlags`]).
 //!
 //! Only an opening changes what the compare stage reads (the new slot's
 //! window), and only for a candidate: a candidate compared in the clock of
@@ -137,15 +137,13 @@
 //! a simulator such as Verilator copies every register on every clock
 //! (those copies were 29 % of the full-field co-simulation's time with one
 //! register per slot and field), so it is packed: one [`MAX_SLOTS`]-bit
-//! register per flag (bit i: slot i), one 64-bit word per slot for the
-//! anchor, window rows and bank ([`slot_word`]), one for the window's two
-//! lane masks, and one per ROI view entry ([`shadow`]). Synthesis maps the
-//! same flip-flops either way. A clock may write a flag of several slots
-//! (the end-of-row step), so each flag is built bit by bit in a local
-//! (`busy_nx`, …) that goes to `d` at the end; a slot's words are written at
-//! most once a clock (the walks and openings of one clock touch different
-//! slots; the end-of-row step writes flags only) and only `restart`, last,
-//! overrides them.
+//! register per flag (bit i: slot i; [`SlotFlags`], which makes every write
+//! to the flags), one 64-bit word per slot for the anchor, window rows and
+//! bank ([`slot_word`]), one for the window's two lane masks, and one per
+//! ROI view entry ([`shadow`]). Synthesis maps the same flip-flops either
+//! way. A slot's words are written at most once a clock (the walks and
+//! openings of one clock touch different slots; the end-of-row step writes
+//! flags only) and only `restart`, last, overrides them.
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
@@ -160,6 +158,7 @@ mod layout;
 mod on_off_step;
 mod opening;
 mod slot_compare;
+mod slot_flags;
 mod slot_mux;
 mod walk_memory;
 mod walk_stages;
@@ -170,6 +169,7 @@ pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
 pub use on_off_step::OnOffStep;
 pub use opening::OpeningWindows;
 pub use slot_compare::SlotCompare;
+pub use slot_flags::SlotFlags;
 pub use slot_mux::SlotMux;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_stages::WalkStages;
@@ -334,19 +334,12 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     c_cuts: DFF<Bits<64>>,
     bank_err: DFF<Bit>,
     bank_waits: DFF<Bits<4>>,
-    // Per slot, packed (see "Registers" in the module doc): one bit per
-    // slot of each flag, one word per slot of the anchor, window rows and
+    // Per slot, packed (see "Registers" in the module doc): the flags (a
+    // block of their own), one word per slot of the anchor, window rows and
     // bank (`geo`, offsets in [`slot_word`]) and of the window's two lane
     // masks (`win`: low word's at bit 0, high word's at bit 32).
-    busy: DFF<Bits<MAX_SLOTS>>,
-    live: DFF<Bits<MAX_SLOTS>>,
-    dip: DFF<Bits<MAX_SLOTS>>,
-    pend: DFF<Bits<MAX_SLOTS>>,
-    aprev: DFF<Bits<MAX_SLOTS>>,
-    fprev: DFF<Bits<MAX_SLOTS>>,
-    opened: DFF<Bits<MAX_SLOTS>>,
-    hit: DFF<Bits<MAX_SLOTS>>,
-    ev_bridge: DFF<Bits<MAX_SLOTS>>,
+    /// The slots' flags and their writes.
+    flags: SlotFlags,
     geo: Vec<DFF<Bits<64>>>,
     win: Vec<DFF<Bits<64>>>,
     /// Per slot, the association window around its anchor, which a
@@ -360,8 +353,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     opening: OpeningWindows<P>,
     /// The compare stage's comparisons of the item with every slot.
     compare: SlotCompare<P>,
-    /// The on/off step of the slots whose window ends with the decided row.
-    on_off: OnOffStep,
     // The compare stage: the item, what it does to each slot (bit i: slot
     // i), and what an opening writes.
     r_valid: DFF<Bit>,
@@ -386,16 +377,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// is followed by a replay, a walk by WalkEnd, before it is read).
     fpick: DFF<Bits<MAX_SLOTS>>,
     fpick_any: DFF<Bit>,
-    // What the clock's writes make of them so far (`d` once all are done).
-    busy_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    live_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    dip_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    pend_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    aprev_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    fprev_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    opened_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    hit_nx: Signal<Local, Bits<MAX_SLOTS>>,
-    ev_bridge_nx: Signal<Local, Bits<MAX_SLOTS>>,
     /// The fields that only the walks read, one word per slot in LUT RAM,
     /// read a clock ahead at the read stage's slot.
     walk_words: WalkMemory,
@@ -431,7 +412,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     s_cx: Signal<Local, Bits<COORD_BITS>>,
     s_cy: Signal<Local, Bits<COORD_BITS>>,
     free_v: Signal<Local, Bits<MAX_SLOTS>>,
-    on_v: Signal<Local, Bits<MAX_SLOTS>>,
     /// An opening's ROI view `pre` flag (plane t ≥ N), at its offset.
     sh_pre: Signal<Local, Bits<64>>,
     par: Signal<Local, Bit>,
@@ -461,8 +441,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// plane) that the stream end's `finish` keeps: all, but the flags if
     /// the track ends unconfirmed (freed: it sums nothing more).
     fin_keep: Signal<Local, Bits<64>>,
-    /// The walked slot is free for plane t + 1.
-    n_free: Signal<Local, Bit>,
     we_walk: Signal<Local, Bit>,
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
@@ -479,8 +457,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     win_used: Constant<Bits<64>>,
     sh_used: Constant<Bits<64>>,
     geo_keep: Constant<Bits<64>>,
-    /// One bit per slot.
-    slot_bits: Constant<Bits<MAX_SLOTS>>,
     last_slot: Constant<Bits<8>>,
     _m: usize,
 }
@@ -595,15 +571,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             c_cuts: Default::default(),
             bank_err: Default::default(),
             bank_waits: Default::default(),
-            busy: Default::default(),
-            live: Default::default(),
-            dip: Default::default(),
-            pend: Default::default(),
-            aprev: Default::default(),
-            fprev: Default::default(),
-            opened: Default::default(),
-            hit: Default::default(),
-            ev_bridge: Default::default(),
+            flags: SlotFlags::new(m),
             geo: lanes(m),
             win: lanes(m),
             bnd: lanes(m),
@@ -624,21 +592,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             replay: Default::default(),
             fpick: Default::default(),
             fpick_any: Default::default(),
-            busy_nx: Default::default(),
-            live_nx: Default::default(),
-            dip_nx: Default::default(),
-            pend_nx: Default::default(),
-            aprev_nx: Default::default(),
-            fprev_nx: Default::default(),
-            opened_nx: Default::default(),
-            hit_nx: Default::default(),
-            ev_bridge_nx: Default::default(),
             walk_words: WalkMemory::new(m),
             read: SlotMux::new(m),
             items: ItemStage::new(cfg),
             opening: OpeningWindows::new(cfg),
             compare: SlotCompare::new(m),
-            on_off: OnOffStep::new(m),
             sv: lanes(2 * m),
             n_mc: Default::default(),
             mc_one: Default::default(),
@@ -656,7 +614,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             s_cx: Default::default(),
             s_cy: Default::default(),
             free_v: Default::default(),
-            on_v: Default::default(),
             sh_pre: Default::default(),
             par: Default::default(),
             par1: Default::default(),
@@ -677,7 +634,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             n_bank_w: Default::default(),
             n_sh: Default::default(),
             fin_keep: Default::default(),
-            n_free: Default::default(),
             we_walk: Default::default(),
             we_fin: Default::default(),
             we_drain: Default::default(),
@@ -691,15 +647,15 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             win_used: Constant::new(win_used.to_bits()),
             sh_used: Constant::new(sh_used.to_bits()),
             geo_keep: Constant::new((geo_used & !bank_bits).to_bits()),
-            slot_bits: Constant::new(((1u64 << m) - 1).to_bits()),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
             _m: m,
         })
     }
 }
 
-// Match guards do not translate to Verilog, so the ifs stay inside the arms.
-#[allow(clippy::collapsible_match)]
+// Match guards do not translate to Verilog, so the ifs stay inside the arms;
+// Run's decided item keeps its end-of-row test nested, as the state reads it.
+#[allow(clippy::collapsible_match, clippy::collapsible_if)]
 impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P, NW, BW> {
     #[hdl_gen]
     fn update(&mut self) {
@@ -711,17 +667,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         );
         self.walk_words.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
-        // (The flags' `d` is their `_nx`, assigned at the end.)
-        clock!(self, clock, busy, live, dip, pend, aprev, fprev, opened, hit, ev_bridge);
-        self.busy_nx.next = self.busy.q.val();
-        self.live_nx.next = self.live.q.val();
-        self.dip_nx.next = self.dip.q.val();
-        self.pend_nx.next = self.pend.q.val();
-        self.aprev_nx.next = self.aprev.q.val();
-        self.fprev_nx.next = self.fprev.q.val();
-        self.opened_nx.next = self.opened.q.val();
-        self.hit_nx.next = self.hit.q.val();
-        self.ev_bridge_nx.next = self.ev_bridge.q.val();
+        self.flags.clock.next = self.clock.val();
         for i in 0..self._m {
             self.geo[i].clock.next = self.clock.val();
             self.win[i].clock.next = self.clock.val();
@@ -848,13 +794,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // opening of the previous clock is in the flags already but not in
         // the compares: a candidate compared then is replayed (`replay`).
         // The lowest free slot is a register of the previous clock's flags.
-        self.free_v.next = self.fprev.q.val() & !self.opened.q.val();
+        self.free_v.next = self.flags.free_before.val() & !self.flags.opened.val();
         self.fpick.d.next = self.free_v.val() & (!self.free_v.val() + 1);
         self.fpick_any.d.next = self.free_v.val().any();
-        self.absorbed.next =
-            (self.busy.q.val() & (self.aprev.q.val() | self.opened.q.val()) & self.r_near.q.val())
-                .any();
-        self.on_v.next = self.hit.q.val() | self.r_hw.q.val();
+        self.absorbed.next = (self.flags.busy.val()
+            & (self.flags.active_before.val() | self.flags.opened.val())
+            & self.r_near.q.val())
+        .any();
         self.do_open.next =
             self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & self.fpick_any.q.val();
         self.do_drop.next =
@@ -908,12 +854,12 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // ahead (at `walk.d`).
         self.read.slot.next = self.walk.q.val();
         self.read.enable.next = self.rd_on.q.val();
-        self.read.busy.next = self.busy.q.val();
-        self.read.live.next = self.live.q.val();
-        self.read.dip.next = self.dip.q.val();
-        self.read.pend.next = self.pend.q.val();
-        self.read.opened.next = self.opened.q.val();
-        self.read.bridges.next = self.ev_bridge.q.val();
+        self.read.busy.next = self.flags.busy.val();
+        self.read.live.next = self.flags.live.val();
+        self.read.dip.next = self.flags.dip.val();
+        self.read.pend.next = self.flags.pend.val();
+        self.read.opened.next = self.flags.opened.val();
+        self.read.bridges.next = self.flags.bridges.val();
         for i in 0..self._m {
             self.read.anchor_cols[i].next = self.geo[i].q.val().get_bits::<10>(0);
             self.read.anchor_rows[i].next = self.geo[i].q.val().get_bits::<10>(10);
@@ -1004,7 +950,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             | (bit_cast::<64, 1>((self.stages.n_fresh.val() & self.we_walk.val()).into()) << 63);
         // (A value shifted into a wider word is a signal of its own: Verilog
         // widens the operands of `~` before inverting them.)
-        self.n_free.next = !self.stages.n_busy.val();
         self.fin_keep.next = self.sh_used.val();
         if self.stages.fin_unconf.val() {
             self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
@@ -1028,7 +973,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     self.rd_on.d.next = self.t.q.val() != 0;
                     self.state.d.next = TrackerState::Finish;
                 } else if self.d_go.val() {
-                    self.hit_nx.next = self.on_v.val();
                     if self.r_last.q.val() & self.r_eor.q.val() {
                         self.rows.d.next = bit_cast::<16, 10>(self.r_yc.q.val()) + 1;
                         if self.r_lastrow.q.val() {
@@ -1133,46 +1077,17 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // ---- The walks write the walked slot. (Packed registers: each
-        // write replaces its bits of `d` as assigned so far.)
+        // ---- The walks write the walked slot's words (its flags are
+        // written in `flags`). (Packed registers: each write replaces its
+        // bits of `d` as assigned so far.)
         if self.stages.valid.val() {
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
-                    if self.stages.sel.val().get_bit(i) & self.we_walk.val() {
-                        self.busy_nx.next =
-                            self.busy_nx.val().replace_bit(i, self.stages.n_busy.val());
-                        self.live_nx.next =
-                            self.live_nx.val().replace_bit(i, self.stages.n_live.val());
-                        self.pend_nx.next = self.pend_nx.val().replace_bit(i, false);
-                        self.ev_bridge_nx.next = self.ev_bridge_nx.val().replace_bit(i, false);
-                        if self.stages.cut.val() {
-                            self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                        }
+                    if self.stages.sel.val().get_bit(i)
+                        & (self.we_walk.val() | (self.we_emit.val() & self.stages.busy.val()))
+                    {
                         self.geo[i].d.next =
                             (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
-                        // Association state at the end of plane t.
-                        self.aprev_nx.next = self
-                            .aprev_nx
-                            .val()
-                            .replace_bit(i, self.stages.n_busy.val() & self.stages.n_live.val());
-                        self.fprev_nx.next = self.fprev_nx.val().replace_bit(i, self.n_free.val());
-                        self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
-                        self.hit_nx.next = self.hit_nx.val().replace_bit(i, false);
-                    }
-                    // (`opened` too, so that the drain walks and Emit read the
-                    // word `finish` writes.)
-                    if self.stages.sel.val().get_bit(i) & self.we_fin.val() {
-                        self.opened_nx.next = self.opened_nx.val().replace_bit(i, false);
-                    }
-                    if self.stages.sel.val().get_bit(i)
-                        & self.we_fin.val()
-                        & self.stages.fin_end.val()
-                    {
-                        self.live_nx.next = self.live_nx.val().replace_bit(i, false);
-                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                        if self.stages.fin_unconf.val() {
-                            self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
-                        }
                     }
                     if self.stages.sel.val().get_bit(i) & self.we_fin.val() {
                         if self.par.val() {
@@ -1180,14 +1095,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         } else {
                             self.sv[i].d.next = self.sv[i].q.val() & self.fin_keep.val();
                         }
-                    }
-                    if self.stages.sel.val().get_bit(i)
-                        & self.we_emit.val()
-                        & self.stages.busy.val()
-                    {
-                        self.busy_nx.next = self.busy_nx.val().replace_bit(i, false);
-                        self.geo[i].d.next =
-                            (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
                     }
                     // The slot's ROI view for plane t + 1.
                     if self.stages.sel.val().get_bit(i) & (self.we_walk.val() | self.we_drain.val())
@@ -1207,10 +1114,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             for mm in self._m..(self._m + 1) {
                 for i in 0..self._m {
                     if self.do_open.val() & self.fpick.q.val().get_bit(i) {
-                        self.busy_nx.next = self.busy_nx.val().replace_bit(i, true);
-                        self.live_nx.next = self.live_nx.val().replace_bit(i, true);
-                        self.dip_nx.next = self.dip_nx.val().replace_bit(i, false);
-                        self.opened_nx.next = self.opened_nx.val().replace_bit(i, true);
                         self.geo[i].d.next =
                             (self.geo[i].q.val() & self.bank_mask.val()) | self.r_geo.q.val();
                         self.win[i].d.next = self.r_win.q.val();
@@ -1237,24 +1140,29 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
         }
 
-        // ---- End of a row: the on/off step of slots whose 3x3 window has
-        // streamed ([`OnOffStep`]). An end of the blink at t − 1 only marks
-        // the slot `pend`: the walk settles its t_drop and confirmation, and
-        // its view of plane t stays (it sums B_{t−N} at dage = 1 ≤
-        // N − end_trim).
-        self.on_off.enable.next = self.do_fin.val();
-        self.on_off.active_before.next = self.aprev.q.val();
-        self.on_off.busy.next = self.busy.q.val();
-        self.on_off.live.next = self.live.q.val();
-        self.on_off.dip.next = self.dip.q.val();
-        self.on_off.row_end.next = self.r_frow.q.val();
-        self.on_off.on.next = self.on_v.val();
-        self.dip_nx.next = (self.dip_nx.val()
-            & !(self.on_off.bridge.val() | self.on_off.ends.val()))
-            | self.on_off.dip_starts.val();
-        self.ev_bridge_nx.next = self.ev_bridge_nx.val() | self.on_off.bridge.val();
-        self.live_nx.next = self.live_nx.val() & !self.on_off.ends.val();
-        self.pend_nx.next = self.pend_nx.val() | self.on_off.ends.val();
+        // ---- The slots' flags ([`SlotFlags`]): the decided word's hits and,
+        // at the end of a row, the on/off step of the slots whose 3x3 window
+        // has streamed (an end of the blink at t − 1 only marks the slot
+        // `pend`: the walk settles its t_drop and confirmation, and its view
+        // of plane t stays, as it sums B_{t−N} at dage = 1 ≤ N − end_trim);
+        // the opening; the walked slot.
+        self.flags.restart.next = self.restart.val();
+        self.flags.decide.next = self.d_go.val() & !self.fin_cond.val();
+        self.flags.hits.next = self.r_hw.q.val();
+        self.flags.step.next = self.do_fin.val();
+        self.flags.row_end.next = self.r_frow.q.val();
+        self.flags.open.next = self.do_open.val();
+        self.flags.open_slot.next = self.fpick.q.val();
+        self.flags.walk_slot.next = self.stages.sel.val();
+        self.flags.end_of_plane.next = self.we_walk.val();
+        self.flags.finish.next = self.we_fin.val();
+        self.flags.emit.next = self.we_emit.val();
+        self.flags.was_busy.next = self.stages.busy.val();
+        self.flags.next_busy.next = self.stages.n_busy.val();
+        self.flags.next_live.next = self.stages.n_live.val();
+        self.flags.cut.next = self.stages.cut.val();
+        self.flags.ends.next = self.stages.fin_end.val();
+        self.flags.unconfirmed.next = self.stages.fin_unconf.val();
 
         if self.restart.val() {
             self.state.d.next = TrackerState::Done;
@@ -1275,14 +1183,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.c_bridged.d.next = 0.into();
             self.c_cuts.d.next = 0.into();
             self.bank_err.d.next = false;
-            self.busy_nx.next = 0.into();
-            self.live_nx.next = 0.into();
-            self.aprev_nx.next = 0.into();
-            self.fprev_nx.next = self.slot_bits.val();
-            self.opened_nx.next = 0.into();
-            self.hit_nx.next = 0.into();
-            self.pend_nx.next = 0.into();
-            self.ev_bridge_nx.next = 0.into();
             // Every slot free with its first bank, every ROI view entry
             // without flags: the other fields are read only after an
             // opening or a walk has written them.
@@ -1293,17 +1193,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 self.sv[q].d.next = 0.into();
             }
         }
-
-        // The packed registers take what the writes above made of them.
-        self.busy.d.next = self.busy_nx.val();
-        self.live.d.next = self.live_nx.val();
-        self.dip.d.next = self.dip_nx.val();
-        self.pend.d.next = self.pend_nx.val();
-        self.aprev.d.next = self.aprev_nx.val();
-        self.fprev.d.next = self.fprev_nx.val();
-        self.opened.d.next = self.opened_nx.val();
-        self.hit.d.next = self.hit_nx.val();
-        self.ev_bridge.d.next = self.ev_bridge_nx.val();
 
         // The walk words of the slot the read stage is at on the next clock.
         self.walk_words.restart.next = self.restart.val();

@@ -145,6 +145,14 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
         "stages$sel",
         "the walked slot's one-hot, of which the tracker reads its M slots' bits",
     ),
+    (
+        "walk_slot",
+        "the walked slot's one-hot, of which the flags read their M slots' bits",
+    ),
+    (
+        "open_slot",
+        "the opened slot's one-hot, of which the flags read their M slots' bits",
+    ),
     ("read_address", "block-RAM addresses wider than the memory"),
     ("write_address", "block-RAM addresses wider than the memory"),
     (

@@ -10,9 +10,10 @@
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the ROI aggregator's row cover, lowest slot, view
 //! multiplexer and ROI row; the blink tracker's item stage, opening
-//! windows, slot compare, on/off step, read multiplexer, walk stages and
-//! walk memory, which it both drives and reads; the packetiser's bit packer,
-//! whose flags choose the command the packetiser gives it). No signal
+//! windows, slot compare, slots' flags, read multiplexer, walk stages and
+//! walk memory, which it both drives and reads, and the flags' on/off
+//! step; the packetiser's bit packer, whose flags choose the command the
+//! packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
 //! signal — but Verilator flags the processes `UNOPTFLAT` and re-runs them
 //! until they settle, among them the blink tracker's and the packetiser's,
@@ -35,9 +36,9 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
     ),
     // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
-    // opening windows, slot compare, on/off step, read multiplexer and walk
-    // stages, whose outputs the tracker reads back (the item stage's `pop`
-    // is a function of `take`, the walk stages' `take` of `done`), and the
+    // opening windows, slot compare, read multiplexer and walk stages,
+    // whose outputs the tracker reads back (the item stage's `pop` is a
+    // function of `take`, the walk stages' `take` of `done`), and the
     // locals they are computed from (functions of the tracker's registers,
     // of its inputs and of the sub-blocks' outputs; `done` is a function
     // of the `we_*`).
@@ -48,7 +49,6 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "opening$*",
             "stages$*",
             "compare$*",
-            "on_off$*",
             "read$*",
             "run",
             "d_go",
@@ -56,7 +56,6 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "r_from_x",
             "s_cx",
             "s_cy",
-            "on_v",
             "do_fin",
             "need_bank",
             "bank_wait",
@@ -88,6 +87,25 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
     (
         "(clock,start,send,append,code,len,pad,full,empty,next_byte);",
         &["full", "empty", "next_byte", "shifted", "low", "pad_shift"],
+    ),
+    // crate::blink_tracker::SlotFlags: its outputs, functions of its
+    // registers, which the tracker reads while it drives the inputs; and
+    // the inputs of its on/off step, whose outputs it reads back, with the
+    // plane's hits they are computed from.
+    (
+        ",opened,bridges,active_before,free_before);",
+        &[
+            "busy",
+            "live",
+            "dip",
+            "pend",
+            "opened",
+            "bridges",
+            "active_before",
+            "free_before",
+            "on_off$*",
+            "on_v",
+        ],
     ),
     // crate::blink_tracker::WalkMemory: its word, a function of its
     // registers and memories, which the tracker reads while it drives the

@@ -12,14 +12,19 @@
 //!   ending, by the model's rule, disjoint, none when not enabled or past M;
 //! * the read multiplexer: random slot states of 3 and of 32 slots read at
 //!   every index (past M included), on and off: the slot's flags, anchor
-//!   and bank and its one-hot, 0 past M or when off.
+//!   and bank and its one-hot, 0 past M or when off;
+//! * the slots' flags: 20,000 clocks of random commands (decide, the on/off
+//!   step, openings, the three walks, restarts; one-hot slots and, one in
+//!   ten, any bits) to 1, 5 and 32 slots, every flag of every slot after
+//!   every clock by the tracker's rules, slot by slot.
 
 mod common;
 
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use rust_hdl::prelude::*;
-use smartagg_hdl::blink_tracker::{OnOffStep, SlotCompare, SlotMux};
-use smartagg_hdl::testbench::bench::settle;
+use smartagg_hdl::blink_tracker::{OnOffStep, SlotCompare, SlotFlags, SlotMux};
+use smartagg_hdl::testbench::bench::{settle, Bench};
 
 /// One slot as the compare stage sees it.
 #[derive(Clone, Copy, Debug)]
@@ -317,4 +322,219 @@ fn slot_mux_case(m: usize, seed: u64) {
 fn slot_mux_reads_the_walked_slot() {
     slot_mux_case(3, 36);
     slot_mux_case(32, 37);
+}
+
+/// One slot's flags, as the tracker's rules define them.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Flags {
+    busy: bool,
+    live: bool,
+    dip: bool,
+    pend: bool,
+    opened: bool,
+    bridge: bool,
+    active_before: bool,
+    free_before: bool,
+    hit: bool,
+}
+
+/// One clock's commands to the flags.
+#[derive(Clone, Copy, Debug, Default)]
+struct FlagCommands {
+    restart: bool,
+    decide: bool,
+    hits: u64,
+    step: bool,
+    row_end: u64,
+    open: bool,
+    open_slot: u64,
+    walk_slot: u64,
+    /// 0 none, 1 the end of a plane, 2 finish, 3 emit.
+    walk: u8,
+    was_busy: bool,
+    next_busy: bool,
+    next_live: bool,
+    cut: bool,
+    ends: bool,
+    unconfirmed: bool,
+}
+
+/// Slot `i`'s flags after a clock of `c` (slots past `m` are written only
+/// by the restart). The rules of the tracker's doc, slot by slot: the
+/// walk, the opening, the on/off step of the decided row, the restart.
+fn flags_after(f: &Flags, c: &FlagCommands, i: usize, m: usize) -> Flags {
+    let bit = |v: u64| v >> i & 1 == 1;
+    let mut n = *f;
+    // The on/off step reads the flags before the clock and the plane's hits
+    // with the decided word's.
+    let on = f.hit || bit(c.hits);
+    if c.decide {
+        n.hit = on;
+    }
+    if i < m && bit(c.walk_slot) {
+        match c.walk {
+            1 => {
+                n.busy = c.next_busy;
+                n.live = c.next_live;
+                n.pend = false;
+                n.bridge = false;
+                if c.cut {
+                    n.dip = false;
+                }
+                n.active_before = c.next_busy && c.next_live;
+                n.free_before = !c.next_busy;
+                n.opened = false;
+                n.hit = false;
+            }
+            2 => {
+                n.opened = false;
+                if c.ends {
+                    n.live = false;
+                    n.dip = false;
+                    if c.unconfirmed {
+                        n.busy = false;
+                    }
+                }
+            }
+            3 if c.was_busy => n.busy = false,
+            _ => {}
+        }
+    }
+    if i < m && c.open && bit(c.open_slot) {
+        n.busy = true;
+        n.live = true;
+        n.dip = false;
+        n.opened = true;
+    }
+    if i < m && c.step && f.active_before && f.busy && f.live && bit(c.row_end) {
+        match (on, f.dip) {
+            (true, true) => {
+                n.dip = false;
+                n.bridge = true;
+            }
+            (false, false) => n.dip = true,
+            (false, true) => {
+                n.dip = false;
+                n.live = false;
+                n.pend = true;
+            }
+            (true, false) => {}
+        }
+    }
+    if c.restart {
+        n = Flags {
+            dip: n.dip,
+            free_before: i < m,
+            ..Flags::default()
+        };
+    }
+    n
+}
+
+fn flags_case(m: usize, seed: u64) {
+    let mut b = Bench::new(SlotFlags::new(m), |u| &mut u.clock);
+    let mut rng = common::rng(seed);
+    let mut want = [Flags::default(); 32];
+    // Events seen: bridges, dips started, ends, openings, walks of each kind.
+    let mut seen = [0u32; 7];
+    let one_hot = |rng: &mut ChaCha8Rng| -> u64 {
+        if rng.gen_bool(0.1) {
+            rng.gen::<u32>() as u64
+        } else {
+            1 << rng.gen_range(0..32.min(m + 2))
+        }
+    };
+    for clock in 0..20_000 {
+        let c = FlagCommands {
+            restart: clock == 0 || rng.gen_bool(0.003),
+            decide: rng.gen_bool(0.6),
+            hits: rng.gen::<u32>() as u64 & rng.gen::<u32>() as u64,
+            step: rng.gen_bool(0.4),
+            row_end: rng.gen::<u32>() as u64 | rng.gen::<u32>() as u64,
+            open: rng.gen_bool(0.3),
+            open_slot: one_hot(&mut rng),
+            walk_slot: one_hot(&mut rng),
+            walk: rng.gen_range(0..4),
+            was_busy: rng.gen_bool(0.7),
+            next_busy: rng.gen_bool(0.6),
+            next_live: rng.gen_bool(0.6),
+            cut: rng.gen_bool(0.3),
+            ends: rng.gen_bool(0.5),
+            unconfirmed: rng.gen_bool(0.5),
+        };
+        let u = &mut b.uut;
+        u.restart.next = c.restart;
+        u.decide.next = c.decide;
+        u.hits.next = c.hits.to_bits();
+        u.step.next = c.step;
+        u.row_end.next = c.row_end.to_bits();
+        u.open.next = c.open;
+        u.open_slot.next = c.open_slot.to_bits();
+        u.walk_slot.next = c.walk_slot.to_bits();
+        u.end_of_plane.next = c.walk == 1;
+        u.finish.next = c.walk == 2;
+        u.emit.next = c.walk == 3;
+        u.was_busy.next = c.was_busy;
+        u.next_busy.next = c.next_busy;
+        u.next_live.next = c.next_live;
+        u.cut.next = c.cut;
+        u.ends.next = c.ends;
+        u.unconfirmed.next = c.unconfirmed;
+        b.tick();
+        for (i, w) in want.iter_mut().enumerate() {
+            let n = flags_after(w, &c, i, m);
+            if i < m && !c.restart {
+                seen[0] += (n.bridge && !w.bridge) as u32;
+                seen[1] += (n.dip && !w.dip) as u32;
+                seen[2] += (n.pend && !w.pend) as u32;
+                seen[3] += (n.opened && !w.opened) as u32;
+                if c.walk != 0 && bit_of(c.walk_slot, i) {
+                    seen[3 + c.walk as usize] += 1;
+                }
+            }
+            *w = n;
+        }
+        let u = &mut b.uut;
+        let outputs = [
+            (u.busy.val().to_u64(), "busy"),
+            (u.live.val().to_u64(), "live"),
+            (u.dip.val().to_u64(), "dip"),
+            (u.pend.val().to_u64(), "pend"),
+            (u.opened.val().to_u64(), "opened"),
+            (u.bridges.val().to_u64(), "bridges"),
+            (u.active_before.val().to_u64(), "active_before"),
+            (u.free_before.val().to_u64(), "free_before"),
+        ];
+        for (i, w) in want.iter().enumerate() {
+            let wanted = [
+                w.busy,
+                w.live,
+                w.dip,
+                w.pend,
+                w.opened,
+                w.bridge,
+                w.active_before,
+                w.free_before,
+            ];
+            for ((got, name), wanted) in outputs.iter().zip(wanted) {
+                assert_eq!(
+                    bit_of(*got, i),
+                    wanted,
+                    "m {m}, clock {clock}, slot {i}: {name}, after {c:?}"
+                );
+            }
+        }
+    }
+    assert!(seen.iter().all(|&s| s >= 20), "m {m}: {seen:?}");
+}
+
+fn bit_of(v: u64, i: usize) -> bool {
+    v >> i & 1 == 1
+}
+
+#[test]
+fn slot_flags_follow_the_walks_openings_and_on_off_steps() {
+    flags_case(1, 41);
+    flags_case(5, 42);
+    flags_case(32, 43);
 }
