@@ -139,11 +139,14 @@
 //! register per slot and field), so it is packed: one [`MAX_SLOTS`]-bit
 //! register per flag (bit i: slot i; [`SlotFlags`], which makes every write
 //! to the flags), one 64-bit word per slot for the anchor, window rows and
-//! bank ([`slot_word`]), one for the window's two lane masks, and one per
-//! ROI view entry ([`shadow`]). Synthesis maps the same flip-flops either
-//! way. A slot's words are written at most once a clock (the walks and
-//! openings of one clock touch different slots; the end-of-row step writes
-//! flags only) and only `restart`, last, overrides them.
+//! bank ([`slot_word`]), one for the window's two lane masks, one for its
+//! association window, and one per ROI view entry ([`shadow`];
+//! [`SlotWords`], which makes every write to the words). Synthesis maps
+//! the same flip-flops either way. A slot's words are written at most once
+//! a clock (the walks and openings of one clock touch different slots; the
+//! end-of-row step writes flags only) and only `restart`, last, overrides
+//! them. The StreamEnd totals, the plane's drops and the bank error are
+//! [`TrackerCounters`].
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
@@ -153,6 +156,7 @@
 //! `dage ≤ N − end_trim`), emits the finished segments in slot order and
 //! then StreamEnd.
 
+mod counters;
 mod item_stage;
 mod layout;
 mod on_off_step;
@@ -160,10 +164,12 @@ mod opening;
 mod slot_compare;
 mod slot_flags;
 mod slot_mux;
+mod slot_words;
 mod walk_memory;
 mod walk_stages;
 mod walk_step;
 
+pub use counters::TrackerCounters;
 pub use item_stage::ItemStage;
 pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
 pub use on_off_step::OnOffStep;
@@ -171,6 +177,7 @@ pub use opening::OpeningWindows;
 pub use slot_compare::SlotCompare;
 pub use slot_flags::SlotFlags;
 pub use slot_mux::SlotMux;
+pub use slot_words::SlotWords;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_stages::WalkStages;
 pub use walk_step::{walk_word, WalkStep};
@@ -324,28 +331,14 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// and `walk_words`' read address does not wait on the state machine.
     walk: DFF<Bits<8>>,
     lost: DFF<Bits<32>>,
-    drops: DFF<Bits<32>>,
-    drop_x: DFF<Bits<COORD_BITS>>,
-    drop_y: DFF<Bits<COORD_BITS>>,
-    c_blinks: DFF<Bits<64>>,
-    c_unconf: DFF<Bits<64>>,
-    c_dropped: DFF<Bits<64>>,
-    c_bridged: DFF<Bits<64>>,
-    c_cuts: DFF<Bits<64>>,
-    bank_err: DFF<Bit>,
-    bank_waits: DFF<Bits<4>>,
-    // Per slot, packed (see "Registers" in the module doc): the flags (a
-    // block of their own), one word per slot of the anchor, window rows and
-    // bank (`geo`, offsets in [`slot_word`]) and of the window's two lane
-    // masks (`win`: low word's at bit 0, high word's at bit 32).
+    /// The StreamEnd totals, the plane's drops and the bank error.
+    counters: TrackerCounters,
+    // Per slot, packed (see "Registers" in the module doc).
     /// The slots' flags and their writes.
     flags: SlotFlags,
-    geo: Vec<DFF<Bits<64>>>,
-    win: Vec<DFF<Bits<64>>>,
-    /// Per slot, the association window around its anchor, which a
-    /// candidate must fall in: x from 0, x to 10, y from 20, y to 30
-    /// (written when the slot opens: the opening candidate's own window).
-    bnd: Vec<DFF<Bits<64>>>,
+    /// The slots' words (anchor, window rows and bank; lane masks;
+    /// association window) and ROI view, and their writes.
+    words: SlotWords<BW>,
     /// The item stage (see "Pipeline" in the module doc): one candidate
     /// lane of the head word, or the word itself when it has none.
     items: ItemStage<P>,
@@ -382,8 +375,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     walk_words: WalkMemory,
     /// The read stage's multiplexer: the walked slot's state.
     read: SlotMux<BW>,
-    /// The ROI view's entries ([`shadow`] words), index `parity·M + slot`.
-    sv: Vec<DFF<Bits<64>>>,
     /// The walks' constants: N − end_trim (the `dage` at which a dropped
     /// segment has summed its last plane), L_min, L_min + 1, L_max − 1.
     n_mc: DFF<Bits<AGE_BITS>>,
@@ -412,10 +403,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     s_cx: Signal<Local, Bits<COORD_BITS>>,
     s_cy: Signal<Local, Bits<COORD_BITS>>,
     free_v: Signal<Local, Bits<MAX_SLOTS>>,
-    /// An opening's ROI view `pre` flag (plane t ≥ N), at its offset.
-    sh_pre: Signal<Local, Bits<64>>,
-    par: Signal<Local, Bit>,
-    par1: Signal<Local, Bit>,
     t_m1: Signal<Local, Bits<48>>,
     t_p1: Signal<Local, Bits<48>>,
     t_ge_n: Signal<Local, Bit>,
@@ -431,32 +418,13 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The walk holds a Blink this clock: the record queue has room but the
     /// free list shows no bank yet (observed by the tests).
     pub bank_wait: Signal<Local, Bit>,
-    // What the walk makes of the walked slot.
+    /// The walked slot's bank from now on.
     n_bank: Signal<Local, Bits<BW>>,
-    /// `n_bank` at the bank's offset of `geo` and of the ROI view entry.
-    n_bank_w: Signal<Local, Bits<64>>,
-    /// The walked slot's ROI view entry for plane t + 1.
-    n_sh: Signal<Local, Bits<64>>,
-    /// The bits of the walked slot's ROI view entry (of the first drain
-    /// plane) that the stream end's `finish` keeps: all, but the flags if
-    /// the track ends unconfirmed (freed: it sums nothing more).
-    fin_keep: Signal<Local, Bits<64>>,
     we_walk: Signal<Local, Bit>,
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
     absorbed: Signal<Local, Bit>,
-    // Constants.
-    /// Slot i's first bank, i, at the bank's offset of `geo`.
-    bank_init: Vec<Constant<Bits<64>>>,
-    /// The bank's bits of `geo` and of a ROI view entry.
-    bank_mask: Constant<Bits<64>>,
-    /// The bits in use of a `geo` word, of a `win` word and of a ROI view
-    /// entry; of `geo` without the bank.
-    geo_used: Constant<Bits<64>>,
-    win_used: Constant<Bits<64>>,
-    sh_used: Constant<Bits<64>>,
-    geo_keep: Constant<Bits<64>>,
     last_slot: Constant<Bits<8>>,
     _m: usize,
 }
@@ -508,11 +476,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             });
         }
         let m = cfg.slots;
-        let ones = |n: usize| if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
-        let bank_bits = ones(BW) << slot_word::BANK;
-        let geo_used = !((ones(slot_word::BANK_BITS_MAX) << slot_word::BANK) & !bank_bits);
-        let win_used = ones(P) | (ones(P) << 32);
-        let sh_used = ones(shadow::BANK + BW) | (1u64 << shadow::PRE) | (1u64 << shadow::FRESH);
         Ok(BlinkTracker {
             clock: Default::default(),
             restart: Default::default(),
@@ -561,20 +524,9 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             rows: Default::default(),
             walk: Default::default(),
             lost: Default::default(),
-            drops: Default::default(),
-            drop_x: Default::default(),
-            drop_y: Default::default(),
-            c_blinks: Default::default(),
-            c_unconf: Default::default(),
-            c_dropped: Default::default(),
-            c_bridged: Default::default(),
-            c_cuts: Default::default(),
-            bank_err: Default::default(),
-            bank_waits: Default::default(),
+            counters: Default::default(),
             flags: SlotFlags::new(m),
-            geo: lanes(m),
-            win: lanes(m),
-            bnd: lanes(m),
+            words: SlotWords::new(m, P),
             r_valid: Default::default(),
             r_cand: Default::default(),
             r_last: Default::default(),
@@ -597,7 +549,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             items: ItemStage::new(cfg),
             opening: OpeningWindows::new(cfg),
             compare: SlotCompare::new(m),
-            sv: lanes(2 * m),
             n_mc: Default::default(),
             mc_one: Default::default(),
             lmin: Default::default(),
@@ -614,9 +565,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             s_cx: Default::default(),
             s_cy: Default::default(),
             free_v: Default::default(),
-            sh_pre: Default::default(),
-            par: Default::default(),
-            par1: Default::default(),
             t_m1: Default::default(),
             t_p1: Default::default(),
             t_ge_n: Default::default(),
@@ -631,22 +579,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             need_bank: Default::default(),
             bank_wait: Default::default(),
             n_bank: Default::default(),
-            n_bank_w: Default::default(),
-            n_sh: Default::default(),
-            fin_keep: Default::default(),
             we_walk: Default::default(),
             we_fin: Default::default(),
             we_drain: Default::default(),
             we_emit: Default::default(),
             absorbed: Default::default(),
-            bank_init: (0..m)
-                .map(|i| Constant::new(((i as u64) << slot_word::BANK).to_bits()))
-                .collect(),
-            bank_mask: Constant::new(bank_bits.to_bits()),
-            geo_used: Constant::new(geo_used.to_bits()),
-            win_used: Constant::new(win_used.to_bits()),
-            sh_used: Constant::new(sh_used.to_bits()),
-            geo_keep: Constant::new((geo_used & !bank_bits).to_bits()),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
             _m: m,
         })
@@ -660,33 +597,20 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, t, rows, walk, lost, drops, drop_x, drop_y, c_blinks, c_unconf,
-            c_dropped, c_bridged, c_cuts, bank_err, bank_waits, r_valid, r_cand, r_last, r_eor,
-            r_lastrow, r_cx, r_yc, r_near, r_hw, r_frow, r_geo, r_win, r_sh, r_bnd, replay, fpick,
-            fpick_any, n_mc, mc_one, lmin, lmin_p1, lmax_m1, vf, drain_end, rd_on
+            self, clock, state, t, rows, walk, lost, r_valid, r_cand, r_last, r_eor, r_lastrow,
+            r_cx, r_yc, r_near, r_hw, r_frow, r_geo, r_win, r_sh, r_bnd, replay, fpick, fpick_any,
+            n_mc, mc_one, lmin, lmin_p1, lmax_m1, vf, drain_end, rd_on
         );
         self.walk_words.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
         self.flags.clock.next = self.clock.val();
-        for i in 0..self._m {
-            self.geo[i].clock.next = self.clock.val();
-            self.win[i].clock.next = self.clock.val();
-            self.bnd[i].clock.next = self.clock.val();
-            self.bnd[i].d.next = self.bnd[i].q.val();
-            // (Held through the masks of the bits in use, so that synthesis
-            // sees the others constant, also where no reader prunes them.)
-            self.geo[i].d.next = self.geo[i].q.val() & self.geo_used.val();
-            self.win[i].d.next = self.win[i].q.val() & self.win_used.val();
-        }
+        self.words.clock.next = self.clock.val();
+        self.counters.clock.next = self.clock.val();
         for q in 0..(2 * self._m) {
-            self.sv[q].clock.next = self.clock.val();
-            self.sv[q].d.next = self.sv[q].q.val() & self.sh_used.val();
-            self.sh[q].next = self.sv[q].q.val();
+            self.sh[q].next = self.words.sh[q].val();
         }
 
         // ---- Shared values.
-        self.par.next = self.t.q.val().get_bit(0);
-        self.par1.next = !self.t.q.val().get_bit(0);
         self.t_m1.next = self.t.q.val() - 1;
         self.t_p1.next = self.t.q.val() + 1;
         self.n32.next = bit_cast::<18, NW>(self.n_window.val());
@@ -750,13 +674,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.s_cy.next = self.r_yc.q.val();
         }
         for i in 0..self._m {
-            self.compare.bounds[i].next = self.bnd[i].q.val().get_bits::<40>(0);
-            self.compare.anchor_rows[i].next = self.geo[i].q.val().get_bits::<10>(10);
-            self.compare.low_cols[i].next = self.geo[i].q.val().get_bits::<10>(34);
-            self.compare.high_cols[i].next = self.geo[i].q.val().get_bits::<10>(44);
-            self.compare.end_rows[i].next = self.geo[i].q.val().get_bits::<10>(54);
-            self.compare.low_lanes[i].next = self.win[i].q.val().get_bits::<P>(0);
-            self.compare.high_lanes[i].next = self.win[i].q.val().get_bits::<P>(32);
+            self.compare.bounds[i].next = self.words.bnd[i].val().get_bits::<40>(0);
+            self.compare.anchor_rows[i].next = self.words.geo[i].val().get_bits::<10>(10);
+            self.compare.low_cols[i].next = self.words.geo[i].val().get_bits::<10>(34);
+            self.compare.high_cols[i].next = self.words.geo[i].val().get_bits::<10>(44);
+            self.compare.end_rows[i].next = self.words.geo[i].val().get_bits::<10>(54);
+            self.compare.low_lanes[i].next = self.words.win[i].val().get_bits::<P>(0);
+            self.compare.high_lanes[i].next = self.words.win[i].val().get_bits::<P>(32);
         }
         self.compare.cx.next = self.s_cx.val();
         self.compare.cy.next = self.s_cy.val();
@@ -806,7 +730,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.do_drop.next =
             self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & !self.fpick_any.q.val();
         self.do_fin.next = self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val();
-        self.sh_pre.next = bit_cast::<64, 1>(self.t_ge_n.val().into()) << 62;
         self.replay.d.next = self.do_open.val()
             & self.items.valid.val()
             & self.items.cand.val()
@@ -861,9 +784,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.read.opened.next = self.flags.opened.val();
         self.read.bridges.next = self.flags.bridges.val();
         for i in 0..self._m {
-            self.read.anchor_cols[i].next = self.geo[i].q.val().get_bits::<10>(0);
-            self.read.anchor_rows[i].next = self.geo[i].q.val().get_bits::<10>(10);
-            self.read.banks[i].next = self.geo[i].q.val().get_bits::<BW>(20);
+            self.read.anchor_cols[i].next = self.words.geo[i].val().get_bits::<10>(0);
+            self.read.anchor_rows[i].next = self.words.geo[i].val().get_bits::<10>(10);
+            self.read.banks[i].next = self.words.geo[i].val().get_bits::<BW>(20);
         }
         self.stages.s_sel.next = self.read.selected.val();
         self.stages.s_slot.next = self.walk.q.val();
@@ -911,11 +834,16 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.rec_bank.next = 0.into();
         self.rec_tag.next = self.t.q.val();
         self.fb_pop.next = false;
+        self.counters.blink.next = false;
+        self.counters.unconfirmed_end.next = false;
+        self.counters.bridge.next = false;
+        self.counters.cut.next = false;
+        self.counters.plane_end.next = false;
         // W2: a walked slot's Blink record.
         if (self.we_walk.val() & self.stages.comp.val())
             | (self.we_emit.val() & self.stages.busy.val())
         {
-            self.c_blinks.d.next = self.c_blinks.q.val() + 1;
+            self.counters.blink.next = true;
             self.rec_kind.next = 1.into();
             self.rec_slot.next = self.stages.slot.val();
             self.rec_flags.next = self.stages.flags.val();
@@ -941,19 +869,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.n_bank.next = self.stages.bank.val();
         if self.fb_pop.val() {
             self.n_bank.next = self.fb_bank.val();
-        }
-        self.n_bank_w.next = bit_cast::<64, BW>(self.n_bank.val()) << 20;
-        self.n_sh.next = bit_cast::<64, 10>(self.stages.ax.val())
-            | (bit_cast::<64, 10>(self.stages.ay.val()) << 10)
-            | self.n_bank_w.val()
-            | (bit_cast::<64, 1>(self.stages.n_pre.val().into()) << 62)
-            | (bit_cast::<64, 1>((self.stages.n_fresh.val() & self.we_walk.val()).into()) << 63);
-        // (A value shifted into a wider word is a signal of its own: Verilog
-        // widens the operands of `~` before inverting them.)
-        self.fin_keep.next = self.sh_used.val();
-        if self.stages.fin_unconf.val() {
-            self.fin_keep.next = self.fin_keep.val().replace_bit(62, false);
-            self.fin_keep.next = self.fin_keep.val().replace_bit(63, false);
         }
         self.walk_words.write_slot.next = self.stages.slot.val();
         self.walk_words.write_enable.next =
@@ -984,27 +899,21 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             TrackerState::Walk => {
                 if self.we_walk.val() {
-                    if self.stages.bridge.val() {
-                        self.c_bridged.d.next = self.c_bridged.q.val() + 1;
-                    }
-                    if self.stages.unconf.val() {
-                        self.c_unconf.d.next = self.c_unconf.q.val() + 1;
-                    }
-                    if self.stages.cut.val() {
-                        self.c_cuts.d.next = self.c_cuts.q.val() + 1;
-                    }
+                    self.counters.bridge.next = self.stages.bridge.val();
+                    self.counters.unconfirmed_end.next = self.stages.unconf.val();
+                    self.counters.cut.next = self.stages.cut.val();
                     if self.stages.last.val() {
                         self.state.d.next = TrackerState::WalkEnd;
                     }
                 }
             }
             TrackerState::WalkEnd => {
-                if self.drops.q.val() != 0 {
+                if self.counters.plane_drops.val() != 0 {
                     self.rec_kind.next = 2.into();
-                    self.rec_ax.next = bit_cast::<16, 10>(self.drop_x.q.val());
-                    self.rec_ay.next = bit_cast::<16, 10>(self.drop_y.q.val());
+                    self.rec_ax.next = bit_cast::<16, 10>(self.counters.first_x.val());
+                    self.rec_ay.next = bit_cast::<16, 10>(self.counters.first_y.val());
                     self.rec_t0.next = self.t.q.val();
-                    self.rec_t1.next = bit_cast::<48, 32>(self.drops.q.val());
+                    self.rec_t1.next = bit_cast::<48, 32>(self.counters.plane_drops.val());
                     if self.rec_room.val() {
                         self.rec_push.next = true;
                         self.lost.d.next = 0.into();
@@ -1012,7 +921,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                         self.lost.d.next = self.lost.q.val() + 1;
                     }
                 }
-                self.drops.d.next = 0.into();
+                self.counters.plane_end.next = true;
                 self.t.d.next = self.t_p1.val();
                 self.rows.d.next = 0.into();
                 self.state.d.next = TrackerState::Run;
@@ -1021,9 +930,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 if self.t.q.val() == 0 {
                     self.state.d.next = TrackerState::End;
                 } else if self.we_fin.val() {
-                    if self.stages.fin_unconf.val() {
-                        self.c_unconf.d.next = self.c_unconf.q.val() + 1;
-                    }
+                    self.counters.unconfirmed_end.next = self.stages.fin_unconf.val();
                     if self.stages.last.val() {
                         self.state.d.next = TrackerState::Drain;
                     }
@@ -1068,77 +975,36 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             _ => {}
         }
 
-        // A wait longer than the pool's return latency means a bank was lost.
-        self.bank_waits.d.next = 0.into();
-        if self.bank_wait.val() {
-            self.bank_waits.d.next = self.bank_waits.q.val() + 1;
-            if self.bank_waits.q.val().all() {
-                self.bank_err.d.next = true;
-            }
-        }
+        self.counters.restart.next = self.restart.val();
+        self.counters.bank_wait.next = self.bank_wait.val();
+        self.counters.drop.next = self.do_drop.val();
+        self.counters.drop_x.next = self.r_cx.q.val();
+        self.counters.drop_y.next = self.r_yc.q.val();
 
-        // ---- The walks write the walked slot's words (its flags are
-        // written in `flags`). (Packed registers: each write replaces its
-        // bits of `d` as assigned so far.)
-        if self.stages.valid.val() {
-            for mm in self._m..(self._m + 1) {
-                for i in 0..self._m {
-                    if self.stages.sel.val().get_bit(i)
-                        & (self.we_walk.val() | (self.we_emit.val() & self.stages.busy.val()))
-                    {
-                        self.geo[i].d.next =
-                            (self.geo[i].q.val() & self.geo_keep.val()) | self.n_bank_w.val();
-                    }
-                    if self.stages.sel.val().get_bit(i) & self.we_fin.val() {
-                        if self.par.val() {
-                            self.sv[i + mm].d.next = self.sv[i + mm].q.val() & self.fin_keep.val();
-                        } else {
-                            self.sv[i].d.next = self.sv[i].q.val() & self.fin_keep.val();
-                        }
-                    }
-                    // The slot's ROI view for plane t + 1.
-                    if self.stages.sel.val().get_bit(i) & (self.we_walk.val() | self.we_drain.val())
-                    {
-                        if self.par1.val() {
-                            self.sv[i + mm].d.next = self.n_sh.val();
-                        } else {
-                            self.sv[i].d.next = self.n_sh.val();
-                        }
-                    }
-                }
-            }
-        }
-
-        // ---- Association: open a track or drop the candidate.
-        if self.do_open.val() {
-            for mm in self._m..(self._m + 1) {
-                for i in 0..self._m {
-                    if self.do_open.val() & self.fpick.q.val().get_bit(i) {
-                        self.geo[i].d.next =
-                            (self.geo[i].q.val() & self.bank_mask.val()) | self.r_geo.q.val();
-                        self.win[i].d.next = self.r_win.q.val();
-                        self.bnd[i].d.next = self.r_bnd.q.val();
-                        if self.par.val() {
-                            self.sv[i + mm].d.next = (self.geo[i].q.val() & self.bank_mask.val())
-                                | self.r_sh.q.val()
-                                | self.sh_pre.val();
-                        } else {
-                            self.sv[i].d.next = (self.geo[i].q.val() & self.bank_mask.val())
-                                | self.r_sh.q.val()
-                                | self.sh_pre.val();
-                        }
-                    }
-                }
-            }
-        }
-        if self.do_drop.val() {
-            self.c_dropped.d.next = self.c_dropped.q.val() + 1;
-            self.drops.d.next = self.drops.q.val() + 1;
-            if self.drops.q.val() == 0 {
-                self.drop_x.d.next = self.r_cx.q.val();
-                self.drop_y.d.next = self.r_yc.q.val();
-            }
-        }
+        // ---- The slots' words ([`SlotWords`]): the walked slot's bank and
+        // its ROI view for plane t + 1 (or, in `finish`, the flags of its
+        // view of t cleared if its track ends unconfirmed); an opening.
+        self.words.restart.next = self.restart.val();
+        self.words.parity.next = self.t.q.val().get_bit(0);
+        self.words.walk_slot.next = self.stages.sel.val();
+        self.words.end_of_plane.next = self.we_walk.val();
+        self.words.drain.next = self.we_drain.val();
+        self.words.finish.next = self.we_fin.val();
+        self.words.emit.next = self.we_emit.val();
+        self.words.was_busy.next = self.stages.busy.val();
+        self.words.next_bank.next = self.n_bank.val();
+        self.words.walk_ax.next = self.stages.ax.val();
+        self.words.walk_ay.next = self.stages.ay.val();
+        self.words.next_pre.next = self.stages.n_pre.val();
+        self.words.next_fresh.next = self.stages.n_fresh.val();
+        self.words.unconfirmed.next = self.stages.fin_unconf.val();
+        self.words.open.next = self.do_open.val();
+        self.words.open_slot.next = self.fpick.q.val();
+        self.words.open_geo.next = self.r_geo.q.val();
+        self.words.open_win.next = self.r_win.q.val();
+        self.words.open_bnd.next = self.r_bnd.q.val();
+        self.words.open_view.next = self.r_sh.q.val();
+        self.words.open_pre.next = self.t_ge_n.val();
 
         // ---- The slots' flags ([`SlotFlags`]): the decided word's hits and,
         // at the end of a row, the on/off step of the slots whose 3x3 window
@@ -1176,22 +1042,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.rd_on.d.next = false;
             self.walk.d.next = 0.into();
             self.lost.d.next = 0.into();
-            self.drops.d.next = 0.into();
-            self.c_blinks.d.next = 0.into();
-            self.c_unconf.d.next = 0.into();
-            self.c_dropped.d.next = 0.into();
-            self.c_bridged.d.next = 0.into();
-            self.c_cuts.d.next = 0.into();
-            self.bank_err.d.next = false;
-            // Every slot free with its first bank, every ROI view entry
-            // without flags: the other fields are read only after an
-            // opening or a walk has written them.
-            for i in 0..self._m {
-                self.geo[i].d.next = self.bank_init[i].val();
-            }
-            for q in 0..(2 * self._m) {
-                self.sv[q].d.next = 0.into();
-            }
         }
 
         // The walk words of the slot the read stage is at on the next clock.
@@ -1203,11 +1053,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.plane.next = self.t.q.val();
         self.rows_done.next = self.rows.q.val();
         self.done.next = self.state.q.val() == TrackerState::Done;
-        self.blinks.next = self.c_blinks.q.val();
-        self.unconfirmed.next = self.c_unconf.q.val();
-        self.dropped.next = self.c_dropped.q.val();
-        self.bridged.next = self.c_bridged.q.val();
-        self.cuts.next = self.c_cuts.q.val();
-        self.bank_error.next = self.bank_err.q.val();
+        self.blinks.next = self.counters.blinks.val();
+        self.unconfirmed.next = self.counters.unconfirmed.val();
+        self.dropped.next = self.counters.dropped.val();
+        self.bridged.next = self.counters.bridged.val();
+        self.cuts.next = self.counters.cuts.val();
+        self.bank_error.next = self.counters.bank_error.val();
     }
 }

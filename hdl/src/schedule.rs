@@ -10,9 +10,9 @@
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the ROI aggregator's row cover, lowest slot, view
 //! multiplexer and ROI row; the blink tracker's item stage, opening
-//! windows, slot compare, slots' flags, read multiplexer, walk stages and
-//! walk memory, which it both drives and reads, and the flags' on/off
-//! step; the packetiser's bit packer, whose flags choose the command the
+//! windows, slot compare, slots' flags and words, counters, read
+//! multiplexer, walk stages and walk memory, which it both drives and
+//! reads, and the flags' on/off step; the packetiser's bit packer, whose flags choose the command the
 //! packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
 //! signal — but Verilator flags the processes `UNOPTFLAT` and re-runs them
@@ -105,6 +105,30 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "free_before",
             "on_off$*",
             "on_v",
+        ],
+    ),
+    // crate::blink_tracker::SlotWords: its outputs, the slots' words and ROI
+    // view (functions of its registers), which the tracker reads while it
+    // drives the inputs.
+    (
+        "(clock,restart,parity,walk_slot,end_of_plane,drain,finish,emit,",
+        &["geo$", "win$", "bnd$", "sh$"],
+    ),
+    // crate::blink_tracker::TrackerCounters: its outputs, functions of its
+    // registers (the plane's drops make the Dropped record), which the
+    // tracker reads while it drives the events.
+    (
+        ",plane_drops,first_x,first_y,bank_error);",
+        &[
+            "blinks",
+            "unconfirmed",
+            "dropped",
+            "bridged",
+            "cuts",
+            "plane_drops",
+            "first_x",
+            "first_y",
+            "bank_error",
         ],
     ),
     // crate::blink_tracker::WalkMemory: its word, a function of its

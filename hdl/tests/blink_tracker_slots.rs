@@ -21,7 +21,6 @@
 mod common;
 
 use rand::Rng;
-use rand_chacha::ChaCha8Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::blink_tracker::{OnOffStep, SlotCompare, SlotFlags, SlotMux};
 use smartagg_hdl::testbench::bench::{settle, Bench};
@@ -437,13 +436,6 @@ fn flags_case(m: usize, seed: u64) {
     let mut want = [Flags::default(); 32];
     // Events seen: bridges, dips started, ends, openings, walks of each kind.
     let mut seen = [0u32; 7];
-    let one_hot = |rng: &mut ChaCha8Rng| -> u64 {
-        if rng.gen_bool(0.1) {
-            rng.gen::<u32>() as u64
-        } else {
-            1 << rng.gen_range(0..32.min(m + 2))
-        }
-    };
     for clock in 0..20_000 {
         let c = FlagCommands {
             restart: clock == 0 || rng.gen_bool(0.003),
@@ -452,8 +444,8 @@ fn flags_case(m: usize, seed: u64) {
             step: rng.gen_bool(0.4),
             row_end: rng.gen::<u32>() as u64 | rng.gen::<u32>() as u64,
             open: rng.gen_bool(0.3),
-            open_slot: one_hot(&mut rng),
-            walk_slot: one_hot(&mut rng),
+            open_slot: common::slot_bits(&mut rng, m),
+            walk_slot: common::slot_bits(&mut rng, m),
             walk: rng.gen_range(0..4),
             was_busy: rng.gen_bool(0.7),
             next_busy: rng.gen_bool(0.6),

@@ -12,6 +12,16 @@ pub fn rng(seed: u64) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(seed)
 }
 
+/// A slot command's one-hot slot of `m` (past M included, up to M + 1),
+/// or, one time in ten, any 32 bits.
+pub fn slot_bits(rng: &mut ChaCha8Rng, m: usize) -> u64 {
+    if rng.gen_bool(0.1) {
+        rng.gen::<u32>() as u64
+    } else {
+        1 << rng.gen_range(0..32.min(m + 2))
+    }
+}
+
 /// Random planes with a bright blob so that counts and candidates vary.
 pub fn random_planes(
     rng: &mut ChaCha8Rng,
