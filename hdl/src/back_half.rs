@@ -10,6 +10,7 @@
 use crate::bank_pool::BankPool;
 use crate::blink_tracker::{BlinkTracker, COORD_BITS};
 use crate::bram::RamStyle;
+use crate::bundles::{StreamSettings, TrackerTotalsOut};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::packetiser::Packetiser;
@@ -42,22 +43,8 @@ pub struct BackHalf<
     pub restart: Signal<In, Bit>,
     /// With `restart`: a stream starts (StreamStart first).
     pub emit_start: Signal<In, Bit>,
-    /// N register.
-    pub n_window: Signal<In, Bits<NW>>,
-    /// T_int register (for StreamStart).
-    pub threshold: Signal<In, Bits<32>>,
-    /// T_hold register (for StreamStart).
-    pub threshold_hold: Signal<In, Bits<32>>,
-    /// END_TRIM register (≤ N − 1).
-    pub end_trim: Signal<In, Bits<NW>>,
-    /// L_min register.
-    pub l_min: Signal<In, Bits<32>>,
-    /// L_max register.
-    pub l_max: Signal<In, Bits<32>>,
-    /// Plane period register (StreamStart).
-    pub plane_period: Signal<In, Bits<32>>,
-    /// Masked-pixel count register (StreamStart).
-    pub masked_pixels: Signal<In, Bits<32>>,
+    /// The stream's settings, latched at START.
+    pub settings: StreamSettings<NW>,
     /// No real plane after `planes_total`.
     pub stopping: Signal<In, Bit>,
     /// Real planes of the stream.
@@ -176,14 +163,7 @@ impl<
             clock: Default::default(),
             restart: Default::default(),
             emit_start: Default::default(),
-            n_window: Default::default(),
-            threshold: Default::default(),
-            threshold_hold: Default::default(),
-            end_trim: Default::default(),
-            l_min: Default::default(),
-            l_max: Default::default(),
-            plane_period: Default::default(),
-            masked_pixels: Default::default(),
+            settings: Default::default(),
             stopping: Default::default(),
             planes_total: Default::default(),
             fh_valid: Default::default(),
@@ -281,10 +261,10 @@ impl<
         self.room.next = self.room_q.q.val();
 
         // Tracker.
-        self.tracker.n_window.next = self.n_window.val();
-        self.tracker.end_trim.next = self.end_trim.val();
-        self.tracker.l_min.next = self.l_min.val();
-        self.tracker.l_max.next = self.l_max.val();
+        self.tracker.n_window.next = self.settings.n_window.val();
+        self.tracker.end_trim.next = self.settings.end_trim.val();
+        self.tracker.l_min.next = self.settings.l_min.val();
+        self.tracker.l_max.next = self.settings.l_max.val();
         self.tracker.stopping.next = self.stopping.val();
         self.tracker.planes_total.next = self.planes_total.val();
         self.tracker.in_valid.next = self.tfifo.out_valid.val();
@@ -344,8 +324,8 @@ impl<
         self.queue.h_pop.next = self.pkt.r_pop.val();
 
         // Derived Blink fields.
-        self.fin.n_window.next = self.n_window.val();
-        self.fin.end_trim.next = self.end_trim.val();
+        self.fin.n_window.next = self.settings.n_window.val();
+        self.fin.end_trim.next = self.settings.end_trim.val();
         self.fin.planes_done.next = self.agg.planes_done.val();
         self.fin.kind.next = self.queue.h_kind.val();
         self.fin.flags.next = self.queue.h_flags.val();
@@ -357,34 +337,23 @@ impl<
 
         // Packetiser.
         self.pkt.seq_init.next = 0.into();
-        self.pkt.n_window.next = self.n_window.val();
-        self.pkt.threshold.next = self.threshold.val();
-        self.pkt.threshold_hold.next = self.threshold_hold.val();
-        self.pkt.end_trim.next = self.end_trim.val();
-        self.pkt.l_min.next = self.l_min.val();
-        self.pkt.l_max.next = self.l_max.val();
-        self.pkt.plane_period.next = self.plane_period.val();
-        self.pkt.masked_pixels.next = self.masked_pixels.val();
+        StreamSettings::<NW>::link(&mut self.settings, &mut self.pkt.settings);
         self.pkt.c_planes.next = bit_cast::<64, 48>(self.planes_total.val());
-        self.pkt.c_blinks.next = self.tracker.blinks.val();
-        self.pkt.c_unconf.next = self.tracker.unconfirmed.val();
-        self.pkt.c_dropped.next = self.tracker.dropped.val();
-        self.pkt.c_bridged.next = self.tracker.bridged.val();
-        self.pkt.c_cuts.next = self.tracker.cuts.val();
-        self.pkt.r_valid.next = self.queue.h_valid.val();
-        self.pkt.r_kind.next = self.queue.h_kind.val();
-        self.pkt.r_lost.next = self.queue.h_lost.val();
-        self.pkt.r_slot.next = self.queue.h_slot.val();
-        self.pkt.r_flags.next = self.fin.o_flags.val();
-        self.pkt.r_ax.next = self.queue.h_x.val();
-        self.pkt.r_ay.next = self.queue.h_y.val();
-        self.pkt.r_t0.next = self.queue.h_t0.val();
-        self.pkt.r_t1.next = self.queue.h_t1.val();
-        self.pkt.r_ts.next = self.fin.o_ts.val();
-        self.pkt.r_te.next = self.fin.o_te.val();
-        self.pkt.r_planes.next = self.fin.o_planes.val();
-        self.pkt.r_bank.next = self.queue.h_bank.val();
-        self.pkt.r_ready.next = self.fin.o_ready.val();
+        TrackerTotalsOut::join(&mut self.tracker.totals, &mut self.pkt.totals);
+        self.pkt.record.valid.next = self.queue.h_valid.val();
+        self.pkt.record.kind.next = self.queue.h_kind.val();
+        self.pkt.record.lost.next = self.queue.h_lost.val();
+        self.pkt.record.slot.next = self.queue.h_slot.val();
+        self.pkt.record.flags.next = self.fin.o_flags.val();
+        self.pkt.record.ax.next = self.queue.h_x.val();
+        self.pkt.record.ay.next = self.queue.h_y.val();
+        self.pkt.record.t0.next = self.queue.h_t0.val();
+        self.pkt.record.t1.next = self.queue.h_t1.val();
+        self.pkt.record.ts.next = self.fin.o_ts.val();
+        self.pkt.record.te.next = self.fin.o_te.val();
+        self.pkt.record.planes.next = self.fin.o_planes.val();
+        self.pkt.record.bank.next = self.queue.h_bank.val();
+        self.pkt.record.ready.next = self.fin.o_ready.val();
         self.agg.rd_req.next = self.pkt.rd_req.val();
         self.agg.rd_addr.next = self.pkt.rd_addr.val();
         self.pkt.rd_grant.next = self.agg.rd_grant.val();

@@ -182,6 +182,7 @@ pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_stages::WalkStages;
 pub use walk_step::{walk_word, WalkStep};
 
+use crate::bundles::TrackerTotalsOut;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
@@ -310,16 +311,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     pub fb_bank: Signal<In, Bits<BW>>,
     /// Take the free bank.
     pub fb_pop: Signal<Out, Bit>,
-    /// Blink records emitted (lost ones included), for StreamEnd.
-    pub blinks: Signal<Out, Bits<64>>,
-    /// Tracks that ended unconfirmed.
-    pub unconfirmed: Signal<Out, Bits<64>>,
-    /// Candidates dropped for want of a slot.
-    pub dropped: Signal<Out, Bits<64>>,
-    /// Single-plane dips bridged.
-    pub bridged: Signal<Out, Bits<64>>,
-    /// Segments cut at L_max.
-    pub cuts: Signal<Out, Bits<64>>,
+    /// The StreamEnd totals.
+    pub totals: TrackerTotalsOut,
     /// A Blink waited 16 clocks for a free bank while the record queue had
     /// room (sticky; never expected: it means a bank went missing).
     pub bank_error: Signal<Out, Bit>,
@@ -513,11 +506,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             fb_valid: Default::default(),
             fb_bank: Default::default(),
             fb_pop: Default::default(),
-            blinks: Default::default(),
-            unconfirmed: Default::default(),
-            dropped: Default::default(),
-            bridged: Default::default(),
-            cuts: Default::default(),
+            totals: Default::default(),
             bank_error: Default::default(),
             state: Default::default(),
             t: Default::default(),
@@ -1053,11 +1042,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.plane.next = self.t.q.val();
         self.rows_done.next = self.rows.q.val();
         self.done.next = self.state.q.val() == TrackerState::Done;
-        self.blinks.next = self.counters.blinks.val();
-        self.unconfirmed.next = self.counters.unconfirmed.val();
-        self.dropped.next = self.counters.dropped.val();
-        self.bridged.next = self.counters.bridged.val();
-        self.cuts.next = self.counters.cuts.val();
+        TrackerTotalsOut::link(&mut self.totals, &mut self.counters.totals);
         self.bank_error.next = self.counters.bank_error.val();
     }
 }

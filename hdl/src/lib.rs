@@ -52,7 +52,8 @@
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser
 //!   stage), the packetiser ([`packetiser`], with its count streamer,
 //!   Rice choice, code pipeline and Rice code, bit packer, record prefix, prefix bytes,
-//!   count-block head, CRC step, packet length and sequence numbers) and
+//!   count-block head, prefix cursor, CRC step and packet CRC, packet length
+//!   and sequence numbers) and
 //!   the output FIFO;
 //! * [`stream_control::StreamControl`]: START's register check and latch,
 //!   the source gated at plane boundaries, the drain and flush planes after
@@ -69,11 +70,14 @@
 //!   controller as a black box or the DDR2 pins parked ([`mig_ddr2`]).
 //!
 //! Widths are const generics checked against [`config::GatewareConfig`].
+//! Ports that travel together from block to block are bundles declared
+//! once in [`bundles`].
 
 pub mod back_half;
 pub mod bank_pool;
 pub mod blink_tracker;
 pub mod bram;
+pub mod bundles;
 pub mod candidates;
 pub mod config;
 pub mod const_mul;

@@ -19,13 +19,13 @@
 //!
 //! **Every packet** is its prefix — header and fixed payload, a byte lane
 //! each, laid out by record kind in [`RecordPrefix`] — loaded into [`PrefixBytes`] once
-//! and read out a byte a clock ("this byte is the prefix's last" is a
-//! register), then a Blink's codes, then the CRC-32C, to which
-//! [`Crc32cStep`] adds a byte a clock.
+//! and read out a byte a clock ([`PrefixCursor`]: "this byte is the
+//! prefix's last" is a register), then a Blink's codes, then the CRC-32C
+//! ([`PacketCrc`], to which [`Crc32cStep`] adds a byte a clock).
 //!
 //! **Sequence numbers and overflow** ([`SequenceNumbers`]). Every record but Overflow takes the
 //! next number (from `seq_init` at stream start). A record the tracker could
-//! not queue (its record queue full) arrives as `r_lost` on the next one and
+//! not queue (its record queue full) arrives as `record.lost` on the next one and
 //! is numbered and announced like a record the output FIFO dropped. Before emitting a record
 //! the packetiser checks that the output FIFO has room for the whole packet
 //! (and for an Overflow packet if records were lost); if not, the record is
@@ -39,8 +39,10 @@
 //! Each sub-block is a file in `packetiser/` with its own test in
 //! `tests/packetiser_blocks.rs` (the record prefix in
 //! `tests/packetiser_prefix.rs`, against the model's encoder; the sequence
-//! numbers and the packet's lengths in `tests/packetiser_numbers.rs`); the
-//! state machine is the packetiser's own.
+//! numbers and the packet's lengths in `tests/packetiser_numbers.rs`; the
+//! prefix cursor and the packet CRC in `tests/packetiser_bytes.rs`); the
+//! state machine is the packetiser's own. Its settings, totals and head
+//! record come in bundles ([`crate::bundles`]).
 //!
 //! **Outputs without transients.** A sub-block assigns each output once an
 //! evaluation (a value with a default and an override is built in a local
@@ -53,6 +55,7 @@
 //! simulated time passing (the 4-state test hung so in the bit packer's
 //! Codes state). Verilator and rust-hdl's simulation settle such loops.
 
+use crate::bundles::{RecordHead, StreamSettings, TrackerTotals};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
@@ -62,8 +65,10 @@ mod code_pipeline;
 mod count_block_head;
 mod count_streamer;
 mod crc32c_step;
+mod packet_crc;
 mod packet_length;
 mod prefix_bytes;
+mod prefix_cursor;
 mod record_prefix;
 mod rice_choice;
 mod rice_code;
@@ -75,10 +80,12 @@ pub use code_pipeline::CodePipeline;
 pub use count_block_head::{CountBlockHead, HEAD_BYTES};
 pub use count_streamer::CountStreamer;
 pub use crc32c_step::Crc32cStep;
+pub use packet_crc::PacketCrc;
 pub use packet_length::PacketLength;
 pub use prefix_bytes::PrefixBytes;
+pub use prefix_cursor::PrefixCursor;
 pub use record_prefix::RecordPrefix;
-pub use rice_choice::RiceChoice;
+pub use rice_choice::{rice_candidates, RiceChoice};
 pub use rice_code::RiceCode;
 pub use rice_lengths::RiceLengths;
 pub use sequence_numbers::SequenceNumbers;
@@ -110,16 +117,6 @@ pub enum PacketState {
     Finish,
 }
 
-/// Rice parameters worth a length accumulator for counts of `rcw` bits:
-/// 0 ..= `rcw` (at most the model's 0 ..= 31). An offset from the base is
-/// below 2^rcw, so for every k ≥ rcw each code is 1 + k bits and the total
-/// grows with k: k = rcw beats every larger k, and the model's choice
-/// ([`smartagg_model::rice::choose`], smallest k on ties) is always in
-/// 0 ..= rcw.
-pub fn rice_candidates(rcw: usize) -> usize {
-    (rcw + 1).min(smartagg_model::rice::MAX_K as usize + 1)
-}
-
 /// The packetiser. `R` counts per ROI row come from the counter memory.
 /// `RCW`: count bits; `CAW`: counter address bits; `BW`: bank bits; `NW`:
 /// bits of N; `PW`: bits of the assembled header and fixed payload
@@ -138,62 +135,14 @@ pub struct Packetiser<
     pub restart: Signal<In, Bit>,
     /// First sequence number (0 in the pipeline; the vectors start later).
     pub seq_init: Signal<In, Bits<32>>,
-    /// N register (StreamStart).
-    pub n_window: Signal<In, Bits<NW>>,
-    /// T_int register (StreamStart).
-    pub threshold: Signal<In, Bits<32>>,
-    /// T_hold register (StreamStart).
-    pub threshold_hold: Signal<In, Bits<32>>,
-    /// END_TRIM register (StreamStart; ≤ N − 1, so NW bits hold it).
-    pub end_trim: Signal<In, Bits<NW>>,
-    /// L_min register (StreamStart).
-    pub l_min: Signal<In, Bits<32>>,
-    /// L_max register (StreamStart).
-    pub l_max: Signal<In, Bits<32>>,
-    /// Plane period, ns (StreamStart).
-    pub plane_period: Signal<In, Bits<32>>,
-    /// Masked pixels (StreamStart).
-    pub masked_pixels: Signal<In, Bits<32>>,
+    /// The stream's settings (StreamStart).
+    pub settings: StreamSettings<NW>,
     /// StreamEnd: planes.
     pub c_planes: Signal<In, Bits<64>>,
-    /// StreamEnd: blinks.
-    pub c_blinks: Signal<In, Bits<64>>,
-    /// StreamEnd: unconfirmed.
-    pub c_unconf: Signal<In, Bits<64>>,
-    /// StreamEnd: dropped candidates.
-    pub c_dropped: Signal<In, Bits<64>>,
-    /// StreamEnd: bridged dips.
-    pub c_bridged: Signal<In, Bits<64>>,
-    /// StreamEnd: cut segments.
-    pub c_cuts: Signal<In, Bits<64>>,
-    /// A record is at the head of the queue (held until `r_pop`).
-    pub r_valid: Signal<In, Bit>,
-    /// Its kind ([`crate::blink_tracker::record_kind`]).
-    pub r_kind: Signal<In, Bits<2>>,
-    /// Records lost just before it.
-    pub r_lost: Signal<In, Bits<32>>,
-    /// Blink: slot.
-    pub r_slot: Signal<In, Bits<8>>,
-    /// Blink: flags (MASKED is added from the counter rows).
-    pub r_flags: Signal<In, Bits<8>>,
-    /// Blink: anchor column; Dropped: first column.
-    pub r_ax: Signal<In, Bits<16>>,
-    /// Blink: anchor row; Dropped: first row.
-    pub r_ay: Signal<In, Bits<16>>,
-    /// Blink: t_cross; Dropped: plane.
-    pub r_t0: Signal<In, Bits<48>>,
-    /// Blink: t_drop; Dropped: count.
-    pub r_t1: Signal<In, Bits<48>>,
-    /// Blink: t_s (two's complement, 48 bits).
-    pub r_ts: Signal<In, Bits<48>>,
-    /// Blink: t_e.
-    pub r_te: Signal<In, Bits<48>>,
-    /// Blink: planes summed.
-    pub r_planes: Signal<In, Bits<32>>,
-    /// Blink: counter bank.
-    pub r_bank: Signal<In, Bits<BW>>,
-    /// Blink: its counts are final.
-    pub r_ready: Signal<In, Bit>,
+    /// StreamEnd: the tracker's totals.
+    pub totals: TrackerTotals,
+    /// The record at the head of the queue (held until `r_pop`).
+    pub record: RecordHead<BW>,
     /// Done with the head record.
     pub r_pop: Signal<Out, Bit>,
     /// Counter row read request.
@@ -236,25 +185,19 @@ pub struct Packetiser<
     /// The packet's prefix bytes, loaded once a packet (see `prefix_load`)
     /// and read out a byte a clock.
     prefix: PrefixBytes,
-    /// The CRC register after the byte of this clock.
-    crc_step: Crc32cStep,
     /// Pass 3 (and pass 2's offsets): counts to Rice codes.
     code_stages: CodePipeline<RCW>,
     /// The count block's base (LEB128) and k, for the prefix.
     head: CountBlockHead<RCW>,
-    /// Prefix bytes after the one of this clock (down-counted).
-    prefix_rest: DFF<Bits<16>>,
-    /// The byte of this clock is the prefix's last (`prefix_rest` = 0, as a
-    /// register so that Ovf and Emit decide without a compare).
-    prefix_last: DFF<Bit>,
-    bidx: DFF<Bits<16>>,
-    /// `r_planes` a clock late: the finisher's arithmetic ends in a register.
+    /// The prefix's byte of this clock, and whether it is the last.
+    cursor: PrefixCursor,
+    /// `record.planes` a clock late: the finisher's arithmetic ends in a register.
     /// It is read when a Blink's prefix loads (Decide's second clock on, or
     /// Crc after an Overflow), when the head record has been the same for
     /// clocks (it changes only after Finish's pop).
     planes_r: DFF<Bits<32>>,
-    crc: DFF<Bits<32>>,
-    crc_i: DFF<Bits<8>>,
+    /// The packet's CRC-32C: its bytes added, then its own four.
+    crc: PacketCrc,
     /// Pass 3: codes in, bytes out.
     packer: BitPacker,
     /// The packet's lengths by kind and the registered room check.
@@ -262,14 +205,14 @@ pub struct Packetiser<
     // Combinational.
     is_blink: Signal<Local, Bit>,
     take: Signal<Local, Bit>,
-    /// The prefix registers load this clock: with the Overflow packet's
-    /// prefix if `prefix_ovf`, else the record's.
+    /// A packet starts: the prefix registers load (the Overflow packet's
+    /// prefix, of 18 bytes, if `prefix_ovf`, else the record's), the cursor
+    /// is at its first byte, the CRC register all ones.
     prefix_load: Signal<Local, Bit>,
     prefix_ovf: Signal<Local, Bit>,
     the_byte: Signal<Local, Bits<8>>,
     /// A state that sends bytes.
     emitting: Signal<Local, Bit>,
-    crc_shift: Signal<Local, Bits<32>>,
     bk: Signal<Local, Bits<8>>,
     in_codes: Signal<Local, Bit>,
     in_pass2: Signal<Local, Bit>,
@@ -302,34 +245,10 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             clock: Default::default(),
             restart: Default::default(),
             seq_init: Default::default(),
-            n_window: Default::default(),
-            threshold: Default::default(),
-            threshold_hold: Default::default(),
-            end_trim: Default::default(),
-            l_min: Default::default(),
-            l_max: Default::default(),
-            plane_period: Default::default(),
-            masked_pixels: Default::default(),
+            settings: Default::default(),
             c_planes: Default::default(),
-            c_blinks: Default::default(),
-            c_unconf: Default::default(),
-            c_dropped: Default::default(),
-            c_bridged: Default::default(),
-            c_cuts: Default::default(),
-            r_valid: Default::default(),
-            r_kind: Default::default(),
-            r_lost: Default::default(),
-            r_slot: Default::default(),
-            r_flags: Default::default(),
-            r_ax: Default::default(),
-            r_ay: Default::default(),
-            r_t0: Default::default(),
-            r_t1: Default::default(),
-            r_ts: Default::default(),
-            r_te: Default::default(),
-            r_planes: Default::default(),
-            r_bank: Default::default(),
-            r_ready: Default::default(),
+            totals: Default::default(),
+            record: Default::default(),
             r_pop: Default::default(),
             rd_req: Default::default(),
             rd_addr: Default::default(),
@@ -352,15 +271,11 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             choice: RiceChoice::new(kn, r),
             record_prefix: RecordPrefix::new(cfg),
             prefix: PrefixBytes::new(PW / 8),
-            crc_step: Default::default(),
             code_stages: Default::default(),
             head: Default::default(),
-            prefix_rest: Default::default(),
-            prefix_last: Default::default(),
-            bidx: Default::default(),
+            cursor: Default::default(),
             planes_r: Default::default(),
             crc: Default::default(),
-            crc_i: Default::default(),
             packer: Default::default(),
             lengths: PacketLength::new(cfg.stream_start_bytes()),
             is_blink: Default::default(),
@@ -369,7 +284,6 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             prefix_ovf: Default::default(),
             the_byte: Default::default(),
             emitting: Default::default(),
-            crc_shift: Default::default(),
             bk: Default::default(),
             in_codes: Default::default(),
             in_pass2: Default::default(),
@@ -388,21 +302,13 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
 {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(
-            self,
-            clock,
-            state,
-            in_ovf,
-            base,
-            masked,
-            prefix_rest,
-            prefix_last,
-            bidx,
-            planes_r,
-            crc,
-            crc_i
-        );
+        dff_setup!(self, clock, state, in_ovf, base, masked, planes_r);
         self.prefix.clock.next = self.clock.val();
+        self.cursor.clock.next = self.clock.val();
+        self.cursor.step.next = false;
+        self.crc.clock.next = self.clock.val();
+        self.crc.add.next = false;
+        self.crc.tail.next = false;
         self.packer.clock.next = self.clock.val();
         self.packer.start.next = false;
         self.packer.send.next = false;
@@ -413,15 +319,15 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.head.clock.next = self.clock.val();
         self.prefix_load.next = false;
         self.prefix_ovf.next = false;
-        self.is_blink.next = self.r_kind.val() == 1;
-        self.planes_r.d.next = self.r_planes.val();
+        self.is_blink.next = self.record.kind.val() == 1;
+        self.planes_r.d.next = self.record.planes.val();
 
         // ---- Count streamer: one ROI row at a time from the counter bank.
         self.counts.clock.next = self.clock.val();
         self.counts.restart.next = self.restart.val();
         self.counts.start.next = false;
-        self.counts.bank.next = self.r_bank.val();
-        self.counts.anchor_row.next = self.r_ay.val();
+        self.counts.bank.next = self.record.bank.val();
+        self.counts.anchor_row.next = self.record.ay.val();
         self.rd_req.next = self.counts.rd_req.val();
         self.rd_addr.next = self.counts.rd_addr.val();
         self.counts.rd_grant.next = self.rd_grant.val();
@@ -480,7 +386,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         self.seqs.restart.next = self.restart.val();
         self.seqs.seq_init.next = self.seq_init.val();
         self.seqs.take.next = false;
-        self.seqs.lost.next = self.r_lost.val();
+        self.seqs.lost.next = self.record.lost.val();
         self.seqs.dropped.next = false;
         self.seqs.announced.next = false;
         self.seqs.advance.next = false;
@@ -488,7 +394,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // ---- The packet's lengths by kind; the room check is registered
         // (Decide acts from its second clock: `lengths.ready`).
         self.lengths.clock.next = self.clock.val();
-        self.lengths.kind.next = self.r_kind.val();
+        self.lengths.kind.next = self.record.kind.val();
         self.lengths.varint_len.next = self.head.varint_len.val();
         self.lengths.code_bytes.next = self.choice.code_bytes.val();
         self.lengths.pending.next = self.seqs.pending.val();
@@ -498,41 +404,29 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
         // after an Overflow packet), and computed only then.
         self.record_prefix.enable.next =
             (self.state.q.val() == PacketState::Decide) | (self.state.q.val() == PacketState::Crc);
-        self.record_prefix.kind.next = self.r_kind.val();
+        self.record_prefix.kind.next = self.record.kind.val();
         self.record_prefix.seq.next = self.seqs.seq.val();
         self.record_prefix.payload_len.next = self.lengths.payload_len.val();
-        self.record_prefix.slot.next = self.r_slot.val();
-        self.record_prefix.flags.next = self.r_flags.val();
+        self.record_prefix.slot.next = self.record.slot.val();
+        self.record_prefix.flags.next = self.record.flags.val();
         self.record_prefix.masked.next = self.masked.q.val();
-        self.record_prefix.ax.next = self.r_ax.val();
-        self.record_prefix.ay.next = self.r_ay.val();
-        self.record_prefix.t0.next = self.r_t0.val();
-        self.record_prefix.t1.next = self.r_t1.val();
-        self.record_prefix.ts.next = self.r_ts.val();
-        self.record_prefix.te.next = self.r_te.val();
+        self.record_prefix.ax.next = self.record.ax.val();
+        self.record_prefix.ay.next = self.record.ay.val();
+        self.record_prefix.t0.next = self.record.t0.val();
+        self.record_prefix.t1.next = self.record.t1.val();
+        self.record_prefix.ts.next = self.record.ts.val();
+        self.record_prefix.te.next = self.record.te.val();
         self.record_prefix.planes.next = self.planes_r.q.val();
         for b in 0..HEAD_BYTES {
             self.record_prefix.head[b].next = self.head.bytes[b].val();
         }
-        self.record_prefix.n_window.next = self.n_window.val();
-        self.record_prefix.threshold.next = self.threshold.val();
-        self.record_prefix.threshold_hold.next = self.threshold_hold.val();
-        self.record_prefix.end_trim.next = self.end_trim.val();
-        self.record_prefix.l_min.next = self.l_min.val();
-        self.record_prefix.l_max.next = self.l_max.val();
-        self.record_prefix.plane_period.next = self.plane_period.val();
-        self.record_prefix.masked_pixels.next = self.masked_pixels.val();
+        StreamSettings::<NW>::link(&mut self.settings, &mut self.record_prefix.settings);
         self.record_prefix.c_planes.next = self.c_planes.val();
-        self.record_prefix.c_blinks.next = self.c_blinks.val();
-        self.record_prefix.c_unconf.next = self.c_unconf.val();
-        self.record_prefix.c_dropped.next = self.c_dropped.val();
-        self.record_prefix.c_bridged.next = self.c_bridged.val();
-        self.record_prefix.c_cuts.next = self.c_cuts.val();
+        TrackerTotals::link(&mut self.totals, &mut self.record_prefix.totals);
         self.record_prefix.lost_first.next = self.seqs.lost_first.val();
         self.record_prefix.lost_count.next = self.seqs.lost_count.val();
 
         // ---- The byte of this clock and the CRC.
-        self.crc_shift.next = !(self.crc.q.val() >> (bit_cast::<32, 8>(self.crc_i.q.val()) << 3));
         // Read only while bytes go out (Ovf, Emit, Codes), and computed only
         // then: free in hardware, and a simulator skips the prefix's tree on
         // the other clocks.
@@ -540,23 +434,22 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             | (self.state.q.val() == PacketState::Emit)
             | (self.state.q.val() == PacketState::Codes);
         self.prefix.read.next = self.emitting.val();
-        self.prefix.index.next = self.bidx.q.val();
+        self.prefix.index.next = self.cursor.index.val();
         self.the_byte.next = self.prefix.selected.val();
         if self.state.q.val() == PacketState::Codes {
             self.the_byte.next = self.packer.next_byte.val();
         }
-        self.crc_step.crc.next = self.crc.q.val();
-        self.crc_step.data.next = self.the_byte.val();
+        self.crc.data.next = self.the_byte.val();
 
         self.out_valid.next = false;
         self.out_byte.next = self.the_byte.val();
         self.r_pop.next = false;
         self.fb_ret.next = false;
-        self.fb_ret_bank.next = self.r_bank.val();
+        self.fb_ret_bank.next = self.record.bank.val();
 
         match self.state.q.val() {
             PacketState::Idle => {
-                if self.r_valid.val() {
+                if self.record.valid.val() {
                     self.seqs.take.next = true;
                     if self.is_blink.val() {
                         self.state.d.next = PacketState::Wait;
@@ -566,7 +459,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 }
             }
             PacketState::Wait => {
-                if self.r_ready.val() {
+                if self.record.ready.val() {
                     self.base.d.next = self.all_ones.val();
                     self.masked.d.next = false;
                     self.counts.start.next = true;
@@ -600,23 +493,17 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
             PacketState::Decide => {
                 if self.lengths.ready.val() & self.lengths.room.val() {
-                    self.bidx.d.next = 0.into();
-                    self.crc.d.next = 0xFFFF_FFFF_u64.into();
                     self.prefix_load.next = true;
-                    // Every prefix has 18 bytes or more: its first is not its last.
-                    self.prefix_last.d.next = false;
                     if self.seqs.pending.val() {
                         self.prefix_ovf.next = true;
-                        self.prefix_rest.d.next = 17.into();
                         self.in_ovf.d.next = true;
                         self.state.d.next = PacketState::Ovf;
                     } else {
-                        self.prefix_rest.d.next = self.lengths.prefix_rest.val();
                         self.in_ovf.d.next = false;
                         self.state.d.next = PacketState::Emit;
                     }
                 } else if self.lengths.ready.val()
-                    & ((self.r_kind.val() == 1) | (self.r_kind.val() == 2))
+                    & ((self.record.kind.val() == 1) | (self.record.kind.val() == 2))
                 {
                     // No room for the whole packet: drop the record, count it.
                     self.seqs.dropped.next = true;
@@ -625,23 +512,17 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
             PacketState::Ovf => {
                 self.out_valid.next = true;
-                self.crc.d.next = self.crc_step.updated.val();
-                self.bidx.d.next = self.bidx.q.val() + 1;
-                self.prefix_rest.d.next = self.prefix_rest.q.val() - 1;
-                self.prefix_last.d.next = self.prefix_rest.q.val() == 1;
-                if self.prefix_last.q.val() {
-                    self.crc_i.d.next = 0.into();
+                self.crc.add.next = true;
+                self.cursor.step.next = true;
+                if self.cursor.last.val() {
                     self.state.d.next = PacketState::Crc;
                 }
             }
             PacketState::Emit => {
                 self.out_valid.next = true;
-                self.crc.d.next = self.crc_step.updated.val();
-                self.bidx.d.next = self.bidx.q.val() + 1;
-                self.prefix_rest.d.next = self.prefix_rest.q.val() - 1;
-                self.prefix_last.d.next = self.prefix_rest.q.val() == 1;
-                if self.prefix_last.q.val() {
-                    self.crc_i.d.next = 0.into();
+                self.crc.add.next = true;
+                self.cursor.step.next = true;
+                if self.cursor.last.val() {
                     if self.is_blink.val() {
                         self.packer.start.next = true;
                         self.counts.start.next = true;
@@ -654,7 +535,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             PacketState::Codes => {
                 if self.packer.full.val() {
                     self.out_valid.next = true;
-                    self.crc.d.next = self.crc_step.updated.val();
+                    self.crc.add.next = true;
                     self.packer.send.next = true;
                 } else if self.code_stages.c_valid.val() {
                     self.packer.append.next = true;
@@ -664,7 +545,7 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
                 {
                     if !self.packer.empty.val() {
                         self.out_valid.next = true;
-                        self.crc.d.next = self.crc_step.updated.val();
+                        self.crc.add.next = true;
                         self.packer.pad.next = true;
                     } else {
                         self.state.d.next = PacketState::Crc;
@@ -673,18 +554,14 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             }
             PacketState::Crc => {
                 self.out_valid.next = true;
-                self.out_byte.next = self.crc_shift.val().get_bits::<8>(0);
-                self.crc_i.d.next = self.crc_i.q.val() + 1;
-                if self.crc_i.q.val() == 3 {
+                self.out_byte.next = self.crc.tail_byte.val();
+                self.crc.tail.next = true;
+                if self.crc.tail_last.val() {
                     if self.in_ovf.q.val() {
                         // The Overflow packet is out: now the record.
                         self.seqs.announced.next = true;
                         self.in_ovf.d.next = false;
                         self.prefix_load.next = true;
-                        self.prefix_rest.d.next = self.lengths.prefix_rest.val();
-                        self.prefix_last.d.next = false;
-                        self.bidx.d.next = 0.into();
-                        self.crc.d.next = 0xFFFF_FFFF_u64.into();
                         self.state.d.next = PacketState::Emit;
                     } else {
                         self.state.d.next = PacketState::Finish;
@@ -704,13 +581,19 @@ impl<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, const
             self.state.d.next = PacketState::Idle;
         }
         self.prefix.load.next = self.prefix_load.val();
+        self.cursor.start.next = self.prefix_load.val();
+        self.cursor.rest.next = self.lengths.prefix_rest.val();
+        if self.prefix_ovf.val() {
+            self.cursor.rest.next = 17.into();
+        }
+        self.crc.start.next = self.prefix_load.val();
         for j in 0..self._pb {
             self.prefix.d[j].next = self.record_prefix.record[j].val();
             if self.prefix_ovf.val() {
                 self.prefix.d[j].next = self.record_prefix.overflow[j].val();
             }
         }
-        self.idle.next = (self.state.q.val() == PacketState::Idle) & !self.r_valid.val();
+        self.idle.next = (self.state.q.val() == PacketState::Idle) & !self.record.valid.val();
         self.overflowed.next = self.seqs.overflowed.val();
     }
 }

@@ -41,6 +41,7 @@
 //! (`fault`): never a silent loss.
 
 use crate::back_half::BackHalf;
+use crate::bundles::StreamSettingsOut;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
 use crate::delay_line_ddr::DelayLineDdr;
@@ -330,7 +331,7 @@ impl<
         self.mask.live.next = self.control.w_live.val();
         // Stage 1a: delay line.
         self.delay.restart.next = self.control.restart.val();
-        self.delay.n_window.next = self.control.n_window.val();
+        self.delay.n_window.next = self.control.settings.n_window.val();
         self.delay.valid.next = self.mask.out_valid.val();
         self.delay.sop.next = self.mask.out_sop.val();
         self.delay.flush.next = self.mask.out_flush.val();
@@ -354,14 +355,7 @@ impl<
         // Stages 5-7.
         self.back.restart.next = self.control.restart.val();
         self.back.emit_start.next = self.control.starting.val();
-        self.back.n_window.next = self.control.n_window.val();
-        self.back.threshold.next = self.control.threshold.val();
-        self.back.threshold_hold.next = self.control.threshold_hold.val();
-        self.back.end_trim.next = self.control.end_trim.val();
-        self.back.l_min.next = self.control.l_min.val();
-        self.back.l_max.next = self.control.l_max.val();
-        self.back.plane_period.next = self.control.plane_period.val();
-        self.back.masked_pixels.next = self.control.masked_pixels.val();
+        StreamSettingsOut::<CW>::join(&mut self.control.settings, &mut self.back.settings);
         self.back.stopping.next = self.control.stopping.val();
         self.back.planes_total.next = self.control.planes_total.val();
         self.back.fh_valid.next = self.front.out_valid.val();

@@ -43,7 +43,7 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
     // of its inputs and of the sub-blocks' outputs; `done` is a function
     // of the `we_*`).
     (
-        "fb_pop,blinks,unconfirmed,dropped,bridged,cuts,bank_error);",
+        "fb_pop,totals$blinks,totals$unconfirmed,totals$dropped,totals$bridged,totals$cuts,bank_error);",
         &[
             "items$*",
             "opening$*",
@@ -120,11 +120,7 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
     (
         ",plane_drops,first_x,first_y,bank_error);",
         &[
-            "blinks",
-            "unconfirmed",
-            "dropped",
-            "bridged",
-            "cuts",
+            "totals$*",
             "plane_drops",
             "first_x",
             "first_y",

@@ -6,6 +6,7 @@
 //! twin is `model/src/pipeline.rs` (`Pipeline::finish`), with the register
 //! check of `model/src/config.rs` (`PipelineConfig::validate`).
 
+use crate::bundles::StreamSettingsOut;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use rust_hdl::prelude::*;
 
@@ -73,26 +74,13 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub starting: Signal<Out, Bit>,
     /// No stream is being checked, started or run: the mask may be loaded.
     pub idle: Signal<Out, Bit>,
-    /// Latched N.
-    pub n_window: Signal<Out, Bits<NW>>,
+    /// The stream's settings, latched at START (StreamStart's fields;
+    /// masked pixels are 0 without MASK_ENABLE).
+    pub settings: StreamSettingsOut<NW>,
     /// Latched T_int, clamped to HW bits (front half).
     pub threshold_hw: Signal<Out, Bits<HW>>,
-    /// Latched T_int (StreamStart).
-    pub threshold: Signal<Out, Bits<32>>,
     /// Latched T_hold, clamped to HW bits (front half).
     pub threshold_hold_hw: Signal<Out, Bits<HW>>,
-    /// Latched T_hold (StreamStart).
-    pub threshold_hold: Signal<Out, Bits<32>>,
-    /// Latched END_TRIM (< N, so NW bits hold it).
-    pub end_trim: Signal<Out, Bits<NW>>,
-    /// Latched L_min.
-    pub l_min: Signal<Out, Bits<32>>,
-    /// Latched L_max.
-    pub l_max: Signal<Out, Bits<32>>,
-    /// Latched plane period.
-    pub plane_period: Signal<Out, Bits<32>>,
-    /// Latched masked-pixel count (0 without MASK_ENABLE).
-    pub masked_pixels: Signal<Out, Bits<32>>,
     /// Latched MASK_ENABLE.
     pub mask_enable: Signal<Out, Bit>,
     /// A word into the pipeline.
@@ -200,16 +188,9 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             restart: Default::default(),
             starting: Default::default(),
             idle: Default::default(),
-            n_window: Default::default(),
+            settings: Default::default(),
             threshold_hw: Default::default(),
-            threshold: Default::default(),
             threshold_hold_hw: Default::default(),
-            threshold_hold: Default::default(),
-            end_trim: Default::default(),
-            l_min: Default::default(),
-            l_max: Default::default(),
-            plane_period: Default::default(),
-            masked_pixels: Default::default(),
             mask_enable: Default::default(),
             w_valid: Default::default(),
             w_sop: Default::default(),
@@ -399,22 +380,22 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             }
         }
 
-        self.n_window.next = self.n.q.val();
-        self.threshold.next = self.thr.q.val();
+        self.settings.n_window.next = self.n.q.val();
+        self.settings.threshold.next = self.thr.q.val();
         self.threshold_hw.next = bit_cast::<HW, 32>(self.thr.q.val());
         if self.thr.q.val() > self.thr_max.val() {
             self.threshold_hw.next = bit_cast::<HW, 32>(self.thr_max.val());
         }
-        self.threshold_hold.next = self.thr_hold.q.val();
-        self.end_trim.next = self.trim.q.val();
+        self.settings.threshold_hold.next = self.thr_hold.q.val();
+        self.settings.end_trim.next = self.trim.q.val();
         self.threshold_hold_hw.next = bit_cast::<HW, 32>(self.thr_hold.q.val());
         if self.thr_hold.q.val() > self.thr_max.val() {
             self.threshold_hold_hw.next = bit_cast::<HW, 32>(self.thr_max.val());
         }
-        self.l_min.next = self.lmin.q.val();
-        self.l_max.next = self.lmax.q.val();
-        self.plane_period.next = self.period.q.val();
-        self.masked_pixels.next = self.masked.q.val();
+        self.settings.l_min.next = self.lmin.q.val();
+        self.settings.l_max.next = self.lmax.q.val();
+        self.settings.plane_period.next = self.period.q.val();
+        self.settings.masked_pixels.next = self.masked.q.val();
         self.mask_enable.next = self.men.q.val();
         self.stopping.next = (self.state.q.val() == ControlState::Drain)
             | (self.state.q.val() == ControlState::Flush)

@@ -505,11 +505,11 @@ fn run_on(pr: &Params, hs: &[Vec<u32>], mut rng: ChaCha8Rng) -> Outcome {
 
     let u = &b.uut;
     let counters = [
-        u.blinks.val().to_u64(),
-        u.unconfirmed.val().to_u64(),
-        u.dropped.val().to_u64(),
-        u.bridged.val().to_u64(),
-        u.cuts.val().to_u64(),
+        u.totals.blinks.val().to_u64(),
+        u.totals.unconfirmed.val().to_u64(),
+        u.totals.dropped.val().to_u64(),
+        u.totals.bridged.val().to_u64(),
+        u.totals.cuts.val().to_u64(),
     ];
     // Records: the model's, minus the lost ones, each gap announced.
     let mut k = 0;

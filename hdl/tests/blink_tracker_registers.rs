@@ -290,11 +290,11 @@ fn tracker_counters_count_events_drops_and_a_lost_bank() {
         }
         let u = &b.uut;
         let got = Counts {
-            blinks: u.blinks.val().to_u64(),
-            unconfirmed: u.unconfirmed.val().to_u64(),
-            dropped: u.dropped.val().to_u64(),
-            bridged: u.bridged.val().to_u64(),
-            cuts: u.cuts.val().to_u64(),
+            blinks: u.totals.blinks.val().to_u64(),
+            unconfirmed: u.totals.unconfirmed.val().to_u64(),
+            dropped: u.totals.dropped.val().to_u64(),
+            bridged: u.totals.bridged.val().to_u64(),
+            cuts: u.totals.cuts.val().to_u64(),
             plane_drops: u.plane_drops.val().to_u64(),
             first: (u.first_x.val().to_u64(), u.first_y.val().to_u64()),
             bank_error: u.bank_error.val(),

@@ -100,22 +100,23 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
     for i in inputs {
         match &i.record {
             Record::Start(s) => {
-                u.n_window.next = (s.n_window as u64).to_bits();
-                u.threshold.next = (s.threshold_int as u64).to_bits();
-                u.threshold_hold.next = (s.threshold_hold as u64).to_bits();
-                u.end_trim.next = (s.end_trim.expect("a version-3 StreamStart") as u64).to_bits();
-                u.l_min.next = (s.l_min as u64).to_bits();
-                u.l_max.next = (s.l_max as u64).to_bits();
-                u.plane_period.next = (s.plane_period_ns as u64).to_bits();
-                u.masked_pixels.next = (s.masked_pixels as u64).to_bits();
+                u.settings.n_window.next = (s.n_window as u64).to_bits();
+                u.settings.threshold.next = (s.threshold_int as u64).to_bits();
+                u.settings.threshold_hold.next = (s.threshold_hold as u64).to_bits();
+                u.settings.end_trim.next =
+                    (s.end_trim.expect("a version-3 StreamStart") as u64).to_bits();
+                u.settings.l_min.next = (s.l_min as u64).to_bits();
+                u.settings.l_max.next = (s.l_max as u64).to_bits();
+                u.settings.plane_period.next = (s.plane_period_ns as u64).to_bits();
+                u.settings.masked_pixels.next = (s.masked_pixels as u64).to_bits();
             }
             Record::End(e) => {
                 u.c_planes.next = e.planes.to_bits();
-                u.c_blinks.next = e.blinks.to_bits();
-                u.c_unconf.next = e.unconfirmed.to_bits();
-                u.c_dropped.next = e.dropped_candidates.to_bits();
-                u.c_bridged.next = e.bridged_dips.to_bits();
-                u.c_cuts.next = e.cut_segments.to_bits();
+                u.totals.blinks.next = e.blinks.to_bits();
+                u.totals.unconfirmed.next = e.unconfirmed.to_bits();
+                u.totals.dropped.next = e.dropped_candidates.to_bits();
+                u.totals.bridged.next = e.bridged_dips.to_bits();
+                u.totals.cuts.next = e.cut_segments.to_bits();
             }
             _ => {}
         }
@@ -136,10 +137,10 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
         let inp = &inputs[k];
         let bank = (k % 64) as u64;
         let u = &mut b.uut;
-        u.r_valid.next = true;
-        u.r_lost.next = (inp.lost as u64).to_bits();
-        u.r_ready.next = true;
-        u.r_bank.next = bank.to_bits();
+        u.record.valid.next = true;
+        u.record.lost.next = (inp.lost as u64).to_bits();
+        u.record.ready.next = true;
+        u.record.bank.next = bank.to_bits();
         // Without room: less than the smallest record packet (Dropped, 28 bytes).
         u.fifo_free.next = if inp.room {
             60_000u64
@@ -148,18 +149,18 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
         }
         .to_bits();
         match &inp.record {
-            Record::Start(_) => u.r_kind.next = 0.into(),
+            Record::Start(_) => u.record.kind.next = 0.into(),
             Record::Blink(bl) => {
-                u.r_kind.next = 1.into();
-                u.r_slot.next = (bl.slot as u64).to_bits();
-                u.r_flags.next = ((bl.flags & !flags::MASKED) as u64).to_bits();
-                u.r_ax.next = (bl.anchor_x as u64).to_bits();
-                u.r_ay.next = (bl.anchor_y as u64).to_bits();
-                u.r_t0.next = bl.t_cross.to_bits();
-                u.r_t1.next = bl.t_drop.to_bits();
-                u.r_ts.next = (bl.t_s as u64 & MAX_PLANE).to_bits();
-                u.r_te.next = (bl.t_e as u64 & MAX_PLANE).to_bits();
-                u.r_planes.next = (bl.planes_summed as u64).to_bits();
+                u.record.kind.next = 1.into();
+                u.record.slot.next = (bl.slot as u64).to_bits();
+                u.record.flags.next = ((bl.flags & !flags::MASKED) as u64).to_bits();
+                u.record.ax.next = (bl.anchor_x as u64).to_bits();
+                u.record.ay.next = (bl.anchor_y as u64).to_bits();
+                u.record.t0.next = bl.t_cross.to_bits();
+                u.record.t1.next = bl.t_drop.to_bits();
+                u.record.ts.next = (bl.t_s as u64 & MAX_PLANE).to_bits();
+                u.record.te.next = (bl.t_e as u64 & MAX_PLANE).to_bits();
+                u.record.planes.next = (bl.planes_summed as u64).to_bits();
                 banks.entry(bank).or_insert_with(|| {
                     let mut counts = bl.counts.clone();
                     let mut masked = vec![false; r];
@@ -186,13 +187,13 @@ fn run<const RCW: usize, const CAW: usize, const BW: usize, const NW: usize, con
                 });
             }
             Record::Dropped(d) => {
-                u.r_kind.next = 2.into();
-                u.r_t0.next = d.plane.to_bits();
-                u.r_t1.next = (d.count as u64).to_bits();
-                u.r_ax.next = (d.first_x as u64).to_bits();
-                u.r_ay.next = (d.first_y as u64).to_bits();
+                u.record.kind.next = 2.into();
+                u.record.t0.next = d.plane.to_bits();
+                u.record.t1.next = (d.count as u64).to_bits();
+                u.record.ax.next = (d.first_x as u64).to_bits();
+                u.record.ay.next = (d.first_y as u64).to_bits();
             }
-            Record::End(_) => u.r_kind.next = 3.into(),
+            Record::End(_) => u.record.kind.next = 3.into(),
             Record::Overflow(_) => unreachable!("the packetiser makes these"),
         }
         // The counter memory: a read granted now answers next clock.

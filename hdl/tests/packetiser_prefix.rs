@@ -85,15 +85,15 @@ fn drive(
     for h in u.head.iter_mut() {
         h.next = (rng.gen::<u8>() as u64).to_bits();
     }
-    u.n_window.next = (rng.gen::<u8>() as u64).to_bits();
-    u.end_trim.next = (rng.gen::<u8>() as u64).to_bits();
+    u.settings.n_window.next = (rng.gen::<u8>() as u64).to_bits();
+    u.settings.end_trim.next = (rng.gen::<u8>() as u64).to_bits();
     for s in [
-        &mut u.threshold,
-        &mut u.threshold_hold,
-        &mut u.l_min,
-        &mut u.l_max,
-        &mut u.plane_period,
-        &mut u.masked_pixels,
+        &mut u.settings.threshold,
+        &mut u.settings.threshold_hold,
+        &mut u.settings.l_min,
+        &mut u.settings.l_max,
+        &mut u.settings.plane_period,
+        &mut u.settings.masked_pixels,
         &mut u.lost_first,
         &mut u.lost_count,
     ] {
@@ -101,24 +101,24 @@ fn drive(
     }
     for s in [
         &mut u.c_planes,
-        &mut u.c_blinks,
-        &mut u.c_unconf,
-        &mut u.c_dropped,
-        &mut u.c_bridged,
-        &mut u.c_cuts,
+        &mut u.totals.blinks,
+        &mut u.totals.unconfirmed,
+        &mut u.totals.dropped,
+        &mut u.totals.bridged,
+        &mut u.totals.cuts,
     ] {
         s.next = rng.gen::<u64>().to_bits();
     }
     let prefix_len = match record {
         Record::Start(s) => {
-            u.n_window.next = (s.n_window as u64).to_bits();
-            u.threshold.next = (s.threshold_int as u64).to_bits();
-            u.threshold_hold.next = (s.threshold_hold as u64).to_bits();
-            u.end_trim.next = (s.end_trim.unwrap() as u64).to_bits();
-            u.l_min.next = (s.l_min as u64).to_bits();
-            u.l_max.next = (s.l_max as u64).to_bits();
-            u.plane_period.next = (s.plane_period_ns as u64).to_bits();
-            u.masked_pixels.next = (s.masked_pixels as u64).to_bits();
+            u.settings.n_window.next = (s.n_window as u64).to_bits();
+            u.settings.threshold.next = (s.threshold_int as u64).to_bits();
+            u.settings.threshold_hold.next = (s.threshold_hold as u64).to_bits();
+            u.settings.end_trim.next = (s.end_trim.unwrap() as u64).to_bits();
+            u.settings.l_min.next = (s.l_min as u64).to_bits();
+            u.settings.l_max.next = (s.l_max as u64).to_bits();
+            u.settings.plane_period.next = (s.plane_period_ns as u64).to_bits();
+            u.settings.masked_pixels.next = (s.masked_pixels as u64).to_bits();
             packet.len() - 4
         }
         Record::Blink(b) => {
@@ -161,11 +161,11 @@ fn drive(
         Record::End(e) => {
             u.kind.next = 3.into();
             u.c_planes.next = e.planes.to_bits();
-            u.c_blinks.next = e.blinks.to_bits();
-            u.c_unconf.next = e.unconfirmed.to_bits();
-            u.c_dropped.next = e.dropped_candidates.to_bits();
-            u.c_bridged.next = e.bridged_dips.to_bits();
-            u.c_cuts.next = e.cut_segments.to_bits();
+            u.totals.blinks.next = e.blinks.to_bits();
+            u.totals.unconfirmed.next = e.unconfirmed.to_bits();
+            u.totals.dropped.next = e.dropped_candidates.to_bits();
+            u.totals.bridged.next = e.bridged_dips.to_bits();
+            u.totals.cuts.next = e.cut_segments.to_bits();
             packet.len() - 4
         }
         Record::Overflow(_) => unreachable!(),

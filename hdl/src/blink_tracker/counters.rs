@@ -18,6 +18,7 @@
 //! wait).
 
 use super::layout::COORD_BITS;
+use crate::bundles::TrackerTotalsOut;
 use rust_hdl::prelude::*;
 
 /// The tracker's event counters, the plane's drops and the bank error.
@@ -45,16 +46,8 @@ pub struct TrackerCounters {
     pub plane_end: Signal<In, Bit>,
     /// A Blink waits for a free bank while the record queue has room.
     pub bank_wait: Signal<In, Bit>,
-    /// Blink records emitted.
-    pub blinks: Signal<Out, Bits<64>>,
-    /// Tracks that ended unconfirmed.
-    pub unconfirmed: Signal<Out, Bits<64>>,
-    /// Candidates dropped.
-    pub dropped: Signal<Out, Bits<64>>,
-    /// Dips bridged.
-    pub bridged: Signal<Out, Bits<64>>,
-    /// Segments cut.
-    pub cuts: Signal<Out, Bits<64>>,
+    /// The StreamEnd totals.
+    pub totals: TrackerTotalsOut,
     /// Candidates dropped in this plane.
     pub plane_drops: Signal<Out, Bits<32>>,
     /// The column of the plane's first dropped candidate.
@@ -123,11 +116,11 @@ impl Logic for TrackerCounters {
             self.c_cuts.d.next = 0.into();
             self.bank_err.d.next = false;
         }
-        self.blinks.next = self.c_blinks.q.val();
-        self.unconfirmed.next = self.c_unconf.q.val();
-        self.dropped.next = self.c_dropped.q.val();
-        self.bridged.next = self.c_bridged.q.val();
-        self.cuts.next = self.c_cuts.q.val();
+        self.totals.blinks.next = self.c_blinks.q.val();
+        self.totals.unconfirmed.next = self.c_unconf.q.val();
+        self.totals.dropped.next = self.c_dropped.q.val();
+        self.totals.bridged.next = self.c_bridged.q.val();
+        self.totals.cuts.next = self.c_cuts.q.val();
         self.plane_drops.next = self.drops.q.val();
         self.first_x.next = self.drop_x_r.q.val();
         self.first_y.next = self.drop_y_r.q.val();

@@ -20,6 +20,7 @@
 //! The payload length comes in (a Blink's depends on its codes). Lanes past
 //! a kind's prefix are 0.
 
+use crate::bundles::{StreamSettings, TrackerTotals};
 use crate::config::BackHalfConfig;
 use crate::packetiser::HEAD_BYTES;
 use crate::stream::lanes;
@@ -60,34 +61,12 @@ pub struct RecordPrefix<const NW: usize> {
     pub planes: Signal<In, Bits<32>>,
     /// Blink: the count block's head ([`super::CountBlockHead`]).
     pub head: Vec<Signal<In, Bits<8>>>,
-    /// StreamStart: N.
-    pub n_window: Signal<In, Bits<NW>>,
-    /// StreamStart: T_int.
-    pub threshold: Signal<In, Bits<32>>,
-    /// StreamStart: T_hold.
-    pub threshold_hold: Signal<In, Bits<32>>,
-    /// StreamStart: END_TRIM.
-    pub end_trim: Signal<In, Bits<NW>>,
-    /// StreamStart: L_min.
-    pub l_min: Signal<In, Bits<32>>,
-    /// StreamStart: L_max.
-    pub l_max: Signal<In, Bits<32>>,
-    /// StreamStart: plane period, ns.
-    pub plane_period: Signal<In, Bits<32>>,
-    /// StreamStart: masked pixels.
-    pub masked_pixels: Signal<In, Bits<32>>,
+    /// StreamStart: the stream's settings.
+    pub settings: StreamSettings<NW>,
     /// StreamEnd: planes.
     pub c_planes: Signal<In, Bits<64>>,
-    /// StreamEnd: blinks.
-    pub c_blinks: Signal<In, Bits<64>>,
-    /// StreamEnd: unconfirmed.
-    pub c_unconf: Signal<In, Bits<64>>,
-    /// StreamEnd: dropped candidates.
-    pub c_dropped: Signal<In, Bits<64>>,
-    /// StreamEnd: bridged dips.
-    pub c_bridged: Signal<In, Bits<64>>,
-    /// StreamEnd: cut segments.
-    pub c_cuts: Signal<In, Bits<64>>,
+    /// StreamEnd: the tracker's totals.
+    pub totals: TrackerTotals,
     /// Overflow: the first lost sequence number.
     pub lost_first: Signal<In, Bits<32>>,
     /// Overflow: records lost.
@@ -157,20 +136,9 @@ impl<const NW: usize> RecordPrefix<NW> {
             te: Default::default(),
             planes: Default::default(),
             head: lanes(HEAD_BYTES),
-            n_window: Default::default(),
-            threshold: Default::default(),
-            threshold_hold: Default::default(),
-            end_trim: Default::default(),
-            l_min: Default::default(),
-            l_max: Default::default(),
-            plane_period: Default::default(),
-            masked_pixels: Default::default(),
+            settings: Default::default(),
             c_planes: Default::default(),
-            c_blinks: Default::default(),
-            c_unconf: Default::default(),
-            c_dropped: Default::default(),
-            c_bridged: Default::default(),
-            c_cuts: Default::default(),
+            totals: Default::default(),
             lost_first: Default::default(),
             lost_count: Default::default(),
             record: lanes(pb),
@@ -214,8 +182,8 @@ impl<const NW: usize> Logic for RecordPrefix<NW> {
             }
             _ => {}
         }
-        self.n16.next = bit_cast::<16, NW>(self.n_window.val());
-        self.trim32.next = bit_cast::<32, NW>(self.end_trim.val());
+        self.n16.next = bit_cast::<16, NW>(self.settings.n_window.val());
+        self.trim32.next = bit_cast::<32, NW>(self.settings.end_trim.val());
         if self.enable.val() {
             // Header: magic "SA", version, type, sequence number, length.
             self.rec[0].next = 0x53.into();
@@ -266,11 +234,11 @@ impl<const NW: usize> Logic for RecordPrefix<NW> {
                 3 => {
                     for b in 0..8 {
                         self.rec[10 + b].next = self.c_planes.val().get_bits::<8>(8 * b);
-                        self.rec[18 + b].next = self.c_blinks.val().get_bits::<8>(8 * b);
-                        self.rec[26 + b].next = self.c_unconf.val().get_bits::<8>(8 * b);
-                        self.rec[34 + b].next = self.c_dropped.val().get_bits::<8>(8 * b);
-                        self.rec[42 + b].next = self.c_bridged.val().get_bits::<8>(8 * b);
-                        self.rec[50 + b].next = self.c_cuts.val().get_bits::<8>(8 * b);
+                        self.rec[18 + b].next = self.totals.blinks.val().get_bits::<8>(8 * b);
+                        self.rec[26 + b].next = self.totals.unconfirmed.val().get_bits::<8>(8 * b);
+                        self.rec[34 + b].next = self.totals.dropped.val().get_bits::<8>(8 * b);
+                        self.rec[42 + b].next = self.totals.bridged.val().get_bits::<8>(8 * b);
+                        self.rec[50 + b].next = self.totals.cuts.val().get_bits::<8>(8 * b);
                     }
                 }
                 _ => {
@@ -283,23 +251,26 @@ impl<const NW: usize> Logic for RecordPrefix<NW> {
                         self.rec[14 + b].next = self.n16.val().get_bits::<8>(8 * b);
                     }
                     for b in 0..4 {
-                        self.rec[18 + b].next = self.threshold.val().get_bits::<8>(8 * b);
-                        self.rec[22 + b].next = self.l_min.val().get_bits::<8>(8 * b);
-                        self.rec[26 + b].next = self.l_max.val().get_bits::<8>(8 * b);
+                        self.rec[18 + b].next = self.settings.threshold.val().get_bits::<8>(8 * b);
+                        self.rec[22 + b].next = self.settings.l_min.val().get_bits::<8>(8 * b);
+                        self.rec[26 + b].next = self.settings.l_max.val().get_bits::<8>(8 * b);
                     }
                     for o in self._o_period..(self._o_period + 1) {
                         for b in 0..4 {
-                            self.rec[o + b].next = self.plane_period.val().get_bits::<8>(8 * b);
+                            self.rec[o + b].next =
+                                self.settings.plane_period.val().get_bits::<8>(8 * b);
                         }
                     }
                     for o in self._o_masked..(self._o_masked + 1) {
                         for b in 0..4 {
-                            self.rec[o + b].next = self.masked_pixels.val().get_bits::<8>(8 * b);
+                            self.rec[o + b].next =
+                                self.settings.masked_pixels.val().get_bits::<8>(8 * b);
                         }
                     }
                     for o in self._o_hold..(self._o_hold + 1) {
                         for b in 0..4 {
-                            self.rec[o + b].next = self.threshold_hold.val().get_bits::<8>(8 * b);
+                            self.rec[o + b].next =
+                                self.settings.threshold_hold.val().get_bits::<8>(8 * b);
                         }
                     }
                     for o in self._o_trim..(self._o_trim + 1) {

@@ -19,6 +19,16 @@ use super::rice_lengths::RiceLengths;
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
+/// Rice parameters worth a length accumulator for counts of `rcw` bits:
+/// 0 ..= `rcw` (at most the model's 0 ..= 31). An offset from the base is
+/// below 2^rcw, so for every k ≥ rcw each code is 1 + k bits and the total
+/// grows with k: k = rcw beats every larger k, and the model's choice
+/// ([`smartagg_model::rice::choose`], smallest k on ties) is always in
+/// 0 ..= rcw.
+pub fn rice_candidates(rcw: usize) -> usize {
+    (rcw + 1).min(smartagg_model::rice::MAX_K as usize + 1)
+}
+
 /// The length accumulators and the scan. `RCW`: count bits.
 #[derive(LogicBlock)]
 pub struct RiceChoice<const RCW: usize> {

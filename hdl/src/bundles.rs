@@ -1,0 +1,127 @@
+//! Port bundles (`#[derive(LogicInterface)]`): groups of ports that travel
+//! together from block to block, declared once. A bundle is passed into a
+//! sub-block whole (`link`) and between siblings whole (`join` with its
+//! mate, the same fields in the other direction); in Verilog each field is
+//! a port named `bundle$field`.
+//!
+//! * [`StreamSettings`] / [`StreamSettingsOut`]: the runtime registers that
+//!   [`crate::stream_control::StreamControl`] latches at START and the
+//!   StreamStart record reports (`model/PACKETS.md` §3.1), from stream
+//!   control through the back half to the packetiser's prefix;
+//! * [`TrackerTotals`] / [`TrackerTotalsOut`]: the blink tracker's five
+//!   StreamEnd totals (§3.4), from its counters to the packetiser's prefix;
+//! * [`RecordHead`]: the record at the head of the record queue, with the
+//!   fields the finisher derives, as the packetiser takes it.
+
+use rust_hdl::prelude::*;
+
+/// The stream's settings, latched at START (inputs). `NW`: bits of N.
+#[derive(Clone, Debug, Default, LogicInterface)]
+#[join = "StreamSettingsOut"]
+pub struct StreamSettings<const NW: usize> {
+    /// N, the rolling window in planes.
+    pub n_window: Signal<In, Bits<NW>>,
+    /// T_int, the opening threshold.
+    pub threshold: Signal<In, Bits<32>>,
+    /// T_hold, the hold threshold.
+    pub threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM (≤ N − 1, so NW bits hold it).
+    pub end_trim: Signal<In, Bits<NW>>,
+    /// L_min.
+    pub l_min: Signal<In, Bits<32>>,
+    /// L_max.
+    pub l_max: Signal<In, Bits<32>>,
+    /// The plane period, ns.
+    pub plane_period: Signal<In, Bits<32>>,
+    /// Masked pixels (0 without MASK_ENABLE).
+    pub masked_pixels: Signal<In, Bits<32>>,
+}
+
+/// The stream's settings, latched at START (outputs of stream control).
+#[derive(Clone, Debug, Default, LogicInterface)]
+#[join = "StreamSettings"]
+pub struct StreamSettingsOut<const NW: usize> {
+    /// N.
+    pub n_window: Signal<Out, Bits<NW>>,
+    /// T_int.
+    pub threshold: Signal<Out, Bits<32>>,
+    /// T_hold.
+    pub threshold_hold: Signal<Out, Bits<32>>,
+    /// END_TRIM.
+    pub end_trim: Signal<Out, Bits<NW>>,
+    /// L_min.
+    pub l_min: Signal<Out, Bits<32>>,
+    /// L_max.
+    pub l_max: Signal<Out, Bits<32>>,
+    /// The plane period, ns.
+    pub plane_period: Signal<Out, Bits<32>>,
+    /// Masked pixels.
+    pub masked_pixels: Signal<Out, Bits<32>>,
+}
+
+/// The tracker's StreamEnd totals, 64 bits each (inputs).
+#[derive(Clone, Debug, Default, LogicInterface)]
+#[join = "TrackerTotalsOut"]
+pub struct TrackerTotals {
+    /// Blink records emitted (lost ones included).
+    pub blinks: Signal<In, Bits<64>>,
+    /// Tracks that ended unconfirmed.
+    pub unconfirmed: Signal<In, Bits<64>>,
+    /// Candidates dropped for want of a slot.
+    pub dropped: Signal<In, Bits<64>>,
+    /// Single-plane dips bridged.
+    pub bridged: Signal<In, Bits<64>>,
+    /// Segments cut at L_max.
+    pub cuts: Signal<In, Bits<64>>,
+}
+
+/// The tracker's StreamEnd totals (outputs of its counters).
+#[derive(Clone, Debug, Default, LogicInterface)]
+#[join = "TrackerTotals"]
+pub struct TrackerTotalsOut {
+    /// Blink records emitted.
+    pub blinks: Signal<Out, Bits<64>>,
+    /// Tracks that ended unconfirmed.
+    pub unconfirmed: Signal<Out, Bits<64>>,
+    /// Candidates dropped.
+    pub dropped: Signal<Out, Bits<64>>,
+    /// Dips bridged.
+    pub bridged: Signal<Out, Bits<64>>,
+    /// Segments cut.
+    pub cuts: Signal<Out, Bits<64>>,
+}
+
+/// The record at the head of the record queue, as the packetiser takes it
+/// (inputs). `BW`: bank bits.
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct RecordHead<const BW: usize> {
+    /// A record is at the head of the queue (held until the packetiser
+    /// pops it).
+    pub valid: Signal<In, Bit>,
+    /// Its kind ([`crate::blink_tracker::record_kind`]).
+    pub kind: Signal<In, Bits<2>>,
+    /// Records lost just before it.
+    pub lost: Signal<In, Bits<32>>,
+    /// Blink: slot.
+    pub slot: Signal<In, Bits<8>>,
+    /// Blink: flags (MASKED is added from the counter rows).
+    pub flags: Signal<In, Bits<8>>,
+    /// Blink: anchor column; Dropped: first column.
+    pub ax: Signal<In, Bits<16>>,
+    /// Blink: anchor row; Dropped: first row.
+    pub ay: Signal<In, Bits<16>>,
+    /// Blink: t_cross; Dropped: plane.
+    pub t0: Signal<In, Bits<48>>,
+    /// Blink: t_drop; Dropped: count.
+    pub t1: Signal<In, Bits<48>>,
+    /// Blink: t_s (two's complement, 48 bits).
+    pub ts: Signal<In, Bits<48>>,
+    /// Blink: t_e.
+    pub te: Signal<In, Bits<48>>,
+    /// Blink: planes summed.
+    pub planes: Signal<In, Bits<32>>,
+    /// Blink: counter bank.
+    pub bank: Signal<In, Bits<BW>>,
+    /// Blink: its counts are final.
+    pub ready: Signal<In, Bit>,
+}
