@@ -74,9 +74,9 @@
 //! their on/off step, and the walk clears every slot's hits. The words of
 //! plane t + 1 must be right for a slot opened in t, so the compare stage
 //! takes none in the clock that decides the last item of t (`end_item`),
-//! which may be an opening. The lowest free
-//! slot (`fpick`) is a register of the previous clock's flags: after an
-//! opening the next candidate is replayed, and after a walk comes WalkEnd.
+//! which may be an opening. The lowest free slot ([`Association`]) is a
+//! register of the previous clock's flags: after an opening the next
+//! candidate is replayed, and after a walk comes WalkEnd.
 //!
 //! **Walk pipeline.** A walk also runs in three stages, one slot per clock:
 //! the read stage takes slot `walk`'s flags and anchor through the
@@ -127,8 +127,9 @@
 //! slot order and one Dropped record, and at stream end the finished
 //! segments and StreamEnd. A Blink record carries its counter bank; the slot
 //! takes a fresh bank from the free list. When the queue is full the record
-//! is lost and counted (`rec_lost` of the next record pushed, which becomes
-//! an Overflow record) — never silently; StreamStart and StreamEnd wait.
+//! is lost and counted ([`RecordPort`]: the `lost` of the next record
+//! pushed, which becomes an Overflow record) — never silently; StreamStart
+//! and StreamEnd wait.
 //! When the queue has room but the free list shows no bank yet (the bank of
 //! the record the packetiser has just finished reaches the free list a few
 //! clocks after the queue drops that record), the slot walk waits for it.
@@ -156,11 +157,13 @@
 //! `dage ≤ N − end_trim`), emits the finished segments in slot order and
 //! then StreamEnd.
 
+mod association;
 mod counters;
 mod item_stage;
 mod layout;
 mod on_off_step;
 mod opening;
+mod record_port;
 mod slot_compare;
 mod slot_flags;
 mod slot_mux;
@@ -169,11 +172,13 @@ mod walk_memory;
 mod walk_stages;
 mod walk_step;
 
+pub use association::Association;
 pub use counters::TrackerCounters;
 pub use item_stage::ItemStage;
 pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
 pub use on_off_step::OnOffStep;
 pub use opening::OpeningWindows;
+pub use record_port::RecordPort;
 pub use slot_compare::SlotCompare;
 pub use slot_flags::SlotFlags;
 pub use slot_mux::SlotMux;
@@ -182,7 +187,7 @@ pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_stages::WalkStages;
 pub use walk_step::{walk_word, WalkStep};
 
-use crate::bundles::TrackerTotalsOut;
+use crate::bundles::{RecordPushOut, TrackerTotalsOut};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
@@ -281,30 +286,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// [`shadow`]'s offsets (sum the delayed plane, fresh, anchor, counter
     /// bank).
     pub sh: Vec<Signal<Out, Bits<64>>>,
-    /// The record queue accepts a push.
-    pub rec_room: Signal<In, Bit>,
-    /// Push a record descriptor.
-    pub rec_push: Signal<Out, Bit>,
-    /// Its kind ([`record_kind`]).
-    pub rec_kind: Signal<Out, Bits<2>>,
-    /// Records lost (queue full) just before this one.
-    pub rec_lost: Signal<Out, Bits<32>>,
-    /// Blink: slot.
-    pub rec_slot: Signal<Out, Bits<8>>,
-    /// Blink: CUT, CONTINUATION, TRUNCATED flag bits.
-    pub rec_flags: Signal<Out, Bits<8>>,
-    /// Blink: anchor column; Dropped: first column.
-    pub rec_ax: Signal<Out, Bits<16>>,
-    /// Blink: anchor row; Dropped: first row.
-    pub rec_ay: Signal<Out, Bits<16>>,
-    /// Blink: t_cross; Dropped: the plane.
-    pub rec_t0: Signal<Out, Bits<48>>,
-    /// Blink: t_drop; Dropped: the count.
-    pub rec_t1: Signal<Out, Bits<48>>,
-    /// Blink: the counter bank holding its ROI.
-    pub rec_bank: Signal<Out, Bits<BW>>,
-    /// Blink: its counts are final once the aggregator has finished this plane.
-    pub rec_tag: Signal<Out, Bits<48>>,
+    /// The record descriptor pushed into the record queue, and its room.
+    pub record: RecordPushOut<BW>,
     /// A free bank is available.
     pub fb_valid: Signal<In, Bit>,
     /// The free bank.
@@ -323,7 +306,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// restart leaves it, at 0), so that a walk starts without writing it
     /// and `walk_words`' read address does not wait on the state machine.
     walk: DFF<Bits<8>>,
-    lost: DFF<Bits<32>>,
+    /// The records asked for by the states, and the lost-record count.
+    port: RecordPort<BW>,
     /// The StreamEnd totals, the plane's drops and the bank error.
     counters: TrackerCounters,
     // Per slot, packed (see "Registers" in the module doc).
@@ -358,11 +342,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The compare stage's candidate was compared before the opening of the
     /// previous clock: compare it again rather than decide it.
     replay: DFF<Bit>,
-    /// The lowest slot free at the end of t − 1 and not yet taken, one-hot,
-    /// and whether there is one (of the previous clock's flags: an opening
-    /// is followed by a replay, a walk by WalkEnd, before it is read).
-    fpick: DFF<Bits<MAX_SLOTS>>,
-    fpick_any: DFF<Bit>,
+    /// The decide stage's absorption, opening or drop of a candidate.
+    association: Association,
     /// The fields that only the walks read, one word per slot in LUT RAM,
     /// read a clock ahead at the read stage's slot.
     walk_words: WalkMemory,
@@ -395,8 +376,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     r_from_x: Signal<Local, Bit>,
     s_cx: Signal<Local, Bits<COORD_BITS>>,
     s_cy: Signal<Local, Bits<COORD_BITS>>,
-    free_v: Signal<Local, Bits<MAX_SLOTS>>,
-    t_m1: Signal<Local, Bits<48>>,
     t_p1: Signal<Local, Bits<48>>,
     t_ge_n: Signal<Local, Bit>,
     n32: Signal<Local, Bits<AGE_BITS>>,
@@ -406,7 +385,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     do_open: Signal<Local, Bit>,
     do_drop: Signal<Local, Bit>,
     do_fin: Signal<Local, Bit>,
-    can_push: Signal<Local, Bit>,
+    /// W2's slot makes a Blink record.
+    blink: Signal<Local, Bit>,
     need_bank: Signal<Local, Bit>,
     /// The walk holds a Blink this clock: the record queue has room but the
     /// free list shows no bank yet (observed by the tests).
@@ -417,7 +397,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
-    absorbed: Signal<Local, Bit>,
     last_slot: Constant<Bits<8>>,
     _m: usize,
 }
@@ -491,18 +470,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             rows_done: Default::default(),
             done: Default::default(),
             sh: lanes(2 * m),
-            rec_room: Default::default(),
-            rec_push: Default::default(),
-            rec_kind: Default::default(),
-            rec_lost: Default::default(),
-            rec_slot: Default::default(),
-            rec_flags: Default::default(),
-            rec_ax: Default::default(),
-            rec_ay: Default::default(),
-            rec_t0: Default::default(),
-            rec_t1: Default::default(),
-            rec_bank: Default::default(),
-            rec_tag: Default::default(),
+            record: Default::default(),
             fb_valid: Default::default(),
             fb_bank: Default::default(),
             fb_pop: Default::default(),
@@ -512,7 +480,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             t: Default::default(),
             rows: Default::default(),
             walk: Default::default(),
-            lost: Default::default(),
+            port: Default::default(),
             counters: Default::default(),
             flags: SlotFlags::new(m),
             words: SlotWords::new(m, P),
@@ -531,8 +499,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             r_sh: Default::default(),
             r_bnd: Default::default(),
             replay: Default::default(),
-            fpick: Default::default(),
-            fpick_any: Default::default(),
+            association: Default::default(),
             walk_words: WalkMemory::new(m),
             read: SlotMux::new(m),
             items: ItemStage::new(cfg),
@@ -553,8 +520,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             r_from_x: Default::default(),
             s_cx: Default::default(),
             s_cy: Default::default(),
-            free_v: Default::default(),
-            t_m1: Default::default(),
             t_p1: Default::default(),
             t_ge_n: Default::default(),
             n32: Default::default(),
@@ -564,7 +529,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             do_open: Default::default(),
             do_drop: Default::default(),
             do_fin: Default::default(),
-            can_push: Default::default(),
+            blink: Default::default(),
             need_bank: Default::default(),
             bank_wait: Default::default(),
             n_bank: Default::default(),
@@ -572,7 +537,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             we_fin: Default::default(),
             we_drain: Default::default(),
             we_emit: Default::default(),
-            absorbed: Default::default(),
             last_slot: Constant::new((m as u64 - 1).to_bits()),
             _m: m,
         })
@@ -586,21 +550,22 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, t, rows, walk, lost, r_valid, r_cand, r_last, r_eor, r_lastrow,
-            r_cx, r_yc, r_near, r_hw, r_frow, r_geo, r_win, r_sh, r_bnd, replay, fpick, fpick_any,
-            n_mc, mc_one, lmin, lmin_p1, lmax_m1, vf, drain_end, rd_on
+            self, clock, state, t, rows, walk, r_valid, r_cand, r_last, r_eor, r_lastrow, r_cx,
+            r_yc, r_near, r_hw, r_frow, r_geo, r_win, r_sh, r_bnd, replay, n_mc, mc_one, lmin,
+            lmin_p1, lmax_m1, vf, drain_end, rd_on
         );
         self.walk_words.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
         self.flags.clock.next = self.clock.val();
         self.words.clock.next = self.clock.val();
         self.counters.clock.next = self.clock.val();
+        self.port.clock.next = self.clock.val();
+        self.association.clock.next = self.clock.val();
         for q in 0..(2 * self._m) {
             self.sh[q].next = self.words.sh[q].val();
         }
 
         // ---- Shared values.
-        self.t_m1.next = self.t.q.val() - 1;
         self.t_p1.next = self.t.q.val() + 1;
         self.n32.next = bit_cast::<18, NW>(self.n_window.val());
         // (Registered: the walk compares ages with them; the registers are
@@ -614,7 +579,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
         self.drain_end.d.next = self.t_p1.val() == self.p_plus_n.val();
         self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
-        self.can_push.next = self.rec_room.val() & self.fb_valid.val();
 
         // ---- Flow (see "Pipeline" in the module doc): the decide stage takes
         // the compare stage's item in Run unless it is replayed; the compare
@@ -706,18 +670,15 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // ---- Decide stage: the item against the slots as they are now. An
         // opening of the previous clock is in the flags already but not in
         // the compares: a candidate compared then is replayed (`replay`).
-        // The lowest free slot is a register of the previous clock's flags.
-        self.free_v.next = self.flags.free_before.val() & !self.flags.opened.val();
-        self.fpick.d.next = self.free_v.val() & (!self.free_v.val() + 1);
-        self.fpick_any.d.next = self.free_v.val().any();
-        self.absorbed.next = (self.flags.busy.val()
-            & (self.flags.active_before.val() | self.flags.opened.val())
-            & self.r_near.q.val())
-        .any();
-        self.do_open.next =
-            self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & self.fpick_any.q.val();
-        self.do_drop.next =
-            self.d_go.val() & self.r_cand.q.val() & !self.absorbed.val() & !self.fpick_any.q.val();
+        // [`Association`]: absorb, open in the lowest free slot, or drop.
+        self.association.candidate.next = self.d_go.val() & self.r_cand.q.val();
+        self.association.near.next = self.r_near.q.val();
+        self.association.busy.next = self.flags.busy.val();
+        self.association.active_before.next = self.flags.active_before.val();
+        self.association.free_before.next = self.flags.free_before.val();
+        self.association.opened.next = self.flags.opened.val();
+        self.do_open.next = self.association.open.val();
+        self.do_drop.next = self.association.drop.val();
         self.do_fin.next = self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val();
         self.replay.d.next = self.do_open.val()
             & self.items.valid.val()
@@ -743,7 +704,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // bank a few clocks later), so the walk waits for it rather than
         // lose the record. Room in the queue means at most Q − 1 queued
         // Blinks, so one of the Q spare banks is free or returning.
-        self.bank_wait.next = self.need_bank.val() & self.rec_room.val() & !self.fb_valid.val();
+        self.bank_wait.next = self.need_bank.val() & self.record.room.val() & !self.fb_valid.val();
         self.we_walk.next = self.stages.valid.val()
             & (self.state.q.val() == TrackerState::Walk)
             & self.vf.q.val()
@@ -810,48 +771,35 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.stages.n_mc.next = self.n_mc.q.val();
         self.stages.mc_one.next = self.mc_one.q.val();
 
-        // ---- Record port defaults.
-        self.rec_push.next = false;
-        self.rec_kind.next = 0.into();
-        self.rec_lost.next = self.lost.q.val();
-        self.rec_slot.next = 0.into();
-        self.rec_flags.next = 0.into();
-        self.rec_ax.next = 0.into();
-        self.rec_ay.next = 0.into();
-        self.rec_t0.next = 0.into();
-        self.rec_t1.next = 0.into();
-        self.rec_bank.next = 0.into();
-        self.rec_tag.next = self.t.q.val();
-        self.fb_pop.next = false;
-        self.counters.blink.next = false;
+        // ---- The records ([`RecordPort`]): W2's Blink, the plane's Dropped
+        // record, StreamStart and StreamEnd, each in its state.
+        self.blink.next = (self.we_walk.val() & self.stages.comp.val())
+            | (self.we_emit.val() & self.stages.busy.val());
+        RecordPushOut::<BW>::link(&mut self.record, &mut self.port.record);
+        self.port.restart.next = self.restart.val();
+        self.port.fb_valid.next = self.fb_valid.val();
+        self.fb_pop.next = self.port.fb_pop.val();
+        self.port.t.next = self.t.q.val();
+        self.port.stream_start.next = self.state.q.val() == TrackerState::Start;
+        self.port.blink.next = self.blink.val();
+        self.port.emit.next = self.state.q.val() == TrackerState::Emit;
+        self.port.slot.next = self.stages.slot.val();
+        self.port.flags.next = self.stages.flags.val();
+        self.port.ax.next = self.stages.ax.val();
+        self.port.ay.next = self.stages.ay.val();
+        self.port.t_cross.next = self.stages.tc.val();
+        self.port.t_drop.next = self.stages.td.val();
+        self.port.bank.next = self.stages.bank.val();
+        self.port.walk_end.next = self.state.q.val() == TrackerState::WalkEnd;
+        self.port.plane_drops.next = self.counters.plane_drops.val();
+        self.port.first_x.next = self.counters.first_x.val();
+        self.port.first_y.next = self.counters.first_y.val();
+        self.port.stream_end.next = self.state.q.val() == TrackerState::End;
+        self.counters.blink.next = self.blink.val();
         self.counters.unconfirmed_end.next = false;
         self.counters.bridge.next = false;
         self.counters.cut.next = false;
         self.counters.plane_end.next = false;
-        // W2: a walked slot's Blink record.
-        if (self.we_walk.val() & self.stages.comp.val())
-            | (self.we_emit.val() & self.stages.busy.val())
-        {
-            self.counters.blink.next = true;
-            self.rec_kind.next = 1.into();
-            self.rec_slot.next = self.stages.slot.val();
-            self.rec_flags.next = self.stages.flags.val();
-            self.rec_ax.next = bit_cast::<16, 10>(self.stages.ax.val());
-            self.rec_ay.next = bit_cast::<16, 10>(self.stages.ay.val());
-            self.rec_t0.next = self.stages.tc.val();
-            self.rec_t1.next = self.stages.td.val();
-            self.rec_bank.next = self.stages.bank.val();
-            if self.state.q.val() == TrackerState::Emit {
-                self.rec_tag.next = self.t_m1.val();
-            }
-            if self.can_push.val() {
-                self.rec_push.next = true;
-                self.lost.d.next = 0.into();
-                self.fb_pop.next = true;
-            } else {
-                self.lost.d.next = self.lost.q.val() + 1;
-            }
-        }
 
         // The walked slot's bank from now on (and in its ROI view for plane
         // t + 1): a fresh one if it has just handed its bank to a Blink record.
@@ -866,9 +814,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         match self.state.q.val() {
             TrackerState::Start => {
-                if self.rec_room.val() {
-                    self.rec_push.next = true;
-                    self.rec_kind.next = 0.into();
+                if self.record.room.val() {
                     self.state.d.next = TrackerState::Run;
                 }
             }
@@ -897,19 +843,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::WalkEnd => {
-                if self.counters.plane_drops.val() != 0 {
-                    self.rec_kind.next = 2.into();
-                    self.rec_ax.next = bit_cast::<16, 10>(self.counters.first_x.val());
-                    self.rec_ay.next = bit_cast::<16, 10>(self.counters.first_y.val());
-                    self.rec_t0.next = self.t.q.val();
-                    self.rec_t1.next = bit_cast::<48, 32>(self.counters.plane_drops.val());
-                    if self.rec_room.val() {
-                        self.rec_push.next = true;
-                        self.lost.d.next = 0.into();
-                    } else {
-                        self.lost.d.next = self.lost.q.val() + 1;
-                    }
-                }
                 self.counters.plane_end.next = true;
                 self.t.d.next = self.t_p1.val();
                 self.rows.d.next = 0.into();
@@ -954,10 +887,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::End => {
-                if self.rec_room.val() {
-                    self.rec_push.next = true;
-                    self.rec_kind.next = 3.into();
-                    self.lost.d.next = 0.into();
+                if self.record.room.val() {
                     self.state.d.next = TrackerState::Done;
                 }
             }
@@ -988,7 +918,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.words.next_fresh.next = self.stages.n_fresh.val();
         self.words.unconfirmed.next = self.stages.fin_unconf.val();
         self.words.open.next = self.do_open.val();
-        self.words.open_slot.next = self.fpick.q.val();
+        self.words.open_slot.next = self.association.open_slot.val();
         self.words.open_geo.next = self.r_geo.q.val();
         self.words.open_win.next = self.r_win.q.val();
         self.words.open_bnd.next = self.r_bnd.q.val();
@@ -1007,7 +937,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.flags.step.next = self.do_fin.val();
         self.flags.row_end.next = self.r_frow.q.val();
         self.flags.open.next = self.do_open.val();
-        self.flags.open_slot.next = self.fpick.q.val();
+        self.flags.open_slot.next = self.association.open_slot.val();
         self.flags.walk_slot.next = self.stages.sel.val();
         self.flags.end_of_plane.next = self.we_walk.val();
         self.flags.finish.next = self.we_fin.val();
@@ -1030,7 +960,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.replay.d.next = false;
             self.rd_on.d.next = false;
             self.walk.d.next = 0.into();
-            self.lost.d.next = 0.into();
         }
 
         // The walk words of the slot the read stage is at on the next clock.

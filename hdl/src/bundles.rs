@@ -10,6 +10,11 @@
 //!   control through the back half to the packetiser's prefix;
 //! * [`TrackerTotals`] / [`TrackerTotalsOut`]: the blink tracker's five
 //!   StreamEnd totals (§3.4), from its counters to the packetiser's prefix;
+//! * [`RecordPushOut`] / [`RecordPush`]: a record descriptor pushed by the
+//!   blink tracker (from its record port) into the record queue, and the
+//!   queue's room (assigned field by field in the back half, not joined:
+//!   a join is a process per field in the Verilog, which Verilator
+//!   evaluates on its own);
 //! * [`RecordHead`]: the record at the head of the record queue, with the
 //!   fields the finisher derives, as the packetiser takes it.
 
@@ -124,4 +129,67 @@ pub struct RecordHead<const BW: usize> {
     pub bank: Signal<In, Bits<BW>>,
     /// Blink: its counts are final.
     pub ready: Signal<In, Bit>,
+}
+
+/// A record descriptor pushed by the blink tracker into the record queue
+/// (the tracker's side: the descriptor out, the queue's room in). `BW`:
+/// bank bits.
+#[derive(Clone, Debug, Default, LogicInterface)]
+#[join = "RecordPush"]
+pub struct RecordPushOut<const BW: usize> {
+    /// The queue accepts a push (it holds fewer than Q records).
+    pub room: Signal<In, Bit>,
+    /// Push the descriptor (only with `room`).
+    pub push: Signal<Out, Bit>,
+    /// Its kind ([`crate::blink_tracker::record_kind`]).
+    pub kind: Signal<Out, Bits<2>>,
+    /// Records lost (queue full) just before this one.
+    pub lost: Signal<Out, Bits<32>>,
+    /// Blink: slot.
+    pub slot: Signal<Out, Bits<8>>,
+    /// Blink: CUT, CONTINUATION, TRUNCATED flag bits.
+    pub flags: Signal<Out, Bits<8>>,
+    /// Blink: anchor column; Dropped: first column.
+    pub ax: Signal<Out, Bits<16>>,
+    /// Blink: anchor row; Dropped: first row.
+    pub ay: Signal<Out, Bits<16>>,
+    /// Blink: t_cross; Dropped: the plane.
+    pub t0: Signal<Out, Bits<48>>,
+    /// Blink: t_drop; Dropped: the count.
+    pub t1: Signal<Out, Bits<48>>,
+    /// Blink: its counts are final once the ROI aggregator has swept this
+    /// plane.
+    pub tag: Signal<Out, Bits<48>>,
+    /// Blink: the counter bank holding its ROI.
+    pub bank: Signal<Out, Bits<BW>>,
+}
+
+/// A record descriptor pushed into the record queue (the queue's side).
+#[derive(Clone, Debug, Default, LogicInterface)]
+#[join = "RecordPushOut"]
+pub struct RecordPush<const BW: usize> {
+    /// Fewer than Q records held.
+    pub room: Signal<Out, Bit>,
+    /// Push the descriptor.
+    pub push: Signal<In, Bit>,
+    /// Kind.
+    pub kind: Signal<In, Bits<2>>,
+    /// Records lost before it.
+    pub lost: Signal<In, Bits<32>>,
+    /// Slot.
+    pub slot: Signal<In, Bits<8>>,
+    /// Tracker flags.
+    pub flags: Signal<In, Bits<8>>,
+    /// Column.
+    pub ax: Signal<In, Bits<16>>,
+    /// Row.
+    pub ay: Signal<In, Bits<16>>,
+    /// t_cross / plane.
+    pub t0: Signal<In, Bits<48>>,
+    /// t_drop / count.
+    pub t1: Signal<In, Bits<48>>,
+    /// Plane after whose sweep the counts are final.
+    pub tag: Signal<In, Bits<48>>,
+    /// Bank.
+    pub bank: Signal<In, Bits<BW>>,
 }

@@ -43,10 +43,11 @@
 //!
 //! ## Back-half blocks (stages 5–7) and the whole pipeline
 //! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`], with
-//!   its item stage, opening windows, slot compare, slots' flags (with the
-//!   on/off step), slots' words, counters, read multiplexer, walk memory,
-//!   walk stages and walk step), the ROI aggregator ([`roi_aggregator`], with its row cover,
-//!   lowest slot, view multiplexer and ROI row) and its bank pool
+//!   its item stage, opening windows, slot compare, association, slots'
+//!   flags (with the on/off step), slots' words, counters, read
+//!   multiplexer, walk memory, walk stages, walk step and record port),
+//!   the ROI aggregator ([`roi_aggregator`], with its row cover, lowest
+//!   slot, view multiplexer and ROI row) and its bank pool
 //!   ([`bank_pool`]), the
 //!   record queue and finisher ([`record_queue::RecordQueue`],
 //!   [`record_finisher::RecordFinisher`], sub-blocks of the packetiser

@@ -6,6 +6,7 @@
 //! its model twin is `model/src/packetiser.rs`).
 
 use crate::bram::RamStyle;
+use crate::bundles::RecordPush;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use rust_hdl::prelude::*;
@@ -22,30 +23,9 @@ pub struct RecordQueue<const BW: usize, const QAW: usize, const QW: usize> {
     pub clock: Signal<In, Clock>,
     /// Stream start: empty.
     pub restart: Signal<In, Bit>,
-    /// Fewer than Q records held.
-    pub room: Signal<Out, Bit>,
-    /// Push a descriptor.
-    pub push: Signal<In, Bit>,
-    /// Kind.
-    pub kind: Signal<In, Bits<2>>,
-    /// Records lost before it.
-    pub lost: Signal<In, Bits<32>>,
-    /// Slot.
-    pub slot: Signal<In, Bits<8>>,
-    /// Tracker flags.
-    pub flags: Signal<In, Bits<8>>,
-    /// Column.
-    pub x: Signal<In, Bits<16>>,
-    /// Row.
-    pub y: Signal<In, Bits<16>>,
-    /// t_cross / plane.
-    pub t0: Signal<In, Bits<48>>,
-    /// t_drop / count.
-    pub t1: Signal<In, Bits<48>>,
-    /// Plane after whose sweep the counts are final.
-    pub tag: Signal<In, Bits<48>>,
-    /// Bank.
-    pub bank: Signal<In, Bits<BW>>,
+    /// The descriptor pushed by the tracker, and the queue's room (fewer
+    /// than Q records held).
+    pub record: RecordPush<BW>,
     /// The head is valid.
     pub h_valid: Signal<Out, Bit>,
     /// Pop the head.
@@ -93,18 +73,7 @@ impl<const BW: usize, const QAW: usize, const QW: usize> RecordQueue<BW, QAW, QW
         Ok(RecordQueue {
             clock: Default::default(),
             restart: Default::default(),
-            room: Default::default(),
-            push: Default::default(),
-            kind: Default::default(),
-            lost: Default::default(),
-            slot: Default::default(),
-            flags: Default::default(),
-            x: Default::default(),
-            y: Default::default(),
-            t0: Default::default(),
-            t1: Default::default(),
-            tag: Default::default(),
-            bank: Default::default(),
+            record: Default::default(),
             h_valid: Default::default(),
             h_pop: Default::default(),
             h_kind: Default::default(),
@@ -136,22 +105,22 @@ impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<B
     fn update(&mut self) {
         self.fifo.clock.next = self.clock.val();
         self.fifo.restart.next = self.restart.val();
-        self.fifo.push.next = self.push.val();
-        self.fifo.push_data.next = bit_cast::<QW, 2>(self.kind.val())
-            | (bit_cast::<QW, 32>(self.lost.val()) << 2)
-            | (bit_cast::<QW, 8>(self.slot.val()) << 34)
-            | (bit_cast::<QW, 8>(self.flags.val()) << 42)
-            | (bit_cast::<QW, 16>(self.x.val()) << 50)
-            | (bit_cast::<QW, 16>(self.y.val()) << 66)
-            | (bit_cast::<QW, 48>(self.t0.val()) << 82)
-            | (bit_cast::<QW, 48>(self.t1.val()) << 130)
-            | (bit_cast::<QW, 48>(self.tag.val()) << 178)
-            | (bit_cast::<QW, BW>(self.bank.val()) << 226);
+        self.fifo.push.next = self.record.push.val();
+        self.fifo.push_data.next = bit_cast::<QW, 2>(self.record.kind.val())
+            | (bit_cast::<QW, 32>(self.record.lost.val()) << 2)
+            | (bit_cast::<QW, 8>(self.record.slot.val()) << 34)
+            | (bit_cast::<QW, 8>(self.record.flags.val()) << 42)
+            | (bit_cast::<QW, 16>(self.record.ax.val()) << 50)
+            | (bit_cast::<QW, 16>(self.record.ay.val()) << 66)
+            | (bit_cast::<QW, 48>(self.record.t0.val()) << 82)
+            | (bit_cast::<QW, 48>(self.record.t1.val()) << 130)
+            | (bit_cast::<QW, 48>(self.record.tag.val()) << 178)
+            | (bit_cast::<QW, BW>(self.record.bank.val()) << 226);
         self.fifo.pop.next = self.h_pop.val();
         // count' = count + pushed − popped < Q, from the count's compares
         // with constants and the two flags.
         self.room_r.clock.next = self.clock.val();
-        self.pushed.next = self.push.val() & self.fifo.room.val();
+        self.pushed.next = self.record.push.val() & self.fifo.room.val();
         self.popped.next = self.h_pop.val() & self.fifo.out_valid.val();
         self.room_r.d.next = (self.fifo.count.val() < self.depth_m1.val())
             | ((self.fifo.count.val() == self.depth_m1.val())
@@ -162,7 +131,7 @@ impl<const BW: usize, const QAW: usize, const QW: usize> Logic for RecordQueue<B
         if self.restart.val() {
             self.room_r.d.next = true;
         }
-        self.room.next = self.room_r.q.val();
+        self.record.room.next = self.room_r.q.val();
         self.h_valid.next = self.fifo.out_valid.val();
         self.h_kind.next = self.fifo.out_data.val().get_bits::<2>(0);
         self.h_lost.next = self.fifo.out_data.val().get_bits::<32>(2);

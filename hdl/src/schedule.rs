@@ -36,12 +36,13 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
     ),
     // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
-    // opening windows, slot compare, read multiplexer and walk stages,
-    // whose outputs the tracker reads back (the item stage's `pop` is a
-    // function of `take`, the walk stages' `take` of `done`), and the
-    // locals they are computed from (functions of the tracker's registers,
-    // of its inputs and of the sub-blocks' outputs; `done` is a function
-    // of the `we_*`).
+    // opening windows, slot compare, association, record port, read
+    // multiplexer and walk stages, whose outputs the tracker reads back
+    // (the record port's `fb_pop` picks the walked slot's bank; the item
+    // stage's `pop` is a function of `take`, the walk stages' `take` of
+    // `done`), and the locals they are computed from (functions of the
+    // tracker's registers, of its inputs and of the sub-blocks' outputs;
+    // `done` is a function of the `we_*`, `blink` of `we_walk`/`we_emit`).
     (
         "fb_pop,totals$blinks,totals$unconfirmed,totals$dropped,totals$bridged,totals$cuts,bank_error);",
         &[
@@ -49,6 +50,8 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "opening$*",
             "stages$*",
             "compare$*",
+            "association$*",
+            "port$*",
             "read$*",
             "run",
             "d_go",
@@ -57,6 +60,7 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "s_cx",
             "s_cy",
             "do_fin",
+            "blink",
             "need_bank",
             "bank_wait",
             "we_walk",

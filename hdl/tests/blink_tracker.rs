@@ -285,7 +285,7 @@ struct Outcome {
     /// Clocks the tracker waited for the sweep.
     waited: usize,
     /// Records lost because the record queue was full (each announced by
-    /// the `rec_lost` of the next record pushed).
+    /// the `record.lost` of the next record pushed).
     lost: usize,
     /// Clocks a Blink waited for a bank: the queue had room, the free list
     /// showed none.
@@ -400,7 +400,7 @@ fn run_on(pr: &Params, hs: &[Vec<u32>], mut rng: ChaCha8Rng) -> Outcome {
             u.in_y.next = (y as u64).to_bits();
             u.in_flush.next = fl;
         }
-        u.rec_room.next = rng.gen_bool(pr.room_rate);
+        u.record.room.next = rng.gen_bool(pr.room_rate);
         u.fb_valid.next = rng.gen_bool(pr.bank_rate);
         u.fb_bank.next = (next_bank % 8).to_bits();
         u.swept.next = (sweep as u64).to_bits();
@@ -458,32 +458,32 @@ fn run_on(pr: &Params, hs: &[Vec<u32>], mut rng: ChaCha8Rng) -> Outcome {
             }
         }
 
-        if u.rec_push.val() && u.rec_room.val() {
-            let kind = u.rec_kind.val().to_u64();
+        if u.record.push.val() && u.record.room.val() {
+            let kind = u.record.kind.val().to_u64();
             let rec = match kind {
                 record_kind::START => Rec::Start,
                 record_kind::BLINK => Rec::Blink {
-                    slot: u.rec_slot.val().to_u64() as u8,
-                    flags: u.rec_flags.val().to_u64() as u8,
-                    ax: u.rec_ax.val().to_u64() as u16,
-                    ay: u.rec_ay.val().to_u64() as u16,
-                    t_cross: u.rec_t0.val().to_u64(),
-                    t_drop: u.rec_t1.val().to_u64(),
+                    slot: u.record.slot.val().to_u64() as u8,
+                    flags: u.record.flags.val().to_u64() as u8,
+                    ax: u.record.ax.val().to_u64() as u16,
+                    ay: u.record.ay.val().to_u64() as u16,
+                    t_cross: u.record.t0.val().to_u64(),
+                    t_drop: u.record.t1.val().to_u64(),
                 },
                 record_kind::DROPPED => Rec::Dropped {
-                    plane: u.rec_t0.val().to_u64(),
-                    count: u.rec_t1.val().to_u64() as u32,
-                    x: u.rec_ax.val().to_u64() as u16,
-                    y: u.rec_ay.val().to_u64() as u16,
+                    plane: u.record.t0.val().to_u64(),
+                    count: u.record.t1.val().to_u64() as u32,
+                    x: u.record.ax.val().to_u64() as u16,
+                    y: u.record.ay.val().to_u64() as u16,
                 },
                 _ => Rec::End,
             };
-            let bank = u.rec_bank.val().to_u64();
+            let bank = u.record.bank.val().to_u64();
             if kind == record_kind::BLINK {
                 // The slot hands over the bank it summed into and takes the fresh one.
                 assert!(u.fb_pop.val(), "a queued blink takes a fresh bank");
             }
-            got.push((rec, u.rec_lost.val().to_u64() as u32, bank));
+            got.push((rec, u.record.lost.val().to_u64() as u32, bank));
         }
         if u.fb_pop.val() {
             next_bank += 1;

@@ -253,7 +253,7 @@ fn run_stream(
             t.in_y.next = (y as u64).to_bits();
             t.in_flush.next = fl;
         }
-        t.rec_room.next = queue.len() < 4;
+        t.record.room.next = queue.len() < 4;
         t.fb_valid.next = pool.uut.valid.val();
         t.fb_bank.next = pool.uut.bank.val();
         t.swept.next = ag.uut.planes_done.val();
@@ -266,18 +266,18 @@ fn run_stream(
             a.sh[q].next = t.sh[q].val();
         }
         pool.uut.pop.next = t.fb_pop.val();
-        if t.rec_push.val() && t.rec_room.val() {
-            lost.push_back(t.rec_lost.val().to_u64() as usize);
+        if t.record.push.val() && t.record.room.val() {
+            lost.push_back(t.record.lost.val().to_u64() as usize);
             queue.push_back((
-                t.rec_kind.val().to_u64(),
-                t.rec_slot.val().to_u64() as u8,
-                t.rec_flags.val().to_u64() as u8,
-                t.rec_ax.val().to_u64() as u16,
-                t.rec_ay.val().to_u64() as u16,
-                t.rec_t0.val().to_u64(),
-                t.rec_t1.val().to_u64(),
-                t.rec_bank.val().to_u64(),
-                t.rec_tag.val().to_u64(),
+                t.record.kind.val().to_u64(),
+                t.record.slot.val().to_u64() as u8,
+                t.record.flags.val().to_u64() as u8,
+                t.record.ax.val().to_u64() as u16,
+                t.record.ay.val().to_u64() as u16,
+                t.record.t0.val().to_u64(),
+                t.record.t1.val().to_u64(),
+                t.record.bank.val().to_u64(),
+                t.record.tag.val().to_u64(),
             ));
         }
         if t.in_pop.val() {
