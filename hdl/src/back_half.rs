@@ -10,7 +10,7 @@
 use crate::bank_pool::BankPool;
 use crate::blink_tracker::{BlinkTracker, COORD_BITS};
 use crate::bram::RamStyle;
-use crate::bundles::{StreamSettings, TrackerTotalsOut};
+use crate::bundles::StreamSettings;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::packetiser::Packetiser;
@@ -341,7 +341,12 @@ impl<
         self.pkt.seq_init.next = 0.into();
         StreamSettings::<NW>::link(&mut self.settings, &mut self.pkt.settings);
         self.pkt.c_planes.next = bit_cast::<64, 48>(self.planes_total.val());
-        TrackerTotalsOut::join(&mut self.tracker.totals, &mut self.pkt.totals);
+        // (Field by field: a join is a process per field in the Verilog.)
+        self.pkt.totals.blinks.next = self.tracker.totals.blinks.val();
+        self.pkt.totals.unconfirmed.next = self.tracker.totals.unconfirmed.val();
+        self.pkt.totals.dropped.next = self.tracker.totals.dropped.val();
+        self.pkt.totals.bridged.next = self.tracker.totals.bridged.val();
+        self.pkt.totals.cuts.next = self.tracker.totals.cuts.val();
         self.pkt.record.valid.next = self.queue.h_valid.val();
         self.pkt.record.kind.next = self.queue.h_kind.val();
         self.pkt.record.lost.next = self.queue.h_lost.val();

@@ -57,11 +57,11 @@
 //! * the *item* stage ([`ItemStage`]) takes the head word's lowest
 //!   candidate lane not yet taken, or the word itself when it has none,
 //!   and pops the word with its last item;
-//! * the *compare* stage (`r_…`) holds, per slot, whether the candidate is
-//!   in the slot's association window (`bnd`, stored when the slot opened:
-//!   the opening candidate's own window), whether the word hits its 3x3
-//!   window, and whether the word's row ends that window ([`SlotCompare`]);
-//!   and what an opening would write ([`OpeningWindows`]);
+//! * the *compare* stage ([`CompareStage`]) holds, per slot, whether the
+//!   candidate is in the slot's association window (`bnd`, stored when the
+//!   slot opened: the opening candidate's own window), whether the word
+//!   hits its 3x3 window, and whether the word's row ends that window
+//!   ([`SlotCompare`]); and what an opening would write ([`OpeningWindows`]);
 //! * the *decide* stage acts on it in Run: the association against the
 //!   current flags, the opening or drop, the hits, the end-of-row step
 //!   ([`OnOffStep`], in [`SlotFlags`]).
@@ -137,7 +137,7 @@
 //! **Registers.** The slots' state is most of the tracker's flip-flops, and
 //! a simulator such as Verilator copies every register on every clock
 //! (those copies were 29 % of the full-field co-simulation's time with one
-//! register per slot and field), so it is packed: one [`MAX_SLOTS`]-bit
+//! register per slot and field), so it is packed: one [`MAX_SLOTS`](crate::config::MAX_SLOTS)-bit
 //! register per flag (bit i: slot i; [`SlotFlags`], which makes every write
 //! to the flags), one 64-bit word per slot for the anchor, window rows and
 //! bank ([`slot_word`]), one for the window's two lane masks, one for its
@@ -158,6 +158,7 @@
 //! then StreamEnd.
 
 mod association;
+mod compare_stage;
 mod counters;
 mod item_stage;
 mod layout;
@@ -173,6 +174,7 @@ mod walk_stages;
 mod walk_step;
 
 pub use association::Association;
+pub use compare_stage::CompareStage;
 pub use counters::TrackerCounters;
 pub use item_stage::ItemStage;
 pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
@@ -188,7 +190,7 @@ pub use walk_stages::WalkStages;
 pub use walk_step::{walk_word, WalkStep};
 
 use crate::bundles::{RecordPushOut, TrackerTotalsOut};
-use crate::config::{BackHalfConfig, GatewareConfig, GatewareError, MAX_SLOTS};
+use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
 
@@ -319,29 +321,9 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// The item stage (see "Pipeline" in the module doc): one candidate
     /// lane of the head word, or the word itself when it has none.
     items: ItemStage<P>,
-    /// What an opening by the item stage's candidate writes.
-    opening: OpeningWindows<P>,
-    /// The compare stage's comparisons of the item with every slot.
-    compare: SlotCompare<P>,
-    // The compare stage: the item, what it does to each slot (bit i: slot
-    // i), and what an opening writes.
-    r_valid: DFF<Bit>,
-    r_cand: DFF<Bit>,
-    r_last: DFF<Bit>,
-    r_eor: DFF<Bit>,
-    r_lastrow: DFF<Bit>,
-    r_cx: DFF<Bits<COORD_BITS>>,
-    r_yc: DFF<Bits<COORD_BITS>>,
-    r_near: DFF<Bits<MAX_SLOTS>>,
-    r_hw: DFF<Bits<MAX_SLOTS>>,
-    r_frow: DFF<Bits<MAX_SLOTS>>,
-    r_geo: DFF<Bits<64>>,
-    r_win: DFF<Bits<64>>,
-    r_sh: DFF<Bits<64>>,
-    r_bnd: DFF<Bits<64>>,
-    /// The compare stage's candidate was compared before the opening of the
-    /// previous clock: compare it again rather than decide it.
-    replay: DFF<Bit>,
+    /// The compare stage: the item against every slot, and what an opening
+    /// by its candidate writes, registered for the decide stage.
+    compare: CompareStage<P>,
     /// The decide stage's absorption, opening or drop of a candidate.
     association: Association,
     /// The fields that only the walks read, one word per slot in LUT RAM,
@@ -369,22 +351,12 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// does to it.
     stages: WalkStages<BW>,
     // Combinational.
-    run: Signal<Local, Bit>,
-    d_go: Signal<Local, Bit>,
-    /// The decide stage takes the plane's last item.
-    end_item: Signal<Local, Bit>,
-    r_from_x: Signal<Local, Bit>,
-    s_cx: Signal<Local, Bits<COORD_BITS>>,
-    s_cy: Signal<Local, Bits<COORD_BITS>>,
     t_p1: Signal<Local, Bits<48>>,
     t_ge_n: Signal<Local, Bit>,
     n32: Signal<Local, Bits<AGE_BITS>>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
     view_free: Signal<Local, Bit>,
-    do_open: Signal<Local, Bit>,
-    do_drop: Signal<Local, Bit>,
-    do_fin: Signal<Local, Bit>,
     /// W2's slot makes a Blink record.
     blink: Signal<Local, Bit>,
     need_bank: Signal<Local, Bit>,
@@ -409,44 +381,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
         GatewareConfig::check_width("BlinkTracker", "P", P, f.pixels_per_clock)?;
         GatewareConfig::check_width("BlinkTracker", "NW", NW, f.count_bits())?;
         GatewareConfig::check_width("BlinkTracker", "BW", BW, cfg.bank_bits())?;
-        if cfg.l_max_max as u64 + 2 * f.n_max as u64 + 2 >= 1 << AGE_BITS {
-            return Err(GatewareError::Invalid {
-                field: "l_max_max",
-                value: cfg.l_max_max.to_string(),
-                why: format!(
-                    "L_max,max + 2·N_max + 2 must stay below 2^{AGE_BITS}, the blink tracker's slot ages"
-                ),
-            });
-        }
-        // (`validate` refuses more than MAX_SLOTS slots.)
-        if BW > slot_word::BANK_BITS_MAX || P > 32 {
-            return Err(GatewareError::Invalid {
-                field: "slots/pixels_per_clock",
-                value: format!("{BW}-bit banks, P = {P}"),
-                why: format!(
-                    "a slot's word holds banks of at most {} bits and a lane mask of at most 32",
-                    slot_word::BANK_BITS_MAX
-                ),
-            });
-        }
-        if f.width > MAX_FIELD || f.height > MAX_FIELD {
-            return Err(GatewareError::Invalid {
-                field: "width/height",
-                value: format!("{}x{}", f.width, f.height),
-                why: format!(
-                    "the blink tracker's {COORD_BITS}-bit coordinates hold fields up to {MAX_FIELD}x{MAX_FIELD}"
-                ),
-            });
-        }
-        if cfg.r_assoc as usize >= MAX_FIELD {
-            return Err(GatewareError::Invalid {
-                field: "r_assoc",
-                value: cfg.r_assoc.to_string(),
-                why: format!(
-                    "must be below {MAX_FIELD} (the tracker's {COORD_BITS}-bit coordinates)"
-                ),
-            });
-        }
+        layout::fits(cfg, P, BW)?;
         let m = cfg.slots;
         Ok(BlinkTracker {
             clock: Default::default(),
@@ -484,27 +419,11 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             counters: Default::default(),
             flags: SlotFlags::new(m),
             words: SlotWords::new(m, P),
-            r_valid: Default::default(),
-            r_cand: Default::default(),
-            r_last: Default::default(),
-            r_eor: Default::default(),
-            r_lastrow: Default::default(),
-            r_cx: Default::default(),
-            r_yc: Default::default(),
-            r_near: Default::default(),
-            r_hw: Default::default(),
-            r_frow: Default::default(),
-            r_geo: Default::default(),
-            r_win: Default::default(),
-            r_sh: Default::default(),
-            r_bnd: Default::default(),
-            replay: Default::default(),
             association: Default::default(),
             walk_words: WalkMemory::new(m),
             read: SlotMux::new(m),
             items: ItemStage::new(cfg),
-            opening: OpeningWindows::new(cfg),
-            compare: SlotCompare::new(m),
+            compare: CompareStage::new(cfg),
             n_mc: Default::default(),
             mc_one: Default::default(),
             lmin: Default::default(),
@@ -514,21 +433,12 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             drain_end: Default::default(),
             rd_on: Default::default(),
             stages: Default::default(),
-            run: Default::default(),
-            d_go: Default::default(),
-            end_item: Default::default(),
-            r_from_x: Default::default(),
-            s_cx: Default::default(),
-            s_cy: Default::default(),
             t_p1: Default::default(),
             t_ge_n: Default::default(),
             n32: Default::default(),
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
             view_free: Default::default(),
-            do_open: Default::default(),
-            do_drop: Default::default(),
-            do_fin: Default::default(),
             blink: Default::default(),
             need_bank: Default::default(),
             bank_wait: Default::default(),
@@ -543,19 +453,18 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
     }
 }
 
-// Match guards do not translate to Verilog, so the ifs stay inside the arms;
-// Run's decided item keeps its end-of-row test nested, as the state reads it.
-#[allow(clippy::collapsible_match, clippy::collapsible_if)]
+// Match guards do not translate to Verilog, so the ifs stay inside the arms.
+#[allow(clippy::collapsible_match)]
 impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P, NW, BW> {
     #[hdl_gen]
     fn update(&mut self) {
         dff_setup!(
-            self, clock, state, t, rows, walk, r_valid, r_cand, r_last, r_eor, r_lastrow, r_cx,
-            r_yc, r_near, r_hw, r_frow, r_geo, r_win, r_sh, r_bnd, replay, n_mc, mc_one, lmin,
-            lmin_p1, lmax_m1, vf, drain_end, rd_on
+            self, clock, state, t, rows, walk, n_mc, mc_one, lmin, lmin_p1, lmax_m1, vf, drain_end,
+            rd_on
         );
         self.walk_words.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
+        self.compare.clock.next = self.clock.val();
         self.flags.clock.next = self.clock.val();
         self.words.clock.next = self.clock.val();
         self.counters.clock.next = self.clock.val();
@@ -580,25 +489,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.drain_end.d.next = self.t_p1.val() == self.p_plus_n.val();
         self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
 
-        // ---- Flow (see "Pipeline" in the module doc): the decide stage takes
-        // the compare stage's item in Run unless it is replayed; the compare
-        // stage takes the item stage's when it is empty or decided; the item
-        // stage takes the head word's next lane when it is empty or moves on.
-        // (When `fin_cond` holds, both stages are empty: they take only real
-        // words, and every real plane is done.) The compare stage does not
-        // take an item in the clock that decides the plane's last item: that
-        // item may open a track, and the next plane's words must be compared
-        // with the opened slot's window (its on/off step in the next plane
-        // reads their hits and row end); it takes it a clock later, in the
-        // walk.
-        self.run.next = self.state.q.val() == TrackerState::Run;
-        self.d_go.next = self.run.val() & self.r_valid.q.val() & !self.replay.q.val();
-        self.end_item.next =
-            self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val() & self.r_lastrow.q.val();
-        self.r_from_x.next =
-            !self.replay.q.val() & (!self.r_valid.q.val() | self.run.val()) & !self.end_item.val();
-
-        // ---- Item stage: the head word's next item.
+        // ---- Item stage: the head word's next item, taken by the compare
+        // stage ([`CompareStage`], which also gives the flow between the
+        // three stages; see "Pipeline" in the module doc). (When `fin_cond`
+        // holds, both stages are empty: they take only real words, and
+        // every real plane is done.)
         self.items.restart.next = self.restart.val();
         self.items.in_valid.next = self.in_valid.val();
         self.items.in_above.next = self.in_above.val();
@@ -606,84 +501,41 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.items.in_x.next = self.in_x.val();
         self.items.in_y.next = self.in_y.val();
         self.items.in_flush.next = self.in_flush.val();
-        self.items.take.next = self.r_from_x.val();
+        self.items.take.next = self.compare.take.val();
         self.in_pop.next = self.items.pop.val();
         // The ROI view of plane t − 1 may be overwritten (see `swept`).
         self.view_free.next = self.swept.val() >= self.t.q.val();
 
-        // ---- What an opening by the item writes.
-        self.opening.cx.next = self.items.cx.val();
-        self.opening.cy.next = self.items.yc.val();
-        self.opening.lastrow.next = self.items.lastrow.val();
-
-        // ---- Compare stage: per slot, whether the candidate falls in its
-        // association window, whether the word hits its 3x3 window, and
-        // whether the word's row is the one at whose end the window has
-        // streamed ([`SlotCompare`]), when the stage loads.
-        self.s_cx.next = self.items.cx.val();
-        self.s_cy.next = self.items.yc.val();
-        if self.replay.q.val() {
-            self.s_cx.next = self.r_cx.q.val();
-            self.s_cy.next = self.r_yc.q.val();
-        }
+        // ---- Compare stage: the item against every slot's words, and what
+        // an opening by it writes.
+        self.compare.restart.next = self.restart.val();
+        self.compare.run.next = self.state.q.val() == TrackerState::Run;
+        self.compare.open.next = self.association.open.val();
+        self.compare.item_valid.next = self.items.valid.val();
+        self.compare.item_cand.next = self.items.cand.val();
+        self.compare.item_last.next = self.items.last.val();
+        self.compare.item_eor.next = self.items.eor.val();
+        self.compare.item_lastrow.next = self.items.lastrow.val();
+        self.compare.item_cx.next = self.items.cx.val();
+        self.compare.item_cy.next = self.items.yc.val();
+        self.compare.item_word_col.next = self.items.xc.val();
+        self.compare.item_row_m1.next = self.items.ym1.val();
+        self.compare.item_row_p1.next = self.items.yp1.val();
+        self.compare.item_above.next = self.items.above.val();
         for i in 0..self._m {
-            self.compare.bounds[i].next = self.words.bnd[i].val().get_bits::<40>(0);
-            self.compare.anchor_rows[i].next = self.words.geo[i].val().get_bits::<10>(10);
-            self.compare.low_cols[i].next = self.words.geo[i].val().get_bits::<10>(34);
-            self.compare.high_cols[i].next = self.words.geo[i].val().get_bits::<10>(44);
-            self.compare.end_rows[i].next = self.words.geo[i].val().get_bits::<10>(54);
-            self.compare.low_lanes[i].next = self.words.win[i].val().get_bits::<P>(0);
-            self.compare.high_lanes[i].next = self.words.win[i].val().get_bits::<P>(32);
-        }
-        self.compare.cx.next = self.s_cx.val();
-        self.compare.cy.next = self.s_cy.val();
-        self.compare.word_col.next = self.items.xc.val();
-        self.compare.row.next = self.items.yc.val();
-        self.compare.row_m1.next = self.items.ym1.val();
-        self.compare.row_p1.next = self.items.yp1.val();
-        self.compare.above.next = self.items.above.val();
-        self.compare.enable.next =
-            self.replay.q.val() | (self.r_from_x.val() & self.items.valid.val());
-        if self.replay.q.val() {
-            self.r_near.d.next = self.compare.near.val();
-        }
-        if self.end_item.val() {
-            self.r_valid.d.next = false;
-        }
-        if self.r_from_x.val() {
-            self.r_valid.d.next = self.items.valid.val();
-            self.r_cand.d.next = self.items.cand.val();
-            self.r_last.d.next = self.items.last.val();
-            self.r_eor.d.next = self.items.eor.val();
-            self.r_lastrow.d.next = self.items.lastrow.val();
-            self.r_cx.d.next = self.items.cx.val();
-            self.r_yc.d.next = self.items.yc.val();
-            self.r_near.d.next = self.compare.near.val();
-            self.r_hw.d.next = self.compare.hits.val();
-            self.r_frow.d.next = self.compare.row_end.val();
-            self.r_geo.d.next = self.opening.geo.val();
-            self.r_win.d.next = self.opening.win.val();
-            self.r_sh.d.next = self.opening.sh.val();
-            self.r_bnd.d.next = self.opening.bnd.val();
+            self.compare.slot_geo[i].next = self.words.geo[i].val();
+            self.compare.slot_win[i].next = self.words.win[i].val();
+            self.compare.slot_bnd[i].next = self.words.bnd[i].val();
         }
 
-        // ---- Decide stage: the item against the slots as they are now. An
-        // opening of the previous clock is in the flags already but not in
-        // the compares: a candidate compared then is replayed (`replay`).
-        // [`Association`]: absorb, open in the lowest free slot, or drop.
-        self.association.candidate.next = self.d_go.val() & self.r_cand.q.val();
-        self.association.near.next = self.r_near.q.val();
+        // ---- Decide stage: the item against the slots as they are now
+        // ([`Association`]: absorb, open in the lowest free slot, or drop).
+        self.association.candidate.next = self.compare.candidate.val();
+        self.association.near.next = self.compare.near.val();
         self.association.busy.next = self.flags.busy.val();
         self.association.active_before.next = self.flags.active_before.val();
         self.association.free_before.next = self.flags.free_before.val();
         self.association.opened.next = self.flags.opened.val();
-        self.do_open.next = self.association.open.val();
-        self.do_drop.next = self.association.drop.val();
-        self.do_fin.next = self.d_go.val() & self.r_last.q.val() & self.r_eor.q.val();
-        self.replay.d.next = self.do_open.val()
-            & self.items.valid.val()
-            & self.items.cand.val()
-            & self.r_from_x.val();
 
         // ---- The walks (see "Walk pipeline" in the module doc): the read
         // stage takes the slot at `walk` into W1, W1 decides what the walk
@@ -822,13 +674,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 if self.fin_cond.val() {
                     self.rd_on.d.next = self.t.q.val() != 0;
                     self.state.d.next = TrackerState::Finish;
-                } else if self.d_go.val() {
-                    if self.r_last.q.val() & self.r_eor.q.val() {
-                        self.rows.d.next = bit_cast::<16, 10>(self.r_yc.q.val()) + 1;
-                        if self.r_lastrow.q.val() {
-                            self.rd_on.d.next = true;
-                            self.state.d.next = TrackerState::Walk;
-                        }
+                } else if self.compare.step.val() {
+                    self.rows.d.next = bit_cast::<16, 10>(self.compare.cy.val()) + 1;
+                    if self.compare.lastrow.val() {
+                        self.rd_on.d.next = true;
+                        self.state.d.next = TrackerState::Walk;
                     }
                 }
             }
@@ -896,9 +746,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         self.counters.restart.next = self.restart.val();
         self.counters.bank_wait.next = self.bank_wait.val();
-        self.counters.drop.next = self.do_drop.val();
-        self.counters.drop_x.next = self.r_cx.q.val();
-        self.counters.drop_y.next = self.r_yc.q.val();
+        self.counters.drop.next = self.association.drop.val();
+        self.counters.drop_x.next = self.compare.cx.val();
+        self.counters.drop_y.next = self.compare.cy.val();
 
         // ---- The slots' words ([`SlotWords`]): the walked slot's bank and
         // its ROI view for plane t + 1 (or, in `finish`, the flags of its
@@ -917,12 +767,12 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.words.next_pre.next = self.stages.n_pre.val();
         self.words.next_fresh.next = self.stages.n_fresh.val();
         self.words.unconfirmed.next = self.stages.fin_unconf.val();
-        self.words.open.next = self.do_open.val();
+        self.words.open.next = self.association.open.val();
         self.words.open_slot.next = self.association.open_slot.val();
-        self.words.open_geo.next = self.r_geo.q.val();
-        self.words.open_win.next = self.r_win.q.val();
-        self.words.open_bnd.next = self.r_bnd.q.val();
-        self.words.open_view.next = self.r_sh.q.val();
+        self.words.open_geo.next = self.compare.open_geo.val();
+        self.words.open_win.next = self.compare.open_win.val();
+        self.words.open_bnd.next = self.compare.open_bnd.val();
+        self.words.open_view.next = self.compare.open_view.val();
         self.words.open_pre.next = self.t_ge_n.val();
 
         // ---- The slots' flags ([`SlotFlags`]): the decided word's hits and,
@@ -932,11 +782,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // of plane t stays, as it sums B_{t−N} at dage = 1 ≤ N − end_trim);
         // the opening; the walked slot.
         self.flags.restart.next = self.restart.val();
-        self.flags.decide.next = self.d_go.val() & !self.fin_cond.val();
-        self.flags.hits.next = self.r_hw.q.val();
-        self.flags.step.next = self.do_fin.val();
-        self.flags.row_end.next = self.r_frow.q.val();
-        self.flags.open.next = self.do_open.val();
+        self.flags.decide.next = self.compare.go.val() & !self.fin_cond.val();
+        self.flags.hits.next = self.compare.hits.val();
+        self.flags.step.next = self.compare.step.val();
+        self.flags.row_end.next = self.compare.row_end.val();
+        self.flags.open.next = self.association.open.val();
         self.flags.open_slot.next = self.association.open_slot.val();
         self.flags.walk_slot.next = self.stages.sel.val();
         self.flags.end_of_plane.next = self.we_walk.val();
@@ -956,8 +806,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             self.t.d.next = 0.into();
             self.rows.d.next = 0.into();
-            self.r_valid.d.next = false;
-            self.replay.d.next = false;
             self.rd_on.d.next = false;
             self.walk.d.next = 0.into();
         }

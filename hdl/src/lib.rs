@@ -43,7 +43,8 @@
 //!
 //! ## Back-half blocks (stages 5–7) and the whole pipeline
 //! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`], with
-//!   its item stage, opening windows, slot compare, association, slots'
+//!   its item stage, compare stage (with the opening windows and the slot
+//!   compare), association, slots'
 //!   flags (with the on/off step), slots' words, counters, read
 //!   multiplexer, walk memory, walk stages, walk step and record port),
 //!   the ROI aggregator ([`roi_aggregator`], with its row cover, lowest

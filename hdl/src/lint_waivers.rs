@@ -154,16 +154,16 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
         "the opened slot's one-hot, of which the flags read their M slots' bits",
     ),
     (
-        "words$geo$*",
-        "a slot's packed word, of which the tracker reads the fields it compares and multiplexes",
+        "slot_geo$*",
+        "a slot's packed word, of which the tracker's compare stage reads the fields it compares",
     ),
     (
-        "words$win$*",
-        "a slot's lane masks, of which the tracker reads the P bits of each",
+        "slot_win$*",
+        "a slot's lane masks, of which the tracker's compare stage reads the P bits of each",
     ),
     (
-        "words$bnd$*",
-        "a slot's association window, of which the tracker reads the four bounds",
+        "slot_bnd$*",
+        "a slot's association window, of which the tracker's compare stage reads the four bounds",
     ),
     ("read_address", "block-RAM addresses wider than the memory"),
     ("write_address", "block-RAM addresses wider than the memory"),

@@ -41,7 +41,6 @@
 //! (`fault`): never a silent loss.
 
 use crate::back_half::BackHalf;
-use crate::bundles::StreamSettingsOut;
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
 use crate::delay_line_ddr::DelayLineDdr;
@@ -355,7 +354,15 @@ impl<
         // Stages 5-7.
         self.back.restart.next = self.control.restart.val();
         self.back.emit_start.next = self.control.starting.val();
-        StreamSettingsOut::<CW>::join(&mut self.control.settings, &mut self.back.settings);
+        // (Field by field: a join is a process per field in the Verilog.)
+        self.back.settings.n_window.next = self.control.settings.n_window.val();
+        self.back.settings.threshold.next = self.control.settings.threshold.val();
+        self.back.settings.threshold_hold.next = self.control.settings.threshold_hold.val();
+        self.back.settings.end_trim.next = self.control.settings.end_trim.val();
+        self.back.settings.l_min.next = self.control.settings.l_min.val();
+        self.back.settings.l_max.next = self.control.settings.l_max.val();
+        self.back.settings.plane_period.next = self.control.settings.plane_period.val();
+        self.back.settings.masked_pixels.next = self.control.settings.masked_pixels.val();
         self.back.stopping.next = self.control.stopping.val();
         self.back.planes_total.next = self.control.planes_total.val();
         self.back.fh_valid.next = self.front.out_valid.val();

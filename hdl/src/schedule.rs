@@ -9,11 +9,11 @@
 //! record push and the record queue's count, the delay line's prefetch FIFO,
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the ROI aggregator's row cover, lowest slot, view
-//! multiplexer and ROI row; the blink tracker's item stage, opening
-//! windows, slot compare, slots' flags and words, counters, read
-//! multiplexer, walk stages and walk memory, which it both drives and
-//! reads, and the flags' on/off step; the packetiser's bit packer, whose flags choose the command the
-//! packetiser gives it). No signal
+//! multiplexer and ROI row; the blink tracker's item stage, compare stage,
+//! slots' flags and words, counters, read multiplexer, walk stages and walk
+//! memory, which it both drives and reads, the flags' on/off step, and the
+//! compare stage's slot compare and opening windows; the packetiser's bit
+//! packer, whose flags choose the command the packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
 //! signal — but Verilator flags the processes `UNOPTFLAT` and re-runs them
 //! until they settle, among them the blink tracker's and the packetiser's,
@@ -36,8 +36,8 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
     ),
     // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
-    // opening windows, slot compare, association, record port, read
-    // multiplexer and walk stages, whose outputs the tracker reads back
+    // compare stage, association, record port, read multiplexer and walk
+    // stages, whose outputs the tracker reads back
     // (the record port's `fb_pop` picks the walked slot's bank; the item
     // stage's `pop` is a function of `take`, the walk stages' `take` of
     // `done`), and the locals they are computed from (functions of the
@@ -47,19 +47,11 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         "fb_pop,totals$blinks,totals$unconfirmed,totals$dropped,totals$bridged,totals$cuts,bank_error);",
         &[
             "items$*",
-            "opening$*",
             "stages$*",
             "compare$*",
             "association$*",
             "port$*",
             "read$*",
-            "run",
-            "d_go",
-            "end_item",
-            "r_from_x",
-            "s_cx",
-            "s_cy",
-            "do_fin",
             "blink",
             "need_bank",
             "bank_wait",
@@ -67,6 +59,24 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
             "we_fin",
             "we_drain",
             "we_emit",
+        ],
+    ),
+    // crate::blink_tracker::CompareStage: the inputs of its slot compare
+    // and opening windows, whose outputs it registers, and the locals and
+    // outputs they are computed from (functions of its registers and
+    // inputs).
+    (
+        ",open_geo,open_win,open_view,open_bnd);",
+        &[
+            "slots$*",
+            "opening$*",
+            "take",
+            "go",
+            "candidate",
+            "step",
+            "end_item",
+            "s_cx",
+            "s_cy",
         ],
     ),
     // crate::roi_aggregator::RoiAggregator: the inputs of its row cover,

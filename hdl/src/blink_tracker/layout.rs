@@ -2,11 +2,14 @@
 //! sub-blocks (a file that imports nothing of theirs, so that no two
 //! files of the tracker import each other).
 
+use crate::config::{BackHalfConfig, GatewareError};
+
 /// Bits of a slot's ages (`age` and `dage`, and of the L_min, L_max and
 /// N − end_trim they are compared with): they stay below
 /// L_max,max + 2·N_max + 2 (a segment is cut at L_max, completes at most N
 /// planes after its drop, and the stream end adds N drain planes), which
-/// [`BlinkTracker::new`](super::BlinkTracker::new) checks against 2^18.
+/// [`BlinkTracker::new`](super::BlinkTracker::new) checks against 2^18
+/// (`fits`).
 /// (`update` writes the width as the literal 18 where rust-hdl's `hdl_gen`
 /// needs a number; the signal types make the compiler check the two agree.)
 pub const AGE_BITS: usize = 18;
@@ -65,3 +68,46 @@ pub mod shadow {
 /// The widest and tallest field the tracker's [`COORD_BITS`] hold, pixels
 /// (the SPCImager's is 320×240; the largest camera preset's 512×512).
 pub const MAX_FIELD: usize = 512;
+
+/// Whether a configuration fits the tracker's widths: its slot ages
+/// ([`AGE_BITS`]), its banks and lane masks in a slot's words (`bw` bits,
+/// `p` pixels a word), its field and `r_assoc` in [`COORD_BITS`]. (The
+/// configuration's `validate` refuses more than `MAX_SLOTS` slots.)
+pub fn fits(cfg: &BackHalfConfig, p: usize, bw: usize) -> Result<(), GatewareError> {
+    if cfg.l_max_max as u64 + 2 * cfg.front.n_max as u64 + 2 >= 1 << AGE_BITS {
+        return Err(GatewareError::Invalid {
+            field: "l_max_max",
+            value: cfg.l_max_max.to_string(),
+            why: format!(
+                "L_max,max + 2·N_max + 2 must stay below 2^{AGE_BITS}, the blink tracker's slot ages"
+            ),
+        });
+    }
+    if bw > slot_word::BANK_BITS_MAX || p > 32 {
+        return Err(GatewareError::Invalid {
+            field: "slots/pixels_per_clock",
+            value: format!("{bw}-bit banks, P = {p}"),
+            why: format!(
+                "a slot's word holds banks of at most {} bits and a lane mask of at most 32",
+                slot_word::BANK_BITS_MAX
+            ),
+        });
+    }
+    if cfg.front.width > MAX_FIELD || cfg.front.height > MAX_FIELD {
+        return Err(GatewareError::Invalid {
+            field: "width/height",
+            value: format!("{}x{}", cfg.front.width, cfg.front.height),
+            why: format!(
+                "the blink tracker's {COORD_BITS}-bit coordinates hold fields up to {MAX_FIELD}x{MAX_FIELD}"
+            ),
+        });
+    }
+    if cfg.r_assoc as usize >= MAX_FIELD {
+        return Err(GatewareError::Invalid {
+            field: "r_assoc",
+            value: cfg.r_assoc.to_string(),
+            why: format!("must be below {MAX_FIELD} (the tracker's {COORD_BITS}-bit coordinates)"),
+        });
+    }
+    Ok(())
+}
