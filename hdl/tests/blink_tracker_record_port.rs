@@ -12,6 +12,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
+// The kinds as the packetiser reads them: the port writes them as literals
+// (`hdl_gen` takes no path constant), so this ties the two.
+use smartagg_hdl::blink_tracker::record_kind::{BLINK, DROPPED, END, START};
 use smartagg_hdl::blink_tracker::RecordPort;
 use smartagg_hdl::testbench::bench::{settle, Bench};
 
@@ -102,19 +105,19 @@ fn record_port_pushes_each_record_and_counts_the_lost() {
         let (push, descriptor, fb_pop, counted): (bool, Option<Descriptor>, bool, bool) = match ask
         {
             Ask::None => (false, None, false, false),
-            Ask::Start => (room, Some((0, 0, 0, 0, 0, 0, 0, t, 0)), false, false),
+            Ask::Start => (room, Some((START, 0, 0, 0, 0, 0, 0, t, 0)), false, false),
             Ask::Blink { emit } => {
                 let tag = if emit { t.wrapping_sub(1) & MASK48 } else { t };
                 let pushed = room && fb_valid;
-                let d = (1, slot, flags, ax, ay, t_cross, t_drop, tag, bank);
+                let d = (BLINK, slot, flags, ax, ay, t_cross, t_drop, tag, bank);
                 (pushed, Some(d), pushed, true)
             }
             Ask::WalkEnd if plane_drops == 0 => (false, None, false, false),
             Ask::WalkEnd => {
-                let d = (2, 0, 0, first_x, first_y, t, plane_drops, t, 0);
+                let d = (DROPPED, 0, 0, first_x, first_y, t, plane_drops, t, 0);
                 (room, Some(d), false, true)
             }
-            Ask::End => (room, Some((3, 0, 0, 0, 0, 0, 0, t, 0)), false, false),
+            Ask::End => (room, Some((END, 0, 0, 0, 0, 0, 0, t, 0)), false, false),
         };
         let r = &u.record;
         assert_eq!(r.push.val(), push, "clock {clock}: push ({ask:?})");
