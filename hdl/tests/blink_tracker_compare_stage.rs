@@ -19,6 +19,9 @@ mod common;
 
 use rand::Rng;
 use rust_hdl::prelude::*;
+// The slot word's layout, which the stage slices with literals (`hdl_gen`
+// takes no path constant): the test ties the two.
+use smartagg_hdl::blink_tracker::slot_word::{AX, AY, FROW, WH, WL};
 use smartagg_hdl::blink_tracker::{CompareStage, OpeningWindows, SlotCompare};
 use smartagg_hdl::config::BackHalfConfig;
 use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
@@ -63,7 +66,7 @@ fn random_slot(rng: &mut impl Rng, p: usize) -> [u64; 3] {
     let (x0, y0) = (c(rng), c(rng));
     let bnd = x0 | (x0 + c(rng)) << 10 | y0 << 20 | (y0 + c(rng)) << 30;
     let (wl, wh) = (rng.gen_range(0..3u64), rng.gen_range(0..3u64));
-    let geo = c(rng) | c(rng) << 10 | wl << 34 | wh << 44 | c(rng) << 54;
+    let geo = c(rng) << AX | c(rng) << AY | wl << WL | wh << WH | c(rng) << FROW;
     let win = lanes(rng) | lanes(rng) << 32;
     [geo, win, bnd]
 }
@@ -142,10 +145,10 @@ fn case<const P: usize>(cfg: &BackHalfConfig, seed: u64) {
         let enable = replay || take && it.valid;
         for (k, w) in words.iter().enumerate() {
             slots.bounds[k].next = (w[2] & ((1 << 40) - 1)).to_bits();
-            slots.anchor_rows[k].next = (w[0] >> 10 & 1023).to_bits();
-            slots.low_cols[k].next = (w[0] >> 34 & 1023).to_bits();
-            slots.high_cols[k].next = (w[0] >> 44 & 1023).to_bits();
-            slots.end_rows[k].next = (w[0] >> 54 & 1023).to_bits();
+            slots.anchor_rows[k].next = (w[0] >> AY & 1023).to_bits();
+            slots.low_cols[k].next = (w[0] >> WL & 1023).to_bits();
+            slots.high_cols[k].next = (w[0] >> WH & 1023).to_bits();
+            slots.end_rows[k].next = (w[0] >> FROW & 1023).to_bits();
             slots.low_lanes[k].next = (w[1] & ((1 << P) - 1)).to_bits();
             slots.high_lanes[k].next = (w[1] >> 32 & ((1 << P) - 1)).to_bits();
         }

@@ -15,7 +15,7 @@
 //!   opened slot's window: it is compared again (`replay`, one clock, the
 //!   comparisons only) before it is decided.
 
-use super::layout::COORD_BITS;
+use super::layout::{slot_word, COORD_BITS};
 use super::{OpeningWindows, SlotCompare};
 use crate::config::{BackHalfConfig, MAX_SLOTS};
 use crate::stream::lanes;
@@ -181,6 +181,15 @@ impl<const P: usize> CompareStage<P> {
         }
     }
 }
+
+// The offsets that `update` slices at as literals (hdl_gen needs numbers).
+const _: () = assert!(
+    slot_word::AY == 10
+        && slot_word::WL == 34
+        && slot_word::WH == 44
+        && slot_word::FROW == 54
+        && COORD_BITS == 10
+);
 
 impl<const P: usize> Logic for CompareStage<P> {
     #[hdl_gen]
