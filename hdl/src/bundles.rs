@@ -1,11 +1,12 @@
 //! Port bundles (`#[derive(LogicInterface)]`): groups of ports that travel
 //! together from block to block, declared once. A bundle is passed into a
 //! sub-block whole (`link`); between siblings the parent assigns it field
-//! by field in its own process. (rust-hdl's `join` with the bundle's mate,
-//! the same fields in the other direction, would write a process per
+//! by field in its own process: the bundles declare no `#[join]` mate, so
+//! rust-hdl's `join` does not exist for them. (A join writes a process per
 //! field in the Verilog, which Verilator evaluates on its own: joined, the
-//! record bundle made the co-simulation 0.95× as fast.) In Verilog each
-//! field is a port named `bundle$field`.
+//! record bundle made the co-simulation 0.95× as fast.) Each side of a
+//! connection has its own bundle, the same fields in the other direction.
+//! In Verilog each field is a port named `bundle$field`.
 //!
 //! * [`StreamSettings`] / [`StreamSettingsOut`]: the runtime registers that
 //!   [`crate::stream_control::StreamControl`] latches at START and the
@@ -23,7 +24,6 @@ use rust_hdl::prelude::*;
 
 /// The stream's settings, latched at START (inputs). `NW`: bits of N.
 #[derive(Clone, Debug, Default, LogicInterface)]
-#[join = "StreamSettingsOut"]
 pub struct StreamSettings<const NW: usize> {
     /// N, the rolling window in planes.
     pub n_window: Signal<In, Bits<NW>>,
@@ -45,7 +45,6 @@ pub struct StreamSettings<const NW: usize> {
 
 /// The stream's settings, latched at START (outputs of stream control).
 #[derive(Clone, Debug, Default, LogicInterface)]
-#[join = "StreamSettings"]
 pub struct StreamSettingsOut<const NW: usize> {
     /// N.
     pub n_window: Signal<Out, Bits<NW>>,
@@ -67,7 +66,6 @@ pub struct StreamSettingsOut<const NW: usize> {
 
 /// The tracker's StreamEnd totals, 64 bits each (inputs).
 #[derive(Clone, Debug, Default, LogicInterface)]
-#[join = "TrackerTotalsOut"]
 pub struct TrackerTotals {
     /// Blink records emitted (lost ones included).
     pub blinks: Signal<In, Bits<64>>,
@@ -83,7 +81,6 @@ pub struct TrackerTotals {
 
 /// The tracker's StreamEnd totals (outputs of its counters).
 #[derive(Clone, Debug, Default, LogicInterface)]
-#[join = "TrackerTotals"]
 pub struct TrackerTotalsOut {
     /// Blink records emitted.
     pub blinks: Signal<Out, Bits<64>>,
@@ -136,7 +133,6 @@ pub struct RecordHead<const BW: usize> {
 /// (the tracker's side: the descriptor out, the queue's room in). `BW`:
 /// bank bits.
 #[derive(Clone, Debug, Default, LogicInterface)]
-#[join = "RecordPush"]
 pub struct RecordPushOut<const BW: usize> {
     /// The queue accepts a push (it holds fewer than Q records).
     pub room: Signal<In, Bit>,
@@ -167,7 +163,6 @@ pub struct RecordPushOut<const BW: usize> {
 
 /// A record descriptor pushed into the record queue (the queue's side).
 #[derive(Clone, Debug, Default, LogicInterface)]
-#[join = "RecordPushOut"]
 pub struct RecordPush<const BW: usize> {
     /// Fewer than Q records held.
     pub room: Signal<Out, Bit>,
