@@ -78,35 +78,16 @@
 //! register of the previous clock's flags: after an opening the next
 //! candidate is replayed, and after a walk comes WalkEnd.
 //!
-//! **Walk pipeline.** A walk also runs in three stages, one slot per clock:
-//! the read stage takes slot `walk`'s flags and anchor through the
-//! multiplexer ([`SlotMux`]), and its word from [`WalkMemory`], into W1; W1
-//! ([`WalkStep`]) computes what the walk does (the comparisons with L_min,
-//! L_max and N − end_trim, the cut, the completion, the record's planes,
-//! the slot's next state and words) into W2 (W1 and W2 are
-//! [`WalkStages`]); the tracker waits with W2's slot for the sweep and the
-//! bank, pushes the record and writes the slot. W2 writes slot k while the read stage reads k + 1
-//! or k + 2, and a walk starts reading once the previous writer of its
-//! slots is done (the decide stage, or the previous walk's W2), so no
-//! stage reads a slot that an earlier one has yet to write; the one
-//! exception, with a single slot, is the word written as the next walk's
-//! read of it is issued ([`WalkMemory`] forwards it).
+//! **Walk pipeline** ([`WalkPipeline`]). A walk also runs in three
+//! stages, one slot per clock: the read stage takes the slot's state, W1
+//! computes what the walk does to it ([`WalkStep`]), and with W2's slot the
+//! tracker waits for the sweep and the bank, pushes the record and writes
+//! the slot.
 //!
-//! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
-//! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked when
-//! the tracker is generated): confirmation `t_drop − t_cross ≥ L_min` (of a
-//! first segment; a continuation is always confirmed) is `age ≥ L_min + 1`
-//! at the drop, the cut `t + 1 ≥ t_cross + L_max` is `age ≥ L_max − 1`. A
-//! second per-slot age `dage = t − t_drop` (also [`AGE_BITS`] bits; 1 at
-//! the plane `t_drop + 1` that sees the drop and at the stream end, where
-//! `t_drop = p − 1` and `t = p`; at most 2N when recorded at the stream end)
-//! gives the completion of a drop, `t ≥ t_drop + N − end_trim`, as
-//! `dage ≥ N − end_trim`, and a dropped segment's sums of plane t + 1,
-//! `dage + 1 ≤ N − end_trim`. The record's planes are not stored either:
-//! `t_cross = t − age` (a continuation starts at `age = −1`, which is 0 by
-//! the time it can be recorded) and `t_drop = t − dage` (a cut: `t`); both
-//! ages advance with t. One subtraction after the slot multiplexer, instead
-//! of two 48-bit registers per slot.
+//! **Ages instead of plane arithmetic** ([`WalkStep`]). Each slot keeps its
+//! ages `age = t − t_cross` and `dage = t − t_drop` ([`AGE_BITS`] bits)
+//! instead of its planes: one subtraction after the slot multiplexer
+//! instead of two 48-bit registers per slot.
 //!
 //! **ROI view (shadow).** For each plane t and slot, the tracker publishes
 //! what the ROI aggregator needs — sum the delayed plane (`pre`, the
@@ -170,6 +151,7 @@ mod slot_flags;
 mod slot_mux;
 mod slot_words;
 mod walk_memory;
+mod walk_pipeline;
 mod walk_stages;
 mod walk_step;
 
@@ -186,7 +168,8 @@ pub use slot_flags::SlotFlags;
 pub use slot_mux::SlotMux;
 pub use slot_words::SlotWords;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
-pub use walk_stages::WalkStages;
+pub use walk_pipeline::WalkPipeline;
+pub use walk_stages::{WalkStages, WalkedSlot};
 pub use walk_step::{walk_word, WalkStep};
 
 use crate::bundles::{RecordPushOut, TrackerTotalsOut};
@@ -304,10 +287,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     state: DFF<TrackerState>,
     t: DFF<Bits<48>>,
     rows: DFF<Bits<16>>,
-    /// The read stage's slot; 0 whenever no walk reads (a walk ends, and a
-    /// restart leaves it, at 0), so that a walk starts without writing it
-    /// and `walk_words`' read address does not wait on the state machine.
-    walk: DFF<Bits<8>>,
     /// The records asked for by the states, and the lost-record count.
     port: RecordPort<BW>,
     /// The StreamEnd totals, the plane's drops and the bank error.
@@ -326,34 +305,17 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     compare: CompareStage<P>,
     /// The decide stage's absorption, opening or drop of a candidate.
     association: Association,
-    /// The fields that only the walks read, one word per slot in LUT RAM,
-    /// read a clock ahead at the read stage's slot.
-    walk_words: WalkMemory,
-    /// The read stage's multiplexer: the walked slot's state.
-    read: SlotMux<BW>,
-    /// The walks' constants: N − end_trim (the `dage` at which a dropped
-    /// segment has summed its last plane), L_min, L_min + 1, L_max − 1.
-    n_mc: DFF<Bits<AGE_BITS>>,
-    /// `N − end_trim = 1`: a drop completes in the plane that sees it.
-    mc_one: DFF<Bit>,
-    lmin: DFF<Bits<AGE_BITS>>,
-    lmin_p1: DFF<Bits<AGE_BITS>>,
-    lmax_m1: DFF<Bits<AGE_BITS>>,
+    /// The walks: the read stage, W1 and W2.
+    walks: WalkPipeline<BW>,
     /// `view_free` a clock ago.
     vf: DFF<Bit>,
     /// `t + 1 = planes_total + N` (the last drain plane), a clock old: `t`
     /// changes only at the end of a walk, and the drain walk that reads it
     /// ends at least M + 2 clocks later.
     drain_end: DFF<Bit>,
-    /// The walk pipeline's read stage is on (`walk` is its slot).
-    rd_on: DFF<Bit>,
-    /// Its W1 and W2 stages: the walked slot's state, then what the walk
-    /// does to it.
-    stages: WalkStages<BW>,
     // Combinational.
     t_p1: Signal<Local, Bits<48>>,
     t_ge_n: Signal<Local, Bit>,
-    n32: Signal<Local, Bits<AGE_BITS>>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
     view_free: Signal<Local, Bit>,
@@ -369,7 +331,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     we_fin: Signal<Local, Bit>,
     we_drain: Signal<Local, Bit>,
     we_emit: Signal<Local, Bit>,
-    last_slot: Constant<Bits<8>>,
     _m: usize,
 }
 
@@ -414,28 +375,18 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             state: Default::default(),
             t: Default::default(),
             rows: Default::default(),
-            walk: Default::default(),
             port: Default::default(),
             counters: Default::default(),
             flags: SlotFlags::new(m),
             words: SlotWords::new(m, P),
             association: Default::default(),
-            walk_words: WalkMemory::new(m),
-            read: SlotMux::new(m),
+            walks: WalkPipeline::new(m),
             items: ItemStage::new(cfg),
             compare: CompareStage::new(cfg),
-            n_mc: Default::default(),
-            mc_one: Default::default(),
-            lmin: Default::default(),
-            lmin_p1: Default::default(),
-            lmax_m1: Default::default(),
             vf: Default::default(),
             drain_end: Default::default(),
-            rd_on: Default::default(),
-            stages: Default::default(),
             t_p1: Default::default(),
             t_ge_n: Default::default(),
-            n32: Default::default(),
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
             view_free: Default::default(),
@@ -447,7 +398,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             we_fin: Default::default(),
             we_drain: Default::default(),
             we_emit: Default::default(),
-            last_slot: Constant::new((m as u64 - 1).to_bits()),
             _m: m,
         })
     }
@@ -458,11 +408,8 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
 impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P, NW, BW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(
-            self, clock, state, t, rows, walk, n_mc, mc_one, lmin, lmin_p1, lmax_m1, vf, drain_end,
-            rd_on
-        );
-        self.walk_words.clock.next = self.clock.val();
+        dff_setup!(self, clock, state, t, rows, vf, drain_end);
+        self.walks.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
         self.compare.clock.next = self.clock.val();
         self.flags.clock.next = self.clock.val();
@@ -476,14 +423,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // ---- Shared values.
         self.t_p1.next = self.t.q.val() + 1;
-        self.n32.next = bit_cast::<18, NW>(self.n_window.val());
-        // (Registered: the walk compares ages with them; the registers are
-        // written long before a walk.)
-        self.n_mc.d.next = self.n32.val() - bit_cast::<18, NW>(self.end_trim.val());
-        self.mc_one.d.next = self.n32.val() == bit_cast::<18, NW>(self.end_trim.val()) + 1;
-        self.lmin.d.next = bit_cast::<18, 32>(self.l_min.val());
-        self.lmin_p1.d.next = bit_cast::<18, 32>(self.l_min.val()) + 1;
-        self.lmax_m1.d.next = bit_cast::<18, 32>(self.l_max.val()) - 1;
         self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
         self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
         self.drain_end.d.next = self.t_p1.val() == self.p_plus_n.val();
@@ -537,19 +476,19 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.association.free_before.next = self.flags.free_before.val();
         self.association.opened.next = self.flags.opened.val();
 
-        // ---- The walks (see "Walk pipeline" in the module doc): the read
-        // stage takes the slot at `walk` into W1, W1 decides what the walk
-        // does to it into W2, and W2 does it, one slot per clock each.
+        // ---- The walks ([`WalkPipeline`]): the read stage takes the next
+        // slot into W1, W1 decides what the walk does to it into W2, and W2
+        // does it, one slot per clock each.
         // W2's step: the end of a plane waits until the sweep has finished
         // plane t − 1, whose ROI view it overwrites (`vf`, a clock old: t
         // changes only at the end of a walk, two stages before W2 can act
         // again); a Blink waits for its fresh bank.
         self.vf.d.next = self.view_free.val();
-        self.need_bank.next = self.stages.valid.val()
+        self.need_bank.next = self.walks.w2.valid.val()
             & (((self.state.q.val() == TrackerState::Walk)
                 & self.vf.q.val()
-                & self.stages.comp.val())
-                | ((self.state.q.val() == TrackerState::Emit) & self.stages.busy.val()));
+                & self.walks.w2.comp.val())
+                | ((self.state.q.val() == TrackerState::Emit) & self.walks.w2.was_busy.val()));
         // The queue has room but the free list shows no bank: the bank of the
         // record the packetiser has just finished is on its way back (the
         // queue counts that record until it is popped, the pool shows the
@@ -557,76 +496,48 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // lose the record. Room in the queue means at most Q − 1 queued
         // Blinks, so one of the Q spare banks is free or returning.
         self.bank_wait.next = self.need_bank.val() & self.record.room.val() & !self.fb_valid.val();
-        self.we_walk.next = self.stages.valid.val()
+        self.we_walk.next = self.walks.w2.valid.val()
             & (self.state.q.val() == TrackerState::Walk)
             & self.vf.q.val()
             & !self.bank_wait.val();
-        self.we_fin.next = self.stages.valid.val() & (self.state.q.val() == TrackerState::Finish);
-        self.we_drain.next = self.stages.valid.val()
+        self.we_fin.next = self.walks.w2.valid.val() & (self.state.q.val() == TrackerState::Finish);
+        self.we_drain.next = self.walks.w2.valid.val()
             & (self.state.q.val() == TrackerState::DrainWalk)
             & self.vf.q.val();
-        self.we_emit.next = self.stages.valid.val()
+        self.we_emit.next = self.walks.w2.valid.val()
             & (self.state.q.val() == TrackerState::Emit)
             & !self.bank_wait.val();
-        self.stages.clock.next = self.clock.val();
-        self.stages.restart.next = self.restart.val();
-        self.stages.done.next =
+        self.walks.restart.next = self.restart.val();
+        self.walks.start.next = false;
+        self.walks.done.next =
             self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val();
-        self.stages.offer.next = self.rd_on.q.val();
-
-        // Read stage: the slot's state through one multiplexer; the fields
-        // only the walks read come from its word in `walk_words`, read a clock
-        // ahead (at `walk.d`).
-        self.read.slot.next = self.walk.q.val();
-        self.read.enable.next = self.rd_on.q.val();
-        self.read.busy.next = self.flags.busy.val();
-        self.read.live.next = self.flags.live.val();
-        self.read.dip.next = self.flags.dip.val();
-        self.read.pend.next = self.flags.pend.val();
-        self.read.opened.next = self.flags.opened.val();
-        self.read.bridges.next = self.flags.bridges.val();
+        self.walks.write_back.next = self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
+        // The walks' constants, in the ages' width.
+        self.walks.n.next = bit_cast::<18, NW>(self.n_window.val());
+        self.walks.end_trim.next = bit_cast::<18, NW>(self.end_trim.val());
+        self.walks.l_min.next = bit_cast::<18, 32>(self.l_min.val());
+        self.walks.l_max.next = bit_cast::<18, 32>(self.l_max.val());
+        // The read stage's slot, through one multiplexer.
+        self.walks.busy.next = self.flags.busy.val();
+        self.walks.live.next = self.flags.live.val();
+        self.walks.dip.next = self.flags.dip.val();
+        self.walks.pend.next = self.flags.pend.val();
+        self.walks.opened.next = self.flags.opened.val();
+        self.walks.bridges.next = self.flags.bridges.val();
         for i in 0..self._m {
-            self.read.anchor_cols[i].next = self.words.geo[i].val().get_bits::<10>(0);
-            self.read.anchor_rows[i].next = self.words.geo[i].val().get_bits::<10>(10);
-            self.read.banks[i].next = self.words.geo[i].val().get_bits::<BW>(20);
+            self.walks.slot_geo[i].next = self.words.geo[i].val();
         }
-        self.stages.s_sel.next = self.read.selected.val();
-        self.stages.s_slot.next = self.walk.q.val();
-        self.stages.s_last.next = self.walk.q.val() == self.last_slot.val();
-        self.stages.s_busy.next = self.read.s_busy.val();
-        self.stages.s_live.next = self.read.s_live.val();
-        self.stages.s_dip.next = self.read.s_dip.val();
-        self.stages.s_pend.next = self.read.s_pend.val();
-        self.stages.s_opened.next = self.read.s_opened.val();
-        self.stages.s_bridge.next = self.read.s_bridge.val();
-        self.stages.s_ax.next = self.read.s_ax.val();
-        self.stages.s_ay.next = self.read.s_ay.val();
-        self.stages.s_bank.next = self.read.s_bank.val();
-        self.stages.s_word.next = self.walk_words.word.val();
-        if self.stages.take.val() {
-            self.walk.d.next = self.walk.q.val() + 1;
-            if self.walk.q.val() == self.last_slot.val() {
-                self.rd_on.d.next = false;
-                self.walk.d.next = 0.into();
-            }
-        }
-
-        // W1 into W2: what the walk makes of the slot ([`WalkStep`]).
-        self.stages.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
-        self.stages.finish.next = self.state.q.val() == TrackerState::Finish;
-        self.stages.drain.next = self.state.q.val() == TrackerState::DrainWalk;
-        self.stages.t.next = self.t.q.val();
-        self.stages.t1_ge_n.next = (self.t.q.val() + 1) >= bit_cast::<48, NW>(self.n_window.val());
-        self.stages.lmin.next = self.lmin.q.val();
-        self.stages.lmin_p1.next = self.lmin_p1.q.val();
-        self.stages.lmax_m1.next = self.lmax_m1.q.val();
-        self.stages.n_mc.next = self.n_mc.q.val();
-        self.stages.mc_one.next = self.mc_one.q.val();
+        // W1 into W2: what the walk makes of the slot.
+        self.walks.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
+        self.walks.finish.next = self.state.q.val() == TrackerState::Finish;
+        self.walks.drain.next = self.state.q.val() == TrackerState::DrainWalk;
+        self.walks.t.next = self.t.q.val();
+        self.walks.t1_ge_n.next = (self.t.q.val() + 1) >= bit_cast::<48, NW>(self.n_window.val());
 
         // ---- The records ([`RecordPort`]): W2's Blink, the plane's Dropped
         // record, StreamStart and StreamEnd, each in its state.
-        self.blink.next = (self.we_walk.val() & self.stages.comp.val())
-            | (self.we_emit.val() & self.stages.busy.val());
+        self.blink.next = (self.we_walk.val() & self.walks.w2.comp.val())
+            | (self.we_emit.val() & self.walks.w2.was_busy.val());
         RecordPushOut::<BW>::link(&mut self.record, &mut self.port.record);
         self.port.restart.next = self.restart.val();
         self.port.fb_valid.next = self.fb_valid.val();
@@ -635,13 +546,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.port.stream_start.next = self.state.q.val() == TrackerState::Start;
         self.port.blink.next = self.blink.val();
         self.port.emit.next = self.state.q.val() == TrackerState::Emit;
-        self.port.slot.next = self.stages.slot.val();
-        self.port.flags.next = self.stages.flags.val();
-        self.port.ax.next = self.stages.ax.val();
-        self.port.ay.next = self.stages.ay.val();
-        self.port.t_cross.next = self.stages.tc.val();
-        self.port.t_drop.next = self.stages.td.val();
-        self.port.bank.next = self.stages.bank.val();
+        self.port.slot.next = self.walks.w2.slot.val();
+        self.port.flags.next = self.walks.w2.flags.val();
+        self.port.ax.next = self.walks.w2.ax.val();
+        self.port.ay.next = self.walks.w2.ay.val();
+        self.port.t_cross.next = self.walks.w2.tc.val();
+        self.port.t_drop.next = self.walks.w2.td.val();
+        self.port.bank.next = self.walks.w2.bank.val();
         self.port.walk_end.next = self.state.q.val() == TrackerState::WalkEnd;
         self.port.plane_drops.next = self.counters.plane_drops.val();
         self.port.first_x.next = self.counters.first_x.val();
@@ -655,14 +566,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // The walked slot's bank from now on (and in its ROI view for plane
         // t + 1): a fresh one if it has just handed its bank to a Blink record.
-        self.n_bank.next = self.stages.bank.val();
+        self.n_bank.next = self.walks.w2.bank.val();
         if self.fb_pop.val() {
             self.n_bank.next = self.fb_bank.val();
         }
-        self.walk_words.write_slot.next = self.stages.slot.val();
-        self.walk_words.write_enable.next =
-            self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
-        self.walk_words.write_data.next = self.stages.word.val();
 
         match self.state.q.val() {
             TrackerState::Start => {
@@ -672,22 +579,22 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             TrackerState::Run => {
                 if self.fin_cond.val() {
-                    self.rd_on.d.next = self.t.q.val() != 0;
+                    self.walks.start.next = self.t.q.val() != 0;
                     self.state.d.next = TrackerState::Finish;
                 } else if self.compare.step.val() {
                     self.rows.d.next = bit_cast::<16, 10>(self.compare.cy.val()) + 1;
                     if self.compare.lastrow.val() {
-                        self.rd_on.d.next = true;
+                        self.walks.start.next = true;
                         self.state.d.next = TrackerState::Walk;
                     }
                 }
             }
             TrackerState::Walk => {
                 if self.we_walk.val() {
-                    self.counters.bridge.next = self.stages.bridge.val();
-                    self.counters.unconfirmed_end.next = self.stages.unconf.val();
-                    self.counters.cut.next = self.stages.cut.val();
-                    if self.stages.last.val() {
+                    self.counters.bridge.next = self.walks.w2.bridge.val();
+                    self.counters.unconfirmed_end.next = self.walks.w2.unconf.val();
+                    self.counters.cut.next = self.walks.w2.cut.val();
+                    if self.walks.w2.last.val() {
                         self.state.d.next = TrackerState::WalkEnd;
                     }
                 }
@@ -702,8 +609,8 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 if self.t.q.val() == 0 {
                     self.state.d.next = TrackerState::End;
                 } else if self.we_fin.val() {
-                    self.counters.unconfirmed_end.next = self.stages.fin_unconf.val();
-                    if self.stages.last.val() {
+                    self.counters.unconfirmed_end.next = self.walks.w2.fin_unconf.val();
+                    if self.walks.w2.last.val() {
                         self.state.d.next = TrackerState::Drain;
                     }
                 }
@@ -714,25 +621,25 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                     if self.in_flush.val() & self.items.head_eor.val() {
                         self.rows.d.next = self.in_y.val() + 1;
                         if self.items.head_lastrow.val() {
-                            self.rd_on.d.next = true;
+                            self.walks.start.next = true;
                             self.state.d.next = TrackerState::DrainWalk;
                         }
                     }
                 }
             }
             TrackerState::DrainWalk => {
-                if self.we_drain.val() & self.stages.last.val() {
+                if self.we_drain.val() & self.walks.w2.last.val() {
                     self.t.d.next = self.t_p1.val();
                     self.rows.d.next = 0.into();
                     self.state.d.next = TrackerState::Drain;
                     if self.drain_end.q.val() {
-                        self.rd_on.d.next = true;
+                        self.walks.start.next = true;
                         self.state.d.next = TrackerState::Emit;
                     }
                 }
             }
             TrackerState::Emit => {
-                if self.we_emit.val() & self.stages.last.val() {
+                if self.we_emit.val() & self.walks.w2.last.val() {
                     self.state.d.next = TrackerState::End;
                 }
             }
@@ -755,18 +662,18 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // view of t cleared if its track ends unconfirmed); an opening.
         self.words.restart.next = self.restart.val();
         self.words.parity.next = self.t.q.val().get_bit(0);
-        self.words.walk_slot.next = self.stages.sel.val();
+        self.words.walk_slot.next = self.walks.w2.sel.val();
         self.words.end_of_plane.next = self.we_walk.val();
         self.words.drain.next = self.we_drain.val();
         self.words.finish.next = self.we_fin.val();
         self.words.emit.next = self.we_emit.val();
-        self.words.was_busy.next = self.stages.busy.val();
+        self.words.was_busy.next = self.walks.w2.was_busy.val();
         self.words.next_bank.next = self.n_bank.val();
-        self.words.walk_ax.next = self.stages.ax.val();
-        self.words.walk_ay.next = self.stages.ay.val();
-        self.words.next_pre.next = self.stages.n_pre.val();
-        self.words.next_fresh.next = self.stages.n_fresh.val();
-        self.words.unconfirmed.next = self.stages.fin_unconf.val();
+        self.words.walk_ax.next = self.walks.w2.ax.val();
+        self.words.walk_ay.next = self.walks.w2.ay.val();
+        self.words.next_pre.next = self.walks.w2.n_pre.val();
+        self.words.next_fresh.next = self.walks.w2.n_fresh.val();
+        self.words.unconfirmed.next = self.walks.w2.fin_unconf.val();
         self.words.open.next = self.association.open.val();
         self.words.open_slot.next = self.association.open_slot.val();
         self.words.open_geo.next = self.compare.open_geo.val();
@@ -788,16 +695,16 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.flags.row_end.next = self.compare.row_end.val();
         self.flags.open.next = self.association.open.val();
         self.flags.open_slot.next = self.association.open_slot.val();
-        self.flags.walk_slot.next = self.stages.sel.val();
+        self.flags.walk_slot.next = self.walks.w2.sel.val();
         self.flags.end_of_plane.next = self.we_walk.val();
         self.flags.finish.next = self.we_fin.val();
         self.flags.emit.next = self.we_emit.val();
-        self.flags.was_busy.next = self.stages.busy.val();
-        self.flags.next_busy.next = self.stages.n_busy.val();
-        self.flags.next_live.next = self.stages.n_live.val();
-        self.flags.cut.next = self.stages.cut.val();
-        self.flags.ends.next = self.stages.fin_end.val();
-        self.flags.unconfirmed.next = self.stages.fin_unconf.val();
+        self.flags.was_busy.next = self.walks.w2.was_busy.val();
+        self.flags.next_busy.next = self.walks.w2.n_busy.val();
+        self.flags.next_live.next = self.walks.w2.n_live.val();
+        self.flags.cut.next = self.walks.w2.cut.val();
+        self.flags.ends.next = self.walks.w2.fin_end.val();
+        self.flags.unconfirmed.next = self.walks.w2.fin_unconf.val();
 
         if self.restart.val() {
             self.state.d.next = TrackerState::Done;
@@ -806,15 +713,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             }
             self.t.d.next = 0.into();
             self.rows.d.next = 0.into();
-            self.rd_on.d.next = false;
-            self.walk.d.next = 0.into();
         }
-
-        // The walk words of the slot the read stage is at on the next clock.
-        self.walk_words.restart.next = self.restart.val();
-        self.walk_words.slot.next = self.walk.q.val();
-        self.walk_words.slot_next.next = self.walk.d.val();
-        self.walk_words.advance.next = self.stages.take.val();
 
         self.plane.next = self.t.q.val();
         self.rows_done.next = self.rows.q.val();

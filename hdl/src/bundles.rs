@@ -19,6 +19,11 @@
 //!   queue's room;
 //! * [`RecordHead`]: the record at the head of the record queue, with the
 //!   fields the finisher derives, as the packetiser takes it.
+//!
+//! A bundle that stays inside one stage is declared beside the block that
+//! drives it: [`WalkedSlot`](crate::blink_tracker::WalkedSlot), the slot
+//! the tracker's walk holds in W2 and what the walk does to it, from the
+//! walk stages through the walk pipeline to the tracker.
 
 use rust_hdl::prelude::*;
 

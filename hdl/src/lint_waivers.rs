@@ -142,10 +142,6 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
     ("tr_plane", "plane counter of which the low bits are read"),
     ("row$delayed", "ROI row bits beyond the ROI side"),
     (
-        "stages$sel",
-        "the walked slot's one-hot, of which the tracker reads its M slots' bits",
-    ),
-    (
         "walk_slot",
         "the walked slot's one-hot, of which the flags read their M slots' bits",
     ),

@@ -10,10 +10,11 @@
 //! the mask load and `mask_loadable`, the ROI aggregator's constant
 //! multiplier; the ROI aggregator's row cover, lowest slot, view
 //! multiplexer and ROI row; the blink tracker's item stage, compare stage,
-//! slots' flags and words, counters, read multiplexer, walk stages and walk
-//! memory, which it both drives and reads, the flags' on/off step, and the
-//! compare stage's slot compare and opening windows; the packetiser's bit
-//! packer, whose flags choose the command the packetiser gives it). No signal
+//! association, record port, slots' flags and words and counters, which it
+//! both drives and reads, the flags' on/off step, the compare stage's slot
+//! compare and opening windows, and the walk memory, which the walk
+//! pipeline drives and reads; the packetiser's bit packer, whose flags
+//! choose the command the packetiser gives it). No signal
 //! depends on itself — rust-hdl's `check_all` rules that out signal by
 //! signal — but Verilator flags the processes `UNOPTFLAT` and re-runs them
 //! until they settle, among them the blink tracker's and the packetiser's,
@@ -36,22 +37,20 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         &["out_valid", "out_data", "room", "count", "overflow", "mem_count", "full"],
     ),
     // crate::blink_tracker::BlinkTracker: the inputs of its item stage,
-    // compare stage, association, record port, read multiplexer and walk
-    // stages, whose outputs the tracker reads back
-    // (the record port's `fb_pop` picks the walked slot's bank; the item
-    // stage's `pop` is a function of `take`, the walk stages' `take` of
-    // `done`), and the locals they are computed from (functions of the
-    // tracker's registers, of its inputs and of the sub-blocks' outputs;
-    // `done` is a function of the `we_*`, `blink` of `we_walk`/`we_emit`).
+    // compare stage, association and record port, whose outputs the
+    // tracker reads back (the record port's `fb_pop` picks the walked
+    // slot's bank; the item stage's `pop` is a function of `take`), and
+    // the locals they are computed from (functions of the tracker's
+    // registers, of its inputs and of the sub-blocks' outputs; `blink` of
+    // `we_walk`/`we_emit`). The walk pipeline's outputs are its W2
+    // registers: its inputs need no isolation.
     (
         "fb_pop,totals$blinks,totals$unconfirmed,totals$dropped,totals$bridged,totals$cuts,bank_error);",
         &[
             "items$*",
-            "stages$*",
             "compare$*",
             "association$*",
             "port$*",
-            "read$*",
             "blink",
             "need_bank",
             "bank_wait",
@@ -142,7 +141,7 @@ const MODULE_RULES: &[(&str, &[&str])] = &[
         ],
     ),
     // crate::blink_tracker::WalkMemory: its word, a function of its
-    // registers and memories, which the tracker reads while it drives the
+    // registers and memories, which the walk pipeline reads while it drives the
     // read and write ports.
     (
         "(clock,restart,slot,slot_next,advance,word,write_enable,write_slot,write_data);",

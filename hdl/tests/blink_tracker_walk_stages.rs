@@ -77,10 +77,10 @@ macro_rules! drive_walk {
     }};
 }
 
-/// The walk step's outputs of a block that has them, `$word` the name of
-/// its written word.
+/// The walk step's outputs of a block that has them (`WalkStep`, and W2's
+/// slot of `WalkStages`), `$word` its written word.
 macro_rules! step_outputs {
-    ($u:expr, $word:ident) => {
+    ($u:expr, $word:expr) => {
         Step {
             cut: $u.cut.val(),
             unconf: $u.unconf.val(),
@@ -94,7 +94,7 @@ macro_rules! step_outputs {
             n_fresh: $u.n_fresh.val(),
             fin_end: $u.fin_end.val(),
             fin_unconf: $u.fin_unconf.val(),
-            word: $u.$word.val().to_u64(),
+            word: $word.val().to_u64(),
         }
     };
 }
@@ -148,7 +148,7 @@ fn step_of(o: &mut WalkStep, s: &Slot, w: &Walk) -> Step {
     o.opened.next = s.opened;
     o.word.next = s.word.to_bits();
     settle(o);
-    step_outputs!(o, word_next)
+    step_outputs!(o, o.word_next)
 }
 
 #[test]
@@ -192,25 +192,25 @@ fn walk_stages_hold_each_slot_and_its_step_in_order_under_stalls_and_restarts() 
         let w1_ready = w1.is_none() || w2_ready;
         let take = offer && w1_ready;
         assert_eq!(u.take.val(), take, "clock {clock}: take");
-        assert_eq!(u.valid.val(), w2.is_some(), "clock {clock}: W2 valid");
+        assert_eq!(u.w2.valid.val(), w2.is_some(), "clock {clock}: W2 valid");
         if let Some((slot, step)) = w2 {
             let got_slot = Slot {
-                slot: u.slot.val().to_u64(),
-                last: u.last.val(),
-                busy: u.busy.val(),
-                bridge: u.bridge.val(),
-                ax: u.ax.val().to_u64(),
-                ay: u.ay.val().to_u64(),
-                bank: u.bank.val().to_u64(),
+                slot: u.w2.slot.val().to_u64(),
+                last: u.w2.last.val(),
+                busy: u.w2.was_busy.val(),
+                bridge: u.w2.bridge.val(),
+                ax: u.w2.ax.val().to_u64(),
+                ay: u.w2.ay.val().to_u64(),
+                bank: u.w2.bank.val().to_u64(),
                 ..slot
             };
             assert_eq!(got_slot, slot, "clock {clock}: W2's slot");
             assert_eq!(
-                u.sel.val().to_u64(),
+                u.w2.sel.val().to_u64(),
                 1 << slot.slot,
                 "clock {clock}: one-hot"
             );
-            let got_step = step_outputs!(u, word);
+            let got_step = step_outputs!(u.w2, u.word);
             assert_eq!(got_step, step, "clock {clock}: W2's step");
             out += done as usize;
             stalls += !done as usize;

@@ -1,4 +1,5 @@
-//! The walk's read stage: one slot's state through one multiplexer
+//! The multiplexer of the walk's read stage
+//! ([`WalkPipeline`](super::WalkPipeline)): one slot's state
 //! (combinational) — its flags, anchor and counter bank, and the slot
 //! one-hot, which W2 uses to write it back. The fields only the walks read
 //! come from [`WalkMemory`](super::WalkMemory) instead.

@@ -1,7 +1,7 @@
 //! The fields that only the tracker's walks read (ages, confirmation,
 //! continuation, truncation: one [`WALK_WORD_BITS`]-bit word per slot),
 //! in LUT RAM, so that the walk's read stage takes them without a
-//! multiplexer over M registers (see "Walk pipeline" in [`super`]'s doc).
+//! multiplexer over M registers (see [`WalkPipeline`](super::WalkPipeline)).
 //!
 //! The read stage's slot moves on by one slot a clock, or stays. The word
 //! must be there in the clock the stage is at a slot, without the read

@@ -1,18 +1,69 @@
-//! W1 and W2 of the tracker's walk pipeline (see "Walk pipeline" in
-//! [`super`]'s doc), one slot per clock each: W1 holds the slot the read
-//! stage has taken — its flags, anchor and bank through [`SlotMux`](super::SlotMux),
-//! its word from [`WalkMemory`](super::WalkMemory) —, and W2 what the walk
-//! does to it ([`WalkStep`], of W1's slot and the walk's inputs as they
-//! are when W2 loads). The tracker acts on W2 and says when it is `done`
-//! with it (the record pushed, the slot written); a stage takes the one
-//! before it when it is empty or its slot moves on this clock, so a walk
-//! that never waits goes at one slot a clock. A restart empties both.
+//! W1 and W2 of the tracker's walk pipeline
+//! ([`WalkPipeline`](super::WalkPipeline)), one slot per clock each: W1
+//! holds the slot the read stage has taken — its flags, anchor and bank
+//! through [`SlotMux`](super::SlotMux), its word from
+//! [`WalkMemory`](super::WalkMemory) —, and W2 what the walk does to it
+//! ([`WalkStep`], of W1's slot and the walk's inputs as they are when W2
+//! loads: the bundle [`WalkedSlot`]). The tracker acts on W2 and says when
+//! it is `done` with it (the record pushed, the slot written); a stage
+//! takes the one before it when it is empty or its slot moves on this
+//! clock, so a walk that never waits goes at one slot a clock. A restart
+//! empties both.
 
 use super::layout::{AGE_BITS, COORD_BITS};
 use super::walk_memory::WALK_WORD_BITS;
 use super::WalkStep;
 use crate::config::MAX_SLOTS;
 use rust_hdl::prelude::*;
+
+/// W2's slot, and what the walk does to it ([`WalkStep`]'s outputs of its
+/// slot, registered): what the tracker acts on. `BW`: bits of a counter
+/// bank.
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct WalkedSlot<const BW: usize> {
+    /// W2 holds a slot.
+    pub valid: Signal<Out, Bit>,
+    /// W2's slot, one-hot.
+    pub sel: Signal<Out, Bits<MAX_SLOTS>>,
+    /// Its index.
+    pub slot: Signal<Out, Bits<8>>,
+    /// It is the walk's last.
+    pub last: Signal<Out, Bit>,
+    /// Its busy flag (before the walk).
+    pub was_busy: Signal<Out, Bit>,
+    /// Bridged in this plane.
+    pub bridge: Signal<Out, Bit>,
+    /// Its anchor column.
+    pub ax: Signal<Out, Bits<COORD_BITS>>,
+    /// Its anchor row.
+    pub ay: Signal<Out, Bits<COORD_BITS>>,
+    /// Its counter bank.
+    pub bank: Signal<Out, Bits<BW>>,
+    /// The walk cuts it at L_max.
+    pub cut: Signal<Out, Bit>,
+    /// Freed unconfirmed.
+    pub unconf: Signal<Out, Bit>,
+    /// Completed: its Blink record is due.
+    pub comp: Signal<Out, Bit>,
+    /// The record's flag bits.
+    pub flags: Signal<Out, Bits<8>>,
+    /// The record's t_cross.
+    pub tc: Signal<Out, Bits<48>>,
+    /// The record's t_drop.
+    pub td: Signal<Out, Bits<48>>,
+    /// Busy in plane t + 1.
+    pub n_busy: Signal<Out, Bit>,
+    /// Live in plane t + 1.
+    pub n_live: Signal<Out, Bit>,
+    /// Its ROI view for t + 1: sum the delayed plane.
+    pub n_pre: Signal<Out, Bit>,
+    /// Its ROI view for t + 1: a segment's first plane.
+    pub n_fresh: Signal<Out, Bit>,
+    /// `finish` ends a live track.
+    pub fin_end: Signal<Out, Bit>,
+    /// `finish` ends it unconfirmed.
+    pub fin_unconf: Signal<Out, Bit>,
+}
 
 /// The walk's W1 and W2 stages. `BW`: bits of a counter bank.
 #[derive(LogicBlock, Default)]
@@ -73,48 +124,8 @@ pub struct WalkStages<const BW: usize> {
     pub done: Signal<In, Bit>,
     /// The read stage's slot moves into W1 this clock.
     pub take: Signal<Out, Bit>,
-    /// W2 holds a slot.
-    pub valid: Signal<Out, Bit>,
-    /// W2's slot, one-hot.
-    pub sel: Signal<Out, Bits<MAX_SLOTS>>,
-    /// Its index.
-    pub slot: Signal<Out, Bits<8>>,
-    /// It is the walk's last.
-    pub last: Signal<Out, Bit>,
-    /// Its busy flag (before the walk).
-    pub busy: Signal<Out, Bit>,
-    /// Bridged in this plane.
-    pub bridge: Signal<Out, Bit>,
-    /// Its anchor column.
-    pub ax: Signal<Out, Bits<COORD_BITS>>,
-    /// Its anchor row.
-    pub ay: Signal<Out, Bits<COORD_BITS>>,
-    /// Its counter bank.
-    pub bank: Signal<Out, Bits<BW>>,
-    /// [`WalkStep`]'s outputs for it: the cut.
-    pub cut: Signal<Out, Bit>,
-    /// Freed unconfirmed.
-    pub unconf: Signal<Out, Bit>,
-    /// Completed: its Blink record is due.
-    pub comp: Signal<Out, Bit>,
-    /// The record's flag bits.
-    pub flags: Signal<Out, Bits<8>>,
-    /// The record's t_cross.
-    pub tc: Signal<Out, Bits<48>>,
-    /// The record's t_drop.
-    pub td: Signal<Out, Bits<48>>,
-    /// Busy in plane t + 1.
-    pub n_busy: Signal<Out, Bit>,
-    /// Live in plane t + 1.
-    pub n_live: Signal<Out, Bit>,
-    /// Its ROI view for t + 1: sum the delayed plane.
-    pub n_pre: Signal<Out, Bit>,
-    /// Its ROI view for t + 1: a segment's first plane.
-    pub n_fresh: Signal<Out, Bit>,
-    /// `finish` ends a live track.
-    pub fin_end: Signal<Out, Bit>,
-    /// `finish` ends it unconfirmed.
-    pub fin_unconf: Signal<Out, Bit>,
+    /// W2's slot and what the walk does to it.
+    pub w2: WalkedSlot<BW>,
     /// The word the walk writes back.
     pub word: Signal<Out, Bits<WALK_WORD_BITS>>,
     /// What the walk does to W1's slot.
@@ -271,27 +282,27 @@ impl<const BW: usize> Logic for WalkStages<BW> {
             self.w2_valid.d.next = false;
         }
         self.take.next = self.take_v.val();
-        self.valid.next = self.w2_valid.q.val();
-        self.sel.next = self.w2_sel.q.val();
-        self.slot.next = self.w2_slot.q.val();
-        self.last.next = self.w2_last.q.val();
-        self.busy.next = self.w2_busy.q.val();
-        self.bridge.next = self.w2_bridge.q.val();
-        self.ax.next = self.w2_ax.q.val();
-        self.ay.next = self.w2_ay.q.val();
-        self.bank.next = self.w2_bank.q.val();
-        self.cut.next = self.w2_cut.q.val();
-        self.unconf.next = self.w2_unconf.q.val();
-        self.comp.next = self.w2_comp.q.val();
-        self.flags.next = self.w2_flags.q.val();
-        self.tc.next = self.w2_tc.q.val();
-        self.td.next = self.w2_td.q.val();
-        self.n_busy.next = self.w2_n_busy.q.val();
-        self.n_live.next = self.w2_n_live.q.val();
-        self.n_pre.next = self.w2_n_pre.q.val();
-        self.n_fresh.next = self.w2_n_fresh.q.val();
-        self.fin_end.next = self.w2_fin_end.q.val();
-        self.fin_unconf.next = self.w2_fin_unconf.q.val();
+        self.w2.valid.next = self.w2_valid.q.val();
+        self.w2.sel.next = self.w2_sel.q.val();
+        self.w2.slot.next = self.w2_slot.q.val();
+        self.w2.last.next = self.w2_last.q.val();
+        self.w2.was_busy.next = self.w2_busy.q.val();
+        self.w2.bridge.next = self.w2_bridge.q.val();
+        self.w2.ax.next = self.w2_ax.q.val();
+        self.w2.ay.next = self.w2_ay.q.val();
+        self.w2.bank.next = self.w2_bank.q.val();
+        self.w2.cut.next = self.w2_cut.q.val();
+        self.w2.unconf.next = self.w2_unconf.q.val();
+        self.w2.comp.next = self.w2_comp.q.val();
+        self.w2.flags.next = self.w2_flags.q.val();
+        self.w2.tc.next = self.w2_tc.q.val();
+        self.w2.td.next = self.w2_td.q.val();
+        self.w2.n_busy.next = self.w2_n_busy.q.val();
+        self.w2.n_live.next = self.w2_n_live.q.val();
+        self.w2.n_pre.next = self.w2_n_pre.q.val();
+        self.w2.n_fresh.next = self.w2_n_fresh.q.val();
+        self.w2.fin_end.next = self.w2_fin_end.q.val();
+        self.w2.fin_unconf.next = self.w2_fin_unconf.q.val();
         self.word.next = self.w2_word.q.val();
     }
 }

@@ -1,15 +1,31 @@
-//! What a walk does to one slot (the W1 stage of the tracker's walk
-//! pipeline, see [`super`]'s doc; combinational, [`WalkStages`](super::WalkStages)
-//! registers it in W2): a `pend` drop's t_drop and confirmation, the cut at L_max, the
-//! unconfirmed free or the completion, the Blink record's flags and
-//! planes, the slot's state for plane t + 1 and its ROI view flags, and
-//! the word written back to the walk memory. The stream end's `finish`
-//! and a drain plane's end use the same step with their own write-back.
+//! What a walk does to one slot (the W1 stage of the tracker's
+//! [`WalkPipeline`](super::WalkPipeline); combinational,
+//! [`WalkStages`](super::WalkStages) registers it in W2): a `pend` drop's
+//! t_drop and confirmation, the cut at L_max, the unconfirmed free or the
+//! completion, the Blink record's flags and planes, the slot's state for
+//! plane t + 1 and its ROI view flags, and the word written back to the
+//! walk memory. The stream end's `finish` and a drain plane's end use the
+//! same step with their own write-back.
 //!
-//! Ages instead of plane numbers (see "Ages instead of plane arithmetic"
-//! in [`super`]'s doc): `age = t − t_cross`, `dage = t − t_drop`, and the
-//! walk's constants are registers of L_min, L_min + 1, L_max − 1 and
-//! N − end_trim.
+//! **Ages instead of plane arithmetic.** Each slot keeps `age = t − t_cross`
+//! ([`AGE_BITS`] bits; L_min, L_max and N are at most L_max,max, checked
+//! when the tracker is generated): confirmation `t_drop − t_cross ≥ L_min`
+//! (of a first segment; a continuation is always confirmed) is
+//! `age ≥ L_min + 1` at the drop, the cut `t + 1 ≥ t_cross + L_max` is
+//! `age ≥ L_max − 1`. A second per-slot age `dage = t − t_drop` (also
+//! [`AGE_BITS`] bits; 1 at the plane `t_drop + 1` that sees the drop and
+//! at the stream end, where `t_drop = p − 1` and `t = p`; at most 2N when
+//! recorded at the stream end) gives the completion of a drop,
+//! `t ≥ t_drop + N − end_trim`, as `dage ≥ N − end_trim`, and a dropped
+//! segment's sums of plane t + 1, `dage + 1 ≤ N − end_trim`. The record's
+//! planes are not stored either: `t_cross = t − age` (a continuation
+//! starts at `age = −1`, which is 0 by the time it can be recorded) and
+//! `t_drop = t − dage` (a cut: `t`); both ages advance with t. One
+//! subtraction after the slot multiplexer, instead of two 48-bit registers
+//! per slot.
+//!
+//! The walk's constants (L_min, L_min + 1, L_max − 1 and N − end_trim) are
+//! registers of the walk pipeline.
 
 use super::layout::AGE_BITS;
 use super::walk_memory::WALK_WORD_BITS;
