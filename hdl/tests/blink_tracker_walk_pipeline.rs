@@ -18,6 +18,7 @@
 
 mod common;
 
+use common::walk::StepOut;
 use rand::Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::blink_tracker::slot_word::{AX, AY, BANK};
@@ -62,18 +63,9 @@ struct Out {
     ax: u64,
     ay: u64,
     bank: u64,
-    cut: bool,
-    unconf: bool,
-    comp: bool,
-    flags: u64,
-    tc: u64,
-    td: u64,
-    n_busy: bool,
-    n_live: bool,
-    n_pre: bool,
-    n_fresh: bool,
-    fin_end: bool,
-    fin_unconf: bool,
+    /// The walk step's outputs (the word written back stays inside the
+    /// pipeline: 0 here).
+    step: StepOut,
 }
 
 fn random_slot(rng: &mut impl Rng) -> Slot {
@@ -124,6 +116,7 @@ fn expected(o: &mut WalkStep, k: usize, m: usize, s: &Slot, word: u64, w: &Walk)
     o.opened.next = s.opened;
     o.word.next = word.to_bits();
     settle(o);
+    let step = StepOut::of_step(o);
     let out = Out {
         slot: k as u64,
         last: k + 1 == m,
@@ -132,20 +125,9 @@ fn expected(o: &mut WalkStep, k: usize, m: usize, s: &Slot, word: u64, w: &Walk)
         ax: s.ax,
         ay: s.ay,
         bank: s.bank,
-        cut: o.cut.val(),
-        unconf: o.unconf.val(),
-        comp: o.comp.val(),
-        flags: o.flags.val().to_u64(),
-        tc: o.tc.val().to_u64(),
-        td: o.td.val().to_u64(),
-        n_busy: o.n_busy.val(),
-        n_live: o.n_live.val(),
-        n_pre: o.n_pre.val(),
-        n_fresh: o.n_fresh.val(),
-        fin_end: o.fin_end.val(),
-        fin_unconf: o.fin_unconf.val(),
+        step: StepOut { word: 0, ..step },
     };
-    (out, o.word_next.val().to_u64())
+    (out, step.word)
 }
 
 fn got(u: &WalkedSlot<BW>) -> Out {
@@ -157,18 +139,7 @@ fn got(u: &WalkedSlot<BW>) -> Out {
         ax: u.ax.val().to_u64(),
         ay: u.ay.val().to_u64(),
         bank: u.bank.val().to_u64(),
-        cut: u.cut.val(),
-        unconf: u.unconf.val(),
-        comp: u.comp.val(),
-        flags: u.flags.val().to_u64(),
-        tc: u.tc.val().to_u64(),
-        td: u.td.val().to_u64(),
-        n_busy: u.n_busy.val(),
-        n_live: u.n_live.val(),
-        n_pre: u.n_pre.val(),
-        n_fresh: u.n_fresh.val(),
-        fin_end: u.fin_end.val(),
-        fin_unconf: u.fin_unconf.val(),
+        step: StepOut::of_w2(u, 0),
     }
 }
 

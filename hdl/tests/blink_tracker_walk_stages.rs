@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::walk::StepOut;
 use rand::Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::blink_tracker::{WalkStages, WalkStep};
@@ -28,24 +29,6 @@ struct Slot {
     ax: u64,
     ay: u64,
     bank: u64,
-    word: u64,
-}
-
-/// What the walk step makes of a slot.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Step {
-    cut: bool,
-    unconf: bool,
-    comp: bool,
-    flags: u64,
-    tc: u64,
-    td: u64,
-    n_busy: bool,
-    n_live: bool,
-    n_pre: bool,
-    n_fresh: bool,
-    fin_end: bool,
-    fin_unconf: bool,
     word: u64,
 }
 
@@ -75,28 +58,6 @@ macro_rules! drive_walk {
         $u.n_mc.next = $w.n_mc.to_bits();
         $u.mc_one.next = $w.n_mc == 1;
     }};
-}
-
-/// The walk step's outputs of a block that has them (`WalkStep`, and W2's
-/// slot of `WalkStages`), `$word` its written word.
-macro_rules! step_outputs {
-    ($u:expr, $word:expr) => {
-        Step {
-            cut: $u.cut.val(),
-            unconf: $u.unconf.val(),
-            comp: $u.comp.val(),
-            flags: $u.flags.val().to_u64(),
-            tc: $u.tc.val().to_u64(),
-            td: $u.td.val().to_u64(),
-            n_busy: $u.n_busy.val(),
-            n_live: $u.n_live.val(),
-            n_pre: $u.n_pre.val(),
-            n_fresh: $u.n_fresh.val(),
-            fin_end: $u.fin_end.val(),
-            fin_unconf: $u.fin_unconf.val(),
-            word: $word.val().to_u64(),
-        }
-    };
 }
 
 const M: u64 = 20;
@@ -139,7 +100,7 @@ fn random_walk(rng: &mut impl Rng) -> Walk {
 }
 
 /// The walk step of `s` under `w`, from the free-standing block.
-fn step_of(o: &mut WalkStep, s: &Slot, w: &Walk) -> Step {
+fn step_of(o: &mut WalkStep, s: &Slot, w: &Walk) -> StepOut {
     drive_walk!(o, w);
     o.busy.next = s.busy;
     o.live.next = s.live;
@@ -148,7 +109,7 @@ fn step_of(o: &mut WalkStep, s: &Slot, w: &Walk) -> Step {
     o.opened.next = s.opened;
     o.word.next = s.word.to_bits();
     settle(o);
-    step_outputs!(o, o.word_next)
+    StepOut::of_step(o)
 }
 
 #[test]
@@ -157,7 +118,7 @@ fn walk_stages_hold_each_slot_and_its_step_in_order_under_stalls_and_restarts() 
     let mut oracle = WalkStep::default();
     oracle.connect_all();
     let mut b = Bench::new(WalkStages::<5>::default(), |u| &mut u.clock);
-    let (mut w1, mut w2): (Option<Slot>, Option<(Slot, Step)>) = (None, None);
+    let (mut w1, mut w2): (Option<Slot>, Option<(Slot, StepOut)>) = (None, None);
     let (mut taken, mut out, mut held, mut stalls, mut restarts) = (0, 0, 0, 0, 0);
     for clock in 0..40_000 {
         // Stretches at full speed (every slot offered, W2 done at once),
@@ -210,7 +171,7 @@ fn walk_stages_hold_each_slot_and_its_step_in_order_under_stalls_and_restarts() 
                 1 << slot.slot,
                 "clock {clock}: one-hot"
             );
-            let got_step = step_outputs!(u.w2, u.word);
+            let got_step = StepOut::of_w2(&u.w2, u.word.val().to_u64());
             assert_eq!(got_step, step, "clock {clock}: W2's step");
             out += done as usize;
             stalls += !done as usize;

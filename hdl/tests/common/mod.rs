@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod records;
+pub mod walk;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
