@@ -21,9 +21,10 @@
 //! ([`WalkMemory`] forwards it).
 //!
 //! The walk's constants (N − end_trim, `N − end_trim = 1`, L_min,
-//! L_min + 1, L_max − 1) are registers of the tracker's runtime registers:
-//! they are written long before a walk, and the walk compares ages with
-//! them (see "Ages instead of plane arithmetic" in [`super`]'s doc).
+//! L_min + 1, L_max − 1) are registered from the tracker's runtime
+//! registers, which are written long before a walk; the walk compares
+//! ages with them (see "Ages instead of plane arithmetic" in
+//! [`WalkStep`](super::WalkStep)'s doc).
 
 use super::layout::{slot_word, AGE_BITS, COORD_BITS};
 use super::{SlotMux, WalkMemory, WalkStages, WalkedSlot};
