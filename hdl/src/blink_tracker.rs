@@ -37,52 +37,40 @@
 //!   streamed and its on/off step is applied (bridge, dip, or end of the
 //!   blink at `t_drop = t − 1`, which only marks the slot `pend`) — in the
 //!   model this happens first, but no association reads what it changes;
-//! * after the last row, the *walk*: one clock per slot in slot order,
-//!   once the sweep has finished plane t − 1 (see `swept`). The walked
-//!   slot's state comes through one multiplexer (the fields only the walks
-//!   read — ages, confirmation, continuation, truncation — from a LUT RAM
-//!   read one clock ahead), and one comparator of
-//!   each kind serves every slot (see "Walk pipeline"): a `pend` drop's t_drop and confirmation,
-//!   the cut at L_max, the unconfirmed free or the completion, the Blink
-//!   record and its continuation, the counters, and the slot's state and
-//!   ROI view for plane t + 1 (its sums of t + 1 follow from its state at
-//!   the end of t: the on/off step of t + 1 changes none of them). Then the Dropped record and plane t + 1.
-//!   The model decides all slots first and then emits in slot order; each
-//!   slot's decision reads only that slot, so one slot at a time gives the
-//!   same records. The stream end's `finish` and the drain planes' ends
-//!   are walks too.
+//! * after the last row, the *walk* (see "Walk pipeline"): one clock per
+//!   slot in slot order, once the sweep has finished plane t − 1 (see
+//!   `swept`): a `pend` drop's t_drop and confirmation, the cut at L_max,
+//!   the unconfirmed free or the completion, the Blink record and its
+//!   continuation, the counters, and the slot's state and ROI view for
+//!   plane t + 1 (its sums of t + 1 follow from its state at the end of t:
+//!   the on/off step of t + 1 changes none of them). Then the Dropped
+//!   record and plane t + 1. The model decides all slots first and then
+//!   emits in slot order; each slot's decision reads only that slot, so one
+//!   slot at a time gives the same records. The stream end's `finish` and
+//!   the drain planes' ends are walks too.
 //!
 //! **Pipeline** (so that no path between registers is deeper than a few
 //! LUTs). A word goes through three registered stages, one item per clock:
 //! * the *item* stage ([`ItemStage`]) takes the head word's lowest
-//!   candidate lane not yet taken, or the word itself when it has none,
-//!   and pops the word with its last item;
-//! * the *compare* stage ([`CompareStage`]) holds, per slot, whether the
-//!   candidate is in the slot's association window (`bnd`, stored when the
-//!   slot opened: the opening candidate's own window), whether the word
-//!   hits its 3x3 window, and whether the word's row ends that window
-//!   ([`SlotCompare`]); and what an opening would write ([`OpeningWindows`]);
+//!   candidate lane not yet taken, or the word itself when it has none;
+//! * the *compare* stage ([`CompareStage`]) compares it with every slot's
+//!   association window (stored when the slot opened), 3×3 window and last
+//!   row ([`SlotCompare`]), and computes what an opening would write
+//!   ([`OpeningWindows`]); its doc gives the flow between the stages (the
+//!   replay after an opening, the clock after the plane's last item);
 //! * the *decide* stage acts on it in Run: the association against the
-//!   current flags, the opening or drop, the hits, the end-of-row step
-//!   ([`OnOffStep`], in [`SlotFlags`]).
+//!   current flags ([`Association`]), the opening or drop, the hits, the
+//!   end-of-row step ([`OnOffStep`], in [`SlotFlags`]).
 //!
-//! Only an opening changes what the compare stage reads (the new slot's
-//! window), and only for a candidate: a candidate compared in the clock of
-//! an opening is compared again (`replay`, one clock) before it is decided.
 //! A word's hits on a slot opened in this plane, or on a free one, may be
 //! stale, and need not be right: only slots active at the end of t − 1 have
-//! their on/off step, and the walk clears every slot's hits. The words of
-//! plane t + 1 must be right for a slot opened in t, so the compare stage
-//! takes none in the clock that decides the last item of t (`end_item`),
-//! which may be an opening. The lowest free slot ([`Association`]) is a
-//! register of the previous clock's flags: after an opening the next
-//! candidate is replayed, and after a walk comes WalkEnd.
+//! their on/off step, and the walk clears every slot's hits.
 //!
 //! **Walk pipeline** ([`WalkPipeline`]). A walk also runs in three
 //! stages, one slot per clock: the read stage takes the slot's state, W1
-//! computes what the walk does to it ([`WalkStep`]), and with W2's slot the
-//! tracker waits for the sweep and the bank, pushes the record and writes
-//! the slot.
+//! computes what the walk does to it ([`WalkStep`]), and W2's slot waits
+//! for the sweep and the bank ([`WalkGate`]) while the tracker pushes the
+//! record and writes the slot.
 //!
 //! **Ages instead of plane arithmetic** ([`WalkStep`]). Each slot keeps its
 //! ages `age = t − t_cross` and `dage = t − t_drop` ([`AGE_BITS`] bits)
@@ -107,28 +95,20 @@
 //! by the packetiser: StreamStart, then per plane the completed segments in
 //! slot order and one Dropped record, and at stream end the finished
 //! segments and StreamEnd. A Blink record carries its counter bank; the slot
-//! takes a fresh bank from the free list. When the queue is full the record
-//! is lost and counted ([`RecordPort`]: the `lost` of the next record
-//! pushed, which becomes an Overflow record) — never silently; StreamStart
-//! and StreamEnd wait.
-//! When the queue has room but the free list shows no bank yet (the bank of
-//! the record the packetiser has just finished reaches the free list a few
-//! clocks after the queue drops that record), the slot walk waits for it.
+//! takes a fresh bank from the free list (and waits for one that is on its
+//! way back: [`WalkGate`]). A record lost to a full queue is counted, never
+//! silent ([`RecordPort`]).
 //!
 //! **Registers.** The slots' state is most of the tracker's flip-flops, and
 //! a simulator such as Verilator copies every register on every clock
 //! (those copies were 29 % of the full-field co-simulation's time with one
-//! register per slot and field), so it is packed: one [`MAX_SLOTS`](crate::config::MAX_SLOTS)-bit
-//! register per flag (bit i: slot i; [`SlotFlags`], which makes every write
-//! to the flags), one 64-bit word per slot for the anchor, window rows and
-//! bank ([`slot_word`]), one for the window's two lane masks, one for its
-//! association window, and one per ROI view entry ([`shadow`];
-//! [`SlotWords`], which makes every write to the words). Synthesis maps
-//! the same flip-flops either way. A slot's words are written at most once
-//! a clock (the walks and openings of one clock touch different slots; the
-//! end-of-row step writes flags only) and only `restart`, last, overrides
-//! them. The StreamEnd totals, the plane's drops and the bank error are
-//! [`TrackerCounters`].
+//! register per slot and field), so it is packed: one
+//! [`MAX_SLOTS`](crate::config::MAX_SLOTS)-bit register per flag (bit i:
+//! slot i; [`SlotFlags`]), and 64-bit words per slot and ROI view entry
+//! ([`slot_word`], [`shadow`]; [`SlotWords`]). Synthesis maps the same
+//! flip-flops either way. The walks and openings of one clock touch
+//! different slots. The StreamEnd totals, the plane's drops and the bank
+//! error are [`TrackerCounters`].
 //!
 //! **Stream end** (`stopping`, `planes_total = p`): after plane p−1 the
 //! tracker does the model's `finish` (live tracks end at p−1, TRUNCATED),
@@ -150,6 +130,7 @@ mod slot_compare;
 mod slot_flags;
 mod slot_mux;
 mod slot_words;
+mod walk_gate;
 mod walk_memory;
 mod walk_pipeline;
 mod walk_stages;
@@ -162,11 +143,12 @@ pub use item_stage::ItemStage;
 pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
 pub use on_off_step::OnOffStep;
 pub use opening::OpeningWindows;
-pub use record_port::RecordPort;
+pub use record_port::{record_kind, RecordPort};
 pub use slot_compare::SlotCompare;
 pub use slot_flags::SlotFlags;
 pub use slot_mux::SlotMux;
 pub use slot_words::SlotWords;
+pub use walk_gate::WalkGate;
 pub use walk_memory::{WalkMemory, WALK_WORD_BITS};
 pub use walk_pipeline::WalkPipeline;
 pub use walk_stages::{WalkStages, WalkedSlot};
@@ -176,18 +158,6 @@ use crate::bundles::{RecordPushOut, TrackerTotalsOut};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
-
-/// Kinds of the record descriptors the tracker pushes (see [`crate::packetiser`]).
-pub mod record_kind {
-    /// StreamStart.
-    pub const START: u64 = 0;
-    /// Blink.
-    pub const BLINK: u64 = 1;
-    /// Dropped.
-    pub const DROPPED: u64 = 2;
-    /// StreamEnd.
-    pub const END: u64 = 3;
-}
 
 /// Tracker states.
 #[derive(Copy, Clone, Debug, PartialEq, LogicState)]
@@ -307,8 +277,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     association: Association,
     /// The walks: the read stage, W1 and W2.
     walks: WalkPipeline<BW>,
-    /// `view_free` a clock ago.
-    vf: DFF<Bit>,
+    /// When W2's slot is written, and its Blink.
+    gate: WalkGate,
     /// `t + 1 = planes_total + N` (the last drain plane), a clock old: `t`
     /// changes only at the end of a walk, and the drain walk that reads it
     /// ends at least M + 2 clocks later.
@@ -318,19 +288,11 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     t_ge_n: Signal<Local, Bit>,
     p_plus_n: Signal<Local, Bits<48>>,
     fin_cond: Signal<Local, Bit>,
-    view_free: Signal<Local, Bit>,
-    /// W2's slot makes a Blink record.
-    blink: Signal<Local, Bit>,
-    need_bank: Signal<Local, Bit>,
     /// The walk holds a Blink this clock: the record queue has room but the
     /// free list shows no bank yet (observed by the tests).
     pub bank_wait: Signal<Local, Bit>,
     /// The walked slot's bank from now on.
     n_bank: Signal<Local, Bits<BW>>,
-    we_walk: Signal<Local, Bit>,
-    we_fin: Signal<Local, Bit>,
-    we_drain: Signal<Local, Bit>,
-    we_emit: Signal<Local, Bit>,
     _m: usize,
 }
 
@@ -381,23 +343,16 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             words: SlotWords::new(m, P),
             association: Default::default(),
             walks: WalkPipeline::new(m),
+            gate: Default::default(),
             items: ItemStage::new(cfg),
             compare: CompareStage::new(cfg),
-            vf: Default::default(),
             drain_end: Default::default(),
             t_p1: Default::default(),
             t_ge_n: Default::default(),
             p_plus_n: Default::default(),
             fin_cond: Default::default(),
-            view_free: Default::default(),
-            blink: Default::default(),
-            need_bank: Default::default(),
             bank_wait: Default::default(),
             n_bank: Default::default(),
-            we_walk: Default::default(),
-            we_fin: Default::default(),
-            we_drain: Default::default(),
-            we_emit: Default::default(),
             _m: m,
         })
     }
@@ -408,8 +363,9 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
 impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P, NW, BW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, state, t, rows, vf, drain_end);
+        dff_setup!(self, clock, state, t, rows, drain_end);
         self.walks.clock.next = self.clock.val();
+        self.gate.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
         self.compare.clock.next = self.clock.val();
         self.flags.clock.next = self.clock.val();
@@ -442,8 +398,6 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.items.in_flush.next = self.in_flush.val();
         self.items.take.next = self.compare.take.val();
         self.in_pop.next = self.items.pop.val();
-        // The ROI view of plane t − 1 may be overwritten (see `swept`).
-        self.view_free.next = self.swept.val() >= self.t.q.val();
 
         // ---- Compare stage: the item against every slot's words, and what
         // an opening by it writes.
@@ -479,39 +433,24 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // ---- The walks ([`WalkPipeline`]): the read stage takes the next
         // slot into W1, W1 decides what the walk does to it into W2, and W2
         // does it, one slot per clock each.
-        // W2's step: the end of a plane waits until the sweep has finished
-        // plane t − 1, whose ROI view it overwrites (`vf`, a clock old: t
-        // changes only at the end of a walk, two stages before W2 can act
-        // again); a Blink waits for its fresh bank.
-        self.vf.d.next = self.view_free.val();
-        self.need_bank.next = self.walks.w2.valid.val()
-            & (((self.state.q.val() == TrackerState::Walk)
-                & self.vf.q.val()
-                & self.walks.w2.comp.val())
-                | ((self.state.q.val() == TrackerState::Emit) & self.walks.w2.was_busy.val()));
-        // The queue has room but the free list shows no bank: the bank of the
-        // record the packetiser has just finished is on its way back (the
-        // queue counts that record until it is popped, the pool shows the
-        // bank a few clocks later), so the walk waits for it rather than
-        // lose the record. Room in the queue means at most Q − 1 queued
-        // Blinks, so one of the Q spare banks is free or returning.
-        self.bank_wait.next = self.need_bank.val() & self.record.room.val() & !self.fb_valid.val();
-        self.we_walk.next = self.walks.w2.valid.val()
-            & (self.state.q.val() == TrackerState::Walk)
-            & self.vf.q.val()
-            & !self.bank_wait.val();
-        self.we_fin.next = self.walks.w2.valid.val() & (self.state.q.val() == TrackerState::Finish);
-        self.we_drain.next = self.walks.w2.valid.val()
-            & (self.state.q.val() == TrackerState::DrainWalk)
-            & self.vf.q.val();
-        self.we_emit.next = self.walks.w2.valid.val()
-            & (self.state.q.val() == TrackerState::Emit)
-            & !self.bank_wait.val();
+        // W2's step ([`WalkGate`]): the end of a plane waits until the sweep
+        // has finished plane t − 1, whose ROI view it overwrites (see
+        // `swept`); a Blink waits for its fresh bank.
+        self.gate.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
+        self.gate.finish.next = self.state.q.val() == TrackerState::Finish;
+        self.gate.drain.next = self.state.q.val() == TrackerState::DrainWalk;
+        self.gate.emit.next = self.state.q.val() == TrackerState::Emit;
+        self.gate.view_free.next = self.swept.val() >= self.t.q.val();
+        self.gate.valid.next = self.walks.w2.valid.val();
+        self.gate.comp.next = self.walks.w2.comp.val();
+        self.gate.was_busy.next = self.walks.w2.was_busy.val();
+        self.gate.room.next = self.record.room.val();
+        self.gate.fb_valid.next = self.fb_valid.val();
+        self.bank_wait.next = self.gate.bank_wait.val();
         self.walks.restart.next = self.restart.val();
         self.walks.start.next = false;
-        self.walks.done.next =
-            self.we_walk.val() | self.we_fin.val() | self.we_drain.val() | self.we_emit.val();
-        self.walks.write_back.next = self.we_walk.val() | self.we_fin.val() | self.we_drain.val();
+        self.walks.done.next = self.gate.done.val();
+        self.walks.write_back.next = self.gate.write_back.val();
         // The walks' constants, in the ages' width.
         self.walks.n.next = bit_cast::<18, NW>(self.n_window.val());
         self.walks.end_trim.next = bit_cast::<18, NW>(self.end_trim.val());
@@ -536,15 +475,13 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
 
         // ---- The records ([`RecordPort`]): W2's Blink, the plane's Dropped
         // record, StreamStart and StreamEnd, each in its state.
-        self.blink.next = (self.we_walk.val() & self.walks.w2.comp.val())
-            | (self.we_emit.val() & self.walks.w2.was_busy.val());
         RecordPushOut::<BW>::link(&mut self.record, &mut self.port.record);
         self.port.restart.next = self.restart.val();
         self.port.fb_valid.next = self.fb_valid.val();
         self.fb_pop.next = self.port.fb_pop.val();
         self.port.t.next = self.t.q.val();
         self.port.stream_start.next = self.state.q.val() == TrackerState::Start;
-        self.port.blink.next = self.blink.val();
+        self.port.blink.next = self.gate.blink.val();
         self.port.emit.next = self.state.q.val() == TrackerState::Emit;
         self.port.slot.next = self.walks.w2.slot.val();
         self.port.flags.next = self.walks.w2.flags.val();
@@ -558,7 +495,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.port.first_x.next = self.counters.first_x.val();
         self.port.first_y.next = self.counters.first_y.val();
         self.port.stream_end.next = self.state.q.val() == TrackerState::End;
-        self.counters.blink.next = self.blink.val();
+        self.counters.blink.next = self.gate.blink.val();
         self.counters.unconfirmed_end.next = false;
         self.counters.bridge.next = false;
         self.counters.cut.next = false;
@@ -590,7 +527,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::Walk => {
-                if self.we_walk.val() {
+                if self.gate.we_walk.val() {
                     self.counters.bridge.next = self.walks.w2.bridge.val();
                     self.counters.unconfirmed_end.next = self.walks.w2.unconf.val();
                     self.counters.cut.next = self.walks.w2.cut.val();
@@ -608,7 +545,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             TrackerState::Finish => {
                 if self.t.q.val() == 0 {
                     self.state.d.next = TrackerState::End;
-                } else if self.we_fin.val() {
+                } else if self.gate.we_fin.val() {
                     self.counters.unconfirmed_end.next = self.walks.w2.fin_unconf.val();
                     if self.walks.w2.last.val() {
                         self.state.d.next = TrackerState::Drain;
@@ -628,7 +565,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::DrainWalk => {
-                if self.we_drain.val() & self.walks.w2.last.val() {
+                if self.gate.we_drain.val() & self.walks.w2.last.val() {
                     self.t.d.next = self.t_p1.val();
                     self.rows.d.next = 0.into();
                     self.state.d.next = TrackerState::Drain;
@@ -639,7 +576,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
                 }
             }
             TrackerState::Emit => {
-                if self.we_emit.val() & self.walks.w2.last.val() {
+                if self.gate.we_emit.val() & self.walks.w2.last.val() {
                     self.state.d.next = TrackerState::End;
                 }
             }
@@ -663,10 +600,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.words.restart.next = self.restart.val();
         self.words.parity.next = self.t.q.val().get_bit(0);
         self.words.walk_slot.next = self.walks.w2.sel.val();
-        self.words.end_of_plane.next = self.we_walk.val();
-        self.words.drain.next = self.we_drain.val();
-        self.words.finish.next = self.we_fin.val();
-        self.words.emit.next = self.we_emit.val();
+        self.words.end_of_plane.next = self.gate.we_walk.val();
+        self.words.drain.next = self.gate.we_drain.val();
+        self.words.finish.next = self.gate.we_fin.val();
+        self.words.emit.next = self.gate.we_emit.val();
         self.words.was_busy.next = self.walks.w2.was_busy.val();
         self.words.next_bank.next = self.n_bank.val();
         self.words.walk_ax.next = self.walks.w2.ax.val();
@@ -696,9 +633,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.flags.open.next = self.association.open.val();
         self.flags.open_slot.next = self.association.open_slot.val();
         self.flags.walk_slot.next = self.walks.w2.sel.val();
-        self.flags.end_of_plane.next = self.we_walk.val();
-        self.flags.finish.next = self.we_fin.val();
-        self.flags.emit.next = self.we_emit.val();
+        self.flags.end_of_plane.next = self.gate.we_walk.val();
+        self.flags.finish.next = self.gate.we_fin.val();
+        self.flags.emit.next = self.gate.we_emit.val();
         self.flags.was_busy.next = self.walks.w2.was_busy.val();
         self.flags.next_busy.next = self.walks.w2.n_busy.val();
         self.flags.next_live.next = self.walks.w2.n_live.val();

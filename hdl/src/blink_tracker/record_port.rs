@@ -22,6 +22,26 @@ use super::layout::COORD_BITS;
 use crate::bundles::RecordPushOut;
 use rust_hdl::prelude::*;
 
+/// Kinds of the record descriptors the tracker pushes (see [`crate::packetiser`]).
+pub mod record_kind {
+    /// StreamStart.
+    pub const START: u64 = 0;
+    /// Blink.
+    pub const BLINK: u64 = 1;
+    /// Dropped.
+    pub const DROPPED: u64 = 2;
+    /// StreamEnd.
+    pub const END: u64 = 3;
+}
+
+// The port writes the kinds as literals (`#[hdl_gen]` takes no path constants).
+const _: () = assert!(
+    record_kind::START == 0
+        && record_kind::BLINK == 1
+        && record_kind::DROPPED == 2
+        && record_kind::END == 3
+);
+
 /// The record descriptor the tracker asks for, and the lost-record count.
 /// `BW`: bits of a counter-bank index.
 #[derive(LogicBlock, Default)]
