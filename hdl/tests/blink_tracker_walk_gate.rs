@@ -14,7 +14,6 @@
 mod common;
 
 use rand::Rng;
-use rust_hdl::prelude::*;
 use smartagg_hdl::blink_tracker::WalkGate;
 use smartagg_hdl::testbench::bench::{settle, Bench};
 
