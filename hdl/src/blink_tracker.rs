@@ -126,6 +126,7 @@ mod layout;
 mod on_off_step;
 mod opening;
 mod record_port;
+mod sequencer;
 mod slot_compare;
 mod slot_flags;
 mod slot_mux;
@@ -144,6 +145,7 @@ pub use layout::{shadow, slot_word, AGE_BITS, COORD_BITS, MAX_FIELD};
 pub use on_off_step::OnOffStep;
 pub use opening::OpeningWindows;
 pub use record_port::{record_kind, RecordPort};
+pub use sequencer::{Sequencer, TrackerState};
 pub use slot_compare::SlotCompare;
 pub use slot_flags::SlotFlags;
 pub use slot_mux::SlotMux;
@@ -158,33 +160,6 @@ use crate::bundles::{RecordPushOut, TrackerTotalsOut};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::stream::lanes;
 use rust_hdl::prelude::*;
-
-/// Tracker states.
-#[derive(Copy, Clone, Debug, PartialEq, LogicState)]
-pub enum TrackerState {
-    /// No stream (the power-up state: nothing is pushed before a restart).
-    Done,
-    /// Push the StreamStart record.
-    Start,
-    /// Process the words of a plane.
-    Run,
-    /// End of plane, one slot per clock in slot order: deferred drop,
-    /// cut, unconfirmed free or completion, the Blink record and its
-    /// continuation, and the slot's state and ROI view for the next plane.
-    Walk,
-    /// End of plane: the Dropped record, then the next plane.
-    WalkEnd,
-    /// Stream end, one slot per clock: the model's `finish`.
-    Finish,
-    /// Follow the N drain planes.
-    Drain,
-    /// End of a drain plane, one slot per clock: ages and ROI view.
-    DrainWalk,
-    /// Emit the finished segments, slot order.
-    Emit,
-    /// Push StreamEnd.
-    End,
-}
 
 /// The M-slot blink tracker. `P`: pixels per word; `NW`: bits of N;
 /// `BW`: bits of a counter-bank index.
@@ -254,9 +229,8 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     /// A Blink waited 16 clocks for a free bank while the record queue had
     /// room (sticky; never expected: it means a bank went missing).
     pub bank_error: Signal<Out, Bit>,
-    state: DFF<TrackerState>,
-    t: DFF<Bits<48>>,
-    rows: DFF<Bits<16>>,
+    /// The state, the plane t and its rows done.
+    seq: Sequencer<NW>,
     /// The records asked for by the states, and the lost-record count.
     port: RecordPort<BW>,
     /// The StreamEnd totals, the plane's drops and the bank error.
@@ -279,15 +253,6 @@ pub struct BlinkTracker<const P: usize, const NW: usize, const BW: usize> {
     walks: WalkPipeline<BW>,
     /// When W2's slot is written, and its Blink.
     gate: WalkGate,
-    /// `t + 1 = planes_total + N` (the last drain plane), a clock old: `t`
-    /// changes only at the end of a walk, and the drain walk that reads it
-    /// ends at least M + 2 clocks later.
-    drain_end: DFF<Bit>,
-    // Combinational.
-    t_p1: Signal<Local, Bits<48>>,
-    t_ge_n: Signal<Local, Bit>,
-    p_plus_n: Signal<Local, Bits<48>>,
-    fin_cond: Signal<Local, Bit>,
     /// The walk holds a Blink this clock: the record queue has room but the
     /// free list shows no bank yet (observed by the tests).
     pub bank_wait: Signal<Local, Bit>,
@@ -334,9 +299,7 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             fb_pop: Default::default(),
             totals: Default::default(),
             bank_error: Default::default(),
-            state: Default::default(),
-            t: Default::default(),
-            rows: Default::default(),
+            seq: Default::default(),
             port: Default::default(),
             counters: Default::default(),
             flags: SlotFlags::new(m),
@@ -346,11 +309,6 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
             gate: Default::default(),
             items: ItemStage::new(cfg),
             compare: CompareStage::new(cfg),
-            drain_end: Default::default(),
-            t_p1: Default::default(),
-            t_ge_n: Default::default(),
-            p_plus_n: Default::default(),
-            fin_cond: Default::default(),
             bank_wait: Default::default(),
             n_bank: Default::default(),
             _m: m,
@@ -358,12 +316,10 @@ impl<const P: usize, const NW: usize, const BW: usize> BlinkTracker<P, NW, BW> {
     }
 }
 
-// Match guards do not translate to Verilog, so the ifs stay inside the arms.
-#[allow(clippy::collapsible_match)]
 impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P, NW, BW> {
     #[hdl_gen]
     fn update(&mut self) {
-        dff_setup!(self, clock, state, t, rows, drain_end);
+        self.seq.clock.next = self.clock.val();
         self.walks.clock.next = self.clock.val();
         self.gate.clock.next = self.clock.val();
         self.items.clock.next = self.clock.val();
@@ -377,17 +333,27 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.sh[q].next = self.words.sh[q].val();
         }
 
-        // ---- Shared values.
-        self.t_p1.next = self.t.q.val() + 1;
-        self.t_ge_n.next = self.t.q.val() >= bit_cast::<48, NW>(self.n_window.val());
-        self.p_plus_n.next = self.planes_total.val() + bit_cast::<48, NW>(self.n_window.val());
-        self.drain_end.d.next = self.t_p1.val() == self.p_plus_n.val();
-        self.fin_cond.next = self.stopping.val() & (self.t.q.val() == self.planes_total.val());
+        // ---- The state, the plane t and its rows ([`Sequencer`]).
+        self.seq.restart.next = self.restart.val();
+        self.seq.emit_start.next = self.emit_start.val();
+        self.seq.n_window.next = self.n_window.val();
+        self.seq.stopping.next = self.stopping.val();
+        self.seq.planes_total.next = self.planes_total.val();
+        self.seq.room.next = self.record.room.val();
+        self.seq.step.next = self.compare.step.val();
+        self.seq.lastrow.next = self.compare.lastrow.val();
+        self.seq.row.next = self.compare.cy.val();
+        self.seq.walked.next = self.gate.done.val() & self.walks.w2.last.val();
+        self.seq.in_valid.next = self.in_valid.val();
+        self.seq.in_flush.next = self.in_flush.val();
+        self.seq.in_y.next = self.in_y.val();
+        self.seq.head_eor.next = self.items.head_eor.val();
+        self.seq.head_lastrow.next = self.items.head_lastrow.val();
 
         // ---- Item stage: the head word's next item, taken by the compare
         // stage ([`CompareStage`], which also gives the flow between the
-        // three stages; see "Pipeline" in the module doc). (When `fin_cond`
-        // holds, both stages are empty: they take only real words, and
+        // three stages; see "Pipeline" in the module doc). (When the sequencer
+        // is `finishing`, both stages are empty: they take only real words, and
         // every real plane is done.)
         self.items.restart.next = self.restart.val();
         self.items.in_valid.next = self.in_valid.val();
@@ -397,12 +363,12 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.items.in_y.next = self.in_y.val();
         self.items.in_flush.next = self.in_flush.val();
         self.items.take.next = self.compare.take.val();
-        self.in_pop.next = self.items.pop.val();
+        self.in_pop.next = self.items.pop.val() | self.seq.drain_pop.val();
 
         // ---- Compare stage: the item against every slot's words, and what
         // an opening by it writes.
         self.compare.restart.next = self.restart.val();
-        self.compare.run.next = self.state.q.val() == TrackerState::Run;
+        self.compare.run.next = self.seq.run.val();
         self.compare.open.next = self.association.open.val();
         self.compare.item_valid.next = self.items.valid.val();
         self.compare.item_cand.next = self.items.cand.val();
@@ -436,11 +402,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // W2's step ([`WalkGate`]): the end of a plane waits until the sweep
         // has finished plane t − 1, whose ROI view it overwrites (see
         // `swept`); a Blink waits for its fresh bank.
-        self.gate.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
-        self.gate.finish.next = self.state.q.val() == TrackerState::Finish;
-        self.gate.drain.next = self.state.q.val() == TrackerState::DrainWalk;
-        self.gate.emit.next = self.state.q.val() == TrackerState::Emit;
-        self.gate.view_free.next = self.swept.val() >= self.t.q.val();
+        self.gate.end_of_plane.next = self.seq.walk.val();
+        self.gate.finish.next = self.seq.finish.val();
+        self.gate.drain.next = self.seq.drain_walk.val();
+        self.gate.emit.next = self.seq.emit.val();
+        self.gate.view_free.next = self.swept.val() >= self.seq.t.val();
         self.gate.valid.next = self.walks.w2.valid.val();
         self.gate.comp.next = self.walks.w2.comp.val();
         self.gate.was_busy.next = self.walks.w2.was_busy.val();
@@ -448,7 +414,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.gate.fb_valid.next = self.fb_valid.val();
         self.bank_wait.next = self.gate.bank_wait.val();
         self.walks.restart.next = self.restart.val();
-        self.walks.start.next = false;
+        self.walks.start.next = self.seq.start_walk.val();
         self.walks.done.next = self.gate.done.val();
         self.walks.write_back.next = self.gate.write_back.val();
         // The walks' constants, in the ages' width.
@@ -467,11 +433,11 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
             self.walks.slot_geo[i].next = self.words.geo[i].val();
         }
         // W1 into W2: what the walk makes of the slot.
-        self.walks.end_of_plane.next = self.state.q.val() == TrackerState::Walk;
-        self.walks.finish.next = self.state.q.val() == TrackerState::Finish;
-        self.walks.drain.next = self.state.q.val() == TrackerState::DrainWalk;
-        self.walks.t.next = self.t.q.val();
-        self.walks.t1_ge_n.next = (self.t.q.val() + 1) >= bit_cast::<48, NW>(self.n_window.val());
+        self.walks.end_of_plane.next = self.seq.walk.val();
+        self.walks.finish.next = self.seq.finish.val();
+        self.walks.drain.next = self.seq.drain_walk.val();
+        self.walks.t.next = self.seq.t.val();
+        self.walks.t1_ge_n.next = self.seq.t1_ge_n.val();
 
         // ---- The records ([`RecordPort`]): W2's Blink, the plane's Dropped
         // record, StreamStart and StreamEnd, each in its state.
@@ -479,10 +445,10 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.port.restart.next = self.restart.val();
         self.port.fb_valid.next = self.fb_valid.val();
         self.fb_pop.next = self.port.fb_pop.val();
-        self.port.t.next = self.t.q.val();
-        self.port.stream_start.next = self.state.q.val() == TrackerState::Start;
+        self.port.t.next = self.seq.t.val();
+        self.port.stream_start.next = self.seq.stream_start.val();
         self.port.blink.next = self.gate.blink.val();
-        self.port.emit.next = self.state.q.val() == TrackerState::Emit;
+        self.port.emit.next = self.seq.emit.val();
         self.port.slot.next = self.walks.w2.slot.val();
         self.port.flags.next = self.walks.w2.flags.val();
         self.port.ax.next = self.walks.w2.ax.val();
@@ -490,102 +456,24 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.port.t_cross.next = self.walks.w2.tc.val();
         self.port.t_drop.next = self.walks.w2.td.val();
         self.port.bank.next = self.walks.w2.bank.val();
-        self.port.walk_end.next = self.state.q.val() == TrackerState::WalkEnd;
+        self.port.walk_end.next = self.seq.walk_end.val();
         self.port.plane_drops.next = self.counters.plane_drops.val();
         self.port.first_x.next = self.counters.first_x.val();
         self.port.first_y.next = self.counters.first_y.val();
-        self.port.stream_end.next = self.state.q.val() == TrackerState::End;
+        self.port.stream_end.next = self.seq.stream_end.val();
         self.counters.blink.next = self.gate.blink.val();
-        self.counters.unconfirmed_end.next = false;
-        self.counters.bridge.next = false;
-        self.counters.cut.next = false;
-        self.counters.plane_end.next = false;
+        // The walk's events (W2's slot, as it is written).
+        self.counters.bridge.next = self.gate.we_walk.val() & self.walks.w2.bridge.val();
+        self.counters.cut.next = self.gate.we_walk.val() & self.walks.w2.cut.val();
+        self.counters.unconfirmed_end.next = (self.gate.we_walk.val() & self.walks.w2.unconf.val())
+            | (self.gate.we_fin.val() & self.walks.w2.fin_unconf.val());
+        self.counters.plane_end.next = self.seq.walk_end.val();
 
         // The walked slot's bank from now on (and in its ROI view for plane
         // t + 1): a fresh one if it has just handed its bank to a Blink record.
         self.n_bank.next = self.walks.w2.bank.val();
         if self.fb_pop.val() {
             self.n_bank.next = self.fb_bank.val();
-        }
-
-        match self.state.q.val() {
-            TrackerState::Start => {
-                if self.record.room.val() {
-                    self.state.d.next = TrackerState::Run;
-                }
-            }
-            TrackerState::Run => {
-                if self.fin_cond.val() {
-                    self.walks.start.next = self.t.q.val() != 0;
-                    self.state.d.next = TrackerState::Finish;
-                } else if self.compare.step.val() {
-                    self.rows.d.next = bit_cast::<16, 10>(self.compare.cy.val()) + 1;
-                    if self.compare.lastrow.val() {
-                        self.walks.start.next = true;
-                        self.state.d.next = TrackerState::Walk;
-                    }
-                }
-            }
-            TrackerState::Walk => {
-                if self.gate.we_walk.val() {
-                    self.counters.bridge.next = self.walks.w2.bridge.val();
-                    self.counters.unconfirmed_end.next = self.walks.w2.unconf.val();
-                    self.counters.cut.next = self.walks.w2.cut.val();
-                    if self.walks.w2.last.val() {
-                        self.state.d.next = TrackerState::WalkEnd;
-                    }
-                }
-            }
-            TrackerState::WalkEnd => {
-                self.counters.plane_end.next = true;
-                self.t.d.next = self.t_p1.val();
-                self.rows.d.next = 0.into();
-                self.state.d.next = TrackerState::Run;
-            }
-            TrackerState::Finish => {
-                if self.t.q.val() == 0 {
-                    self.state.d.next = TrackerState::End;
-                } else if self.gate.we_fin.val() {
-                    self.counters.unconfirmed_end.next = self.walks.w2.fin_unconf.val();
-                    if self.walks.w2.last.val() {
-                        self.state.d.next = TrackerState::Drain;
-                    }
-                }
-            }
-            TrackerState::Drain => {
-                if self.in_valid.val() {
-                    self.in_pop.next = true;
-                    if self.in_flush.val() & self.items.head_eor.val() {
-                        self.rows.d.next = self.in_y.val() + 1;
-                        if self.items.head_lastrow.val() {
-                            self.walks.start.next = true;
-                            self.state.d.next = TrackerState::DrainWalk;
-                        }
-                    }
-                }
-            }
-            TrackerState::DrainWalk => {
-                if self.gate.we_drain.val() & self.walks.w2.last.val() {
-                    self.t.d.next = self.t_p1.val();
-                    self.rows.d.next = 0.into();
-                    self.state.d.next = TrackerState::Drain;
-                    if self.drain_end.q.val() {
-                        self.walks.start.next = true;
-                        self.state.d.next = TrackerState::Emit;
-                    }
-                }
-            }
-            TrackerState::Emit => {
-                if self.gate.we_emit.val() & self.walks.w2.last.val() {
-                    self.state.d.next = TrackerState::End;
-                }
-            }
-            TrackerState::End => {
-                if self.record.room.val() {
-                    self.state.d.next = TrackerState::Done;
-                }
-            }
-            _ => {}
         }
 
         self.counters.restart.next = self.restart.val();
@@ -598,7 +486,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // its ROI view for plane t + 1 (or, in `finish`, the flags of its
         // view of t cleared if its track ends unconfirmed); an opening.
         self.words.restart.next = self.restart.val();
-        self.words.parity.next = self.t.q.val().get_bit(0);
+        self.words.parity.next = self.seq.t.val().get_bit(0);
         self.words.walk_slot.next = self.walks.w2.sel.val();
         self.words.end_of_plane.next = self.gate.we_walk.val();
         self.words.drain.next = self.gate.we_drain.val();
@@ -617,7 +505,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.words.open_win.next = self.compare.open_win.val();
         self.words.open_bnd.next = self.compare.open_bnd.val();
         self.words.open_view.next = self.compare.open_view.val();
-        self.words.open_pre.next = self.t_ge_n.val();
+        self.words.open_pre.next = self.seq.t_ge_n.val();
 
         // ---- The slots' flags ([`SlotFlags`]): the decided word's hits and,
         // at the end of a row, the on/off step of the slots whose 3x3 window
@@ -626,7 +514,7 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         // of plane t stays, as it sums B_{t−N} at dage = 1 ≤ N − end_trim);
         // the opening; the walked slot.
         self.flags.restart.next = self.restart.val();
-        self.flags.decide.next = self.compare.go.val() & !self.fin_cond.val();
+        self.flags.decide.next = self.compare.go.val() & !self.seq.finishing.val();
         self.flags.hits.next = self.compare.hits.val();
         self.flags.step.next = self.compare.step.val();
         self.flags.row_end.next = self.compare.row_end.val();
@@ -643,18 +531,9 @@ impl<const P: usize, const NW: usize, const BW: usize> Logic for BlinkTracker<P,
         self.flags.ends.next = self.walks.w2.fin_end.val();
         self.flags.unconfirmed.next = self.walks.w2.fin_unconf.val();
 
-        if self.restart.val() {
-            self.state.d.next = TrackerState::Done;
-            if self.emit_start.val() {
-                self.state.d.next = TrackerState::Start;
-            }
-            self.t.d.next = 0.into();
-            self.rows.d.next = 0.into();
-        }
-
-        self.plane.next = self.t.q.val();
-        self.rows_done.next = self.rows.q.val();
-        self.done.next = self.state.q.val() == TrackerState::Done;
+        self.plane.next = self.seq.t.val();
+        self.rows_done.next = self.seq.rows.val();
+        self.done.next = self.seq.done.val();
         TrackerTotalsOut::link(&mut self.totals, &mut self.counters.totals);
         self.bank_error.next = self.counters.bank_error.val();
     }

@@ -34,14 +34,6 @@ pub mod record_kind {
     pub const END: u64 = 3;
 }
 
-// The port writes the kinds as literals (`#[hdl_gen]` takes no path constants).
-const _: () = assert!(
-    record_kind::START == 0
-        && record_kind::BLINK == 1
-        && record_kind::DROPPED == 2
-        && record_kind::END == 3
-);
-
 /// The record descriptor the tracker asks for, and the lost-record count.
 /// `BW`: bits of a counter-bank index.
 #[derive(LogicBlock, Default)]
