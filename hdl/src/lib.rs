@@ -43,11 +43,10 @@
 //!
 //! ## Back-half blocks (stages 5–7) and the whole pipeline
 //! * [`back_half::BackHalf`]: the blink tracker ([`blink_tracker`], with
-//!   its item stage, compare stage (with the opening windows and the slot
-//!   compare), association, slots'
-//!   flags (with the on/off step), slots' words, counters, walk pipeline
-//!   (with the read multiplexer, walk memory, walk stages and walk step)
-//!   and record port),
+//!   its sequencer, item stage, compare stage (with the opening windows and
+//!   the slot compare), association, slots' flags (with the on/off step),
+//!   slots' words, counters, walk pipeline (with the read multiplexer, walk
+//!   memory, walk stages and walk step), walk gate and record port),
 //!   the ROI aggregator ([`roi_aggregator`], with its row cover, lowest
 //!   slot, view multiplexer and ROI row) and its bank pool
 //!   ([`bank_pool`]), the
