@@ -18,7 +18,17 @@
 //!   blink tracker (from its record port) into the record queue, and the
 //!   queue's room;
 //! * [`RecordHead`]: the record at the head of the record queue, with the
-//!   fields the finisher derives, as the packetiser takes it.
+//!   fields the finisher derives, as the packetiser takes it;
+//! * [`RuntimeRegisters`]: the registers the host writes before START
+//!   (`smartagg_model::registers`), from the XEM6310 core through the pipeline
+//!   to stream control, which checks and latches them;
+//! * [`McbPort`] / [`McbMemory`]: one MCB user port of the Spartan-6
+//!   memory controller (Xilinx UG388), the delay line's side (from the
+//!   DDR2 delay line through the pipeline and the XEM6310 core to the top,
+//!   which wires it to the MIG core) and the memory's (the MIG core's
+//!   wrapper [`crate::mig_ddr2::MigDdr2`], its parked stand-in and the
+//!   behavioural model of the tests,
+//!   [`crate::testbench::mcb_model::McbModel`]).
 //!
 //! A bundle that stays inside one stage is declared beside the block that
 //! drives it: [`WalkedSlot`](crate::blink_tracker::WalkedSlot), the slot
@@ -193,4 +203,93 @@ pub struct RecordPush<const BW: usize> {
     pub tag: Signal<In, Bits<48>>,
     /// Bank.
     pub bank: Signal<In, Bits<BW>>,
+}
+
+/// The runtime registers as the host wrote them (inputs), checked and
+/// latched by stream control at START.
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct RuntimeRegisters {
+    /// N.
+    pub n: Signal<In, Bits<32>>,
+    /// T_int.
+    pub threshold: Signal<In, Bits<32>>,
+    /// T_hold.
+    pub threshold_hold: Signal<In, Bits<32>>,
+    /// END_TRIM.
+    pub end_trim: Signal<In, Bits<32>>,
+    /// L_min.
+    pub l_min: Signal<In, Bits<32>>,
+    /// L_max.
+    pub l_max: Signal<In, Bits<32>>,
+    /// The plane period, ns.
+    pub period: Signal<In, Bits<32>>,
+    /// The masked-pixel count.
+    pub masked: Signal<In, Bits<32>>,
+    /// MASK_ENABLE.
+    pub mask_enable: Signal<In, Bit>,
+}
+
+/// One 32-bit bidirectional MCB user port (Xilinx UG388), the side that
+/// issues the commands: the DDR2 delay line's, and every block between it
+/// and the top. The port's clock is the block's.
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct McbPort {
+    /// The memory has calibrated.
+    pub calib_done: Signal<In, Bit>,
+    /// Command enable.
+    pub cmd_en: Signal<Out, Bit>,
+    /// Instruction: 000 write, 001 read.
+    pub cmd_instr: Signal<Out, Bits<3>>,
+    /// Burst length − 1.
+    pub cmd_bl: Signal<Out, Bits<6>>,
+    /// Byte address.
+    pub cmd_addr: Signal<Out, Bits<30>>,
+    /// Command FIFO full.
+    pub cmd_full: Signal<In, Bit>,
+    /// Write data enable.
+    pub wr_en: Signal<Out, Bit>,
+    /// Write byte mask (0: write every byte).
+    pub wr_mask: Signal<Out, Bits<4>>,
+    /// Write data.
+    pub wr_data: Signal<Out, Bits<32>>,
+    /// Write data FIFO full.
+    pub wr_full: Signal<In, Bit>,
+    /// Take a read word.
+    pub rd_en: Signal<Out, Bit>,
+    /// The head read word.
+    pub rd_data: Signal<In, Bits<32>>,
+    /// No read word.
+    pub rd_empty: Signal<In, Bit>,
+}
+
+/// One MCB user port, the memory's side (the same fields as [`McbPort`],
+/// the other way).
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct McbMemory {
+    /// Calibration done.
+    pub calib_done: Signal<Out, Bit>,
+    /// Command enable.
+    pub cmd_en: Signal<In, Bit>,
+    /// Instruction.
+    pub cmd_instr: Signal<In, Bits<3>>,
+    /// Burst length − 1.
+    pub cmd_bl: Signal<In, Bits<6>>,
+    /// Byte address.
+    pub cmd_addr: Signal<In, Bits<30>>,
+    /// Command FIFO full.
+    pub cmd_full: Signal<Out, Bit>,
+    /// Write data enable.
+    pub wr_en: Signal<In, Bit>,
+    /// Write byte mask.
+    pub wr_mask: Signal<In, Bits<4>>,
+    /// Write data.
+    pub wr_data: Signal<In, Bits<32>>,
+    /// Write data FIFO full.
+    pub wr_full: Signal<Out, Bit>,
+    /// Take a read word.
+    pub rd_en: Signal<In, Bit>,
+    /// The head read word.
+    pub rd_data: Signal<Out, Bits<32>>,
+    /// No read word.
+    pub rd_empty: Signal<Out, Bit>,
 }

@@ -67,6 +67,7 @@
 //! `write_error` (the write data or command FIFO was full).
 
 use crate::bram::RamStyle;
+use crate::bundles::McbPort;
 use crate::config::{GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::stream::RasterPosition;
@@ -127,32 +128,8 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     pub out_drain: Signal<Out, Bit>,
     /// `side`, one clock later.
     pub out_side: Signal<Out, Bits<P>>,
-    /// The MCB has calibrated.
-    pub calib_done: Signal<In, Bit>,
-    /// Command enable.
-    pub cmd_en: Signal<Out, Bit>,
-    /// Instruction: 000 write, 001 read.
-    pub cmd_instr: Signal<Out, Bits<3>>,
-    /// Burst length − 1.
-    pub cmd_bl: Signal<Out, Bits<6>>,
-    /// Byte address.
-    pub cmd_addr: Signal<Out, Bits<30>>,
-    /// Command FIFO full.
-    pub cmd_full: Signal<In, Bit>,
-    /// Write data enable.
-    pub wr_en: Signal<Out, Bit>,
-    /// Write byte mask (0: write every byte).
-    pub wr_mask: Signal<Out, Bits<4>>,
-    /// Write data.
-    pub wr_data: Signal<Out, Bits<32>>,
-    /// Write data FIFO full.
-    pub wr_full: Signal<In, Bit>,
-    /// Take a read word.
-    pub rd_en: Signal<Out, Bit>,
-    /// The head read word.
-    pub rd_data: Signal<In, Bits<32>>,
-    /// No read word.
-    pub rd_empty: Signal<In, Bit>,
+    /// The MCB user port of the DDR2 (its clock is `clock`).
+    pub mcb: McbPort,
     /// A delayed word was needed before it arrived (sticky).
     pub underrun: Signal<Out, Bit>,
     /// The write data FIFO was full, or a write command had to wait behind
@@ -260,19 +237,7 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             out_delayed: Default::default(),
             out_drain: Default::default(),
             out_side: Default::default(),
-            calib_done: Default::default(),
-            cmd_en: Default::default(),
-            cmd_instr: Default::default(),
-            cmd_bl: Default::default(),
-            cmd_addr: Default::default(),
-            cmd_full: Default::default(),
-            wr_en: Default::default(),
-            wr_mask: Default::default(),
-            wr_data: Default::default(),
-            wr_full: Default::default(),
-            rd_en: Default::default(),
-            rd_data: Default::default(),
-            rd_empty: Default::default(),
+            mcb: Default::default(),
             underrun: Default::default(),
             write_error: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
@@ -362,36 +327,36 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         self.write_side.last_sub.next = self.last_sub.val();
         self.write_side.live.next = self.live.val();
         self.write_side.slot.next = self.slot_now.val();
-        self.write_side.wr_full.next = self.wr_full.val();
-        self.write_side.cmd_full.next = self.cmd_full.val();
-        self.wr_en.next = self.write_side.wr_en.val();
-        self.wr_mask.next = 0.into();
-        self.wr_data.next = self.write_side.wr_data.val();
+        self.write_side.wr_full.next = self.mcb.wr_full.val();
+        self.write_side.cmd_full.next = self.mcb.cmd_full.val();
+        self.mcb.wr_en.next = self.write_side.wr_en.val();
+        self.mcb.wr_mask.next = 0.into();
+        self.mcb.wr_data.next = self.write_side.wr_data.val();
 
         // ---- Read side: bursts of written planes into the prefetch FIFO.
-        self.read_side.calib_done.next = self.calib_done.val();
+        self.read_side.calib_done.next = self.mcb.calib_done.val();
         self.read_side.n_last.next = self.n_last.q.val();
         self.read_side.issued.next = self.write_side.issued.val();
         self.read_side.plane_done.next = self.write_side.plane_done.val();
         self.read_side.fifo_count.next = self.pf.count.val();
         self.read_side.write_waiting.next = self.write_side.waiting.val();
-        self.read_side.cmd_full.next = self.cmd_full.val();
-        self.read_side.rd_empty.next = self.rd_empty.val();
-        self.rd_en.next = self.read_side.rd_en.val();
+        self.read_side.cmd_full.next = self.mcb.cmd_full.val();
+        self.read_side.rd_empty.next = self.mcb.rd_empty.val();
+        self.mcb.rd_en.next = self.read_side.rd_en.val();
         self.pf.push.next = self.read_side.push.val();
-        self.pf.push_data.next = self.rd_data.val();
+        self.pf.push_data.next = self.mcb.rd_data.val();
 
         // ---- The port: a waiting write first (it follows its data; a
         // burst cut short by a restart after it), then the waiting read.
-        self.cmd_en.next =
-            (self.write_side.waiting.val() | self.read_side.waiting.val()) & !self.cmd_full.val();
-        self.cmd_instr.next = 1.into();
-        self.cmd_bl.next = self.read_side.cmd_bl.val();
-        self.cmd_addr.next = self.read_side.cmd_addr.val();
+        self.mcb.cmd_en.next = (self.write_side.waiting.val() | self.read_side.waiting.val())
+            & !self.mcb.cmd_full.val();
+        self.mcb.cmd_instr.next = 1.into();
+        self.mcb.cmd_bl.next = self.read_side.cmd_bl.val();
+        self.mcb.cmd_addr.next = self.read_side.cmd_addr.val();
         if self.write_side.waiting.val() {
-            self.cmd_instr.next = 0.into();
-            self.cmd_bl.next = self.write_side.cmd_bl.val();
-            self.cmd_addr.next = self.write_side.cmd_addr.val();
+            self.mcb.cmd_instr.next = 0.into();
+            self.mcb.cmd_bl.next = self.write_side.cmd_bl.val();
+            self.mcb.cmd_addr.next = self.write_side.cmd_addr.val();
         }
 
         // ---- Output register (one clock, as the block-RAM delay line).

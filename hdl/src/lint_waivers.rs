@@ -81,10 +81,16 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
         "the MIG's system clock, used by the vendor core only",
     ),
     ("sys_rst", "the MIG's reset, used by the vendor core only"),
-    ("calib_done", "MIG calibration flag of the parked DDR2"),
-    ("cmd_*", "MIG command port of the parked DDR2"),
-    ("wr_*", "MIG write port of the parked DDR2"),
-    ("rd_*", "MIG read port of the parked DDR2"),
+    (
+        "mcb$calib_done",
+        "MCB calibration flag, idle with the block-RAM delay line",
+    ),
+    ("mcb$cmd_*", "MCB command port of the parked DDR2"),
+    ("mcb$wr_*", "MCB write port of the parked DDR2"),
+    (
+        "mcb$rd_*",
+        "MCB read port of the parked DDR2 or the idle pipeline",
+    ),
     ("port_clk", "MIG port clock of the parked DDR2"),
     // FIFO and block status outputs a parent does not read.
     ("*$room", "FIFO fill level a parent does not read"),

@@ -13,6 +13,7 @@
 //! XEM6310 top ([`crate::xem6310`]); in simulation the MCB user port is
 //! served by the behavioural MCB ([`crate::testbench::mcb_model`]).
 
+use crate::bundles::McbMemory;
 use rust_hdl::prelude::*;
 
 /// Port declaration of the MIG-generated DDR2 controller (black box).
@@ -61,32 +62,8 @@ pub struct $name {
     pub sys_rst: Signal<In, Bit>,
     /// User-port clock (okClk).
     pub port_clk: Signal<In, Clock>,
-    /// Calibration done.
-    pub calib_done: Signal<Out, Bit>,
-    /// Command enable.
-    pub cmd_en: Signal<In, Bit>,
-    /// Instruction.
-    pub cmd_instr: Signal<In, Bits<3>>,
-    /// Burst length − 1.
-    pub cmd_bl: Signal<In, Bits<6>>,
-    /// Byte address.
-    pub cmd_addr: Signal<In, Bits<30>>,
-    /// Command FIFO full.
-    pub cmd_full: Signal<Out, Bit>,
-    /// Write enable.
-    pub wr_en: Signal<In, Bit>,
-    /// Write mask.
-    pub wr_mask: Signal<In, Bits<4>>,
-    /// Write data.
-    pub wr_data: Signal<In, Bits<32>>,
-    /// Write FIFO full.
-    pub wr_full: Signal<Out, Bit>,
-    /// Read enable.
-    pub rd_en: Signal<In, Bit>,
-    /// Read data.
-    pub rd_data: Signal<Out, Bits<32>>,
-    /// Read FIFO empty.
-    pub rd_empty: Signal<Out, Bit>,
+    /// The user port (clocked by `port_clk`).
+    pub mcb: McbMemory,
     /// DDR2 data.
     pub dq: Signal<InOut, Bits<16>>,
     /// DDR2 address.
@@ -128,11 +105,11 @@ pub struct $name {
 impl Logic for $name {
     fn update(&mut self) {}
     fn connect(&mut self) {
-        self.calib_done.connect();
-        self.cmd_full.connect();
-        self.wr_full.connect();
-        self.rd_data.connect();
-        self.rd_empty.connect();
+        self.mcb.calib_done.connect();
+        self.mcb.cmd_full.connect();
+        self.mcb.wr_full.connect();
+        self.mcb.rd_data.connect();
+        self.mcb.rd_empty.connect();
         self.dq.connect();
         self.a.connect();
         self.ba.connect();
@@ -171,14 +148,14 @@ const MIG_INSTANCE: &str = r#"smartagg_mig mig(
     .mcb3_zio(zio), .mcb3_dram_udm(udm), .mcb3_dram_dqs(dqs), .mcb3_dram_dqs_n(dqs_n),
     .mcb3_dram_ck(ck), .mcb3_dram_ck_n(ck_n),
     .c3_sys_clk_p(sys_clk_p), .c3_sys_clk_n(sys_clk_n), .c3_sys_rst_i(sys_rst),
-    .c3_calib_done(calib_done), .c3_clk0(), .c3_rst0(),
-    .c3_p0_cmd_clk(port_clk), .c3_p0_cmd_en(cmd_en), .c3_p0_cmd_instr(cmd_instr),
-    .c3_p0_cmd_bl(cmd_bl), .c3_p0_cmd_byte_addr(cmd_addr), .c3_p0_cmd_empty(),
-    .c3_p0_cmd_full(cmd_full), .c3_p0_wr_clk(port_clk), .c3_p0_wr_en(wr_en),
-    .c3_p0_wr_mask(wr_mask), .c3_p0_wr_data(wr_data), .c3_p0_wr_full(wr_full),
+    .c3_calib_done(mcb$calib_done), .c3_clk0(), .c3_rst0(),
+    .c3_p0_cmd_clk(port_clk), .c3_p0_cmd_en(mcb$cmd_en), .c3_p0_cmd_instr(mcb$cmd_instr),
+    .c3_p0_cmd_bl(mcb$cmd_bl), .c3_p0_cmd_byte_addr(mcb$cmd_addr), .c3_p0_cmd_empty(),
+    .c3_p0_cmd_full(mcb$cmd_full), .c3_p0_wr_clk(port_clk), .c3_p0_wr_en(mcb$wr_en),
+    .c3_p0_wr_mask(mcb$wr_mask), .c3_p0_wr_data(mcb$wr_data), .c3_p0_wr_full(mcb$wr_full),
     .c3_p0_wr_empty(), .c3_p0_wr_count(), .c3_p0_wr_underrun(), .c3_p0_wr_error(),
-    .c3_p0_rd_clk(port_clk), .c3_p0_rd_en(rd_en), .c3_p0_rd_data(rd_data), .c3_p0_rd_full(),
-    .c3_p0_rd_empty(rd_empty), .c3_p0_rd_count(), .c3_p0_rd_overflow(), .c3_p0_rd_error());"#;
+    .c3_p0_rd_clk(port_clk), .c3_p0_rd_en(mcb$rd_en), .c3_p0_rd_data(mcb$rd_data), .c3_p0_rd_full(),
+    .c3_p0_rd_empty(mcb$rd_empty), .c3_p0_rd_count(), .c3_p0_rd_overflow(), .c3_p0_rd_error());"#;
 
 ddr2_port!(
     /// The MIG DDR2 controller with one 32-bit user port (black box
@@ -215,8 +192,8 @@ endmodule
 const PARKED_DDR2_INSTANCE: &str = r#"smartagg_ddr2_parked parked(
     .dq(dq), .a(a), .ba(ba), .ras_n(ras_n), .cas_n(cas_n), .we_n(we_n), .odt(odt), .cke(cke),
     .dm(dm), .udm(udm), .dqs(dqs), .dqs_n(dqs_n), .udqs(udqs), .udqs_n(udqs_n), .ck(ck),
-    .ck_n(ck_n), .rzq(rzq), .zio(zio), .calib_done(calib_done), .cmd_full(cmd_full),
-    .wr_full(wr_full), .rd_data(rd_data), .rd_empty(rd_empty));"#;
+    .ck_n(ck_n), .rzq(rzq), .zio(zio), .calib_done(mcb$calib_done), .cmd_full(mcb$cmd_full),
+    .wr_full(mcb$wr_full), .rd_data(mcb$rd_data), .rd_empty(mcb$rd_empty));"#;
 
 ddr2_port!(
     /// The XEM6310's DDR2 pins, parked ([`MigDdr2`]'s ports; no controller).

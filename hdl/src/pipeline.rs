@@ -41,6 +41,7 @@
 //! (`fault`): never a silent loss.
 
 use crate::back_half::BackHalf;
+use crate::bundles::{McbPort, RuntimeRegisters};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
 use crate::delay_line_ddr::DelayLineDdr;
@@ -52,10 +53,10 @@ use rust_hdl::prelude::*;
 /// Declares a whole pipeline ([`Pipeline`], [`PipelineDdr`]) around a delay
 /// line: one text for both, since the XEM6310 core reads either's ports by
 /// name ([`crate::xem6310_core`]). What differs is named: the delay line's
-/// type and its address-width parameter (`$dw`), what else START waits for
-/// (`gate`), the MCB port wired to the delay line (its inputs, its outputs
-/// and the signal `mem_ready` follows) or left idle (each output's
-/// constant), and the delay line's faults. The update's statements are
+/// type and its address-width parameter (`$dw`), the MCB port's signal that
+/// START also waits for (`gate`), the MCB port linked to the delay line's
+/// (`mcb_link`, with the signal `mem_ready` follows) or left idle (each
+/// output's constant), and the delay line's faults. The update's statements are
 /// written here, not passed in: `self` in a macro's argument is not the
 /// `self` of a method the macro writes.
 macro_rules! pipeline_block {
@@ -65,12 +66,13 @@ macro_rules! pipeline_block {
         delay: { $($delay:tt)* },
         fault_doc: $fault_doc:literal,
         mem_ready_doc: $mem_ready_doc:literal,
+        mcb_doc: $mcb_doc:literal,
         gate: [$($gate:ident),*],
-        mcb_in: [$($mcb_in:ident),*],
-        mcb_out: [$($mcb_out:ident),*],
+        mcb_link: [$($mcb_link:ident)?],
         ready_from: [$($ready_from:ident)?],
         faults: [$($fault:ident),*],
-        idle: [$($idle:ident = { $($idle_value:tt)* }),*]
+        idle: [$($idle:ident = { $($idle_value:tt)* }),*],
+        mcb_idle: [$($mcb_idle:ident = { $($mcb_idle_value:tt)* }),*]
     ) => {
 $(#[$attr])*
 #[derive(LogicBlock)]
@@ -101,24 +103,9 @@ pub struct $name<
     pub stop: Signal<In, Bit>,
     /// RESET.
     pub reset: Signal<In, Bit>,
-    /// N register.
-    pub reg_n: Signal<In, Bits<32>>,
-    /// T_int register.
-    pub reg_threshold: Signal<In, Bits<32>>,
-    /// T_hold register.
-    pub reg_threshold_hold: Signal<In, Bits<32>>,
-    /// END_TRIM register.
-    pub reg_end_trim: Signal<In, Bits<32>>,
-    /// L_min register.
-    pub reg_l_min: Signal<In, Bits<32>>,
-    /// L_max register.
-    pub reg_l_max: Signal<In, Bits<32>>,
-    /// Plane period register.
-    pub reg_period: Signal<In, Bits<32>>,
-    /// Masked-pixel count register.
-    pub reg_masked: Signal<In, Bits<32>>,
-    /// MASK_ENABLE.
-    pub reg_mask_enable: Signal<In, Bit>,
+    /// The runtime registers as the host wrote them (checked and latched
+    /// by stream control at START).
+    pub regs: RuntimeRegisters,
     /// Mask load strobe (while stopped).
     pub load: Signal<In, Bit>,
     /// Mask word index.
@@ -163,32 +150,8 @@ pub struct $name<
     pub mask_loadable: Signal<Out, Bit>,
     #[doc = $mem_ready_doc]
     pub mem_ready: Signal<Out, Bit>,
-    /// MCB: calibration done.
-    pub calib_done: Signal<In, Bit>,
-    /// MCB port: command enable.
-    pub cmd_en: Signal<Out, Bit>,
-    /// MCB port: instruction.
-    pub cmd_instr: Signal<Out, Bits<3>>,
-    /// MCB port: burst length − 1.
-    pub cmd_bl: Signal<Out, Bits<6>>,
-    /// MCB port: byte address.
-    pub cmd_addr: Signal<Out, Bits<30>>,
-    /// MCB port: command FIFO full.
-    pub cmd_full: Signal<In, Bit>,
-    /// MCB port: write enable.
-    pub wr_en: Signal<Out, Bit>,
-    /// MCB port: write mask.
-    pub wr_mask: Signal<Out, Bits<4>>,
-    /// MCB port: write data.
-    pub wr_data: Signal<Out, Bits<32>>,
-    /// MCB port: write FIFO full.
-    pub wr_full: Signal<In, Bit>,
-    /// MCB port: read enable.
-    pub rd_en: Signal<Out, Bit>,
-    /// MCB port: read data.
-    pub rd_data: Signal<In, Bits<32>>,
-    /// MCB port: read FIFO empty.
-    pub rd_empty: Signal<In, Bit>,
+    #[doc = $mcb_doc]
+    pub mcb: McbPort,
     control: StreamControl<P, CW, HW>,
     mask: HotPixelMask<P, CAW>,
     delay: $($delay)*,
@@ -224,15 +187,7 @@ impl<
             start: Default::default(),
             stop: Default::default(),
             reset: Default::default(),
-            reg_n: Default::default(),
-            reg_threshold: Default::default(),
-            reg_threshold_hold: Default::default(),
-            reg_end_trim: Default::default(),
-            reg_l_min: Default::default(),
-            reg_l_max: Default::default(),
-            reg_period: Default::default(),
-            reg_masked: Default::default(),
-            reg_mask_enable: Default::default(),
+            regs: Default::default(),
             load: Default::default(),
             load_address: Default::default(),
             load_data: Default::default(),
@@ -253,19 +208,7 @@ impl<
             fault: Default::default(),
             mask_loadable: Default::default(),
             mem_ready: Default::default(),
-            calib_done: Default::default(),
-            cmd_en: Default::default(),
-            cmd_instr: Default::default(),
-            cmd_bl: Default::default(),
-            cmd_addr: Default::default(),
-            cmd_full: Default::default(),
-            wr_en: Default::default(),
-            wr_mask: Default::default(),
-            wr_data: Default::default(),
-            wr_full: Default::default(),
-            rd_en: Default::default(),
-            rd_data: Default::default(),
-            rd_empty: Default::default(),
+            mcb: Default::default(),
             control: StreamControl::new(cfg)?,
             mask: HotPixelMask::new(f)?,
             delay: <$($delay)*>::new(f)?,
@@ -300,18 +243,10 @@ impl<
     fn update(&mut self) {
         clock!(self, clock, control, mask, delay, front, back);
         // Control.
-        self.control.start.next = self.start.val() $(& self.$gate.val())*;
+        self.control.start.next = self.start.val() $(& self.mcb.$gate.val())*;
         self.control.stop.next = self.stop.val();
         self.control.reset.next = self.reset.val();
-        self.control.reg_n.next = self.reg_n.val();
-        self.control.reg_threshold.next = self.reg_threshold.val();
-        self.control.reg_threshold_hold.next = self.reg_threshold_hold.val();
-        self.control.reg_end_trim.next = self.reg_end_trim.val();
-        self.control.reg_l_min.next = self.reg_l_min.val();
-        self.control.reg_l_max.next = self.reg_l_max.val();
-        self.control.reg_period.next = self.reg_period.val();
-        self.control.reg_masked.next = self.reg_masked.val();
-        self.control.reg_mask_enable.next = self.reg_mask_enable.val();
+        RuntimeRegisters::link(&mut self.regs, &mut self.control.regs);
         self.control.back_done.next = self.back.done.val();
         self.control.in_valid.next = self.in_valid.val();
         self.control.in_sop.next = self.in_sop.val();
@@ -337,9 +272,8 @@ impl<
         self.delay.drain.next = self.mask.out_drain.val();
         self.delay.live.next = self.mask.out_live.val();
         self.delay.side.next = self.mask.out_mask.val();
-        $(self.delay.$mcb_in.next = self.$mcb_in.val();)*
-        $(self.$mcb_out.next = self.delay.$mcb_out.val();)*
-        $(self.mem_ready.next = self.$ready_from.val();)?
+        $(McbPort::link(&mut self.mcb, &mut self.delay.$mcb_link);)?
+        $(self.mem_ready.next = self.mcb.$ready_from.val();)?
         // Stages 1-4.
         self.front.restart.next = self.control.restart.val();
         self.front.threshold.next = self.control.threshold_hw.val();
@@ -391,6 +325,7 @@ impl<
         self.overflowed.next = self.back.overflowed.val();
         self.fault.next = self.back.fault.val() $(| self.delay.$fault.val())*;
         $(self.$idle.next = $($idle_value)*;)*
+        $(self.mcb.$mcb_idle.next = $($mcb_idle_value)*;)*
     }
 }
     };
@@ -405,16 +340,15 @@ pipeline_block!(
     Pipeline, DAW,
     delay: { DelayLine<P, DAW, CW> },
     fault_doc: "An internal buffer overflowed.",
-    mem_ready_doc: "Always high: no DDR2 to wait for. This and the MCB port below are \
-        [`PipelineDdr`]'s, idle here (inputs unread, outputs 0), so that one \
-        XEM6310 core ([`crate::xem6310_core`]) serves both delay lines.",
+    mem_ready_doc: "Always high: no DDR2 to wait for.",
+    mcb_doc: "The MCB port of [`PipelineDdr`], idle here (inputs unread, outputs 0), \
+        so that one XEM6310 core ([`crate::xem6310_core`]) serves both delay lines.",
     gate: [],
-    mcb_in: [],
-    mcb_out: [],
+    mcb_link: [],
     ready_from: [],
     faults: [],
-    idle: [
-        mem_ready = { true },
+    idle: [mem_ready = { true }],
+    mcb_idle: [
         cmd_en = { false },
         cmd_instr = { 0.into() },
         cmd_bl = { 0.into() },
@@ -435,12 +369,13 @@ pipeline_block!(
     delay: { DelayLineDdr<P, CW, PAW> },
     fault_doc: "An internal buffer overflowed, or the DDR2 delay line under-ran.",
     mem_ready_doc: "The DDR2 memory has calibrated (START waits for it).",
+    mcb_doc: "The MCB user port of the delay line's DDR2.",
     gate: [calib_done],
-    mcb_in: [calib_done, cmd_full, wr_full, rd_data, rd_empty],
-    mcb_out: [cmd_en, cmd_instr, cmd_bl, cmd_addr, wr_en, wr_mask, wr_data, rd_en],
+    mcb_link: [mcb],
     ready_from: [calib_done],
     faults: [underrun, write_error],
-    idle: []
+    idle: [],
+    mcb_idle: []
 );
 
 /// The small simulation configuration: the front half's

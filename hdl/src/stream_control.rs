@@ -6,7 +6,7 @@
 //! twin is `model/src/pipeline.rs` (`Pipeline::finish`), with the register
 //! check of `model/src/config.rs` (`PipelineConfig::validate`).
 
-use crate::bundles::StreamSettingsOut;
+use crate::bundles::{RuntimeRegisters, StreamSettingsOut};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use rust_hdl::prelude::*;
 
@@ -42,24 +42,8 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub stop: Signal<In, Bit>,
     /// RESET (one clock, while stopped): clears the blocks and the status.
     pub reset: Signal<In, Bit>,
-    /// N register as written by the host.
-    pub reg_n: Signal<In, Bits<32>>,
-    /// T_int register.
-    pub reg_threshold: Signal<In, Bits<32>>,
-    /// T_hold register.
-    pub reg_threshold_hold: Signal<In, Bits<32>>,
-    /// END_TRIM register.
-    pub reg_end_trim: Signal<In, Bits<32>>,
-    /// L_min register.
-    pub reg_l_min: Signal<In, Bits<32>>,
-    /// L_max register.
-    pub reg_l_max: Signal<In, Bits<32>>,
-    /// Plane period register.
-    pub reg_period: Signal<In, Bits<32>>,
-    /// Masked-pixel count register.
-    pub reg_masked: Signal<In, Bits<32>>,
-    /// MASK_ENABLE.
-    pub reg_mask_enable: Signal<In, Bit>,
+    /// The runtime registers as the host wrote them.
+    pub regs: RuntimeRegisters,
     /// Back half done (StreamEnd out).
     pub back_done: Signal<In, Bit>,
     /// A source word.
@@ -172,15 +156,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             start: Default::default(),
             stop: Default::default(),
             reset: Default::default(),
-            reg_n: Default::default(),
-            reg_threshold: Default::default(),
-            reg_threshold_hold: Default::default(),
-            reg_end_trim: Default::default(),
-            reg_l_min: Default::default(),
-            reg_l_max: Default::default(),
-            reg_period: Default::default(),
-            reg_masked: Default::default(),
-            reg_mask_enable: Default::default(),
+            regs: Default::default(),
             back_done: Default::default(),
             in_valid: Default::default(),
             in_sop: Default::default(),
@@ -249,16 +225,16 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
             rst, regs_ok
         );
         // The model's PipelineConfig::validate, for the runtime registers.
-        self.regs_ok.d.next = (self.reg_n.val() != 0)
-            & (self.reg_n.val() <= self.n_max.val())
-            & (self.reg_threshold.val() != 0)
-            & (self.reg_threshold_hold.val() != 0)
-            & (self.reg_threshold_hold.val() <= self.reg_threshold.val())
-            & (self.reg_end_trim.val() < self.reg_n.val())
-            & (self.reg_l_min.val() != 0)
-            & (self.reg_l_max.val() >= self.reg_l_min.val())
-            & (self.reg_l_max.val() >= self.reg_n.val())
-            & (self.reg_l_max.val() <= self.l_max_max.val());
+        self.regs_ok.d.next = (self.regs.n.val() != 0)
+            & (self.regs.n.val() <= self.n_max.val())
+            & (self.regs.threshold.val() != 0)
+            & (self.regs.threshold_hold.val() != 0)
+            & (self.regs.threshold_hold.val() <= self.regs.threshold.val())
+            & (self.regs.end_trim.val() < self.regs.n.val())
+            & (self.regs.l_min.val() != 0)
+            & (self.regs.l_max.val() >= self.regs.l_min.val())
+            & (self.regs.l_max.val() >= self.regs.n.val())
+            & (self.regs.l_max.val() <= self.l_max_max.val());
         self.plane_end.next = self.w_last.q.val();
         self.restart.next = self.rst.q.val();
         self.rst.d.next = false;
@@ -274,19 +250,19 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         match self.state.q.val() {
             ControlState::Idle => {
                 if self.start.val() {
-                    self.n.d.next = bit_cast::<NW, 32>(self.reg_n.val());
-                    self.n_last.d.next = bit_cast::<NW, 32>(self.reg_n.val()) - 1;
-                    self.thr.d.next = self.reg_threshold.val();
-                    self.thr_hold.d.next = self.reg_threshold_hold.val();
-                    self.trim.d.next = bit_cast::<NW, 32>(self.reg_end_trim.val());
-                    self.lmin.d.next = self.reg_l_min.val();
-                    self.lmax.d.next = self.reg_l_max.val();
-                    self.period.d.next = self.reg_period.val();
+                    self.n.d.next = bit_cast::<NW, 32>(self.regs.n.val());
+                    self.n_last.d.next = bit_cast::<NW, 32>(self.regs.n.val()) - 1;
+                    self.thr.d.next = self.regs.threshold.val();
+                    self.thr_hold.d.next = self.regs.threshold_hold.val();
+                    self.trim.d.next = bit_cast::<NW, 32>(self.regs.end_trim.val());
+                    self.lmin.d.next = self.regs.l_min.val();
+                    self.lmax.d.next = self.regs.l_max.val();
+                    self.period.d.next = self.regs.period.val();
                     self.masked.d.next = 0.into();
-                    if self.reg_mask_enable.val() {
-                        self.masked.d.next = self.reg_masked.val();
+                    if self.regs.mask_enable.val() {
+                        self.masked.d.next = self.regs.masked.val();
                     }
-                    self.men.d.next = self.reg_mask_enable.val();
+                    self.men.d.next = self.regs.mask_enable.val();
                     self.state.d.next = ControlState::Check;
                 } else if self.reset.val() {
                     self.rst.d.next = true;

@@ -19,6 +19,7 @@
 //! complete.
 
 use crate::bram::RamStyle;
+use crate::bundles::McbPort;
 use crate::config::{BackHalfConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::pipeline::{Pipeline, PipelineDdr};
@@ -86,32 +87,8 @@ pub struct $core<
     pub sensor_overflow: Signal<In, Bit>,
     /// Wire-outs 0x20 … 0x27.
     pub wire_out: Vec<Signal<Out, Bits<32>>>,
-    /// MCB: calibration done.
-    pub calib_done: Signal<In, Bit>,
-    /// MCB: command enable.
-    pub cmd_en: Signal<Out, Bit>,
-    /// MCB: instruction.
-    pub cmd_instr: Signal<Out, Bits<3>>,
-    /// MCB: burst length − 1.
-    pub cmd_bl: Signal<Out, Bits<6>>,
-    /// MCB: byte address.
-    pub cmd_addr: Signal<Out, Bits<30>>,
-    /// MCB: command FIFO full.
-    pub cmd_full: Signal<In, Bit>,
-    /// MCB: write enable.
-    pub wr_en: Signal<Out, Bit>,
-    /// MCB: write mask.
-    pub wr_mask: Signal<Out, Bits<4>>,
-    /// MCB: write data.
-    pub wr_data: Signal<Out, Bits<32>>,
-    /// MCB: write FIFO full.
-    pub wr_full: Signal<In, Bit>,
-    /// MCB: read enable.
-    pub rd_en: Signal<Out, Bit>,
-    /// MCB: read data.
-    pub rd_data: Signal<In, Bits<32>>,
-    /// MCB: read FIFO empty.
-    pub rd_empty: Signal<In, Bit>,
+    /// The MCB user port of the DDR2 (idle with the block-RAM delay line).
+    pub mcb: McbPort,
     pipe: $pipe<P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW>,
     replay: Fifo<32, 9>,
     maskf: Fifo<32, 9>,
@@ -215,19 +192,7 @@ impl<
             sensor_read: Default::default(),
             sensor_overflow: Default::default(),
             wire_out: lanes(registers::wire_out::COUNT),
-            calib_done: Default::default(),
-            cmd_en: Default::default(),
-            cmd_instr: Default::default(),
-            cmd_bl: Default::default(),
-            cmd_addr: Default::default(),
-            cmd_full: Default::default(),
-            wr_en: Default::default(),
-            wr_mask: Default::default(),
-            wr_data: Default::default(),
-            wr_full: Default::default(),
-            rd_en: Default::default(),
-            rd_data: Default::default(),
-            rd_empty: Default::default(),
+            mcb: Default::default(),
             pipe: $pipe::new(cfg)?,
             replay: Fifo::new(RamStyle::Block),
             maskf: Fifo::new(RamStyle::Block),
@@ -291,16 +256,16 @@ impl<
             total, avail, odata
         );
         // ---- Registers and triggers.
-        self.pipe.reg_mask_enable.next = self.wire_in[0].val().get_bit(1);
-        self.pipe.reg_n.next = self.wire_in[1].val();
-        self.pipe.reg_threshold.next = self.wire_in[2].val();
-        self.pipe.reg_l_min.next = self.wire_in[3].val();
-        self.pipe.reg_l_max.next = self.wire_in[4].val();
-        self.pipe.reg_period.next = self.wire_in[5].val();
-        self.pipe.reg_masked.next = self.wire_in[6].val();
+        self.pipe.regs.mask_enable.next = self.wire_in[0].val().get_bit(1);
+        self.pipe.regs.n.next = self.wire_in[1].val();
+        self.pipe.regs.threshold.next = self.wire_in[2].val();
+        self.pipe.regs.l_min.next = self.wire_in[3].val();
+        self.pipe.regs.l_max.next = self.wire_in[4].val();
+        self.pipe.regs.period.next = self.wire_in[5].val();
+        self.pipe.regs.masked.next = self.wire_in[6].val();
         // wire_in::THRESHOLD_HOLD and END_TRIM (checked below the block).
-        self.pipe.reg_threshold_hold.next = self.wire_in[7].val();
-        self.pipe.reg_end_trim.next = self.wire_in[8].val();
+        self.pipe.regs.threshold_hold.next = self.wire_in[7].val();
+        self.pipe.regs.end_trim.next = self.wire_in[8].val();
         self.pipe.reset.next = self.trigger.val().get_bit(0);
         if self.trigger.val().get_bit(1) {
             self.start_pend.d.next = true;
@@ -444,19 +409,7 @@ impl<
         self.out_ready.next = self.owords.count.val() >= self.block_words.val();
 
         // ---- Sensor, MCB.
-        self.pipe.calib_done.next = self.calib_done.val();
-        self.pipe.cmd_full.next = self.cmd_full.val();
-        self.pipe.wr_full.next = self.wr_full.val();
-        self.pipe.rd_data.next = self.rd_data.val();
-        self.pipe.rd_empty.next = self.rd_empty.val();
-        self.cmd_en.next = self.pipe.cmd_en.val();
-        self.cmd_instr.next = self.pipe.cmd_instr.val();
-        self.cmd_bl.next = self.pipe.cmd_bl.val();
-        self.cmd_addr.next = self.pipe.cmd_addr.val();
-        self.wr_en.next = self.pipe.wr_en.val();
-        self.wr_mask.next = self.pipe.wr_mask.val();
-        self.wr_data.next = self.pipe.wr_data.val();
-        self.rd_en.next = self.pipe.rd_en.val();
+        McbPort::link(&mut self.mcb, &mut self.pipe.mcb);
 
         // ---- Wire-outs.
         self.wire_out[0].next = bit_cast::<32, 1>(self.pipe.running.val().into())

@@ -10,7 +10,7 @@ use rust_hdl::prelude::*;
 use smartagg_hdl::config::GatewareConfig;
 use smartagg_hdl::delay_line_ddr::DelayLineDdr;
 use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
-use smartagg_hdl::testbench::mcb_model::McbModel;
+use smartagg_hdl::testbench::mcb_model::{mcb_to_port, port_to_mcb, McbModel};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::DelayLine as ModelDelayLine;
 use smartagg_model::plane::BitPlane;
@@ -37,20 +37,9 @@ impl Rig {
     /// commands to the MCB.
     fn settle(&mut self) {
         let (d, m) = (&mut self.dl.uut, &mut self.mcb.uut);
-        d.calib_done.next = m.calib_done.val();
-        d.cmd_full.next = m.cmd_full.val();
-        d.wr_full.next = m.wr_full.val();
-        d.rd_data.next = m.rd_data.val();
-        d.rd_empty.next = m.rd_empty.val();
+        mcb_to_port(&m.mcb, &mut d.mcb);
         settle(d);
-        m.cmd_en.next = d.cmd_en.val();
-        m.cmd_instr.next = d.cmd_instr.val();
-        m.cmd_bl.next = d.cmd_bl.val();
-        m.cmd_addr.next = d.cmd_addr.val();
-        m.wr_en.next = d.wr_en.val();
-        m.wr_mask.next = d.wr_mask.val();
-        m.wr_data.next = d.wr_data.val();
-        m.rd_en.next = d.rd_en.val();
+        port_to_mcb(&d.mcb, &mut m.mcb);
         settle(m);
     }
 
@@ -87,7 +76,7 @@ fn run_stream(
     rig.tick();
     rig.dl.uut.restart.next = false;
     // Wait for calibration as the stream control does before a stream.
-    while !rig.mcb.uut.calib_done.val() {
+    while !rig.mcb.uut.mcb.calib_done.val() {
         rig.settle();
         rig.tick();
     }

@@ -13,7 +13,7 @@ use rand::Rng;
 use rust_hdl::prelude::*;
 use smartagg_hdl::pipeline::{test_back_config, TestPipeline, TestPipelineDdr};
 use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
-use smartagg_hdl::testbench::mcb_model::McbModel;
+use smartagg_hdl::testbench::mcb_model::{mcb_to_port, port_to_mcb, McbModel};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packetiser::encode_stream;
@@ -66,15 +66,15 @@ fn hold_at(s: &Stream, pct: u32) -> Option<u32> {
 
 fn start(b: &mut Bench<TestPipeline>, s: &Stream, mask_count: u64) {
     let u = &mut b.uut;
-    u.reg_n.next = (s.n as u64).to_bits();
-    u.reg_threshold.next = (s.threshold as u64).to_bits();
-    u.reg_threshold_hold.next = (hold(s) as u64).to_bits();
-    u.reg_end_trim.next = (s.end_trim as u64).to_bits();
-    u.reg_l_min.next = (s.l_min as u64).to_bits();
-    u.reg_l_max.next = (s.l_max as u64).to_bits();
-    u.reg_period.next = 100_000u64.to_bits();
-    u.reg_masked.next = mask_count.to_bits();
-    u.reg_mask_enable.next = s.mask_enable;
+    u.regs.n.next = (s.n as u64).to_bits();
+    u.regs.threshold.next = (s.threshold as u64).to_bits();
+    u.regs.threshold_hold.next = (hold(s) as u64).to_bits();
+    u.regs.end_trim.next = (s.end_trim as u64).to_bits();
+    u.regs.l_min.next = (s.l_min as u64).to_bits();
+    u.regs.l_max.next = (s.l_max as u64).to_bits();
+    u.regs.period.next = 100_000u64.to_bits();
+    u.regs.masked.next = mask_count.to_bits();
+    u.regs.mask_enable.next = s.mask_enable;
     u.start.next = true;
     b.tick();
     b.uut.start.next = false;
@@ -149,14 +149,14 @@ fn gateware_paced(
         u.out_pop.next = true;
         if scramble {
             let c = b.cycles;
-            u.reg_n.next = (c % 9).to_bits();
-            u.reg_threshold.next = (c % 5).to_bits();
-            u.reg_threshold_hold.next = (c % 7).to_bits();
-            u.reg_end_trim.next = (c % 4).to_bits();
-            u.reg_l_min.next = (1 + c % 3).to_bits();
-            u.reg_l_max.next = (c % 70).to_bits();
-            u.reg_mask_enable.next = c % 2 == 0;
-            u.reg_masked.next = c.to_bits();
+            u.regs.n.next = (c % 9).to_bits();
+            u.regs.threshold.next = (c % 5).to_bits();
+            u.regs.threshold_hold.next = (c % 7).to_bits();
+            u.regs.end_trim.next = (c % 4).to_bits();
+            u.regs.l_min.next = (1 + c % 3).to_bits();
+            u.regs.l_max.next = (c % 70).to_bits();
+            u.regs.mask_enable.next = c % 2 == 0;
+            u.regs.masked.next = c.to_bits();
             u.load.next = true;
             u.load_address.next = ((c as usize) % wpp).to_bits();
             u.load_data.next = (c.wrapping_mul(0x9e37_79b9) & 0xf).to_bits();
@@ -192,20 +192,9 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
     let wpp = W * H / P;
     let step = |b: &mut Bench<TestPipelineDdr>, mcb: &mut Bench<McbModel>| {
         let (u, m) = (&mut b.uut, &mut mcb.uut);
-        u.calib_done.next = m.calib_done.val();
-        u.cmd_full.next = m.cmd_full.val();
-        u.wr_full.next = m.wr_full.val();
-        u.rd_data.next = m.rd_data.val();
-        u.rd_empty.next = m.rd_empty.val();
+        mcb_to_port(&m.mcb, &mut u.mcb);
         settle(u);
-        m.cmd_en.next = u.cmd_en.val();
-        m.cmd_instr.next = u.cmd_instr.val();
-        m.cmd_bl.next = u.cmd_bl.val();
-        m.cmd_addr.next = u.cmd_addr.val();
-        m.wr_en.next = u.wr_en.val();
-        m.wr_mask.next = u.wr_mask.val();
-        m.wr_data.next = u.wr_data.val();
-        m.rd_en.next = u.rd_en.val();
+        port_to_mcb(&u.mcb, &mut m.mcb);
         settle(m);
     };
     for idx in 0..wpp {
@@ -224,15 +213,15 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
         mcb.tick();
     }
     let u = &mut b.uut;
-    u.reg_n.next = (s.n as u64).to_bits();
-    u.reg_threshold.next = (s.threshold as u64).to_bits();
-    u.reg_threshold_hold.next = (hold(s) as u64).to_bits();
-    u.reg_end_trim.next = (s.end_trim as u64).to_bits();
-    u.reg_l_min.next = (s.l_min as u64).to_bits();
-    u.reg_l_max.next = (s.l_max as u64).to_bits();
-    u.reg_period.next = 100_000u64.to_bits();
-    u.reg_masked.next = (mask.count() as u64).to_bits();
-    u.reg_mask_enable.next = s.mask_enable;
+    u.regs.n.next = (s.n as u64).to_bits();
+    u.regs.threshold.next = (s.threshold as u64).to_bits();
+    u.regs.threshold_hold.next = (hold(s) as u64).to_bits();
+    u.regs.end_trim.next = (s.end_trim as u64).to_bits();
+    u.regs.l_min.next = (s.l_min as u64).to_bits();
+    u.regs.l_max.next = (s.l_max as u64).to_bits();
+    u.regs.period.next = 100_000u64.to_bits();
+    u.regs.masked.next = (mask.count() as u64).to_bits();
+    u.regs.mask_enable.next = s.mask_enable;
     u.start.next = true;
     step(&mut b, &mut mcb);
     b.tick();

@@ -14,7 +14,7 @@ use smartagg_hdl::designs::on_generation_stack;
 use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::registers::{self, control, status, wire_in, wire_out};
 use smartagg_hdl::testbench::bench::{settle, Bench};
-use smartagg_hdl::testbench::mcb_model::McbModel;
+use smartagg_hdl::testbench::mcb_model::{mcb_to_port, port_to_mcb, McbModel};
 use smartagg_hdl::xem6310_core::{TestXemCore, TestXemCoreOnChip};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
@@ -48,25 +48,14 @@ macro_rules! through_the_endpoints {
             impl Host {
                 fn clock(&mut self) {
                     let (u, m) = (&mut self.core.uut, &mut self.mcb.uut);
-                    u.calib_done.next = m.calib_done.val();
-                    u.cmd_full.next = m.cmd_full.val();
-                    u.wr_full.next = m.wr_full.val();
-                    u.rd_data.next = m.rd_data.val();
-                    u.rd_empty.next = m.rd_empty.val();
+                    mcb_to_port(&m.mcb, &mut u.mcb);
                     u.sensor_empty.next = true;
                     settle(u);
                     if !$ddr2 {
                         // The on-chip core leaves the MCB port idle.
-                        assert!(!u.cmd_en.val() && !u.wr_en.val() && !u.rd_en.val());
+                        assert!(!u.mcb.cmd_en.val() && !u.mcb.wr_en.val() && !u.mcb.rd_en.val());
                     }
-                    m.cmd_en.next = u.cmd_en.val();
-                    m.cmd_instr.next = u.cmd_instr.val();
-                    m.cmd_bl.next = u.cmd_bl.val();
-                    m.cmd_addr.next = u.cmd_addr.val();
-                    m.wr_en.next = u.wr_en.val();
-                    m.wr_mask.next = u.wr_mask.val();
-                    m.wr_data.next = u.wr_data.val();
-                    m.rd_en.next = u.rd_en.val();
+                    port_to_mcb(&u.mcb, &mut m.mcb);
                     settle(m);
                     // A read issued last clock: its word is on the data lines now.
                     if self.issued {

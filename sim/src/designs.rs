@@ -421,7 +421,8 @@ impl DesignSpec {
     }
 }
 
-/// MCB user-port signals of the top, connected to the DDR2 model.
+/// The fields of the top's MCB user port (`mcb$…`), connected to the DDR2
+/// model.
 const MCB: [&str; 13] = [
     "calib_done",
     "cmd_en",
@@ -495,22 +496,25 @@ fn wrapper(
     let mut wires = String::new();
     for (name, dir, width) in &ports {
         let ext = name.replace('$', "_");
-        if mcb == McbPort::Parked && MCB.contains(&name.as_str()) {
-            if let Some((_, v)) = MCB_PARKED.iter().find(|(n, _)| n == name) {
+        let field = name
+            .strip_prefix("mcb$")
+            .filter(|f| MCB.contains(f) && mcb != McbPort::Absent);
+        if let (McbPort::Parked, Some(field)) = (mcb, field) {
+            if let Some((_, v)) = MCB_PARKED.iter().find(|(n, _)| *n == field) {
                 conns.push(format!(".{name}({v})"));
             } else {
                 conns.push(format!(".{name}()"));
             }
             continue;
         }
-        if ddr_aw.is_some() && MCB.contains(&name.as_str()) {
+        if let (Some(_), Some(field)) = (ddr_aw, field) {
             let range = if *width == 1 {
                 String::new()
             } else {
                 format!("[{}:0] ", width - 1)
             };
-            let _ = writeln!(wires, "    wire {range}mcb_{ext};");
-            conns.push(format!(".{name}(mcb_{ext})"));
+            let _ = writeln!(wires, "    wire {range}mcb_{field};");
+            conns.push(format!(".{name}(mcb_{field})"));
             continue;
         }
         let d = if *dir == Dir::In { "input" } else { "output" };

@@ -3,6 +3,7 @@
 //! XEM6310 tests (the hardware is the MIG core; its Verilog is empty). Kept
 //! apart from the gateware sources.
 
+use crate::bundles::{McbMemory, McbPort};
 use rust_hdl::prelude::*;
 use std::collections::{HashMap, VecDeque};
 
@@ -17,32 +18,8 @@ use std::collections::{HashMap, VecDeque};
 pub struct McbModel {
     /// Clock.
     pub clock: Signal<In, Clock>,
-    /// Calibration done.
-    pub calib_done: Signal<Out, Bit>,
-    /// Command enable.
-    pub cmd_en: Signal<In, Bit>,
-    /// Instruction.
-    pub cmd_instr: Signal<In, Bits<3>>,
-    /// Burst length − 1.
-    pub cmd_bl: Signal<In, Bits<6>>,
-    /// Byte address.
-    pub cmd_addr: Signal<In, Bits<30>>,
-    /// Command FIFO full.
-    pub cmd_full: Signal<Out, Bit>,
-    /// Write data enable.
-    pub wr_en: Signal<In, Bit>,
-    /// Write byte mask.
-    pub wr_mask: Signal<In, Bits<4>>,
-    /// Write data.
-    pub wr_data: Signal<In, Bits<32>>,
-    /// Write data FIFO full.
-    pub wr_full: Signal<Out, Bit>,
-    /// Take a read word.
-    pub rd_en: Signal<In, Bit>,
-    /// The head read word.
-    pub rd_data: Signal<Out, Bits<32>>,
-    /// No read word.
-    pub rd_empty: Signal<Out, Bit>,
+    /// The user port.
+    pub mcb: McbMemory,
     /// Protocol errors seen (a FIFO overflowed, a write found too little
     /// data, a read of an empty FIFO, a command other than read or write)
     /// (sticky).
@@ -77,19 +54,7 @@ impl McbModel {
     pub fn new(latency: u64, refresh_every: u64, refresh_gap: u64, calib: u64, seed: u64) -> Self {
         McbModel {
             clock: Default::default(),
-            calib_done: Default::default(),
-            cmd_en: Default::default(),
-            cmd_instr: Default::default(),
-            cmd_bl: Default::default(),
-            cmd_addr: Default::default(),
-            cmd_full: Default::default(),
-            wr_en: Default::default(),
-            wr_mask: Default::default(),
-            wr_data: Default::default(),
-            wr_full: Default::default(),
-            rd_en: Default::default(),
-            rd_data: Default::default(),
-            rd_empty: Signal::new_with_default(true),
+            mcb: Default::default(),
             error: Default::default(),
             _s: McbState {
                 latency,
@@ -126,27 +91,27 @@ impl Logic for McbModel {
         let s = &mut self._s;
         s.cycle += 1;
         // The user side of this clock.
-        if self.cmd_en.val() {
-            let instr = self.cmd_instr.val().to_u64();
+        if self.mcb.cmd_en.val() {
+            let instr = self.mcb.cmd_instr.val().to_u64();
             if s.cmd.len() < 4 && instr <= 1 {
                 s.cmd.push_back((
                     instr == 0,
-                    self.cmd_addr.val().to_u64() as u32 >> 2,
-                    self.cmd_bl.val().to_u64() as u32 + 1,
+                    self.mcb.cmd_addr.val().to_u64() as u32 >> 2,
+                    self.mcb.cmd_bl.val().to_u64() as u32 + 1,
                     s.cycle,
                 ));
             } else {
                 s.error = true;
             }
         }
-        if self.wr_en.val() {
-            if s.wdata.len() < 64 && self.wr_mask.val().to_u64() == 0 {
-                s.wdata.push_back(self.wr_data.val().to_u64() as u32);
+        if self.mcb.wr_en.val() {
+            if s.wdata.len() < 64 && self.mcb.wr_mask.val().to_u64() == 0 {
+                s.wdata.push_back(self.mcb.wr_data.val().to_u64() as u32);
             } else {
                 s.error = true;
             }
         }
-        if self.rd_en.val() && s.rdata.pop_front().is_none() {
+        if self.mcb.rd_en.val() && s.rdata.pop_front().is_none() {
             s.error = true;
         }
         // The controller side, one command at a time in order.
@@ -179,20 +144,20 @@ impl Logic for McbModel {
                 }
             }
         }
-        self.calib_done.next = s.cycle >= s.calib;
-        self.cmd_full.next = s.cmd.len() >= 4;
-        self.wr_full.next = s.wdata.len() >= 64;
-        self.rd_empty.next = s.rdata.is_empty();
-        self.rd_data.next = (s.rdata.front().copied().unwrap_or(0) as u64).to_bits();
+        self.mcb.calib_done.next = s.cycle >= s.calib;
+        self.mcb.cmd_full.next = s.cmd.len() >= 4;
+        self.mcb.wr_full.next = s.wdata.len() >= 64;
+        self.mcb.rd_empty.next = s.rdata.is_empty();
+        self.mcb.rd_data.next = (s.rdata.front().copied().unwrap_or(0) as u64).to_bits();
         self.error.next = s.error;
     }
 
     fn connect(&mut self) {
-        self.calib_done.connect();
-        self.cmd_full.connect();
-        self.wr_full.connect();
-        self.rd_data.connect();
-        self.rd_empty.connect();
+        self.mcb.calib_done.connect();
+        self.mcb.cmd_full.connect();
+        self.mcb.wr_full.connect();
+        self.mcb.rd_data.connect();
+        self.mcb.rd_empty.connect();
         self.error.connect();
     }
 
@@ -200,4 +165,27 @@ impl Logic for McbModel {
         // Simulation only: the hardware is the MIG core (see `xem6310`).
         Verilog::Empty
     }
+}
+
+/// Hands the memory's flags and read data to the port, for one settle of a
+/// test bench (plain Rust; a design connects the two in its own process).
+pub fn mcb_to_port(memory: &McbMemory, port: &mut McbPort) {
+    port.calib_done.next = memory.calib_done.val();
+    port.cmd_full.next = memory.cmd_full.val();
+    port.wr_full.next = memory.wr_full.val();
+    port.rd_data.next = memory.rd_data.val();
+    port.rd_empty.next = memory.rd_empty.val();
+}
+
+/// The port's commands, write data and read enable into the memory (the
+/// other half of [`mcb_to_port`]).
+pub fn port_to_mcb(port: &McbPort, memory: &mut McbMemory) {
+    memory.cmd_en.next = port.cmd_en.val();
+    memory.cmd_instr.next = port.cmd_instr.val();
+    memory.cmd_bl.next = port.cmd_bl.val();
+    memory.cmd_addr.next = port.cmd_addr.val();
+    memory.wr_en.next = port.wr_en.val();
+    memory.wr_mask.next = port.wr_mask.val();
+    memory.wr_data.next = port.wr_data.val();
+    memory.rd_en.next = port.rd_en.val();
 }

@@ -100,16 +100,16 @@ impl BramHost {
             let (name, v) = match a {
                 wire_in::CONTROL => {
                     mask_enable = v & control::MASK_ENABLE != 0;
-                    ("reg_mask_enable", mask_enable as u32)
+                    ("regs_mask_enable", mask_enable as u32)
                 }
-                wire_in::N_WINDOW => ("reg_n", v),
-                wire_in::THRESHOLD_INT => ("reg_threshold", v),
-                wire_in::THRESHOLD_HOLD => ("reg_threshold_hold", v),
-                wire_in::END_TRIM => ("reg_end_trim", v),
-                wire_in::L_MIN => ("reg_l_min", v),
-                wire_in::L_MAX => ("reg_l_max", v),
-                wire_in::PLANE_PERIOD_NS => ("reg_period", v),
-                wire_in::MASKED_PIXELS => ("reg_masked", v),
+                wire_in::N_WINDOW => ("regs_n", v),
+                wire_in::THRESHOLD_INT => ("regs_threshold", v),
+                wire_in::THRESHOLD_HOLD => ("regs_threshold_hold", v),
+                wire_in::END_TRIM => ("regs_end_trim", v),
+                wire_in::L_MIN => ("regs_l_min", v),
+                wire_in::L_MAX => ("regs_l_max", v),
+                wire_in::PLANE_PERIOD_NS => ("regs_period", v),
+                wire_in::MASKED_PIXELS => ("regs_masked", v),
                 _ => return Err(HarnessError::Gateware(format!("no register {a:#04x}"))),
             };
             let i = self.port(name)?;
