@@ -11,6 +11,7 @@ mod common;
 use proptest::prelude::*;
 use rand::Rng;
 use rust_hdl::prelude::*;
+use smartagg_hdl::bundles::RuntimeRegisters;
 use smartagg_hdl::pipeline::{test_back_config, TestPipeline, TestPipelineDdr};
 use smartagg_hdl::testbench::bench::{settle, Bench, Stalls};
 use smartagg_hdl::testbench::mcb_model::{mcb_to_port, port_to_mcb, McbModel};
@@ -64,17 +65,22 @@ fn hold_at(s: &Stream, pct: u32) -> Option<u32> {
     Some(1 + (s.threshold - 1) * pct.min(100) / 100)
 }
 
+/// The stream's runtime registers as the host writes them.
+fn write_registers(regs: &mut RuntimeRegisters, s: &Stream, masked: u64) {
+    regs.n.next = (s.n as u64).to_bits();
+    regs.threshold.next = (s.threshold as u64).to_bits();
+    regs.threshold_hold.next = (hold(s) as u64).to_bits();
+    regs.end_trim.next = (s.end_trim as u64).to_bits();
+    regs.l_min.next = (s.l_min as u64).to_bits();
+    regs.l_max.next = (s.l_max as u64).to_bits();
+    regs.period.next = 100_000u64.to_bits();
+    regs.masked.next = masked.to_bits();
+    regs.mask_enable.next = s.mask_enable;
+}
+
 fn start(b: &mut Bench<TestPipeline>, s: &Stream, mask_count: u64) {
     let u = &mut b.uut;
-    u.regs.n.next = (s.n as u64).to_bits();
-    u.regs.threshold.next = (s.threshold as u64).to_bits();
-    u.regs.threshold_hold.next = (hold(s) as u64).to_bits();
-    u.regs.end_trim.next = (s.end_trim as u64).to_bits();
-    u.regs.l_min.next = (s.l_min as u64).to_bits();
-    u.regs.l_max.next = (s.l_max as u64).to_bits();
-    u.regs.period.next = 100_000u64.to_bits();
-    u.regs.masked.next = mask_count.to_bits();
-    u.regs.mask_enable.next = s.mask_enable;
+    write_registers(&mut u.regs, s, mask_count);
     u.start.next = true;
     b.tick();
     b.uut.start.next = false;
@@ -213,15 +219,7 @@ fn gateware_ddr(s: &Stream, stall_percent: u64, seed: u64) -> Vec<u8> {
         mcb.tick();
     }
     let u = &mut b.uut;
-    u.regs.n.next = (s.n as u64).to_bits();
-    u.regs.threshold.next = (s.threshold as u64).to_bits();
-    u.regs.threshold_hold.next = (hold(s) as u64).to_bits();
-    u.regs.end_trim.next = (s.end_trim as u64).to_bits();
-    u.regs.l_min.next = (s.l_min as u64).to_bits();
-    u.regs.l_max.next = (s.l_max as u64).to_bits();
-    u.regs.period.next = 100_000u64.to_bits();
-    u.regs.masked.next = (mask.count() as u64).to_bits();
-    u.regs.mask_enable.next = s.mask_enable;
+    write_registers(&mut u.regs, s, mask.count() as u64);
     u.start.next = true;
     step(&mut b, &mut mcb);
     b.tick();
