@@ -243,7 +243,7 @@ impl<const BW: usize> Logic for SlotWords<BW> {
 
         // ---- The opening. (Not inside a test of `open`: with one, yosys
         // finds eight bits of each slot's `geo` constant and ABC maps the
-        // tops 1-1.5 % larger, here and on 2026-11-29; the loop costs the
+        // tops 0.6-1.5 % larger, here and on 2026-11-29; the loop costs the
         // co-simulation about 3 % of its instructions.)
         for mm in self._m..(self._m + 1) {
             for i in 0..self._m {
