@@ -10,14 +10,13 @@
 use crate::bank_pool::BankPool;
 use crate::blink_tracker::{BlinkTracker, COORD_BITS};
 use crate::bram::RamStyle;
-use crate::bundles::StreamSettings;
+use crate::bundles::{CandidateWord, DelayedWord, StreamSettings};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::packetiser::Packetiser;
 use crate::record_finisher::RecordFinisher;
 use crate::record_queue::RecordQueue;
 use crate::roi_aggregator::RoiAggregator;
-use crate::stream::{lanes, PackLanes};
 use rust_hdl::prelude::*;
 
 /// Tracker, ROI aggregator, bank pool, record queue, packetiser and output
@@ -49,26 +48,12 @@ pub struct BackHalf<
     pub stopping: Signal<In, Bit>,
     /// Real planes of the stream.
     pub planes_total: Signal<In, Bits<48>>,
-    /// A front-half word.
-    pub fh_valid: Signal<In, Bit>,
-    /// Of a flush or drain plane.
-    pub fh_flush: Signal<In, Bit>,
-    /// Word column.
-    pub fh_x: Signal<In, Bits<16>>,
-    /// Row.
-    pub fh_y: Signal<In, Bits<16>>,
-    /// Above-threshold bits.
-    pub fh_above: Vec<Signal<In, Bit>>,
-    /// Candidate bits.
-    pub fh_cand: Vec<Signal<In, Bit>>,
-    /// A raw word of a real or drain plane.
-    pub raw_valid: Signal<In, Bit>,
-    /// Its column.
-    pub raw_x: Signal<In, Bits<16>>,
-    /// `B_{t−N}` (the only plane the ROIs sum).
-    pub raw_delayed: Signal<In, Bits<P>>,
-    /// Mask bits.
-    pub raw_mask: Signal<In, Bits<P>>,
+    /// The front half's word: above-threshold bits and candidates.
+    pub fh: CandidateWord<P>,
+    /// The delay line's word (the same stream, ahead of `fh` by the front
+    /// half's latency): the ROIs sum its `B_{t−N}` over the real and the
+    /// drain planes, and its masked pixels set their MASKED flag.
+    pub raw: DelayedWord<P>,
     /// A byte of the packet stream is available.
     pub out_valid: Signal<Out, Bit>,
     /// The byte.
@@ -89,8 +74,6 @@ pub struct BackHalf<
     /// them, whatever the scene's density; the sensor cannot wait and relies
     /// on its duty cycle instead.
     pub room: Signal<Out, Bit>,
-    pack_above: PackLanes<P>,
-    pack_cand: PackLanes<P>,
     tfifo: Fifo<TW, TAW>,
     tracker: BlinkTracker<P, NW, BW>,
     agg: RoiAggregator<P, RAW, RCW, CAW, BW>,
@@ -166,16 +149,8 @@ impl<
             settings: Default::default(),
             stopping: Default::default(),
             planes_total: Default::default(),
-            fh_valid: Default::default(),
-            fh_flush: Default::default(),
-            fh_x: Default::default(),
-            fh_y: Default::default(),
-            fh_above: lanes(P),
-            fh_cand: lanes(P),
-            raw_valid: Default::default(),
-            raw_x: Default::default(),
-            raw_delayed: Default::default(),
-            raw_mask: Default::default(),
+            fh: Default::default(),
+            raw: Default::default(),
             out_valid: Default::default(),
             out_data: Default::default(),
             out_pop: Default::default(),
@@ -184,8 +159,6 @@ impl<
             overflowed: Default::default(),
             fault: Default::default(),
             room: Default::default(),
-            pack_above: Default::default(),
-            pack_cand: Default::default(),
             tfifo: Fifo::new(RamStyle::Block),
             tracker: BlinkTracker::new(cfg)?,
             agg: RoiAggregator::new(cfg)?,
@@ -242,19 +215,15 @@ impl<
 
         // Front-half words with an above-threshold pixel, and every row's
         // last word, go to the tracker.
-        for i in 0..P {
-            self.pack_above.lanes[i].next = self.fh_above[i].val();
-            self.pack_cand.lanes[i].next = self.fh_cand[i].val();
-        }
-        self.tfifo.push.next = self.fh_valid.val()
-            & (self.pack_above.word.val().any() | (self.fh_x.val() == self.last_word.val()));
-        self.tfifo.push_data.next = bit_cast::<TW, P>(self.pack_above.word.val())
-            | (bit_cast::<TW, P>(self.pack_cand.word.val()) << self.off_p.val())
-            | (bit_cast::<TW, COORD_BITS>(bit_cast::<COORD_BITS, 16>(self.fh_x.val()))
+        self.tfifo.push.next = self.fh.valid.val()
+            & (self.fh.above.val().any() | (self.fh.x.val() == self.last_word.val()));
+        self.tfifo.push_data.next = bit_cast::<TW, P>(self.fh.above.val())
+            | (bit_cast::<TW, P>(self.fh.candidate.val()) << self.off_p.val())
+            | (bit_cast::<TW, COORD_BITS>(bit_cast::<COORD_BITS, 16>(self.fh.x.val()))
                 << self.off_2p.val())
-            | (bit_cast::<TW, COORD_BITS>(bit_cast::<COORD_BITS, 16>(self.fh_y.val()))
+            | (bit_cast::<TW, COORD_BITS>(bit_cast::<COORD_BITS, 16>(self.fh.y.val()))
                 << self.off_y.val())
-            | (bit_cast::<TW, 1>(self.fh_flush.val().into()) << self.off_f.val());
+            | (bit_cast::<TW, 1>(self.fh.flush.val().into()) << self.off_f.val());
         self.tfifo.pop.next = self.tracker.in_pop.val();
         self.room_q.d.next = (self.tfifo.count.val() < self.tfifo_room.val())
             & (self.agg.backlog.val() < self.ring_room.val());
@@ -298,10 +267,13 @@ impl<
         self.pool.pop.next = self.tracker.fb_pop.val();
 
         // ROI aggregator: raw words and the tracker's ROI view.
-        self.agg.in_valid.next = self.raw_valid.val();
-        self.agg.in_x.next = self.raw_x.val();
-        self.agg.in_delayed.next = self.raw_delayed.val();
-        self.agg.in_mask.next = self.raw_mask.val();
+        // A drain plane's word is flush for the tracker but a plane for
+        // the sums; the flush plane's is neither.
+        self.agg.in_valid.next =
+            self.raw.valid.val() & (!self.raw.flush.val() | self.raw.drain.val());
+        self.agg.in_x.next = self.raw.x.val();
+        self.agg.in_delayed.next = self.raw.delayed.val();
+        self.agg.in_mask.next = self.raw.side.val();
         self.agg.tr_plane.next = self.tracker.plane.val();
         self.agg.tr_rows.next = self.tracker.rows_done.val();
         for q in 0..(2 * self._m) {

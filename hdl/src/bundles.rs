@@ -28,7 +28,16 @@
 //!   which wires it to the MIG core) and the memory's (the MIG core's
 //!   wrapper [`crate::mig_ddr2::MigDdr2`], its parked stand-in and the
 //!   behavioural model of the tests,
-//!   [`crate::testbench::mcb_model::McbModel`]).
+//!   [`crate::testbench::mcb_model::McbModel`]);
+//! * [`PlaneWord`] / [`PlaneWordOut`]: a word of the bit-plane stream as
+//!   stream control frames it (a source word, or a word of a drain or the
+//!   flush plane), through the hot-pixel mask into the delay line;
+//! * [`DelayedWord`] / [`DelayedWordOut`]: the delay line's word, `B_t`
+//!   beside `B_{t−N}`, numbered, with its masked pixels, into the front
+//!   half (the rolling count) and the back half (the ROI sums);
+//! * [`CandidateWord`] / [`CandidateWordOut`]: the front half's word, its
+//!   pixels above T_hold and its candidates, into the back half (the
+//!   tracker's FIFO).
 //!
 //! A bundle that stays inside one stage is declared beside the block that
 //! drives it: [`WalkedSlot`](crate::blink_tracker::WalkedSlot), the slot
@@ -292,4 +301,124 @@ pub struct McbMemory {
     pub rd_data: Signal<Out, Bits<32>>,
     /// No read word.
     pub rd_empty: Signal<Out, Bit>,
+}
+
+/// A word of the bit-plane stream as stream control frames it (inputs of
+/// the hot-pixel mask and the delay line). `P`: pixels per word.
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct PlaneWord<const P: usize> {
+    /// A word is present.
+    pub valid: Signal<In, Bit>,
+    /// First word of a plane.
+    pub sop: Signal<In, Bit>,
+    /// Word of a flush plane (not stored in the delay line).
+    pub flush: Signal<In, Bit>,
+    /// Word of a drain plane (its live bits are 0).
+    pub drain: Signal<In, Bit>,
+    /// `B_t`, pixel i of the word in bit i.
+    pub live: Signal<In, Bits<P>>,
+}
+
+/// A word of the bit-plane stream (outputs of stream control and of the
+/// hot-pixel mask).
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct PlaneWordOut<const P: usize> {
+    /// A word is present.
+    pub valid: Signal<Out, Bit>,
+    /// First word of a plane.
+    pub sop: Signal<Out, Bit>,
+    /// Word of a flush plane.
+    pub flush: Signal<Out, Bit>,
+    /// Word of a drain plane.
+    pub drain: Signal<Out, Bit>,
+    /// `B_t`.
+    pub live: Signal<Out, Bits<P>>,
+}
+
+/// A word out of the delay line: the live word `B_t` beside the word of
+/// the same pixels N planes ago, `B_{t−N}`, numbered (inputs of the front
+/// half, for the rolling count, and of the back half, for the ROI sums).
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct DelayedWord<const P: usize> {
+    /// A word is present.
+    pub valid: Signal<In, Bit>,
+    /// Word of a flush plane (or of a drain plane: see `drain`).
+    pub flush: Signal<In, Bit>,
+    /// Word of a drain plane: flush for the rolling count, a plane for the
+    /// ROI sums (its `B_{t−N}` still leaves open sums).
+    pub drain: Signal<In, Bit>,
+    /// Word column (pixel i of the word is at x·P + i).
+    pub x: Signal<In, Bits<16>>,
+    /// Row.
+    pub y: Signal<In, Bits<16>>,
+    /// Word index within the plane.
+    pub idx: Signal<In, Bits<32>>,
+    /// `B_t`.
+    pub live: Signal<In, Bits<P>>,
+    /// `B_{t−N}` (zero for t < N and for flush words).
+    pub delayed: Signal<In, Bits<P>>,
+    /// The bits carried along with the word: its masked pixels.
+    pub side: Signal<In, Bits<P>>,
+}
+
+/// A word out of the delay line (outputs of [`crate::delay_line::DelayLine`]
+/// and [`crate::delay_line_ddr::DelayLineDdr`]).
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct DelayedWordOut<const P: usize> {
+    /// A word is present.
+    pub valid: Signal<Out, Bit>,
+    /// Word of a flush or drain plane.
+    pub flush: Signal<Out, Bit>,
+    /// Word of a drain plane.
+    pub drain: Signal<Out, Bit>,
+    /// Word column.
+    pub x: Signal<Out, Bits<16>>,
+    /// Row.
+    pub y: Signal<Out, Bits<16>>,
+    /// Word index within the plane.
+    pub idx: Signal<Out, Bits<32>>,
+    /// `B_t`.
+    pub live: Signal<Out, Bits<P>>,
+    /// `B_{t−N}`.
+    pub delayed: Signal<Out, Bits<P>>,
+    /// Masked pixels.
+    pub side: Signal<Out, Bits<P>>,
+}
+
+/// A word of the front half's result: which pixels are above T_hold and
+/// which are candidates (H ≥ T_int and a maximum of their 3×3
+/// neighbourhood, [`crate::candidates`]), pixel i in bit i
+/// (inputs of the back half).
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct CandidateWord<const P: usize> {
+    /// A word is present.
+    pub valid: Signal<In, Bit>,
+    /// Word of a flush plane.
+    pub flush: Signal<In, Bit>,
+    /// Word column.
+    pub x: Signal<In, Bits<16>>,
+    /// Row.
+    pub y: Signal<In, Bits<16>>,
+    /// `H ≥ T_hold` per pixel.
+    pub above: Signal<In, Bits<P>>,
+    /// Candidate per pixel.
+    pub candidate: Signal<In, Bits<P>>,
+}
+
+/// A word of the front half's result (outputs of
+/// [`crate::front_half::FrontHalf`]).
+#[derive(Clone, Debug, Default, LogicInterface)]
+pub struct CandidateWordOut<const P: usize> {
+    /// A word is present.
+    pub valid: Signal<Out, Bit>,
+    /// Word of a flush plane.
+    pub flush: Signal<Out, Bit>,
+    /// Word column.
+    pub x: Signal<Out, Bits<16>>,
+    /// Row.
+    pub y: Signal<Out, Bits<16>>,
+    /// `H ≥ T_hold` per pixel.
+    pub above: Signal<Out, Bits<P>>,
+    /// Candidate per pixel.
+    pub candidate: Signal<Out, Bits<P>>,
 }

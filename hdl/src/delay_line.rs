@@ -2,10 +2,11 @@
 //! for large N follows the same interface).
 //!
 //! The entry of the pipeline: takes the live bit-plane stream (P bits per
-//! word, `valid`, `sop`, `flush`), numbers its words, and returns beside each
-//! live word `B_t` the word of the same pixels N planes ago, `B_{t−N}`, read
-//! from the memory slot it overwrites (read-first). N is a runtime register
-//! (1 ≤ N ≤ N_max), taken at `restart`. Planes before the stream are zero as
+//! word, a [`PlaneWord`]), numbers its words, and returns beside each live
+//! word `B_t` the word of the same pixels N planes ago, `B_{t−N}` (a
+//! [`DelayedWordOut`]), read from the memory slot it overwrites
+//! (read-first). N is a runtime register (1 ≤ N ≤ N_max), taken at
+//! `restart`. Planes before the stream are zero as
 //! in the model ([`smartagg_model::delay_line`]): a saturating plane count
 //! forces the output to zero for `t < N`, so whatever the memory held before
 //! (power-up garbage, an earlier stream) never leaks out.
@@ -16,6 +17,7 @@
 //! Latency: one clock (the registered read).
 
 use crate::bram::{Bram, RamStyle};
+use crate::bundles::{DelayedWordOut, PlaneWord};
 use crate::config::{GatewareConfig, GatewareError};
 use crate::stream::RasterPosition;
 use rust_hdl::prelude::*;
@@ -30,37 +32,16 @@ pub struct DelayLine<const P: usize, const AW: usize, const NW: usize> {
     pub restart: Signal<In, Bit>,
     /// Window N (1..=N_max), used from the next `restart` on.
     pub n_window: Signal<In, Bits<NW>>,
-    /// Input word present.
-    pub valid: Signal<In, Bit>,
-    /// First word of a plane.
-    pub sop: Signal<In, Bit>,
-    /// Word of a flush plane (not stored).
-    pub flush: Signal<In, Bit>,
-    /// Word of a drain plane: stored like a plane (its live bits are 0) so
-    /// that `B_{t−N}` keeps coming out, but marked flush downstream.
-    pub drain: Signal<In, Bit>,
-    /// Bits carried along with the word (the mask bits for the ROI stage).
+    /// The word in: `B_t` and whether it starts a plane, belongs to the
+    /// flush plane (neither stored nor read) or to a drain plane (its
+    /// `B_{t−N}` is read; flush downstream).
+    pub word: PlaneWord<P>,
+    /// Bits carried along with the word (its masked pixels, for the ROI
+    /// sums' MASKED flag).
     pub side: Signal<In, Bits<P>>,
-    /// Live pixels `B_t`, pixel i of the word in bit i.
-    pub live: Signal<In, Bits<P>>,
-    /// Output word present.
-    pub out_valid: Signal<Out, Bit>,
-    /// Output of a flush plane.
-    pub out_flush: Signal<Out, Bit>,
-    /// Word column.
-    pub out_x: Signal<Out, Bits<16>>,
-    /// Row.
-    pub out_y: Signal<Out, Bits<16>>,
-    /// Word index within the plane.
-    pub out_idx: Signal<Out, Bits<32>>,
-    /// `B_t`.
-    pub out_live: Signal<Out, Bits<P>>,
-    /// `B_{t−N}` (zero for t < N and for flush words).
-    pub out_delayed: Signal<Out, Bits<P>>,
-    /// Word of a drain plane.
-    pub out_drain: Signal<Out, Bit>,
-    /// `side`, one clock later.
-    pub out_side: Signal<Out, Bits<P>>,
+    /// The word out, beside `B_{t−N}` (zero for t < N and for flush
+    /// words), numbered, with `side`, one clock later.
+    pub out: DelayedWordOut<P>,
     pos: RasterPosition,
     mem: Bram<P, AW>,
     n_reg: DFF<Bits<NW>>,
@@ -110,21 +91,9 @@ impl<const P: usize, const AW: usize, const NW: usize> DelayLine<P, AW, NW> {
             clock: Default::default(),
             restart: Default::default(),
             n_window: Default::default(),
-            valid: Default::default(),
-            sop: Default::default(),
-            flush: Default::default(),
-            drain: Default::default(),
+            word: Default::default(),
             side: Default::default(),
-            live: Default::default(),
-            out_valid: Default::default(),
-            out_flush: Default::default(),
-            out_x: Default::default(),
-            out_y: Default::default(),
-            out_idx: Default::default(),
-            out_live: Default::default(),
-            out_delayed: Default::default(),
-            out_drain: Default::default(),
-            out_side: Default::default(),
+            out: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
             mem: Bram::new(cfg.n_max as usize * wpp, RamStyle::Block),
             n_reg: Default::default(),
@@ -179,14 +148,14 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             side1
         );
         self.pos.clock.next = self.clock.val();
-        self.pos.valid.next = self.valid.val();
-        self.pos.sop.next = self.sop.val();
+        self.pos.valid.next = self.word.valid.val();
+        self.pos.sop.next = self.word.sop.val();
         self.mem.clock.next = self.clock.val();
 
         // At each stored plane's start, the ring moves a slot on.
         self.next_base_now.next = self.next_base.q.val();
         self.zero_now.next = self.zero.q.val();
-        if self.valid.val() & self.sop.val() & !self.flush.val() {
+        if self.word.valid.val() & self.word.sop.val() & !self.word.flush.val() {
             self.zero_now.next = self.planes.q.val() < self.n_reg.q.val();
             if self.planes.q.val() < self.n_reg.q.val() {
                 self.planes.d.next = self.planes.q.val() + 1;
@@ -205,7 +174,7 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             self.next_base.d.next = self.next_base_now.val();
             self.zero.d.next = self.zero_now.val();
         }
-        if self.valid.val() {
+        if self.word.valid.val() {
             if self.pos.idx.val() == self.last_idx.val() {
                 self.addr.d.next = self.next_base_now.val();
             } else {
@@ -216,18 +185,18 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
         // Read B_{t−N} from the word that B_t overwrites (read-first).
         self.mem.read_address.next = self.addr.q.val();
         self.mem.write_address.next = self.addr.q.val();
-        self.mem.write_data.next = self.live.val();
-        self.mem.write_enable.next = self.valid.val() & !self.flush.val();
+        self.mem.write_data.next = self.word.live.val();
+        self.mem.write_enable.next = self.word.valid.val() & !self.word.flush.val();
 
-        self.v1.d.next = self.valid.val();
-        if self.valid.val() {
-            self.f1.d.next = self.flush.val();
+        self.v1.d.next = self.word.valid.val();
+        if self.word.valid.val() {
+            self.f1.d.next = self.word.flush.val();
             self.x1.d.next = self.pos.x.val();
             self.y1.d.next = self.pos.y.val();
             self.i1.d.next = self.pos.idx.val();
-            self.live1.d.next = self.live.val();
-            self.zero1.d.next = self.zero_now.val() | self.flush.val();
-            self.drain1.d.next = self.drain.val();
+            self.live1.d.next = self.word.live.val();
+            self.zero1.d.next = self.zero_now.val() | self.word.flush.val();
+            self.drain1.d.next = self.word.drain.val();
             self.side1.d.next = self.side.val();
         }
         if self.restart.val() {
@@ -242,17 +211,17 @@ impl<const P: usize, const AW: usize, const NW: usize> Logic for DelayLine<P, AW
             self.v1.d.next = false;
         }
 
-        self.out_valid.next = self.v1.q.val();
-        self.out_flush.next = self.f1.q.val() | self.drain1.q.val();
-        self.out_drain.next = self.drain1.q.val();
-        self.out_side.next = self.side1.q.val();
-        self.out_x.next = self.x1.q.val();
-        self.out_y.next = self.y1.q.val();
-        self.out_idx.next = self.i1.q.val();
-        self.out_live.next = self.live1.q.val();
-        self.out_delayed.next = self.mem.read_data.val();
+        self.out.valid.next = self.v1.q.val();
+        self.out.flush.next = self.f1.q.val() | self.drain1.q.val();
+        self.out.drain.next = self.drain1.q.val();
+        self.out.side.next = self.side1.q.val();
+        self.out.x.next = self.x1.q.val();
+        self.out.y.next = self.y1.q.val();
+        self.out.idx.next = self.i1.q.val();
+        self.out.live.next = self.live1.q.val();
+        self.out.delayed.next = self.mem.read_data.val();
         if self.zero1.q.val() {
-            self.out_delayed.next = 0.into();
+            self.out.delayed.next = 0.into();
         }
     }
 }

@@ -67,7 +67,7 @@
 //! `write_error` (the write data or command FIFO was full).
 
 use crate::bram::RamStyle;
-use crate::bundles::McbPort;
+use crate::bundles::{DelayedWordOut, McbPort, PlaneWord};
 use crate::config::{GatewareConfig, GatewareError};
 use crate::fifo::Fifo;
 use crate::stream::RasterPosition;
@@ -98,36 +98,16 @@ pub struct DelayLineDdr<const P: usize, const NW: usize, const PAW: usize> {
     pub restart: Signal<In, Bit>,
     /// Window N (1..=N_max).
     pub n_window: Signal<In, Bits<NW>>,
-    /// Input word present.
-    pub valid: Signal<In, Bit>,
-    /// First word of a plane.
-    pub sop: Signal<In, Bit>,
-    /// Word of the flush plane (neither stored nor read).
-    pub flush: Signal<In, Bit>,
-    /// Word of a drain plane (read, not stored, flush downstream).
-    pub drain: Signal<In, Bit>,
-    /// Live pixels `B_t`.
-    pub live: Signal<In, Bits<P>>,
-    /// Bits carried along (mask bits).
+    /// The word in: `B_t` and whether it starts a plane, belongs to the
+    /// flush plane (neither stored nor read) or to a drain plane (its
+    /// `B_{t−N}` is read; flush downstream).
+    pub word: PlaneWord<P>,
+    /// Bits carried along with the word (its masked pixels, for the ROI
+    /// sums' MASKED flag).
     pub side: Signal<In, Bits<P>>,
-    /// Output word present.
-    pub out_valid: Signal<Out, Bit>,
-    /// Output of a flush or drain plane.
-    pub out_flush: Signal<Out, Bit>,
-    /// Word column.
-    pub out_x: Signal<Out, Bits<16>>,
-    /// Row.
-    pub out_y: Signal<Out, Bits<16>>,
-    /// Word index within the plane.
-    pub out_idx: Signal<Out, Bits<32>>,
-    /// `B_t`.
-    pub out_live: Signal<Out, Bits<P>>,
-    /// `B_{t−N}`.
-    pub out_delayed: Signal<Out, Bits<P>>,
-    /// Word of a drain plane.
-    pub out_drain: Signal<Out, Bit>,
-    /// `side`, one clock later.
-    pub out_side: Signal<Out, Bits<P>>,
+    /// The word out, beside `B_{t−N}` (zero for t < N and for flush
+    /// words), numbered, with `side`, one clock later.
+    pub out: DelayedWordOut<P>,
     /// The MCB user port of the DDR2 (its clock is `clock`).
     pub mcb: McbPort,
     /// A delayed word was needed before it arrived (sticky).
@@ -222,21 +202,9 @@ impl<const P: usize, const NW: usize, const PAW: usize> DelayLineDdr<P, NW, PAW>
             clock: Default::default(),
             restart: Default::default(),
             n_window: Default::default(),
-            valid: Default::default(),
-            sop: Default::default(),
-            flush: Default::default(),
-            drain: Default::default(),
-            live: Default::default(),
+            word: Default::default(),
             side: Default::default(),
-            out_valid: Default::default(),
-            out_flush: Default::default(),
-            out_x: Default::default(),
-            out_y: Default::default(),
-            out_idx: Default::default(),
-            out_live: Default::default(),
-            out_delayed: Default::default(),
-            out_drain: Default::default(),
-            out_side: Default::default(),
+            out: Default::default(),
             mcb: Default::default(),
             underrun: Default::default(),
             write_error: Default::default(),
@@ -281,8 +249,8 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             side1, del1
         );
         self.pos.clock.next = self.clock.val();
-        self.pos.valid.next = self.valid.val();
-        self.pos.sop.next = self.sop.val();
+        self.pos.valid.next = self.word.valid.val();
+        self.pos.sop.next = self.word.sop.val();
         self.pf.clock.next = self.clock.val();
         self.pf.restart.next = self.restart.val();
         self.write_side.clock.next = self.clock.val();
@@ -291,10 +259,10 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         self.read_side.restart.next = self.restart.val();
 
         // ---- Planes: slot and the zero rule, as the block-RAM delay line.
-        self.stored.next = self.valid.val() & !self.flush.val();
+        self.stored.next = self.word.valid.val() & !self.word.flush.val();
         self.slot_now.next = self.wslot.q.val();
         self.zero_now.next = self.zero.q.val();
-        if self.stored.val() & self.sop.val() {
+        if self.stored.val() & self.word.sop.val() {
             self.zero_now.next = self.young.q.val();
             if self.young.q.val() {
                 // planes < N before, so planes + 1 < N unless planes = N − 1.
@@ -322,10 +290,11 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         }
 
         // ---- Write side: the live words of stored planes, into the slot.
-        self.write_side.take.next = self.valid.val() & !self.flush.val() & !self.drain.val();
+        self.write_side.take.next =
+            self.word.valid.val() & !self.word.flush.val() & !self.word.drain.val();
         self.write_side.sub.next = self.sw.val();
         self.write_side.last_sub.next = self.last_sub.val();
-        self.write_side.live.next = self.live.val();
+        self.write_side.live.next = self.word.live.val();
         self.write_side.slot.next = self.slot_now.val();
         self.write_side.wr_full.next = self.mcb.wr_full.val();
         self.write_side.cmd_full.next = self.mcb.cmd_full.val();
@@ -360,17 +329,17 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
         }
 
         // ---- Output register (one clock, as the block-RAM delay line).
-        self.v1.d.next = self.valid.val();
-        if self.valid.val() {
-            self.f1.d.next = self.flush.val() | self.drain.val();
-            self.d1.d.next = self.drain.val();
+        self.v1.d.next = self.word.valid.val();
+        if self.word.valid.val() {
+            self.f1.d.next = self.word.flush.val() | self.word.drain.val();
+            self.d1.d.next = self.word.drain.val();
             self.x1.d.next = self.pos.x.val();
             self.y1.d.next = self.pos.y.val();
             self.i1.d.next = self.pos.idx.val();
-            self.live1.d.next = self.live.val();
+            self.live1.d.next = self.word.live.val();
             self.side1.d.next = self.side.val();
             self.del1.d.next = self.delayed_now.val();
-            if self.zero_now.val() | self.flush.val() {
+            if self.zero_now.val() | self.word.flush.val() {
                 self.del1.d.next = 0.into();
             }
         }
@@ -383,15 +352,15 @@ impl<const P: usize, const NW: usize, const PAW: usize> Logic for DelayLineDdr<P
             self.under.d.next = false;
             self.v1.d.next = false;
         }
-        self.out_valid.next = self.v1.q.val();
-        self.out_flush.next = self.f1.q.val();
-        self.out_drain.next = self.d1.q.val();
-        self.out_x.next = self.x1.q.val();
-        self.out_y.next = self.y1.q.val();
-        self.out_idx.next = self.i1.q.val();
-        self.out_live.next = self.live1.q.val();
-        self.out_side.next = self.side1.q.val();
-        self.out_delayed.next = self.del1.q.val();
+        self.out.valid.next = self.v1.q.val();
+        self.out.flush.next = self.f1.q.val();
+        self.out.drain.next = self.d1.q.val();
+        self.out.x.next = self.x1.q.val();
+        self.out.y.next = self.y1.q.val();
+        self.out.idx.next = self.i1.q.val();
+        self.out.live.next = self.live1.q.val();
+        self.out.side.next = self.side1.q.val();
+        self.out.delayed.next = self.del1.q.val();
         self.underrun.next = self.under.q.val();
         self.write_error.next = self.write_side.error.val();
     }

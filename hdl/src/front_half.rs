@@ -6,13 +6,14 @@
 //! puts the block-RAM [`DelayLine`] in front of it (configurations whose N_max
 //! planes fit block RAM). Type aliases name the generated configurations.
 
+use crate::bundles::{CandidateWordOut, DelayedWord};
 use crate::candidates::Candidates;
 use crate::config::{GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
 use crate::hot_pixel_mask::HotPixelMask;
 use crate::rolling_count::RollingCount;
 use crate::spatial_filter::SpatialFilter;
-use crate::stream::lanes;
+use crate::stream::PackLanes;
 use rust_hdl::prelude::*;
 
 /// Rolling count, filter and candidates on P pixels per clock.
@@ -33,35 +34,17 @@ pub struct FrontHalf<
     pub threshold: Signal<In, Bits<HW>>,
     /// T_hold register (the level of the `above` bits, ≤ T_int).
     pub threshold_hold: Signal<In, Bits<HW>>,
-    /// Input word present.
-    pub valid: Signal<In, Bit>,
-    /// Word of a flush plane.
-    pub flush: Signal<In, Bit>,
-    /// Word column.
-    pub x: Signal<In, Bits<16>>,
-    /// Row.
-    pub y: Signal<In, Bits<16>>,
-    /// Word index within the plane.
-    pub idx: Signal<In, Bits<32>>,
-    /// `B_t`.
-    pub live: Signal<In, Bits<P>>,
-    /// `B_{t−N}`.
-    pub delayed: Signal<In, Bits<P>>,
-    /// Output word present.
-    pub out_valid: Signal<Out, Bit>,
-    /// Output of a flush plane.
-    pub out_flush: Signal<Out, Bit>,
-    /// Output word column.
-    pub out_x: Signal<Out, Bits<16>>,
-    /// Output row.
-    pub out_y: Signal<Out, Bits<16>>,
-    /// `H ≥ T_hold` per pixel.
-    pub above: Vec<Signal<Out, Bit>>,
-    /// Candidate per pixel.
-    pub candidate: Vec<Signal<Out, Bit>>,
+    /// The delay line's word: `B_t` beside `B_{t−N}`, numbered (its
+    /// `drain` and `side` are the back half's).
+    pub word: DelayedWord<P>,
+    /// A word's above-hold bits and candidates, with its column and row
+    /// (a row behind the word in: [`crate::candidates`]).
+    pub out: CandidateWordOut<P>,
     count: RollingCount<P, CW, CAW>,
     filter: SpatialFilter<CW, VW, HW, LAW>,
     cands: Candidates<HW, LAW>,
+    pack_above: PackLanes<P>,
+    pack_cand: PackLanes<P>,
 }
 
 impl<
@@ -80,22 +63,13 @@ impl<
             restart: Default::default(),
             threshold: Default::default(),
             threshold_hold: Default::default(),
-            valid: Default::default(),
-            flush: Default::default(),
-            x: Default::default(),
-            y: Default::default(),
-            idx: Default::default(),
-            live: Default::default(),
-            delayed: Default::default(),
-            out_valid: Default::default(),
-            out_flush: Default::default(),
-            out_x: Default::default(),
-            out_y: Default::default(),
-            above: lanes(P),
-            candidate: lanes(P),
+            word: Default::default(),
+            out: Default::default(),
             count: RollingCount::new(cfg)?,
             filter: SpatialFilter::new(cfg)?,
             cands: Candidates::new(cfg)?,
+            pack_above: Default::default(),
+            pack_cand: Default::default(),
         })
     }
 }
@@ -117,13 +91,13 @@ impl<
         self.cands.restart.next = self.restart.val();
         self.cands.threshold.next = self.threshold.val();
         self.cands.threshold_hold.next = self.threshold_hold.val();
-        self.count.valid.next = self.valid.val();
-        self.count.flush.next = self.flush.val();
-        self.count.x.next = self.x.val();
-        self.count.y.next = self.y.val();
-        self.count.idx.next = self.idx.val();
-        self.count.live.next = self.live.val();
-        self.count.delayed.next = self.delayed.val();
+        self.count.valid.next = self.word.valid.val();
+        self.count.flush.next = self.word.flush.val();
+        self.count.x.next = self.word.x.val();
+        self.count.y.next = self.word.y.val();
+        self.count.idx.next = self.word.idx.val();
+        self.count.live.next = self.word.live.val();
+        self.count.delayed.next = self.word.delayed.val();
         self.filter.valid.next = self.count.out_valid.val();
         self.filter.flush.next = self.count.out_flush.val();
         self.filter.x.next = self.count.out_x.val();
@@ -137,13 +111,15 @@ impl<
         self.cands.y.next = self.filter.out_y.val();
         for i in 0..P {
             self.cands.filtered[i].next = self.filter.filtered[i].val();
-            self.above[i].next = self.cands.above[i].val();
-            self.candidate[i].next = self.cands.candidate[i].val();
+            self.pack_above.lanes[i].next = self.cands.above[i].val();
+            self.pack_cand.lanes[i].next = self.cands.candidate[i].val();
         }
-        self.out_valid.next = self.cands.out_valid.val();
-        self.out_flush.next = self.cands.out_flush.val();
-        self.out_x.next = self.cands.out_x.val();
-        self.out_y.next = self.cands.out_y.val();
+        self.out.valid.next = self.cands.out_valid.val();
+        self.out.flush.next = self.cands.out_flush.val();
+        self.out.x.next = self.cands.out_x.val();
+        self.out.y.next = self.cands.out_y.val();
+        self.out.above.next = self.pack_above.word.val();
+        self.out.candidate.next = self.pack_cand.word.val();
     }
 }
 
@@ -184,18 +160,8 @@ pub struct FrontHalfBram<
     pub flush: Signal<In, Bit>,
     /// `B_t`, pixel i of the word in bit i.
     pub live: Signal<In, Bits<P>>,
-    /// Output word present.
-    pub out_valid: Signal<Out, Bit>,
-    /// Output of a flush plane.
-    pub out_flush: Signal<Out, Bit>,
-    /// Output word column.
-    pub out_x: Signal<Out, Bits<16>>,
-    /// Output row.
-    pub out_y: Signal<Out, Bits<16>>,
-    /// `H ≥ T_hold` per pixel.
-    pub above: Vec<Signal<Out, Bit>>,
-    /// Candidate per pixel.
-    pub candidate: Vec<Signal<Out, Bit>>,
+    /// The word's above-hold bits and candidates.
+    pub out: CandidateWordOut<P>,
     mask: HotPixelMask<P, CAW>,
     delay: DelayLine<P, DAW, CW>,
     front: FrontHalf<P, CW, CAW, VW, HW, LAW>,
@@ -226,12 +192,7 @@ impl<
             sop: Default::default(),
             flush: Default::default(),
             live: Default::default(),
-            out_valid: Default::default(),
-            out_flush: Default::default(),
-            out_x: Default::default(),
-            out_y: Default::default(),
-            above: lanes(P),
-            candidate: lanes(P),
+            out: Default::default(),
             mask: HotPixelMask::new(cfg)?,
             delay: DelayLine::new(cfg)?,
             front: FrontHalf::new(cfg)?,
@@ -255,38 +216,35 @@ impl<
         self.mask.load.next = self.load.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
-        self.mask.valid.next = self.valid.val();
-        self.mask.sop.next = self.sop.val();
-        self.mask.flush.next = self.flush.val();
-        self.mask.drain.next = false;
+        self.mask.word.valid.next = self.valid.val();
+        self.mask.word.sop.next = self.sop.val();
+        self.mask.word.flush.next = self.flush.val();
+        self.mask.word.drain.next = false;
         self.mask.enable.next = true;
-        self.mask.live.next = self.live.val();
+        self.mask.word.live.next = self.live.val();
         self.delay.restart.next = self.restart.val();
         self.front.restart.next = self.restart.val();
         self.delay.n_window.next = self.n_window.val();
         self.front.threshold.next = self.threshold.val();
         self.front.threshold_hold.next = self.threshold_hold.val();
-        self.delay.valid.next = self.mask.out_valid.val();
-        self.delay.sop.next = self.mask.out_sop.val();
-        self.delay.flush.next = self.mask.out_flush.val();
-        self.delay.drain.next = self.mask.out_drain.val();
+        // (Siblings field by field: a join is a process per field in the
+        // Verilog, [`crate::bundles`].)
+        self.delay.word.valid.next = self.mask.out.valid.val();
+        self.delay.word.sop.next = self.mask.out.sop.val();
+        self.delay.word.flush.next = self.mask.out.flush.val();
+        self.delay.word.drain.next = self.mask.out.drain.val();
+        self.delay.word.live.next = self.mask.out.live.val();
         self.delay.side.next = self.mask.out_mask.val();
-        self.delay.live.next = self.mask.out_live.val();
-        self.front.valid.next = self.delay.out_valid.val();
-        self.front.flush.next = self.delay.out_flush.val();
-        self.front.x.next = self.delay.out_x.val();
-        self.front.y.next = self.delay.out_y.val();
-        self.front.idx.next = self.delay.out_idx.val();
-        self.front.live.next = self.delay.out_live.val();
-        self.front.delayed.next = self.delay.out_delayed.val();
-        for i in 0..P {
-            self.above[i].next = self.front.above[i].val();
-            self.candidate[i].next = self.front.candidate[i].val();
-        }
-        self.out_valid.next = self.front.out_valid.val();
-        self.out_flush.next = self.front.out_flush.val();
-        self.out_x.next = self.front.out_x.val();
-        self.out_y.next = self.front.out_y.val();
+        self.front.word.valid.next = self.delay.out.valid.val();
+        self.front.word.flush.next = self.delay.out.flush.val();
+        self.front.word.drain.next = self.delay.out.drain.val();
+        self.front.word.x.next = self.delay.out.x.val();
+        self.front.word.y.next = self.delay.out.y.val();
+        self.front.word.idx.next = self.delay.out.idx.val();
+        self.front.word.live.next = self.delay.out.live.val();
+        self.front.word.delayed.next = self.delay.out.delayed.val();
+        self.front.word.side.next = self.delay.out.side.val();
+        CandidateWordOut::<P>::link(&mut self.out, &mut self.front.out);
     }
 }
 

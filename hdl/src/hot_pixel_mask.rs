@@ -8,6 +8,7 @@
 //! numbers the words itself from `sop` and adds one clock of latency.
 
 use crate::bram::{Bram, RamStyle};
+use crate::bundles::{PlaneWord, PlaneWordOut};
 use crate::config::{GatewareConfig, GatewareError};
 use crate::stream::RasterPosition;
 use rust_hdl::prelude::*;
@@ -24,28 +25,12 @@ pub struct HotPixelMask<const P: usize, const AW: usize> {
     pub load_address: Signal<In, Bits<AW>>,
     /// The mask word.
     pub load_data: Signal<In, Bits<P>>,
-    /// Input word present.
-    pub valid: Signal<In, Bit>,
-    /// First word of a plane.
-    pub sop: Signal<In, Bit>,
-    /// Word of a flush plane.
-    pub flush: Signal<In, Bit>,
-    /// Word of a drain plane (stream end; passed on).
-    pub drain: Signal<In, Bit>,
+    /// The word in (raw pixels; a drain plane's word is passed on).
+    pub word: PlaneWord<P>,
     /// Apply the mask (the MASK_ENABLE register; off: nothing is masked).
     pub enable: Signal<In, Bit>,
-    /// Raw pixels.
-    pub live: Signal<In, Bits<P>>,
-    /// Output word present.
-    pub out_valid: Signal<Out, Bit>,
-    /// First word of a plane.
-    pub out_sop: Signal<Out, Bit>,
-    /// Word of a flush plane.
-    pub out_flush: Signal<Out, Bit>,
-    /// Word of a drain plane.
-    pub out_drain: Signal<Out, Bit>,
-    /// Masked pixels.
-    pub out_live: Signal<Out, Bits<P>>,
+    /// The word out, one clock later, its masked pixels 0.
+    pub out: PlaneWordOut<P>,
     /// The mask bits of the word (for the ROI's MASKED flag).
     pub out_mask: Signal<Out, Bits<P>>,
     pos: RasterPosition,
@@ -69,17 +54,9 @@ impl<const P: usize, const AW: usize> HotPixelMask<P, AW> {
             load: Default::default(),
             load_address: Default::default(),
             load_data: Default::default(),
-            valid: Default::default(),
-            sop: Default::default(),
-            flush: Default::default(),
-            drain: Default::default(),
+            word: Default::default(),
             enable: Default::default(),
-            live: Default::default(),
-            out_valid: Default::default(),
-            out_sop: Default::default(),
-            out_flush: Default::default(),
-            out_drain: Default::default(),
-            out_live: Default::default(),
+            out: Default::default(),
             out_mask: Default::default(),
             pos: RasterPosition::new(cfg.words_per_row(), cfg.height),
             mask: Bram::new(cfg.words_per_plane(), RamStyle::Block),
@@ -98,29 +75,29 @@ impl<const P: usize, const AW: usize> Logic for HotPixelMask<P, AW> {
     fn update(&mut self) {
         dff_setup!(self, clock, v1, s1, f1, d1, en1, live1);
         self.pos.clock.next = self.clock.val();
-        self.pos.valid.next = self.valid.val();
-        self.pos.sop.next = self.sop.val();
+        self.pos.valid.next = self.word.valid.val();
+        self.pos.sop.next = self.word.sop.val();
         self.mask.clock.next = self.clock.val();
         self.mask.read_address.next = bit_cast::<AW, 32>(self.pos.idx.val());
         self.mask.write_address.next = self.load_address.val();
         self.mask.write_data.next = self.load_data.val();
         self.mask.write_enable.next = self.load.val();
-        self.v1.d.next = self.valid.val();
-        if self.valid.val() {
-            self.s1.d.next = self.sop.val();
-            self.f1.d.next = self.flush.val();
-            self.d1.d.next = self.drain.val();
+        self.v1.d.next = self.word.valid.val();
+        if self.word.valid.val() {
+            self.s1.d.next = self.word.sop.val();
+            self.f1.d.next = self.word.flush.val();
+            self.d1.d.next = self.word.drain.val();
             self.en1.d.next = self.enable.val();
-            self.live1.d.next = self.live.val();
+            self.live1.d.next = self.word.live.val();
         }
-        self.out_valid.next = self.v1.q.val();
-        self.out_sop.next = self.s1.q.val();
-        self.out_flush.next = self.f1.q.val();
-        self.out_drain.next = self.d1.q.val();
+        self.out.valid.next = self.v1.q.val();
+        self.out.sop.next = self.s1.q.val();
+        self.out.flush.next = self.f1.q.val();
+        self.out.drain.next = self.d1.q.val();
         self.out_mask.next = 0.into();
         if self.en1.q.val() {
             self.out_mask.next = self.mask.read_data.val();
         }
-        self.out_live.next = self.live1.q.val() & !self.out_mask.val();
+        self.out.live.next = self.live1.q.val() & !self.out_mask.val();
     }
 }

@@ -124,12 +124,24 @@ pub const UNUSED_SIGNALS: &[(&str, &str)] = &[
         "levels of a selection tree of which the root is read",
     ),
     (
-        "delay$out_drain",
-        "delay-line outputs the test front half does not read",
+        "word$drain",
+        "a field of the delay line's word that the front half does not read (the back half's)",
     ),
     (
-        "delay$out_side",
-        "delay-line outputs the test front half does not read",
+        "word$side",
+        "a field of the delay line's word that the front half does not read (the back half's)",
+    ),
+    (
+        "raw$y",
+        "a field of the delay line's word that the back half does not read (the front half's)",
+    ),
+    (
+        "raw$idx",
+        "a field of the delay line's word that the back half does not read (the front half's)",
+    ),
+    (
+        "raw$live",
+        "a field of the delay line's word that the back half does not read (the front half's)",
     ),
     // Unused bits of wide temporaries and inputs.
     ("rshift", "shift temporaries wider than the value kept"),

@@ -257,20 +257,22 @@ impl<
         self.mask.load.next = self.load.val() & self.mask_loadable.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
-        self.mask.valid.next = self.control.w_valid.val();
-        self.mask.sop.next = self.control.w_sop.val();
-        self.mask.flush.next = self.control.w_flush.val();
-        self.mask.drain.next = self.control.w_drain.val();
+        // (Siblings field by field: a join is a process per field in the
+        // Verilog, [`crate::bundles`].)
+        self.mask.word.valid.next = self.control.word.valid.val();
+        self.mask.word.sop.next = self.control.word.sop.val();
+        self.mask.word.flush.next = self.control.word.flush.val();
+        self.mask.word.drain.next = self.control.word.drain.val();
+        self.mask.word.live.next = self.control.word.live.val();
         self.mask.enable.next = self.control.mask_enable.val();
-        self.mask.live.next = self.control.w_live.val();
         // Stage 1a: delay line.
         self.delay.restart.next = self.control.restart.val();
         self.delay.n_window.next = self.control.settings.n_window.val();
-        self.delay.valid.next = self.mask.out_valid.val();
-        self.delay.sop.next = self.mask.out_sop.val();
-        self.delay.flush.next = self.mask.out_flush.val();
-        self.delay.drain.next = self.mask.out_drain.val();
-        self.delay.live.next = self.mask.out_live.val();
+        self.delay.word.valid.next = self.mask.out.valid.val();
+        self.delay.word.sop.next = self.mask.out.sop.val();
+        self.delay.word.flush.next = self.mask.out.flush.val();
+        self.delay.word.drain.next = self.mask.out.drain.val();
+        self.delay.word.live.next = self.mask.out.live.val();
         self.delay.side.next = self.mask.out_mask.val();
         $(McbPort::link(&mut self.mcb, &mut self.delay.$mcb_link);)?
         $(self.mem_ready.next = self.mcb.$ready_from.val();)?
@@ -278,17 +280,18 @@ impl<
         self.front.restart.next = self.control.restart.val();
         self.front.threshold.next = self.control.threshold_hw.val();
         self.front.threshold_hold.next = self.control.threshold_hold_hw.val();
-        self.front.valid.next = self.delay.out_valid.val();
-        self.front.flush.next = self.delay.out_flush.val();
-        self.front.x.next = self.delay.out_x.val();
-        self.front.y.next = self.delay.out_y.val();
-        self.front.idx.next = self.delay.out_idx.val();
-        self.front.live.next = self.delay.out_live.val();
-        self.front.delayed.next = self.delay.out_delayed.val();
+        self.front.word.valid.next = self.delay.out.valid.val();
+        self.front.word.flush.next = self.delay.out.flush.val();
+        self.front.word.drain.next = self.delay.out.drain.val();
+        self.front.word.x.next = self.delay.out.x.val();
+        self.front.word.y.next = self.delay.out.y.val();
+        self.front.word.idx.next = self.delay.out.idx.val();
+        self.front.word.live.next = self.delay.out.live.val();
+        self.front.word.delayed.next = self.delay.out.delayed.val();
+        self.front.word.side.next = self.delay.out.side.val();
         // Stages 5-7.
         self.back.restart.next = self.control.restart.val();
         self.back.emit_start.next = self.control.starting.val();
-        // (Field by field: a join is a process per field in the Verilog.)
         self.back.settings.n_window.next = self.control.settings.n_window.val();
         self.back.settings.threshold.next = self.control.settings.threshold.val();
         self.back.settings.threshold_hold.next = self.control.settings.threshold_hold.val();
@@ -299,19 +302,21 @@ impl<
         self.back.settings.masked_pixels.next = self.control.settings.masked_pixels.val();
         self.back.stopping.next = self.control.stopping.val();
         self.back.planes_total.next = self.control.planes_total.val();
-        self.back.fh_valid.next = self.front.out_valid.val();
-        self.back.fh_flush.next = self.front.out_flush.val();
-        self.back.fh_x.next = self.front.out_x.val();
-        self.back.fh_y.next = self.front.out_y.val();
-        for i in 0..P {
-            self.back.fh_above[i].next = self.front.above[i].val();
-            self.back.fh_cand[i].next = self.front.candidate[i].val();
-        }
-        self.back.raw_valid.next =
-            self.delay.out_valid.val() & (!self.delay.out_flush.val() | self.delay.out_drain.val());
-        self.back.raw_x.next = self.delay.out_x.val();
-        self.back.raw_delayed.next = self.delay.out_delayed.val();
-        self.back.raw_mask.next = self.delay.out_side.val();
+        self.back.fh.valid.next = self.front.out.valid.val();
+        self.back.fh.flush.next = self.front.out.flush.val();
+        self.back.fh.x.next = self.front.out.x.val();
+        self.back.fh.y.next = self.front.out.y.val();
+        self.back.fh.above.next = self.front.out.above.val();
+        self.back.fh.candidate.next = self.front.out.candidate.val();
+        self.back.raw.valid.next = self.delay.out.valid.val();
+        self.back.raw.flush.next = self.delay.out.flush.val();
+        self.back.raw.drain.next = self.delay.out.drain.val();
+        self.back.raw.x.next = self.delay.out.x.val();
+        self.back.raw.y.next = self.delay.out.y.val();
+        self.back.raw.idx.next = self.delay.out.idx.val();
+        self.back.raw.live.next = self.delay.out.live.val();
+        self.back.raw.delayed.next = self.delay.out.delayed.val();
+        self.back.raw.side.next = self.delay.out.side.val();
         self.back.out_pop.next = self.out_pop.val();
         self.out_valid.next = self.back.out_valid.val();
         self.out_data.next = self.back.out_data.val();

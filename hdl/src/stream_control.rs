@@ -6,7 +6,7 @@
 //! twin is `model/src/pipeline.rs` (`Pipeline::finish`), with the register
 //! check of `model/src/config.rs` (`PipelineConfig::validate`).
 
-use crate::bundles::{RuntimeRegisters, StreamSettingsOut};
+use crate::bundles::{PlaneWordOut, RuntimeRegisters, StreamSettingsOut};
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use rust_hdl::prelude::*;
 
@@ -67,16 +67,9 @@ pub struct StreamControl<const P: usize, const NW: usize, const HW: usize> {
     pub threshold_hold_hw: Signal<Out, Bits<HW>>,
     /// Latched MASK_ENABLE.
     pub mask_enable: Signal<Out, Bit>,
-    /// A word into the pipeline.
-    pub w_valid: Signal<Out, Bit>,
-    /// First word of a plane.
-    pub w_sop: Signal<Out, Bit>,
-    /// Word of the flush plane.
-    pub w_flush: Signal<Out, Bit>,
-    /// Word of a drain plane.
-    pub w_drain: Signal<Out, Bit>,
-    /// Its pixels.
-    pub w_live: Signal<Out, Bits<P>>,
+    /// The word into the pipeline: a source word, or a word of a drain or
+    /// the flush plane.
+    pub word: PlaneWordOut<P>,
     /// No real plane after `planes_total`.
     pub stopping: Signal<Out, Bit>,
     /// Real planes of the stream.
@@ -168,11 +161,7 @@ impl<const P: usize, const NW: usize, const HW: usize> StreamControl<P, NW, HW> 
             threshold_hw: Default::default(),
             threshold_hold_hw: Default::default(),
             mask_enable: Default::default(),
-            w_valid: Default::default(),
-            w_sop: Default::default(),
-            w_flush: Default::default(),
-            w_drain: Default::default(),
-            w_live: Default::default(),
+            word: Default::default(),
             stopping: Default::default(),
             planes_total: Default::default(),
             running: Default::default(),
@@ -240,11 +229,11 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
         self.rst.d.next = false;
         self.starting.next = self.state.q.val() == ControlState::Restart;
         self.idle.next = self.state.q.val() == ControlState::Idle;
-        self.w_valid.next = false;
-        self.w_sop.next = self.w_zero.q.val();
-        self.w_flush.next = false;
-        self.w_drain.next = false;
-        self.w_live.next = 0.into();
+        self.word.valid.next = false;
+        self.word.sop.next = self.w_zero.q.val();
+        self.word.flush.next = false;
+        self.word.drain.next = false;
+        self.word.live.next = 0.into();
         self.w_step.next = false;
 
         match self.state.q.val() {
@@ -309,8 +298,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                     if self.in_sop.val() & !self.w_zero.q.val() {
                         self.frm_err.d.next = true;
                     }
-                    self.w_valid.next = true;
-                    self.w_live.next = self.in_live.val();
+                    self.word.valid.next = true;
+                    self.word.live.next = self.in_live.val();
                     self.w_step.next = true;
                     if self.plane_end.val() {
                         self.planes_in.d.next = self.planes_in.q.val() + 1;
@@ -318,8 +307,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 }
             }
             ControlState::Drain => {
-                self.w_valid.next = true;
-                self.w_drain.next = true;
+                self.word.valid.next = true;
+                self.word.drain.next = true;
                 self.w_step.next = true;
                 if self.plane_end.val() {
                     self.drains.d.next = self.drains.q.val() + 1;
@@ -329,8 +318,8 @@ impl<const P: usize, const NW: usize, const HW: usize> Logic for StreamControl<P
                 }
             }
             ControlState::Flush => {
-                self.w_valid.next = true;
-                self.w_flush.next = true;
+                self.word.valid.next = true;
+                self.word.flush.next = true;
                 self.w_step.next = true;
                 if self.plane_end.val() {
                     self.state.d.next = ControlState::Ending;

@@ -30,7 +30,7 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
     let u = &mut bench.uut;
     u.restart.next = true;
     u.n_window.next = (n as u64).to_bits();
-    u.valid.next = false;
+    u.word.valid.next = false;
     bench.tick();
     bench.uut.restart.next = false;
 
@@ -46,14 +46,14 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
     while got_live.len() < planes * wpp || got_drain.len() < n_drain * wpp {
         let u = &mut bench.uut;
         let offer = sent < total && stalls.offer();
-        u.valid.next = offer;
+        u.word.valid.next = offer;
         if offer {
             let (t, idx) = (sent / wpp, sent % wpp);
-            u.sop.next = idx == 0;
-            u.drain.next = t >= planes && t < planes + n_drain;
-            u.flush.next = t == planes + n_drain;
+            u.word.sop.next = idx == 0;
+            u.word.drain.next = t >= planes && t < planes + n_drain;
+            u.word.flush.next = t == planes + n_drain;
             u.side.next = ((sent as u64 * 7) & 15).to_bits();
-            u.live.next = if t < planes {
+            u.word.live.next = if t < planes {
                 stream[t].stream_word(P, idx).to_bits()
             } else {
                 0.into()
@@ -61,22 +61,22 @@ fn run_stream(bench: &mut Bench<Dut>, n: u32, seed: u64, planes: usize) {
             sent += 1;
         }
         smartagg_hdl::testbench::bench::settle(u);
-        if u.out_valid.val() && u.out_drain.val() {
-            assert!(u.out_flush.val(), "drain words are flush downstream");
-            got_drain.push(u.out_delayed.val().to_u64());
+        if u.out.valid.val() && u.out.drain.val() {
+            assert!(u.out.flush.val(), "drain words are flush downstream");
+            got_drain.push(u.out.delayed.val().to_u64());
         }
-        if u.out_valid.val() && !u.out_flush.val() {
+        if u.out.valid.val() && !u.out.flush.val() {
             assert_eq!(
-                u.out_side.val().to_u64(),
+                u.out.side.val().to_u64(),
                 ((got_live.len() as u64 * 7) & 15),
                 "side bits ride along"
             );
-            got_live.push(u.out_live.val().to_u64());
-            got_delayed.push(u.out_delayed.val().to_u64());
+            got_live.push(u.out.live.val().to_u64());
+            got_delayed.push(u.out.delayed.val().to_u64());
             positions.push((
-                u.out_x.val().to_u64(),
-                u.out_y.val().to_u64(),
-                u.out_idx.val().to_u64(),
+                u.out.x.val().to_u64(),
+                u.out.y.val().to_u64(),
+                u.out.idx.val().to_u64(),
             ));
         }
         bench.tick();

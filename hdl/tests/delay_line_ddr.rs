@@ -71,7 +71,7 @@ fn run_stream(
     let wpp = w * h / P;
     rig.dl.uut.restart.next = true;
     rig.dl.uut.n_window.next = (n as u64).to_bits();
-    rig.dl.uut.valid.next = false;
+    rig.dl.uut.word.valid.next = false;
     rig.settle();
     rig.tick();
     rig.dl.uut.restart.next = false;
@@ -87,13 +87,13 @@ fn run_stream(
     while got.len() < stored * wpp {
         let u = &mut rig.dl.uut;
         let offer = sent < total && stalls.offer();
-        u.valid.next = offer;
+        u.word.valid.next = offer;
         if offer {
             let (t, idx) = (sent / wpp, sent % wpp);
-            u.sop.next = idx == 0;
-            u.drain.next = t >= planes && t < stored;
-            u.flush.next = t == stored;
-            u.live.next = if t < planes {
+            u.word.sop.next = idx == 0;
+            u.word.drain.next = t >= planes && t < stored;
+            u.word.flush.next = t == stored;
+            u.word.live.next = if t < planes {
                 stream[t].stream_word(P, idx).to_bits()
             } else {
                 0.into()
@@ -102,8 +102,8 @@ fn run_stream(
         }
         rig.settle();
         let u = &rig.dl.uut;
-        if u.out_valid.val() && (!u.out_flush.val() || u.out_drain.val()) {
-            got.push(u.out_delayed.val().to_u64());
+        if u.out.valid.val() && (!u.out.flush.val() || u.out.drain.val()) {
+            got.push(u.out.delayed.val().to_u64());
         }
         rig.tick();
         cycles += 1;

@@ -89,10 +89,10 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
             sent += 1;
         }
         settle(u);
-        if u.out_valid.val() && !u.out_flush.val() {
+        if u.out.valid.val() && !u.out.flush.val() {
             let (x, y) = (
-                u.out_x.val().to_u64() as usize,
-                u.out_y.val().to_u64() as usize,
+                u.out.x.val().to_u64() as usize,
+                u.out.y.val().to_u64() as usize,
             );
             if x == 0 && y == 0 {
                 got_above.push(vec![false; w * h]);
@@ -100,8 +100,8 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
             }
             let a = got_above.last_mut().expect("first word is (0,0)");
             for i in 0..p {
-                a[y * w + x * p + i] = u.above[i].val();
-                if u.candidate[i].val() {
+                a[y * w + x * p + i] = u.out.above.val().get_bit(i);
+                if u.out.candidate.val().get_bit(i) {
                     let c = Candidate {
                         x: (x * p + i) as u16,
                         y: y as u16,

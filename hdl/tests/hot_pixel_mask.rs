@@ -45,19 +45,19 @@ fn hot_pixel_mask_equals_model() {
     while got.len() < planes.len() * wpp {
         let u = &mut bench.uut;
         let offer = sent < planes.len() * wpp && stalls.offer();
-        u.valid.next = offer;
+        u.word.valid.next = offer;
         if offer {
-            u.sop.next = sent % wpp == 0;
-            u.flush.next = false;
+            u.word.sop.next = sent % wpp == 0;
+            u.word.flush.next = false;
             // The MASK_ENABLE register: on for even planes, off for odd ones.
             u.enable.next = (sent / wpp).is_multiple_of(2);
-            u.live.next = planes[sent / wpp].stream_word(P, sent % wpp).to_bits();
+            u.word.live.next = planes[sent / wpp].stream_word(P, sent % wpp).to_bits();
             sent += 1;
         }
         settle(u);
-        if u.out_valid.val() {
-            assert_eq!(u.out_sop.val(), got.len() % wpp == 0);
-            got.push((u.out_live.val().to_u64(), u.out_mask.val().to_u64()));
+        if u.out.valid.val() {
+            assert_eq!(u.out.sop.val(), got.len() % wpp == 0);
+            got.push((u.out.live.val().to_u64(), u.out_mask.val().to_u64()));
         }
         bench.tick();
         assert!(bench.cycles < 10_000);

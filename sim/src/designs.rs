@@ -353,23 +353,25 @@ impl DesignSpec {
                 .collect();
             format!("{{{}}}", parts.join(", "))
         };
-        for (tag, inst) in [
-            ("d", "delay"),
-            ("c", "front.count"),
-            ("f", "front.filter"),
-            ("k", "front"),
+        // The delay line's and the front half's words are bundles
+        // (`out$field`); the front half's inner stages have `out_field`.
+        for (tag, port) in [
+            ("d", "delay.out$"),
+            ("c", "front.count.out_"),
+            ("f", "front.filter.out_"),
+            ("k", "front.out$"),
         ] {
-            v.push((format!("{tag}_valid"), 1, format!("{pp}{inst}.out_valid")));
-            v.push((format!("{tag}_flush"), 1, format!("{pp}{inst}.out_flush")));
-            v.push((format!("{tag}_x"), 16, format!("{pp}{inst}.out_x")));
-            v.push((format!("{tag}_y"), 16, format!("{pp}{inst}.out_y")));
+            v.push((format!("{tag}_valid"), 1, format!("{pp}{port}valid")));
+            v.push((format!("{tag}_flush"), 1, format!("{pp}{port}flush")));
+            v.push((format!("{tag}_x"), 16, format!("{pp}{port}x")));
+            v.push((format!("{tag}_y"), 16, format!("{pp}{port}y")));
         }
-        v.push(("d_live".into(), P, format!("{pp}delay.out_live")));
-        v.push(("d_delayed".into(), P, format!("{pp}delay.out_delayed")));
+        v.push(("d_live".into(), P, format!("{pp}delay.out$live")));
+        v.push(("d_delayed".into(), P, format!("{pp}delay.out$delayed")));
         v.push(("c_counts".into(), P * cw, lanes("front.count", "counts")));
         v.push(("f_h".into(), P * hw, lanes("front.filter", "filtered")));
-        v.push(("k_above".into(), P, lanes("front", "above")));
-        v.push(("k_cand".into(), P, lanes("front", "candidate")));
+        v.push(("k_above".into(), P, format!("{pp}front.out$above")));
+        v.push(("k_cand".into(), P, format!("{pp}front.out$candidate")));
         Ok(v)
     }
 
