@@ -3,7 +3,7 @@
 
 use crate::error::StudyError;
 use crate::item::ItemResult;
-use crate::sim::Setup;
+use crate::recording::Setup;
 use crate::spec::{LMin, Method, Plan, StudyName, FIXED_FRAME_PLANES, MERGE_RADIUS_NM, ROI_SIDE};
 use crate::stats::{summarise, Estimate, Summary};
 use plotters::prelude::*;

@@ -2,7 +2,7 @@
 
 use crate::error::StudyError;
 use crate::item::{run_item, ItemResult};
-use crate::sim::Setup;
+use crate::recording::Setup;
 use crate::spec::{Plan, Shard};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -4,8 +4,8 @@
 use smartagg_model::params::PresetName;
 use smartagg_model::record::flags;
 use smartagg_model::sensor_maps::SensorMaps;
+use smartagg_study::recording::{record_spad, Setup};
 use smartagg_study::sensor::{CalibratedSensor, SensorCalibration};
-use smartagg_study::sim::{record_spad, Setup};
 use smartagg_study::spec::{LMin, StudyOptions};
 use smartagg_study::timeline::{place, Timeline};
 use smartagg_study::{Plan, StudyName};

@@ -15,7 +15,7 @@ use smartagg_study::experiment::nanoruler::{
     self, density_filter, gaussian_mixture, kmeans3, principal_axis, NanorulerOptions,
 };
 use smartagg_study::experiment::{detection, emccd_frames, run, Experiment, ExperimentOptions};
-use smartagg_study::sim::record_planes;
+use smartagg_study::recording::record_planes;
 
 #[test]
 fn nanoruler_distances_and_spreads() {

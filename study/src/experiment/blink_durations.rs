@@ -39,7 +39,7 @@
 use super::common::*;
 use crate::error::StudyError;
 use crate::matching::{outcome, Loc, Truth};
-use crate::sim::{record_planes, Setup};
+use crate::recording::{record_planes, Setup};
 use crate::timeline::{derive_seed, key_hash};
 use plotters::prelude::*;
 use rand::{Rng, SeedableRng};

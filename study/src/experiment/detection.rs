@@ -31,7 +31,7 @@
 use super::common::*;
 use crate::error::StudyError;
 use crate::matching::{outcome, Loc, Truth};
-use crate::sim::{field_design_config, Setup};
+use crate::recording::{field_design_config, Setup};
 use crate::stats::{resample_indices, rms_estimate, Estimate};
 use crate::timeline::{derive_seed, key_hash};
 use plotters::prelude::*;

@@ -13,7 +13,7 @@
 use super::common::*;
 use crate::error::StudyError;
 use crate::matching::{outcome, BlinkOutcome, Loc, Truth};
-use crate::sim::Setup;
+use crate::recording::Setup;
 use crate::stats::{resample_indices, rms_estimate, Estimate};
 use crate::timeline::{derive_seed, key_hash, place, Timeline};
 use plotters::prelude::*;
