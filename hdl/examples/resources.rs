@@ -38,15 +38,14 @@ use smartagg_hdl::blink_tracker::BlinkTracker;
 use smartagg_hdl::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use smartagg_hdl::delay_line::DelayLine;
 use smartagg_hdl::delay_line_ddr::DelayLineDdr;
-use smartagg_hdl::designs::Spcimager150Xem;
 use smartagg_hdl::designs::{text_hash, Design};
+use smartagg_hdl::designs::{Projected150Pipeline, Spcimager150Xem, TestPipeline};
 use smartagg_hdl::device::DEVICES;
 use smartagg_hdl::front_half::{test_config, verilog, Spcimager150FrontHalf, TestFrontHalf};
 use smartagg_hdl::hot_pixel_mask::HotPixelMask;
 use smartagg_hdl::packetiser::Packetiser;
 use smartagg_hdl::pipeline::{
-    projected150_back_config, spcimager150_back_config, test_back_config, Projected150Pipeline,
-    TestPipeline,
+    projected150_back_config, spcimager150_back_config, test_back_config,
 };
 use smartagg_hdl::roi_aggregator::RoiAggregator;
 use smartagg_hdl::spatial_filter::SpatialFilter;

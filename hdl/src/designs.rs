@@ -33,6 +33,7 @@
 use crate::config::{BackHalfConfig, GatewareConfig, GatewareError};
 use crate::device::{device_for, Device};
 use crate::front_half::verilog;
+use crate::pipeline::{Pipeline, PipelineDdr};
 use crate::xem6310::{Xem6310Top, Xem6310TopOnChip};
 use crate::xem6310_core::{XemCore, XemCoreOnChip};
 use smartagg_model::field_design;
@@ -287,20 +288,32 @@ pub fn on_generation_stack<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     })
 }
 
-/// Declares a design's XEM6310 top and its core (the top without the
+/// Declares a design's XEM6310 top, its core (the top without the
 /// FrontPanel host interface and the DDR2 pins: what the co-simulation
-/// drives) from one parameter list, so the two cannot differ. Parameters:
-/// those of [`crate::pipeline::PipelineDdr`] (DDR2 designs: P, PAW, CW, CAW,
-/// VW, HW, LAW, RAW, RCW, CAW2, BW, QAW, QW, PW, TW, TAW, OAW) or of
-/// [`crate::pipeline::Pipeline`] (block-RAM designs: DAW in place of PAW).
+/// drives) and its pipeline (the core without the endpoints) from one
+/// parameter list, so the three cannot differ. Parameters: those of
+/// [`PipelineDdr`] (DDR2 designs: P, PAW, CW, CAW, VW, HW, LAW, RAW, RCW,
+/// CAW2, BW, QAW, QW, PW, TW, TAW, OAW) or of [`Pipeline`] (block-RAM
+/// designs: DAW in place of PAW). Each type's `new` checks them against
+/// the configuration.
 macro_rules! design_types {
-    ($(#[$doc:meta])* $top:ident = $Top:ident, $core:ident = $Core:ident, [$($p:literal),*]) => {
+    (
+        $(#[$doc:meta])*
+        $top:ident = $Top:ident,
+        $core:ident = $Core:ident,
+        $pipe:ident = $Pipe:ident,
+        [$($p:literal),*]
+    ) => {
         $(#[$doc])*
         pub type $top = $Top<$($p),*>;
         $(#[$doc])*
         ///
         /// The core: the top's logic without the host interface and the DDR2 pins.
         pub type $core = $Core<$($p),*>;
+        $(#[$doc])*
+        ///
+        /// The pipeline: the core's stream logic without its endpoints.
+        pub type $pipe = $Pipe<$($p),*>;
     };
 }
 
@@ -308,6 +321,7 @@ design_types!(
     /// The XEM6310 top of the SPCImager at 150× (k = 9, N_max = 128, DDR2).
     Spcimager150Xem = Xem6310Top,
     Spcimager150Core = XemCore,
+    Spcimager150Pipeline = PipelineDdr,
     [16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12]
 );
 
@@ -315,6 +329,7 @@ design_types!(
     /// The XEM6310 top of the SPCImager at 60× (k = 5, N_max = 128, DDR2).
     Spcimager60Xem = Xem6310Top,
     Spcimager60Core = XemCore,
+    Spcimager60Pipeline = PipelineDdr,
     [16, 9, 8, 13, 16, 24, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12]
 );
 
@@ -323,6 +338,7 @@ design_types!(
     /// 24, block RAM; for the XEM6310-LX150).
     Projected150Xem = Xem6310TopOnChip,
     Projected150Core = XemCoreOnChip,
+    Projected150Pipeline = Pipeline,
     [16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12]
 );
 
@@ -331,7 +347,27 @@ design_types!(
     /// 24, block RAM; for the XEM6310-LX150).
     Projected60Xem = Xem6310TopOnChip,
     Projected60Core = XemCoreOnChip,
+    Projected60Pipeline = Pipeline,
     [16, 17, 5, 13, 13, 21, 5, 8, 17, 9, 7, 6, 233, 488, 53, 9, 12]
+);
+
+design_types!(
+    /// The small test configuration's design with the DDR2 delay line
+    /// ([`crate::pipeline::test_back_config`]`(4, 3, 1)`, a prefetch of 64
+    /// words): for the tests and the lint.
+    TestXem = Xem6310Top,
+    TestXemCore = XemCore,
+    TestPipelineDdr = PipelineDdr,
+    [4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11]
+);
+
+design_types!(
+    /// The small test configuration's design with the block-RAM delay line
+    /// ([`crate::pipeline::test_back_config`]`(4, 3, 1)`).
+    TestXemOnChip = Xem6310TopOnChip,
+    TestXemCoreOnChip = XemCoreOnChip,
+    TestPipeline = Pipeline,
+    [4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11]
 );
 
 /// The core clock: FrontPanel's host-interface clock `okClk`, Hz.

@@ -418,12 +418,6 @@ pub fn test_back_config(
     Ok(b)
 }
 
-/// [`Pipeline`] of [`test_back_config`]`(4, 3, 1)`.
-pub type TestPipeline = Pipeline<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
-
-/// [`PipelineDdr`] of [`test_back_config`]`(4, 3, 1)`, prefetch of 64 words.
-pub type TestPipelineDdr = PipelineDdr<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
-
 /// The SPCImager at 150× (320×240, P = 16, N_max = 128, the model's kernel
 /// for σ = 1.51 px) with the model's defaults M = 32, 9×9 ROIs (R = k),
 /// r_assoc = 1 and L_max up to 65,535 planes (6.5 s).
@@ -461,11 +455,3 @@ fn back_config_for(front: GatewareConfig, n: u32) -> Result<BackHalfConfig, Gate
     cfg.r_assoc = 1;
     BackHalfConfig::new(&cfg, front, 65_535)
 }
-
-/// [`Pipeline`] of [`projected150_back_config`] (block-RAM delay line).
-pub type Projected150Pipeline =
-    Pipeline<16, 17, 5, 13, 13, 21, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;
-
-/// [`PipelineDdr`] of [`spcimager150_back_config`].
-pub type Spcimager150PipelineDdr =
-    PipelineDdr<16, 9, 8, 13, 16, 24, 5, 8, 17, 10, 7, 6, 233, 552, 53, 9, 12>;

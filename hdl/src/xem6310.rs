@@ -465,6 +465,3 @@ xem_top!(
     XemCoreOnChip,
     ParkedDdr2
 );
-
-/// A small XEM6310 top ([`crate::pipeline::test_back_config`]) for lint.
-pub type TestXem = Xem6310Top<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;

@@ -447,15 +447,6 @@ xem_core!(
     Pipeline
 );
 
-/// [`XemCore`] of [`crate::pipeline::test_back_config`]`(4, 3, 1)` (the
-/// parameters of [`crate::pipeline::TestPipelineDdr`]).
-pub type TestXemCore = XemCore<4, 6, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
-
-/// [`XemCoreOnChip`] of the same configuration (the parameters of
-/// [`crate::pipeline::TestPipeline`]).
-pub type TestXemCoreOnChip =
-    XemCoreOnChip<4, 8, 3, 5, 7, 11, 2, 6, 7, 6, 5, 4, 231, 488, 29, 5, 11>;
-
 // The core's wire-in indices are literals (an `#[hdl_gen]` body indexes
 // with them): they are the register map's addresses.
 const _: () = assert!(

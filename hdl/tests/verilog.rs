@@ -7,6 +7,7 @@
 
 use smartagg_hdl::designs::on_generation_stack;
 use smartagg_hdl::designs::Spcimager150Xem;
+use smartagg_hdl::designs::TestXem;
 use smartagg_hdl::front_half::{
     spcimager150_config, test_front_half_verilog, verilog, Spcimager150FrontHalf,
 };
@@ -15,7 +16,6 @@ use smartagg_hdl::pipeline::{spcimager150_back_config, test_back_config};
 use smartagg_hdl::synth::{
     verilator_lint, yosys_resources, yosys_script, LUT_LEVELS_TARGET, MAPPINGS,
 };
-use smartagg_hdl::xem6310::TestXem;
 
 fn scratch(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("smartagg-hdl-{name}-{}", std::process::id()))

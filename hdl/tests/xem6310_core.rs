@@ -11,11 +11,11 @@ mod common;
 
 use rust_hdl::prelude::*;
 use smartagg_hdl::designs::on_generation_stack;
+use smartagg_hdl::designs::{TestXemCore, TestXemCoreOnChip};
 use smartagg_hdl::pipeline::test_back_config;
 use smartagg_hdl::registers::{self, control, status, wire_in, wire_out};
 use smartagg_hdl::testbench::bench::{settle, Bench};
 use smartagg_hdl::testbench::mcb_model::{mcb_to_port, port_to_mcb, McbModel};
-use smartagg_hdl::xem6310_core::{TestXemCore, TestXemCoreOnChip};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::packetiser::encode_stream;
