@@ -6,7 +6,7 @@
 //! puts the block-RAM [`DelayLine`] in front of it (configurations whose N_max
 //! planes fit block RAM). Type aliases name the generated configurations.
 
-use crate::bundles::{CandidateWordOut, DelayedWord};
+use crate::bundles::{CandidateWordOut, DelayedWord, PlaneWord};
 use crate::candidates::Candidates;
 use crate::config::{GatewareConfig, GatewareError};
 use crate::delay_line::DelayLine;
@@ -152,14 +152,8 @@ pub struct FrontHalfBram<
     pub threshold: Signal<In, Bits<HW>>,
     /// T_hold register (the level of the `above` bits, ≤ T_int).
     pub threshold_hold: Signal<In, Bits<HW>>,
-    /// Input word present.
-    pub valid: Signal<In, Bit>,
-    /// First word of a plane.
-    pub sop: Signal<In, Bit>,
-    /// Word of a flush plane.
-    pub flush: Signal<In, Bit>,
-    /// `B_t`, pixel i of the word in bit i.
-    pub live: Signal<In, Bits<P>>,
+    /// The raw bit-plane word (`drain`: a word of a drain plane).
+    pub word: PlaneWord<P>,
     /// The word's above-hold bits and candidates.
     pub out: CandidateWordOut<P>,
     mask: HotPixelMask<P, CAW>,
@@ -188,10 +182,7 @@ impl<
             load_data: Default::default(),
             threshold: Default::default(),
             threshold_hold: Default::default(),
-            valid: Default::default(),
-            sop: Default::default(),
-            flush: Default::default(),
-            live: Default::default(),
+            word: Default::default(),
             out: Default::default(),
             mask: HotPixelMask::new(cfg)?,
             delay: DelayLine::new(cfg)?,
@@ -216,12 +207,8 @@ impl<
         self.mask.load.next = self.load.val();
         self.mask.load_address.next = self.load_address.val();
         self.mask.load_data.next = self.load_data.val();
-        self.mask.word.valid.next = self.valid.val();
-        self.mask.word.sop.next = self.sop.val();
-        self.mask.word.flush.next = self.flush.val();
-        self.mask.word.drain.next = false;
+        PlaneWord::<P>::link(&mut self.word, &mut self.mask.word);
         self.mask.enable.next = true;
-        self.mask.word.live.next = self.live.val();
         self.delay.restart.next = self.restart.val();
         self.front.restart.next = self.restart.val();
         self.delay.n_window.next = self.n_window.val();

@@ -76,12 +76,12 @@ fn run(seed: u64, n: usize, stall_percent: u64, planes: usize) -> usize {
     while idle < 60 {
         let u = &mut bench.uut;
         let offer = sent < total && stalls.offer();
-        u.valid.next = offer;
+        u.word.valid.next = offer;
         if offer {
             let (t, idx) = (sent / wpp, sent % wpp);
-            u.sop.next = idx == 0;
-            u.flush.next = t == planes;
-            u.live.next = if t < planes {
+            u.word.sop.next = idx == 0;
+            u.word.flush.next = t == planes;
+            u.word.live.next = if t < planes {
                 raw[t].stream_word(p, idx).to_bits()
             } else {
                 0.into()
