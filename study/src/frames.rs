@@ -5,7 +5,7 @@
 //! fits) and its merging of consecutive frames (`smartagg_localize::merge`).
 //!
 //! What the study adds: frames arrive already in photo-electrons (the
-//! camera simulators' calibration is applied in [`crate::recording`]), every fit
+//! camera simulators' calibration is applied in [`crate::acquisition`]), every fit
 //! is a 9×9 Poisson MLE (EMCCD: F² = 2 in the bound; sCMOS: per-pixel read
 //! variance), and known hot pixels are replaced by the mean of their valid
 //! 4-neighbours *before* detection — a 10 kHz hot pixel is a bright

@@ -2,10 +2,10 @@
 //! the plan simulated on it (the same blinks), every scheme localised and
 //! matched to the truth.
 
+use crate::acquisition::{record_frames, record_planes, record_spad, Setup};
 use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
 use crate::matching::{outcome, BlinkOutcome, Loc, SchemeOutcome, Truth};
-use crate::recording::{record_frames, record_planes, record_spad, Setup};
 use crate::spec::{Axis, Estimator, Method, Plan, MERGE_RADIUS_NM};
 use crate::timeline::{derive_seed, key_hash, place, BlinkNm, Timeline, FRAME_S};
 use smartagg_localize::merge::merge_consecutive;

@@ -31,7 +31,7 @@
 //! its blinks from a seed derived from (seed, point, block) ([`timeline`]):
 //! one molecule at a time, every blink of the point's duration, at a random
 //! relative position. Every configuration (camera, objective) of the study
-//! simulates **the same blinks** as one continuous recording ([`recording`]):
+//! simulates **the same blinks** as one continuous recording ([`acquisition`]):
 //! SPAD bit-planes go through the model's pipeline (the field design; fast
 //! engine, byte-identical to the golden one) and then through the packetiser and
 //! the packet decoder; fixed frames are sums of 500 of the same bit-planes;
@@ -57,14 +57,14 @@
 //!
 //! * **Smart aggregation is the field design** (`model::field_design`), on
 //!   each configuration's study field, as `smartagg aggregate` defaults to
-//!   ([`recording::field_design_config`]): an open threshold T_open that keeps
+//!   ([`acquisition::field_design_config`]): an open threshold T_open that keeps
 //!   background within 1 false blink/s over the field, the paper's Eq. 7
 //!   threshold as the hold level, r_assoc = round(2σ), L_min = 1, and each
 //!   blink summed to its estimated end (`end_trim = ⌊N/2⌋`). The paper's
 //!   literal scheme (one threshold, L_min 1, r_assoc 1, end_trim 0; measured:
 //!   ~500 false blinks/s through a 32x32 field, and those near the molecule
 //!   add poor localisations, [`notes`]) is a curve of `smart-vs-fixed`
-//!   ([`recording::paper_config`]). `--l-min` and `--r-assoc` override the field
+//!   ([`acquisition::paper_config`]). `--l-min` and `--r-assoc` override the field
 //!   design's L_min and r_assoc, never the paper's scheme. The `detection`
 //!   study's part A measures the paper's Eq. 5/7 threshold itself.
 //! * Frames are localised with ThunderSTORM's defaults (wavelet filter,
@@ -79,13 +79,13 @@
 
 #![warn(missing_docs)]
 
+pub mod acquisition;
 pub mod error;
 pub mod experiment;
 pub mod frames;
 pub mod item;
 pub mod matching;
 pub mod notes;
-pub mod recording;
 pub mod report;
 pub mod run;
 pub mod sensor;

@@ -1,9 +1,9 @@
 //! What a person reads: the CSV of every point, the ratios, the timing, a
 //! PNG plot and a Markdown summary with the paper's claims checked.
 
+use crate::acquisition::Setup;
 use crate::error::StudyError;
 use crate::item::ItemResult;
-use crate::recording::Setup;
 use crate::spec::{LMin, Method, Plan, StudyName, FIXED_FRAME_PLANES, MERGE_RADIUS_NM, ROI_SIDE};
 use crate::stats::{summarise, Estimate, Summary};
 use plotters::prelude::*;

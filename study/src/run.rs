@@ -1,8 +1,8 @@
 //! Running a study: the work items of a shard, in parallel on all cores.
 
+use crate::acquisition::Setup;
 use crate::error::StudyError;
 use crate::item::{run_item, ItemResult};
-use crate::recording::Setup;
 use crate::spec::{Plan, Shard};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};

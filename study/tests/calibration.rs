@@ -4,7 +4,7 @@
 use smartagg_model::params::PresetName;
 use smartagg_model::record::flags;
 use smartagg_model::sensor_maps::SensorMaps;
-use smartagg_study::recording::{record_spad, Setup};
+use smartagg_study::acquisition::{record_spad, Setup};
 use smartagg_study::sensor::{CalibratedSensor, SensorCalibration};
 use smartagg_study::spec::{LMin, StudyOptions};
 use smartagg_study::timeline::{place, Timeline};

@@ -9,13 +9,13 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::record::{flags, BlinkRecord};
+use smartagg_study::acquisition::record_planes;
 use smartagg_study::experiment::blink_durations::{self, join_segments};
 use smartagg_study::experiment::common::TLoc;
 use smartagg_study::experiment::nanoruler::{
     self, density_filter, gaussian_mixture, kmeans3, principal_axis, NanorulerOptions,
 };
 use smartagg_study::experiment::{detection, emccd_frames, run, Experiment, ExperimentOptions};
-use smartagg_study::recording::record_planes;
 
 #[test]
 fn nanoruler_distances_and_spreads() {

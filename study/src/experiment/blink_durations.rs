@@ -37,9 +37,9 @@
 //! planes; the measured remaining bias is reported.
 
 use super::common::*;
+use crate::acquisition::{record_planes, Setup};
 use crate::error::StudyError;
 use crate::matching::{outcome, Loc, Truth};
-use crate::recording::{record_planes, Setup};
 use crate::timeline::{derive_seed, key_hash};
 use plotters::prelude::*;
 use rand::{Rng, SeedableRng};

@@ -2,11 +2,11 @@
 //! SPAD recordings through the real pipeline and packet path, EMCCD frames,
 //! record and frame localisation, summary statistics and plotting helpers.
 
+use crate::acquisition::{field_design_config, record_planes, through_packets};
 use crate::error::StudyError;
 use crate::frames::{fit_options, FrameFitter, FrameMaps};
 use crate::item::{record_maps, roi_view};
 use crate::matching::Loc;
-use crate::recording::{field_design_config, record_planes, through_packets};
 use plotters::prelude::*;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -104,7 +104,7 @@ pub fn switching_blinks(
 
 /// The paper's statistics for the light of `preset` and the smart scheme
 /// on a `field × field` sensor: the field design, as `smartagg aggregate`
-/// defaults to ([`crate::recording::field_design_config`]), with its association
+/// defaults to ([`crate::acquisition::field_design_config`]), with its association
 /// radius unless `r_assoc` is given.
 pub fn smart_config(
     preset: &Preset,
@@ -221,7 +221,7 @@ pub fn run_emccd(
 /// Fits every record's ROI (Poisson MLE, σ fitted from the optics' σ) of a
 /// pipeline configured with `cfg`; failed fits are dropped and counted. A
 /// localisation spans the planes its record summed
-/// ([`crate::recording::record_planes`]).
+/// ([`crate::acquisition::record_planes`]).
 /// Returns (localisations, record index of each, failed fits).
 pub fn fit_records(
     records: &[BlinkRecord],

@@ -29,9 +29,9 @@
 //! time resolution N·τ.
 
 use super::common::*;
+use crate::acquisition::{field_design_config, Setup};
 use crate::error::StudyError;
 use crate::matching::{outcome, Loc, Truth};
-use crate::recording::{field_design_config, Setup};
 use crate::stats::{resample_indices, rms_estimate, Estimate};
 use crate::timeline::{derive_seed, key_hash};
 use plotters::prelude::*;

@@ -11,9 +11,9 @@
 //! from the first frame's start to the last frame's exposure end).
 
 use super::common::*;
+use crate::acquisition::Setup;
 use crate::error::StudyError;
 use crate::matching::{outcome, BlinkOutcome, Loc, Truth};
-use crate::recording::Setup;
 use crate::stats::{resample_indices, rms_estimate, Estimate};
 use crate::timeline::{derive_seed, key_hash, place, Timeline};
 use plotters::prelude::*;

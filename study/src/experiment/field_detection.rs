@@ -27,13 +27,13 @@
 //!
 //! Records are localised (Poisson MLE, σ fitted) and matched to the truth
 //! by the studies' rule (within 53.3 nm, the planes the record summed —
-//! `recording::record_planes` with its scheme's N and end_trim — overlapping the
+//! `acquisition::record_planes` with its scheme's N and end_trim — overlapping the
 //! blink's on-time).
 
 use super::common::*;
+use crate::acquisition::{field_design_config, paper_config, record_planes};
 use crate::error::StudyError;
 use crate::matching::{assign, outcome, Loc, Truth};
-use crate::recording::{field_design_config, paper_config, record_planes};
 use crate::spec::DEFAULT_MATCH_RADIUS_NM;
 use crate::timeline::{derive_seed, key_hash};
 use rand::{Rng, SeedableRng};
