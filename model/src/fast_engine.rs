@@ -33,8 +33,8 @@ mod block;
 mod parallel;
 
 pub use parallel::{
-    default_chunk, run_parallel, FrontResults, ParallelError, READER_THREAD, TRACKER_THREAD,
-    WORKER_THREAD,
+    default_chunk, run_parallel, FrontResults, ParallelError, SourcePlane, READER_THREAD,
+    TRACKER_THREAD, WORKER_THREAD,
 };
 
 use crate::candidates::Candidate;

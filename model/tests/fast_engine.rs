@@ -63,18 +63,30 @@ fn scene(
         .collect()
 }
 
+/// The parallel engine's records, the same whether the source gives its
+/// planes away (the reader copies them into chunks) or lends them (the
+/// workers copy them): this checks both and returns them.
 fn parallel(
     cfg: PipelineConfig,
     planes: Vec<BitPlane>,
     threads: usize,
     chunk: usize,
 ) -> Vec<Record> {
-    let mut out = Vec::new();
-    run_parallel::<(), _, _, _>(cfg, planes.into_iter().map(Ok), threads, chunk, |r| {
-        out.push(r)
+    let mut lent = Vec::new();
+    run_parallel::<(), _, _, _>(cfg.clone(), planes.iter().map(Ok), threads, chunk, |r| {
+        lent.push(r)
     })
     .unwrap();
-    out
+    let mut given = Vec::new();
+    run_parallel::<(), _, _, _>(cfg, planes.into_iter().map(Ok), threads, chunk, |r| {
+        given.push(r)
+    })
+    .unwrap();
+    assert_eq!(
+        lent, given,
+        "lent and given planes, {threads} threads, chunk {chunk}"
+    );
+    given
 }
 
 /// k = 9 kernel for σ ≈ 1.5 px summing to 2^8, and a paper-like threshold.
@@ -119,8 +131,8 @@ fn spcimager_like_field_matches_golden_single_and_parallel() {
     assert_eq!(fronts.replay_back_end().unwrap(), golden);
 }
 
-/// The parallel engine and the replay mask each plane once, in the reader
-/// (or `FrontResults::compute`), and hand the back end planes already
+/// The parallel engine and the replay mask each plane once, in the reader or
+/// the worker (or `FrontResults::compute`), and hand the back end planes already
 /// masked: the records stay the golden ones, and the back end's
 /// `push_shared_plane` really does not mask again.
 #[test]
@@ -311,6 +323,23 @@ fn a_plane_of_another_size_stops_the_parallel_run_with_its_number() {
             }
             other => panic!("{other:?}"),
         }
+        // Lent planes: the reader checks them too, before any worker copies one.
+        let planes: Vec<BitPlane> = (0..200)
+            .map(|t| BitPlane::zeros(8, if t == 61 { 9 } else { 8 }))
+            .collect();
+        let src = planes.iter().map(Ok::<_, ()>);
+        let e = run_parallel(cfg.clone(), src, threads, chunk, |_| {}).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                ParallelError::Pipeline(PipelineError::PlaneSize {
+                    plane: 61,
+                    got_h: 9,
+                    ..
+                })
+            ),
+            "{e:?}"
+        );
     }
 }
 

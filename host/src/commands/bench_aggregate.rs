@@ -50,8 +50,9 @@ pub struct Args {
     pub seed: u64,
     /// Instead: stream `--planes` planes through the fast engine (`--threads`
     /// workers) and print the resident memory at intervals. The planes are a
-    /// pool of simulated planes replayed cyclically, so the generator costs
-    /// only a copy per plane and holds a fixed amount of memory.
+    /// pool of simulated planes replayed cyclically and lent, so the
+    /// generator costs a copy per plane in the workers and holds a fixed
+    /// amount of memory.
     #[arg(long)]
     pub stream: bool,
     /// Planes simulated for the `--stream` pool, ≥ 1.
@@ -97,8 +98,9 @@ fn bytes_of(records: &[Record]) -> anyhow::Result<Vec<u8>> {
     Ok(smartagg_model::packetiser::encode_stream(records)?)
 }
 
-/// The chunked engine on `len` planes: `planes` over and over (lent, not
-/// copied: the reader copies each plane once, as from a decoder).
+/// The chunked engine on `len` planes: `planes` over and over, lent (the
+/// worker that takes a chunk copies its planes; a decoder's planes, given
+/// away, are copied by the reader: `smartagg_model::fast_engine::SourcePlane`).
 fn parallel(
     cfg: &PipelineConfig,
     planes: &[BitPlane],

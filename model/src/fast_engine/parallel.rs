@@ -62,14 +62,170 @@ impl FrontEnd for ReplayFrontEnd {
     }
 }
 
-/// A time chunk of the stream on its way to a worker: its planes and the
-/// (up to N) planes before it, oldest first, as ranges of earlier chunks
-/// (shared with the jobs that had them, not copied: at N ≈ 1,000 planes of
-/// 512×512 a copy would cost more than the filtering).
-struct Job {
+/// A bit-plane as a source gives it to [`run_parallel`]: a plane of its own
+/// (just decoded or simulated), which the reader copies into a chunk at
+/// once, so that its memory is freed in the thread that allocated it and
+/// used again for the next (freed in bursts by other threads, it faulted
+/// in again: a third more CPU on a SPAD512S recording); or a reference to
+/// a plane the caller keeps, which the reader only passes on and the
+/// worker that takes the chunk copies (a 512×512 plane is 32 KB: one
+/// thread copying every plane held a 16-core run to ~50,000 planes/s).
+pub trait SourcePlane: std::borrow::Borrow<BitPlane> + Send {
+    /// Whether the reader copies the plane (else the worker does).
+    const COPIED_BY_READER: bool;
+}
+
+impl SourcePlane for BitPlane {
+    const COPIED_BY_READER: bool = true;
+}
+
+impl SourcePlane for &BitPlane {
+    const COPIED_BY_READER: bool = false;
+}
+
+/// A chunk's planes as the reader hands them on.
+enum ChunkPlanes<P> {
+    /// Copied in by the reader (its cell filled already).
+    Copied(Arc<Vec<BitPlane>>),
+    /// For the worker to copy in.
+    Lent(Vec<P>),
+}
+
+/// A time chunk of the stream on its way to a worker: its planes, the cell
+/// they are (or go) to, and the (up to N) planes before it, oldest first,
+/// as ranges of earlier chunks' cells (shared with the jobs that had them,
+/// not copied: at N ≈ 1,000 planes of 512×512 a copy would cost more than
+/// the filtering).
+struct Job<P> {
     index: usize,
-    history: Vec<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)>,
-    planes: Arc<Vec<BitPlane>>,
+    planes: ChunkPlanes<P>,
+    cell: Arc<ChunkCell>,
+    history: Vec<(Arc<ChunkCell>, std::ops::Range<usize>)>,
+}
+
+/// A chunk's planes (hot pixels masked) once the reader or the worker that
+/// took it has copied them in: the workers of the chunks after it read
+/// their history from here, and wait for it if they get there first.
+#[derive(Default)]
+struct ChunkCell {
+    state: std::sync::Mutex<CellState>,
+    filled: std::sync::Condvar,
+}
+
+#[derive(Default)]
+enum CellState {
+    #[default]
+    Filling,
+    Filled(Arc<Vec<BitPlane>>),
+    /// Its worker stopped before filling it (a panic): whoever waits stops too.
+    Abandoned,
+}
+
+impl ChunkCell {
+    fn lock(&self) -> std::sync::MutexGuard<'_, CellState> {
+        self.state
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    fn set(&self, state: CellState) {
+        *self.lock() = state;
+        self.filled.notify_all();
+    }
+
+    /// The chunk's planes once filled; `None` if its worker gave up.
+    fn wait(&self) -> Option<Arc<Vec<BitPlane>>> {
+        let mut state = self.lock();
+        loop {
+            match &*state {
+                CellState::Filling => {
+                    state = self
+                        .filled
+                        .wait(state)
+                        .unwrap_or_else(std::sync::PoisonError::into_inner)
+                }
+                CellState::Filled(planes) => return Some(planes.clone()),
+                CellState::Abandoned => return None,
+            }
+        }
+    }
+}
+
+/// Marks its cell abandoned unless the chunk was filled: a worker that
+/// panics while copying must not leave the next chunks' workers waiting.
+struct Filling<'a>(&'a ChunkCell, bool);
+
+impl Filling<'_> {
+    fn fill(mut self, planes: Arc<Vec<BitPlane>>) {
+        self.0.set(CellState::Filled(planes));
+        self.1 = true;
+    }
+}
+
+impl Drop for Filling<'_> {
+    fn drop(&mut self) {
+        if !self.1 {
+            self.0.set(CellState::Abandoned);
+        }
+    }
+}
+
+/// Every chunk's planes while anyone holds them: a chunk only the pool holds
+/// is filled again in place, so that planes are not allocated by the
+/// reader or the workers and freed in bursts by the back end (on some machines the heap
+/// then returns its pages and every chunk faults them in again).
+#[derive(Default)]
+struct ChunkPool(std::sync::Mutex<Vec<Arc<Vec<BitPlane>>>>);
+
+impl ChunkPool {
+    /// A chunk's planes to fill again, or an empty one.
+    fn take(&self) -> Vec<BitPlane> {
+        let mut pool = self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        // A count of one: nobody else holds the chunk, nor can get it again.
+        pool.iter()
+            .position(|c| Arc::strong_count(c) == 1)
+            .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
+            .unwrap_or_default()
+    }
+
+    fn keep(&self, chunk: &Arc<Vec<BitPlane>>) {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .push(chunk.clone());
+    }
+}
+
+/// Copies `plane` into `batch` as its plane `i` (reused if there is one,
+/// else pushed: `i ≤ batch.len()`), masking hot pixels.
+fn put_plane(
+    batch: &mut Vec<BitPlane>,
+    i: usize,
+    plane: &BitPlane,
+    mask: Option<&crate::hot_pixel_mask::HotPixelMask>,
+) {
+    match batch.get_mut(i) {
+        Some(buf) => buf.copy_masked(plane, mask),
+        None => batch.push(match mask {
+            Some(m) => m.apply(plane),
+            None => plane.clone(),
+        }),
+    }
+}
+
+/// Copies `source` into `batch` (whose planes are reused), masking hot pixels.
+fn fill_chunk<P: std::borrow::Borrow<BitPlane>>(
+    batch: &mut Vec<BitPlane>,
+    source: &[P],
+    mask: Option<&crate::hot_pixel_mask::HotPixelMask>,
+) {
+    for (i, p) in source.iter().enumerate() {
+        put_plane(batch, i, p.borrow(), mask);
+    }
+    batch.truncate(source.len());
 }
 
 /// A chunk back from a worker, with stages 1–4 of each of its planes.
@@ -274,19 +430,23 @@ where
 /// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
 /// calling `sink` with every record in stream order (start record first,
 /// stream-end record last). Errors from the plane source stop the run and are
-/// returned. The source gives planes or references to them (the reader
-/// copies each into a chunk it recycles).
+/// returned. The source gives planes away or lends references to them
+/// ([`SourcePlane`]).
 ///
-/// A reader thread pulls the planes (decoding or simulating them) and masks
-/// hot pixels; each worker takes the next chunk as soon as it is free (no
-/// barrier between chunks) and computes its stages 1–4; stages 5–7 take
-/// the chunks in stream order, in two threads (see [`crate::back_end`]): the
-/// tracker in a thread of its own, the ROI sums and the records in the
-/// calling thread, which calls `sink`. At most
-/// `3·threads + 1` chunks are in flight, and the back end's delay line keeps
-/// the chunks that hold its last N + 1 planes (by reference: no plane is
-/// copied after the reader), so memory is bounded by `(3·threads + 3)·chunk
-/// + (threads + 1)·N` planes, whatever the stream's length.
+/// A reader thread pulls the planes (decoding or simulating them) into
+/// chunks, copying the planes it is given into a chunk it recycles and
+/// masking their hot pixels, or passing lent ones on; each worker takes the
+/// next chunk as soon as it is free (no barrier between chunks), copies and
+/// masks a lent chunk's planes into a recycled one, and computes its stages
+/// 1–4, warmed up on the N planes before the chunk (the other chunks'
+/// copies, by reference); stages 5–7 take the chunks in stream order, in
+/// two threads (see [`crate::back_end`]): the tracker in a thread of its
+/// own, the ROI sums and the records in the calling thread, which calls
+/// `sink`. At most `3·threads + 1` chunks are in flight, and the back end's
+/// delay line keeps the chunks that hold its last N + 1 planes (by
+/// reference: no plane is copied twice), so memory is bounded by
+/// `(3·threads + 3)·chunk + (threads + 1)·N` planes, whatever the stream's
+/// length.
 pub fn run_parallel<E, P, I, S>(
     cfg: PipelineConfig,
     planes: I,
@@ -296,7 +456,7 @@ pub fn run_parallel<E, P, I, S>(
 ) -> Result<(), ParallelError<E>>
 where
     E: Send,
-    P: std::borrow::Borrow<BitPlane> + Send,
+    P: SourcePlane,
     I: Iterator<Item = Result<P, E>> + Send,
     S: FnMut(Record),
 {
@@ -307,7 +467,7 @@ where
     let n = cfg.n_window as usize;
     sink(Record::Start(cfg.stream_start()));
 
-    let (job_tx, job_rx) = std::sync::mpsc::sync_channel::<Job>(threads);
+    let (job_tx, job_rx) = std::sync::mpsc::sync_channel::<Job<P>>(threads);
     // Shared by the workers only: when the last one stops, the reader's
     // sends fail and it stops too.
     let job_rx = std::sync::Arc::new(std::sync::Mutex::new(job_rx));
@@ -322,36 +482,30 @@ where
             .expect("the credit channel holds them all");
     }
     let worker_cfg = &cfg;
+    let pool = &ChunkPool::default();
     std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
-        let reader_cfg = cfg.clone();
+        let (w, h) = (cfg.width, cfg.height);
         let reader = spawn_named(
             scope,
             READER_THREAD,
             move || -> Result<(), ParallelError<E>> {
                 let mut planes = planes;
-                let mut history: VecDeque<(Arc<Vec<BitPlane>>, std::ops::Range<usize>)> =
+                let mut history: VecDeque<(Arc<ChunkCell>, std::ops::Range<usize>)> =
                     VecDeque::new();
-                let (w, h) = (reader_cfg.width, reader_cfg.height);
-                // Every chunk read, while anyone holds it: a chunk only the pool
-                // holds is filled again in place, so that planes are not
-                // allocated here and freed in bursts by another thread (on some
-                // machines the heap then returns its pages and every chunk
-                // faults them in again).
-                let mut pool: Vec<Arc<Vec<BitPlane>>> = Vec::new();
+                let mask = worker_cfg.hot_mask.as_ref();
                 for index in 0.. {
-                    let mut batch = pool
-                        .iter()
-                        .position(|c| Arc::strong_count(c) == 1)
-                        .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
-                        .unwrap_or_default();
-                    let mut filled = 0;
-                    while filled < chunk {
+                    let (mut copied, mut lent) = (Vec::new(), Vec::new());
+                    if P::COPIED_BY_READER {
+                        copied = pool.take();
+                    }
+                    let mut len = 0;
+                    while len < chunk {
                         match planes.next() {
                             // A plane of another size never reaches a worker.
                             Some(Ok(p)) if (p.borrow().width(), p.borrow().height()) != (w, h) => {
                                 let p = p.borrow();
                                 return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
-                                    plane: (index * chunk + filled) as u64,
+                                    plane: (index * chunk + len) as u64,
                                     got_w: p.width(),
                                     got_h: p.height(),
                                     want_w: w,
@@ -359,30 +513,34 @@ where
                                 }));
                             }
                             Some(Ok(p)) => {
-                                let (p, mask) = (p.borrow(), reader_cfg.hot_mask.as_ref());
-                                match batch.get_mut(filled) {
-                                    Some(buf) => buf.copy_masked(p, mask),
-                                    None => batch.push(match mask {
-                                        Some(m) => m.apply(p),
-                                        None => p.clone(),
-                                    }),
+                                if P::COPIED_BY_READER {
+                                    put_plane(&mut copied, len, p.borrow(), mask);
+                                } else {
+                                    lent.push(p);
                                 }
-                                filled += 1;
+                                len += 1;
                             }
                             Some(Err(e)) => return Err(ParallelError::Source(e)),
                             None => break,
                         }
                     }
-                    batch.truncate(filled);
-                    if batch.is_empty() {
+                    if len == 0 {
                         break;
                     }
-                    let full = batch.len() == chunk;
-                    let batch = Arc::new(batch);
-                    pool.push(batch.clone());
+                    let full = len == chunk;
+                    let cell = Arc::new(ChunkCell::default());
+                    let planes = if P::COPIED_BY_READER {
+                        copied.truncate(len);
+                        let copied = Arc::new(copied);
+                        pool.keep(&copied);
+                        cell.set(CellState::Filled(copied.clone()));
+                        ChunkPlanes::Copied(copied)
+                    } else {
+                        ChunkPlanes::Lent(lent)
+                    };
                     let job_history: Vec<_> = history.iter().cloned().collect();
                     // The last N planes read: ranges of this and earlier chunks.
-                    history.push_back((batch.clone(), 0..batch.len()));
+                    history.push_back((cell.clone(), 0..len));
                     let held: usize = history.iter().map(|(_, r)| r.len()).sum();
                     let mut excess = held.saturating_sub(n);
                     while excess > 0 {
@@ -396,8 +554,9 @@ where
                     }
                     let job = Job {
                         index,
+                        planes,
+                        cell,
                         history: job_history,
-                        planes: batch,
                     };
                     if credit_rx.recv().is_err() || job_tx.send(job).is_err() || !full {
                         break;
@@ -416,15 +575,36 @@ where
                         Err(_) => return,
                     };
                     let Ok(job) = job else { return };
-                    let history: Vec<&BitPlane> = job
+                    let planes = match job.planes {
+                        ChunkPlanes::Copied(planes) => planes,
+                        ChunkPlanes::Lent(source) => {
+                            let filling = Filling(&job.cell, false);
+                            let mut batch = pool.take();
+                            fill_chunk(&mut batch, &source, worker_cfg.hot_mask.as_ref());
+                            let planes = Arc::new(batch);
+                            pool.keep(&planes);
+                            filling.fill(planes.clone());
+                            planes
+                        }
+                    };
+                    // The chunks before were taken first, so their workers
+                    // are copying them (or have): a short wait at most.
+                    let Some(history) = job
                         .history
+                        .iter()
+                        .map(|(cell, r)| cell.wait().map(|c| (c, r.clone())))
+                        .collect::<Option<Vec<_>>>()
+                    else {
+                        return;
+                    };
+                    let history: Vec<&BitPlane> = history
                         .iter()
                         .flat_map(|(c, r)| c[r.clone()].iter())
                         .collect();
-                    let fronts = chunk_fronts(&mut fe, worker_cfg, &history, &job.planes);
+                    let fronts = chunk_fronts(&mut fe, worker_cfg, &history, &planes);
                     let done = Done {
                         index: job.index,
-                        planes: job.planes,
+                        planes,
                         fronts,
                     };
                     if tx.send(done).is_err() {
@@ -505,4 +685,67 @@ pub enum ParallelError<E> {
     /// The pipeline refused a plane or the configuration.
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_chunk_cell_wakes_its_waiters_filled_or_abandoned() {
+        let cell = ChunkCell::default();
+        let planes = Arc::new(vec![BitPlane::zeros(3, 2)]);
+        std::thread::scope(|s| {
+            let waiter = s.spawn(|| cell.wait());
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            Filling(&cell, false).fill(planes.clone());
+            let got = waiter.join().unwrap().expect("filled");
+            assert!(Arc::ptr_eq(&got, &planes));
+        });
+        // A second wait returns at once.
+        assert!(cell.wait().is_some());
+
+        let cell = ChunkCell::default();
+        std::thread::scope(|s| {
+            let waiter = s.spawn(|| cell.wait());
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            // The worker stopped without filling it.
+            drop(Filling(&cell, false));
+            assert!(waiter.join().unwrap().is_none());
+        });
+    }
+
+    #[test]
+    fn the_pool_reuses_only_a_chunk_nobody_else_holds() {
+        let pool = ChunkPool::default();
+        assert!(pool.take().is_empty());
+        let chunk = Arc::new(vec![BitPlane::zeros(4, 4); 3]);
+        pool.keep(&chunk);
+        // Held by the back end: a new one.
+        assert!(pool.take().is_empty());
+        drop(chunk);
+        assert_eq!(pool.take().len(), 3);
+        // Taken: the pool no longer has it.
+        assert!(pool.take().is_empty());
+    }
+
+    #[test]
+    fn fill_chunk_reuses_and_grows_and_masks() {
+        let (w, h) = (10, 3);
+        let mut ones = BitPlane::zeros(w, h);
+        for i in 0..w * h {
+            ones.set(i % w, i / w, true);
+        }
+        let (mask, _) = crate::hot_pixel_mask::HotPixelMask::from_pixels(w, h, &[(2, 1)]);
+        let mut batch = vec![BitPlane::zeros(w, h); 2];
+        fill_chunk(&mut batch, &[&ones, &ones, &ones], Some(&mask));
+        assert_eq!(batch.len(), 3);
+        for p in &batch {
+            assert_eq!(p.count_ones(), w * h - 1);
+            assert!(!p.get(2, 1));
+        }
+        fill_chunk(&mut batch, &[BitPlane::zeros(w, h)], None);
+        assert_eq!(batch.len(), 1);
+        assert_eq!(batch[0].count_ones(), 0);
+    }
 }
