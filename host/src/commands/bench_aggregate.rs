@@ -481,12 +481,14 @@ fn measure(
     }
     row("stages 5-7, 2 thr", planes.len(), rates, 0, single_rate);
     // The scaling curve: one worker overlaps the reader and the back end;
-    // more workers share the chunks. Every worker needs several chunks, or
-    // the curve measures the stream's end, where workers wait for the last
-    // chunks: the simulated planes are streamed again from the start until
-    // each of the most workers has had four chunks.
+    // more workers share the chunks. A run must be long beside the chunks
+    // in flight (3·threads + 1), or the curve measures the stream's start,
+    // where every chunk's planes are memory touched for the first time, and
+    // its end, where workers wait for the last chunks: the simulated planes
+    // are streamed again from the start until the most workers' run has
+    // had four times the chunks it holds in flight.
     let chunk = default_chunk(cfg.n_window);
-    let len = planes.len().max(4 * threads * chunk);
+    let len = planes.len().max(4 * (3 * threads + 1) * chunk);
     if len > planes.len() {
         println!(
             "{:<8} the curve streams {len} planes: the {} simulated, repeated ({} chunks of {chunk} for {threads} threads)",
