@@ -83,6 +83,26 @@ fn golden_and_fast_engines_write_identical_packets() {
     assert!(g.len() > 100);
     assert_eq!(g, std::fs::read(&fast).unwrap());
     assert_eq!(g, std::fs::read(&fast1).unwrap());
+    // Through a pipe (no plane at an index: the reader thread reads them
+    // all, where the workers read a file's chunks themselves).
+    #[cfg(unix)]
+    {
+        use std::io::Write;
+        let piped = p(dir.path(), "piped.rois");
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_smartagg"))
+            .args(["aggregate", "/dev/stdin", "--out", &piped, "--threads", "3"])
+            .arg("--quiet")
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        let bytes = std::fs::read(&rec).unwrap();
+        let feed = std::thread::spawn(move || stdin.write_all(&bytes));
+        assert!(child.wait().unwrap().success());
+        feed.join().unwrap().unwrap();
+        assert_eq!(g, std::fs::read(&piped).unwrap());
+    }
     let decoded = smartagg_model::packet::decode_all(&g);
     assert!(!decoded.stats.any_loss());
     let blinks = decoded

@@ -30,11 +30,13 @@
 
 mod above;
 mod block;
+mod chunks;
 mod parallel;
 
+pub use chunks::SourcePlane;
 pub use parallel::{
-    default_chunk, run_parallel, FrontResults, ParallelError, SourcePlane, READER_THREAD,
-    TRACKER_THREAD, WORKER_THREAD,
+    default_chunk, run_parallel, FrontResults, ParallelError, READER_THREAD, TRACKER_THREAD,
+    WORKER_THREAD,
 };
 
 use crate::candidates::Candidate;

@@ -179,6 +179,20 @@ impl BitPlane {
         self.bits[idx * p..(idx + 1) * p].load_le::<u64>()
     }
 
+    /// Mutable raster-order words, laid out as [`BitPlane::words`]'s.
+    pub fn words_mut(&mut self) -> &mut [u64] {
+        self.bits.as_raw_mut_slice()
+    }
+
+    /// Clears the masked pixels in place (what
+    /// [`HotPixelMask::apply`](crate::hot_pixel_mask::HotPixelMask::apply)
+    /// does to a copy).
+    pub fn mask_in_place(&mut self, mask: &crate::hot_pixel_mask::HotPixelMask) {
+        for (w, &m) in self.words_mut().iter_mut().zip(mask.words()) {
+            *w &= !m;
+        }
+    }
+
     /// Mutable raster-order bits.
     pub fn bits_mut(&mut self) -> &mut BitSlice<u64, Lsb0> {
         &mut self.bits

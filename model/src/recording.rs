@@ -59,6 +59,9 @@ use thiserror::Error;
 
 use crate::plane::BitPlane;
 
+mod planes_at;
+pub use planes_at::{unpack_plane_into, PlaneAt, PlaneFile};
+
 /// The eight bytes every `.spad` file starts with.
 pub const MAGIC: [u8; 8] = *b"SPADBITS";
 /// The newest container version this code reads and the one it writes.
@@ -482,6 +485,8 @@ fn read_fully<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
 pub struct RecordingReader<R: Read> {
     r: R,
     header: RecordingHeader,
+    /// Bytes before the first plane: the header's, or none (raw planes).
+    data_offset: u64,
     read: u64,
     buf: Vec<u8>,
     /// `buf` holds the first plane, read by `open` and not yet returned.
@@ -563,7 +568,7 @@ impl<R: Read> RecordingReader<R> {
                 });
             }
         }
-        let mut rd = Self::with_header(r, header);
+        let mut rd = Self::with_header(r, header, header_len.into());
         rd.read_first_plane(false)?;
         Ok(rd)
     }
@@ -589,15 +594,16 @@ impl<R: Read> RecordingReader<R> {
             planes: PLANES_UNKNOWN,
         };
         header.validate()?;
-        let mut rd = Self::with_header(r, header);
+        let mut rd = Self::with_header(r, header, 0);
         rd.read_first_plane(true)?;
         Ok(rd)
     }
 
-    fn with_header(r: R, header: RecordingHeader) -> Self {
+    fn with_header(r: R, header: RecordingHeader, data_offset: u64) -> Self {
         RecordingReader {
             r,
             header,
+            data_offset,
             read: 0,
             buf: Vec::new(),
             first_pending: false,
@@ -653,6 +659,12 @@ impl<R: Read> RecordingReader<R> {
     /// The header (for raw planes: the one given to [`Self::open_raw`]).
     pub fn header(&self) -> &RecordingHeader {
         &self.header
+    }
+
+    /// Bytes before the first plane in the input: the header's length, or 0
+    /// for raw planes.
+    pub fn data_offset(&self) -> u64 {
+        self.data_offset
     }
 
     /// Planes returned so far.

@@ -343,6 +343,67 @@ fn a_plane_of_another_size_stops_the_parallel_run_with_its_number() {
     }
 }
 
+/// A recording's planes read by the workers at their indices
+/// (`PlaneFile`): the golden records for any chunk and thread count, hot
+/// pixels masked; a file cut short meanwhile stops the run with the plane
+/// it was cut in, and no stream-end record.
+#[test]
+fn a_recording_read_at_its_planes_gives_the_golden_records() {
+    use smartagg_model::recording::{
+        BitOrder, PlaneFile, RecordingError, RecordingHeader, RecordingReader, RecordingWriter,
+    };
+    let (w, h) = (40, 24);
+    let mut cfg = spcimager_like(w, h, 108);
+    let planes = scene(5, w, h, 900, 6, 0.0118, 0.05);
+    let header = RecordingHeader {
+        width: w as u32,
+        height: h as u32,
+        plane_period_ns: 100_000,
+        exposure_ns: 100_000,
+        bit_order: BitOrder::MsbFirst,
+        planes: planes.len() as u64,
+    };
+    let file = tempfile::NamedTempFile::new().unwrap();
+    let mut writer = RecordingWriter::new(file.reopen().unwrap(), header).unwrap();
+    planes.iter().for_each(|p| writer.write_plane(p).unwrap());
+    writer.finish().unwrap();
+    let open = || {
+        let reader = RecordingReader::open(file.reopen().unwrap()).unwrap();
+        PlaneFile::of(file.reopen().unwrap(), &reader)
+            .unwrap()
+            .unwrap()
+    };
+    for masked in [false, true] {
+        if masked {
+            cfg.hot_mask = Some(HotPixelMask::from_pixels(w, h, &[(20, 12), (0, 0)]).0);
+        }
+        let golden = run(cfg.clone(), planes.clone()).unwrap();
+        for (threads, chunk) in [(1, 900), (2, 64), (3, 37), (2, 1)] {
+            let at = open();
+            let mut got = Vec::new();
+            run_parallel(cfg.clone(), at.planes(), threads, chunk, |r| got.push(r)).unwrap();
+            assert_eq!(
+                got, golden,
+                "masked {masked}, {threads} threads, chunk {chunk}"
+            );
+        }
+    }
+    // Cut inside plane 500 after opening (120 bytes a plane).
+    let at = open();
+    file.as_file().set_len(48 + 500 * 120 + 7).unwrap();
+    let mut got = Vec::new();
+    let e = run_parallel(cfg, at.planes(), 2, 64, |r| got.push(r)).unwrap_err();
+    match e {
+        ParallelError::Source(RecordingError::Truncated {
+            plane: 500,
+            bytes_found: 7,
+            ..
+        }) => {}
+        other => panic!("{other:?}"),
+    }
+    assert!(!got.iter().any(|r| matches!(r, Record::End(_))));
+}
+
 /// 1-D kernels of the tests: the specialised lengths 3, 5, 1 and 9 (the
 /// SPCImager's), and 17, which takes the any-length path.
 fn kernels() -> Vec<(Vec<u32>, u8)> {

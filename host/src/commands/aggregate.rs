@@ -4,11 +4,12 @@ use crate::setup::{self, PipelineArgs};
 use crate::stream_info::StreamInfo;
 use anyhow::Context;
 use smartagg_io::output::AtomicFile;
-use smartagg_model::fast_engine::{default_chunk, fast_pipeline, run_parallel};
+use smartagg_model::config::PipelineConfig;
+use smartagg_model::fast_engine::{default_chunk, fast_pipeline, run_parallel, SourcePlane};
 use smartagg_model::packet::Encoder;
 use smartagg_model::pipeline::{FrontEnd, Pipeline};
 use smartagg_model::record::Record;
-use smartagg_model::recording::RecordingReader;
+use smartagg_model::recording::{PlaneFile, RecordingError, RecordingReader};
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -48,6 +49,10 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let file = std::fs::File::open(&args.recording)
+        .with_context(|| format!("opening recording {}", args.recording.display()))?;
+    // A second handle for the workers' reads at an index.
+    let file_at = file
+        .try_clone()
         .with_context(|| format!("opening recording {}", args.recording.display()))?;
     let reader = setup::open_recording(BufReader::with_capacity(1 << 20, file), &args.raw)
         .with_context(|| format!("reading {}", args.recording.display()))?;
@@ -103,24 +108,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 setup::cap_threads,
             );
             let pb = progress.clone();
-            let planes = reader.inspect(move |_| pb.inc(1));
-            let mut failed: Option<anyhow::Error> = None;
-            run_parallel(
-                cfg.clone(),
-                planes,
-                threads,
-                default_chunk(cfg.n_window),
-                |r| {
-                    if failed.is_none() {
-                        if let Err(e) = write_record(r, &mut summary) {
-                            failed = Some(e);
-                        }
-                    }
-                },
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-            if let Some(e) = failed {
-                return Err(e);
+            // A regular file: each worker reads its own chunk's planes; a
+            // pipe or a device: the reader reads them all.
+            let at = PlaneFile::of(file_at, &reader)
+                .with_context(|| format!("reading {}", args.recording.display()))?;
+            match &at {
+                Some(at) => {
+                    let planes = at.planes().inspect(move |_| pb.inc(1));
+                    run_fast(&cfg, planes, threads, &mut summary, &mut write_record)?
+                }
+                None => {
+                    let planes = reader.inspect(move |_| pb.inc(1));
+                    run_fast(&cfg, planes, threads, &mut summary, &mut write_record)?
+                }
             }
         }
     }
@@ -160,6 +160,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sidecar.display()
     );
     Ok(())
+}
+
+/// The fast engine on `threads` workers, `write` taking every record until
+/// one fails.
+fn run_fast<P, I>(
+    cfg: &PipelineConfig,
+    planes: I,
+    threads: usize,
+    summary: &mut Summary,
+    write: &mut impl FnMut(Record, &mut Summary) -> anyhow::Result<()>,
+) -> anyhow::Result<()>
+where
+    P: SourcePlane<RecordingError>,
+    I: Iterator<Item = Result<P, RecordingError>> + Send,
+{
+    let mut failed: Option<anyhow::Error> = None;
+    run_parallel(
+        cfg.clone(),
+        planes,
+        threads,
+        default_chunk(cfg.n_window),
+        |r| {
+            if failed.is_none() {
+                if let Err(e) = write(r, summary) {
+                    failed = Some(e);
+                }
+            }
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    failed.map_or(Ok(()), Err)
 }
 
 fn stream_through<F: FrontEnd, R: Read>(

@@ -4,6 +4,7 @@
 //! end.
 
 use super::above::AbovePlane;
+use super::chunks::{fill_chunk, put_plane, CellState, ChunkCell, ChunkPool, Filling, SourcePlane};
 use super::FastFrontEnd;
 use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
 use crate::candidates::Candidate;
@@ -13,7 +14,7 @@ use crate::pipeline::{check_plane_number, FrontEnd, PipelineError};
 use crate::plane::BitPlane;
 use crate::record::Record;
 use std::collections::VecDeque;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// Stages 1–4 of one plane, as computed by a worker.
 #[derive(Debug, Clone, Default)]
@@ -62,27 +63,6 @@ impl FrontEnd for ReplayFrontEnd {
     }
 }
 
-/// A bit-plane as a source gives it to [`run_parallel`]: a plane of its own
-/// (just decoded or simulated), which the reader copies into a chunk at
-/// once, so that its memory is freed in the thread that allocated it and
-/// used again for the next (freed in bursts by other threads, it faulted
-/// in again: a third more CPU on a SPAD512S recording); or a reference to
-/// a plane the caller keeps, which the reader only passes on and the
-/// worker that takes the chunk copies (a 512×512 plane is 32 KB: one
-/// thread copying every plane held a 16-core run to ~50,000 planes/s).
-pub trait SourcePlane: std::borrow::Borrow<BitPlane> + Send {
-    /// Whether the reader copies the plane (else the worker does).
-    const COPIED_BY_READER: bool;
-}
-
-impl SourcePlane for BitPlane {
-    const COPIED_BY_READER: bool = true;
-}
-
-impl SourcePlane for &BitPlane {
-    const COPIED_BY_READER: bool = false;
-}
-
 /// A chunk's planes as the reader hands them on.
 enum ChunkPlanes<P> {
     /// Copied in by the reader (its cell filled already).
@@ -103,136 +83,11 @@ struct Job<P> {
     history: Vec<(Arc<ChunkCell>, std::ops::Range<usize>)>,
 }
 
-/// A chunk's planes (hot pixels masked) once the reader or the worker that
-/// took it has copied them in: the workers of the chunks after it read
-/// their history from here, and wait for it if they get there first.
-#[derive(Default)]
-struct ChunkCell {
-    state: std::sync::Mutex<CellState>,
-    filled: std::sync::Condvar,
-}
-
-#[derive(Default)]
-enum CellState {
-    #[default]
-    Filling,
-    Filled(Arc<Vec<BitPlane>>),
-    /// Its worker stopped before filling it (a panic): whoever waits stops too.
-    Abandoned,
-}
-
-impl ChunkCell {
-    fn lock(&self) -> std::sync::MutexGuard<'_, CellState> {
-        self.state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
-    fn set(&self, state: CellState) {
-        *self.lock() = state;
-        self.filled.notify_all();
-    }
-
-    /// The chunk's planes once filled; `None` if its worker gave up.
-    fn wait(&self) -> Option<Arc<Vec<BitPlane>>> {
-        let mut state = self.lock();
-        loop {
-            match &*state {
-                CellState::Filling => {
-                    state = self
-                        .filled
-                        .wait(state)
-                        .unwrap_or_else(std::sync::PoisonError::into_inner)
-                }
-                CellState::Filled(planes) => return Some(planes.clone()),
-                CellState::Abandoned => return None,
-            }
-        }
-    }
-}
-
-/// Marks its cell abandoned unless the chunk was filled: a worker that
-/// panics while copying must not leave the next chunks' workers waiting.
-struct Filling<'a>(&'a ChunkCell, bool);
-
-impl Filling<'_> {
-    fn fill(mut self, planes: Arc<Vec<BitPlane>>) {
-        self.0.set(CellState::Filled(planes));
-        self.1 = true;
-    }
-}
-
-impl Drop for Filling<'_> {
-    fn drop(&mut self) {
-        if !self.1 {
-            self.0.set(CellState::Abandoned);
-        }
-    }
-}
-
-/// Every chunk's planes while anyone holds them: a chunk only the pool holds
-/// is filled again in place, so that planes are not allocated by the
-/// reader or the workers and freed in bursts by the back end (on some machines the heap
-/// then returns its pages and every chunk faults them in again).
-#[derive(Default)]
-struct ChunkPool(std::sync::Mutex<Vec<Arc<Vec<BitPlane>>>>);
-
-impl ChunkPool {
-    /// A chunk's planes to fill again, or an empty one.
-    fn take(&self) -> Vec<BitPlane> {
-        let mut pool = self
-            .0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        // A count of one: nobody else holds the chunk, nor can get it again.
-        pool.iter()
-            .position(|c| Arc::strong_count(c) == 1)
-            .and_then(|i| Arc::try_unwrap(pool.swap_remove(i)).ok())
-            .unwrap_or_default()
-    }
-
-    fn keep(&self, chunk: &Arc<Vec<BitPlane>>) {
-        self.0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .push(chunk.clone());
-    }
-}
-
-/// Copies `plane` into `batch` as its plane `i` (reused if there is one,
-/// else pushed: `i ≤ batch.len()`), masking hot pixels.
-fn put_plane(
-    batch: &mut Vec<BitPlane>,
-    i: usize,
-    plane: &BitPlane,
-    mask: Option<&crate::hot_pixel_mask::HotPixelMask>,
-) {
-    match batch.get_mut(i) {
-        Some(buf) => buf.copy_masked(plane, mask),
-        None => batch.push(match mask {
-            Some(m) => m.apply(plane),
-            None => plane.clone(),
-        }),
-    }
-}
-
-/// Copies `source` into `batch` (whose planes are reused), masking hot pixels.
-fn fill_chunk<P: std::borrow::Borrow<BitPlane>>(
-    batch: &mut Vec<BitPlane>,
-    source: &[P],
-    mask: Option<&crate::hot_pixel_mask::HotPixelMask>,
-) {
-    for (i, p) in source.iter().enumerate() {
-        put_plane(batch, i, p.borrow(), mask);
-    }
-    batch.truncate(source.len());
-}
-
-/// A chunk back from a worker, with stages 1–4 of each of its planes.
-struct Done {
+/// A chunk back from a worker, with stages 1–4 of each of its planes, or
+/// why its planes could not be written.
+struct Done<E> {
     index: usize,
-    planes: Arc<Vec<BitPlane>>,
-    fronts: Vec<PlaneFront>,
+    result: Result<(Arc<Vec<BitPlane>>, Vec<PlaneFront>), E>,
 }
 
 /// The time chunk [`run_parallel`] is best given for a window of `n_window`
@@ -459,7 +314,7 @@ pub fn run_parallel<E, P, I, S>(
 ) -> Result<(), ParallelError<E>>
 where
     E: Send,
-    P: SourcePlane,
+    P: SourcePlane<E>,
     I: Iterator<Item = Result<P, E>> + Send,
     S: FnMut(Record),
 {
@@ -474,7 +329,7 @@ where
     // Shared by the workers only: when the last one stops, the reader's
     // sends fail and it stops too.
     let job_rx = std::sync::Arc::new(std::sync::Mutex::new(job_rx));
-    let (done_tx, done_rx) = std::sync::mpsc::sync_channel::<Done>(threads);
+    let (done_tx, done_rx) = std::sync::mpsc::sync_channel::<Done<E>>(threads);
     // Credits bound the chunks between the reader and the back end, however
     // unevenly the workers finish.
     let in_flight = 3 * threads + 1;
@@ -486,6 +341,7 @@ where
     }
     let worker_cfg = &cfg;
     let pool = &ChunkPool::default();
+    let failed = &Mutex::new(None);
     std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
         let (w, h) = (cfg.width, cfg.height);
         let reader = spawn_named(
@@ -496,28 +352,30 @@ where
                 let mut history: VecDeque<(Arc<ChunkCell>, std::ops::Range<usize>)> =
                     VecDeque::new();
                 let mask = worker_cfg.hot_mask.as_ref();
+                let mut scratch = Vec::new();
                 for index in 0.. {
                     let (mut copied, mut lent) = (Vec::new(), Vec::new());
-                    if P::COPIED_BY_READER {
+                    if P::WRITTEN_BY_READER {
                         copied = pool.take();
                     }
                     let mut len = 0;
                     while len < chunk {
                         match planes.next() {
                             // A plane of another size never reaches a worker.
-                            Some(Ok(p)) if (p.borrow().width(), p.borrow().height()) != (w, h) => {
-                                let p = p.borrow();
+                            Some(Ok(p)) if p.size() != (w, h) => {
+                                let (got_w, got_h) = p.size();
                                 return Err(ParallelError::Pipeline(PipelineError::PlaneSize {
                                     plane: (index * chunk + len) as u64,
-                                    got_w: p.width(),
-                                    got_h: p.height(),
+                                    got_w,
+                                    got_h,
                                     want_w: w,
                                     want_h: h,
                                 }));
                             }
                             Some(Ok(p)) => {
-                                if P::COPIED_BY_READER {
-                                    put_plane(&mut copied, len, p.borrow(), mask);
+                                if P::WRITTEN_BY_READER {
+                                    put_plane(&mut copied, len, &p, mask, &mut scratch)
+                                        .map_err(ParallelError::Source)?;
                                 } else {
                                     lent.push(p);
                                 }
@@ -532,7 +390,7 @@ where
                     }
                     let full = len == chunk;
                     let cell = Arc::new(ChunkCell::default());
-                    let planes = if P::COPIED_BY_READER {
+                    let planes = if P::WRITTEN_BY_READER {
                         copied.truncate(len);
                         let copied = Arc::new(copied);
                         pool.keep(&copied);
@@ -572,6 +430,7 @@ where
             let (rx, tx) = (job_rx.clone(), done_tx.clone());
             spawn_named(scope, WORKER_THREAD, move || {
                 let mut fe = FastFrontEnd::new(worker_cfg);
+                let mut scratch = Vec::new();
                 loop {
                     let job = match rx.lock() {
                         Ok(rx) => rx.recv(),
@@ -583,7 +442,17 @@ where
                         ChunkPlanes::Lent(source) => {
                             let filling = Filling(&job.cell, false);
                             let mut batch = pool.take();
-                            fill_chunk(&mut batch, &source, worker_cfg.hot_mask.as_ref());
+                            let mask = worker_cfg.hot_mask.as_ref();
+                            if let Err(e) = fill_chunk(&mut batch, &source, mask, &mut scratch) {
+                                // The back end stops at this chunk; the
+                                // workers of later ones stop at its cell.
+                                drop(filling);
+                                let _ = tx.send(Done {
+                                    index: job.index,
+                                    result: Err(e),
+                                });
+                                return;
+                            }
                             let planes = Arc::new(batch);
                             pool.keep(&planes);
                             filling.fill(planes.clone());
@@ -607,8 +476,7 @@ where
                     let fronts = chunk_fronts(&mut fe, worker_cfg, &history, &planes);
                     let done = Done {
                         index: job.index,
-                        planes,
-                        fronts,
+                        result: Ok((planes, fronts)),
                     };
                     if tx.send(done).is_err() {
                         return;
@@ -618,12 +486,20 @@ where
         }
         drop((job_rx, done_tx));
         // Stages 5–7 in stream order; chunks that come back early wait.
-        let mut early: std::collections::BTreeMap<usize, Done> = Default::default();
+        // A chunk whose planes failed ends them: the records of the chunks
+        // before it go out, as when the reader fails.
+        let mut early: std::collections::BTreeMap<usize, Done<E>> = Default::default();
         let mut next = 0;
         let in_order = std::iter::from_fn(move || loop {
             if let Some(d) = early.remove(&next) {
                 next += 1;
-                return Some((d.planes, d.fronts));
+                return match d.result {
+                    Ok(chunk) => Some(chunk),
+                    Err(e) => {
+                        *failed.lock().unwrap_or_else(PoisonError::into_inner) = Some(e);
+                        None
+                    }
+                };
             }
             let d = done_rx.recv().ok()?;
             early.insert(d.index, d);
@@ -637,6 +513,10 @@ where
         // the reader.
         let read = reader.join().expect("the plane reader panicked");
         let end = back.map_err(ParallelError::Pipeline)?;
+        // A chunk's error comes before any the reader met later.
+        if let Some(e) = failed.lock().unwrap_or_else(PoisonError::into_inner).take() {
+            return Err(ParallelError::Source(e));
+        }
         read?;
         end.into_iter().for_each(&mut sink);
         Ok(())
@@ -688,67 +568,4 @@ pub enum ParallelError<E> {
     /// The pipeline refused a plane or the configuration.
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_chunk_cell_wakes_its_waiters_filled_or_abandoned() {
-        let cell = ChunkCell::default();
-        let planes = Arc::new(vec![BitPlane::zeros(3, 2)]);
-        std::thread::scope(|s| {
-            let waiter = s.spawn(|| cell.wait());
-            std::thread::sleep(std::time::Duration::from_millis(20));
-            Filling(&cell, false).fill(planes.clone());
-            let got = waiter.join().unwrap().expect("filled");
-            assert!(Arc::ptr_eq(&got, &planes));
-        });
-        // A second wait returns at once.
-        assert!(cell.wait().is_some());
-
-        let cell = ChunkCell::default();
-        std::thread::scope(|s| {
-            let waiter = s.spawn(|| cell.wait());
-            std::thread::sleep(std::time::Duration::from_millis(20));
-            // The worker stopped without filling it.
-            drop(Filling(&cell, false));
-            assert!(waiter.join().unwrap().is_none());
-        });
-    }
-
-    #[test]
-    fn the_pool_reuses_only_a_chunk_nobody_else_holds() {
-        let pool = ChunkPool::default();
-        assert!(pool.take().is_empty());
-        let chunk = Arc::new(vec![BitPlane::zeros(4, 4); 3]);
-        pool.keep(&chunk);
-        // Held by the back end: a new one.
-        assert!(pool.take().is_empty());
-        drop(chunk);
-        assert_eq!(pool.take().len(), 3);
-        // Taken: the pool no longer has it.
-        assert!(pool.take().is_empty());
-    }
-
-    #[test]
-    fn fill_chunk_reuses_and_grows_and_masks() {
-        let (w, h) = (10, 3);
-        let mut ones = BitPlane::zeros(w, h);
-        for i in 0..w * h {
-            ones.set(i % w, i / w, true);
-        }
-        let (mask, _) = crate::hot_pixel_mask::HotPixelMask::from_pixels(w, h, &[(2, 1)]);
-        let mut batch = vec![BitPlane::zeros(w, h); 2];
-        fill_chunk(&mut batch, &[&ones, &ones, &ones], Some(&mask));
-        assert_eq!(batch.len(), 3);
-        for p in &batch {
-            assert_eq!(p.count_ones(), w * h - 1);
-            assert!(!p.get(2, 1));
-        }
-        fill_chunk(&mut batch, &[BitPlane::zeros(w, h)], None);
-        assert_eq!(batch.len(), 1);
-        assert_eq!(batch[0].count_ones(), 0);
-    }
 }
