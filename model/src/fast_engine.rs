@@ -23,7 +23,10 @@
 //!   results (candidates and the pixels at the hold level, as a list or,
 //!   on a crowded plane, as a bitmap: `fast_engine/above.rs`) then feed the
 //!   one sequential tracker, which is cheap. A reader thread pulls the planes
-//!   meanwhile, and each worker takes the next chunk as soon as it is free.
+//!   meanwhile, and each worker takes the next chunk as soon as it is free;
+//!   planes lent (references, or a recording's planes at their indices:
+//!   [`crate::recording::PlaneFile`]) are copied or read by that worker, not
+//!   the reader (`fast_engine/chunks.rs`).
 //!   The output is byte-identical to the single-threaded golden pipeline for
 //!   any chunk length and thread count, and memory is bounded by the chunk
 //!   length, the threads, N and the field, not by the stream's length.
