@@ -755,7 +755,8 @@ mod tests {
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
 
-    fn header(w: u32, h: u32, planes: u64, order: BitOrder) -> RecordingHeader {
+    /// A header of `w × h` planes at 10 kHz (the planes' tests share it).
+    pub(super) fn header(w: u32, h: u32, planes: u64, order: BitOrder) -> RecordingHeader {
         RecordingHeader {
             width: w,
             height: h,
@@ -766,7 +767,8 @@ mod tests {
         }
     }
 
-    fn random_plane(w: usize, h: usize, seed: u64) -> BitPlane {
+    /// A plane of 30 % ones (the planes' tests share it).
+    pub(super) fn random_plane(w: usize, h: usize, seed: u64) -> BitPlane {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         BitPlane::from_fn(w, h, |_, _| rng.gen_bool(0.3))
     }

@@ -216,40 +216,22 @@ pub fn unpack_plane_into(bytes: &[u8], order: BitOrder, dst: &mut BitPlane) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::tests::{header, random_plane};
     use super::super::PLANES_UNKNOWN;
     use super::*;
     use std::io::Write;
 
     fn random_planes(seed: u64, w: usize, h: usize, n: usize) -> Vec<BitPlane> {
-        let mut s = seed | 1;
-        (0..n)
-            .map(|_| {
-                BitPlane::from_fn(w, h, |_, _| {
-                    s ^= s << 13;
-                    s ^= s >> 7;
-                    s ^= s << 17;
-                    s.is_multiple_of(5)
-                })
-            })
+        (0..n as u64)
+            .map(|i| random_plane(w, h, seed * 1000 + i))
             .collect()
-    }
-
-    fn header(w: u32, h: u32, order: BitOrder, planes: u64) -> RecordingHeader {
-        RecordingHeader {
-            width: w,
-            height: h,
-            plane_period_ns: 100_000,
-            exposure_ns: 100_000,
-            bit_order: order,
-            planes,
-        }
     }
 
     /// The bytes of a recording of `planes` whose header declares `declared`.
     fn spad(planes: &[BitPlane], order: BitOrder, declared: u64) -> Vec<u8> {
         let (w, h) = (planes[0].width() as u32, planes[0].height() as u32);
         let mut out = Vec::new();
-        out.extend_from_slice(&header(w, h, order, declared).to_bytes());
+        out.extend_from_slice(&header(w, h, declared, order).to_bytes());
         for p in planes {
             super::super::pack_plane(p, order, &mut out);
         }
