@@ -12,7 +12,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 /// chunk: a plane of the source's own (just decoded or simulated), which
 /// the reader writes at once, so that its memory is freed in the thread
 /// that allocated it and used again for the next (freed in bursts by other
-/// threads, it faulted in again: a third more CPU on a SPAD512S recording);
+/// threads, it faulted in again: a quarter more CPU on a SPAD512S recording);
 /// or a plane lent (a reference to one the caller keeps, or one that the
 /// writing reads from a file: [`crate::recording::PlaneAt`]), which the
 /// reader only passes on and the worker that takes the chunk writes (a
