@@ -358,37 +358,9 @@ pub fn pack_plane(plane: &BitPlane, order: BitOrder, out: &mut Vec<u8>) {
 /// If `bytes` is shorter than one plane (a programming error: readers check
 /// lengths before calling this).
 pub fn unpack_plane(bytes: &[u8], width: u32, height: u32, order: BitOrder) -> BitPlane {
-    let n = width as usize * height as usize;
-    let nbytes = n.div_ceil(8);
-    assert!(
-        bytes.len() >= nbytes,
-        "unpack_plane: {} bytes given, a {width}x{height} plane needs {nbytes}",
-        bytes.len()
-    );
-    let bytes = &bytes[..nbytes];
-    let mut words = Vec::with_capacity(nbytes.div_ceil(8));
-    let mut chunks = bytes.chunks_exact(8);
-    for c in &mut chunks {
-        words.push(u64::from_le_bytes(c.try_into().expect("8-byte chunk")));
-    }
-    let rem = chunks.remainder();
-    if !rem.is_empty() {
-        let mut last = [0u8; 8];
-        last[..rem.len()].copy_from_slice(rem);
-        words.push(u64::from_le_bytes(last));
-    }
-    if order == BitOrder::MsbFirst {
-        words.iter_mut().for_each(|w| *w = flip_bytes(*w));
-    }
-    // Clear padding bits so equal planes compare equal whatever the padding held.
-    if !n.is_multiple_of(64) {
-        if let Some(last) = words.last_mut() {
-            *last &= (1u64 << (n % 64)) - 1;
-        }
-    }
-    let mut bits = BitVec::<u64, Lsb0>::from_vec(words);
-    bits.truncate(n);
-    BitPlane::from_bits(width as usize, height as usize, bits).expect("length is width*height")
+    let mut plane = BitPlane::zeros(width as usize, height as usize);
+    unpack_plane_into(bytes, order, &mut plane);
+    plane
 }
 
 /// Writes a `.spad` recording plane by plane.

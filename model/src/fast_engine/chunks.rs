@@ -152,20 +152,19 @@ impl ChunkCell {
 /// Marks its cell abandoned unless the chunk was filled: a worker that
 /// fails or panics while writing must not leave the next chunks' workers
 /// waiting.
-pub(super) struct Filling<'a>(pub(super) &'a ChunkCell, pub(super) bool);
+pub(super) struct Filling<'a>(pub(super) &'a ChunkCell);
 
 impl Filling<'_> {
-    pub(super) fn fill(mut self, planes: Arc<Vec<BitPlane>>) {
+    pub(super) fn fill(self, planes: Arc<Vec<BitPlane>>) {
         self.0.set(CellState::Filled(planes));
-        self.1 = true;
+        // Filled: not abandoned.
+        std::mem::forget(self);
     }
 }
 
 impl Drop for Filling<'_> {
     fn drop(&mut self) {
-        if !self.1 {
-            self.0.set(CellState::Abandoned);
-        }
+        self.0.set(CellState::Abandoned);
     }
 }
 
@@ -207,7 +206,7 @@ mod tests {
         std::thread::scope(|s| {
             let waiter = s.spawn(|| cell.wait());
             std::thread::sleep(std::time::Duration::from_millis(20));
-            Filling(&cell, false).fill(planes.clone());
+            Filling(&cell).fill(planes.clone());
             let got = waiter.join().unwrap().expect("filled");
             assert!(Arc::ptr_eq(&got, &planes));
         });
@@ -219,7 +218,7 @@ mod tests {
             let waiter = s.spawn(|| cell.wait());
             std::thread::sleep(std::time::Duration::from_millis(20));
             // The worker stopped without filling it.
-            drop(Filling(&cell, false));
+            drop(Filling(&cell));
             assert!(waiter.join().unwrap().is_none());
         });
     }

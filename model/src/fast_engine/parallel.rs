@@ -440,7 +440,7 @@ where
                     let planes = match job.planes {
                         ChunkPlanes::Copied(planes) => planes,
                         ChunkPlanes::Lent(source) => {
-                            let filling = Filling(&job.cell, false);
+                            let filling = Filling(&job.cell);
                             let mut batch = pool.take();
                             let mask = worker_cfg.hot_mask.as_ref();
                             if let Err(e) = fill_chunk(&mut batch, &source, mask, &mut scratch) {

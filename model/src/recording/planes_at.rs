@@ -5,7 +5,8 @@
 //! a 2-thread run on a SPAD512S recording).
 
 use super::{
-    flip_bytes, BitOrder, RecordingError, RecordingHeader, RecordingReader, PLANES_UNKNOWN,
+    flip_bytes, read_fully, BitOrder, RecordingError, RecordingHeader, RecordingReader,
+    PLANES_UNKNOWN,
 };
 use crate::fast_engine::SourcePlane;
 use crate::hot_pixel_mask::HotPixelMask;
@@ -113,15 +114,7 @@ impl PlaneFile {
         let need = self.header.plane_bytes();
         bytes.resize(need, 0);
         let at = self.offset + index * need as u64;
-        let mut got = 0;
-        while got < need {
-            match read_at(&self.file, &mut bytes[got..], at + got as u64) {
-                Ok(0) => break,
-                Ok(n) => got += n,
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(e.into()),
-            }
-        }
+        let got = read_fully(&mut ReadAt(&self.file, at), bytes)?;
         if got < need {
             // Cut short since it was opened.
             return Err(RecordingError::Truncated {
@@ -134,14 +127,19 @@ impl PlaneFile {
     }
 }
 
-#[cfg(unix)]
-fn read_at(file: &File, buf: &mut [u8], at: u64) -> std::io::Result<usize> {
-    std::os::unix::fs::FileExt::read_at(file, buf, at)
-}
+/// A file read from a position of its own (`pread`): the workers share one
+/// handle without moving its offset.
+struct ReadAt<'a>(&'a File, u64);
 
-#[cfg(windows)]
-fn read_at(file: &File, buf: &mut [u8], at: u64) -> std::io::Result<usize> {
-    std::os::windows::fs::FileExt::seek_read(file, buf, at)
+impl Read for ReadAt<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        #[cfg(unix)]
+        let n = std::os::unix::fs::FileExt::read_at(self.0, buf, self.1)?;
+        #[cfg(windows)]
+        let n = std::os::windows::fs::FileExt::seek_read(self.0, buf, self.1)?;
+        self.1 += n as u64;
+        Ok(n)
+    }
 }
 
 /// Plane `index` of a [`PlaneFile`]: lent to
@@ -176,8 +174,10 @@ impl SourcePlane<RecordingError> for PlaneAt<'_> {
     }
 }
 
-/// [`unpack_plane`](super::unpack_plane) into `dst`, a plane of the size
-/// packed, whose storage is reused.
+/// Unpacks one plane from `bytes` into `dst`, a plane of the size packed,
+/// whose storage is reused (at least a plane's bytes; extra bytes and
+/// padding bits are ignored). [`unpack_plane`](super::unpack_plane) is this
+/// into a new plane.
 ///
 /// # Panics
 /// If `bytes` is shorter than one plane of `dst`'s size (a programming
@@ -187,8 +187,10 @@ pub fn unpack_plane_into(bytes: &[u8], order: BitOrder, dst: &mut BitPlane) {
     let nbytes = n.div_ceil(8);
     assert!(
         bytes.len() >= nbytes,
-        "unpack_plane_into: {} bytes given, the plane needs {nbytes}",
-        bytes.len()
+        "unpack_plane: {} bytes given, a {}x{} plane needs {nbytes}",
+        bytes.len(),
+        dst.width(),
+        dst.height()
     );
     let words = dst.words_mut();
     let mut chunks = bytes[..nbytes].chunks_exact(8);
@@ -206,7 +208,7 @@ pub fn unpack_plane_into(bytes: &[u8], order: BitOrder, dst: &mut BitPlane) {
     if order == BitOrder::MsbFirst {
         words.iter_mut().for_each(|w| *w = flip_bytes(*w));
     }
-    // Padding bits cleared, as `unpack_plane` clears them.
+    // Clear padding bits so equal planes compare equal whatever the padding held.
     if !n.is_multiple_of(64) {
         if let Some(last) = words.last_mut() {
             *last &= (1u64 << (n % 64)) - 1;
