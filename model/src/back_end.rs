@@ -79,7 +79,7 @@ impl Tracking {
     /// into `step` what the sums and records of the plane need.
     pub fn step<F: FrontEnd>(&mut self, t: u64, front: &F, step: &mut TrackStep) {
         self.tracker
-            .evaluate(t, |x, y| front.neighbourhood_on(x as usize, y as usize));
+            .evaluate_slots(t, |slot, x, y| front.slot_on(slot, x as usize, y as usize));
         let (opened, drops) = self.tracker.associate(t, front.candidates());
         step.opened.clear();
         for slot in opened {

@@ -225,14 +225,21 @@ impl BlinkTracker {
     /// Step 1 of a plane: evaluates every track that was live at the end of
     /// the previous plane with `on(anchor_x, anchor_y)`.
     pub fn evaluate(&mut self, t: u64, mut on: impl FnMut(u16, u16) -> bool) {
-        for slot in self.slots.iter_mut() {
+        self.evaluate_slots(t, |_, x, y| on(x, y));
+    }
+
+    /// [`BlinkTracker::evaluate`], with `on(slot, anchor_x, anchor_y)` told
+    /// the slot of the track it tests (called once for each such slot,
+    /// lowest first).
+    pub fn evaluate_slots(&mut self, t: u64, mut on: impl FnMut(usize, u16, u16) -> bool) {
+        for (i, slot) in self.slots.iter_mut().enumerate() {
             let Slot::Busy(seg) = slot else { continue };
             // A new track is on at its t_cross by definition; a continuation
             // segment is evaluated from its first plane.
             if !seg.live || (!seg.continuation && seg.t_cross >= t) {
                 continue;
             }
-            if on(seg.anchor_x, seg.anchor_y) {
+            if on(i, seg.anchor_x, seg.anchor_y) {
                 if seg.in_dip {
                     seg.in_dip = false;
                     self.counters.bridged_dips += 1;

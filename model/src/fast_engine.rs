@@ -34,6 +34,7 @@
 mod above;
 mod block;
 mod chunks;
+mod near_ahead;
 mod parallel;
 
 pub use chunks::SourcePlane;
@@ -247,6 +248,21 @@ impl FastFrontEnd {
     /// `H_t` at (x, y).
     pub fn filtered_at(&self, x: usize, y: usize) -> u32 {
         self.filtered[(y + self.pad) * self.stride + x + self.pad]
+    }
+
+    /// Whether the 3×3 around (x, y) holds a pixel at the hold level (as
+    /// [`FrontEnd::neighbourhood_on`]), read from H itself: no search of the
+    /// pixels, nine cells in cache (the ring outside the field reads 0,
+    /// below any level but 0, at which every pixel is).
+    pub(crate) fn near_hold(&self, x: usize, y: usize) -> bool {
+        let (f, s) = (&self.filtered, self.stride);
+        let c = (y + self.pad) * s + x + self.pad;
+        let most = [c - s, c, c + s]
+            .iter()
+            .map(|&r| f[r - 1].max(f[r]).max(f[r + 1]))
+            .max()
+            .unwrap_or(0);
+        most >= self.threshold_hold
     }
 
     /// Rolling count `S_t` at (x, y).

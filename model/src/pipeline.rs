@@ -69,6 +69,14 @@ pub trait FrontEnd {
     fn push(&mut self, live: &BitPlane, delayed: &BitPlane);
     /// Whether max of `H_t` over the 3×3 around (x, y), clipped to the sensor, is ≥ T_hold.
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool;
+    /// The tracker's test of the track in `slot`, anchored at (x, y):
+    /// [`FrontEnd::neighbourhood_on`]. A front end that has some of the
+    /// answers already (the parallel engine's workers test their own tracks
+    /// ahead of the tracker) gives them by slot.
+    fn slot_on(&self, slot: usize, x: usize, y: usize) -> bool {
+        let _ = slot;
+        self.neighbourhood_on(x, y)
+    }
     /// Candidates of plane t, raster order.
     fn candidates(&self) -> &[Candidate];
 }

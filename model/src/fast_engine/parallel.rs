@@ -5,8 +5,10 @@
 
 use super::above::AbovePlane;
 use super::chunks::{fill_chunk, put_plane, CellState, ChunkCell, ChunkPool, Filling, SourcePlane};
+use super::near_ahead::{AheadTests, Bound, NearAhead};
 use super::FastFrontEnd;
 use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
+use crate::blink_tracker::Slot;
 use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
 use crate::delay_line::{DelayLine, SharedPlane};
@@ -23,39 +25,90 @@ struct PlaneFront {
     above: AbovePlane,
 }
 
-/// Replays precomputed stages 1–4 to the tracker (stage 5) of the back end.
+/// A chunk's planes with the workers' results: stages 1–4 of each plane,
+/// and the answers to the tracker's tests made ahead.
+#[derive(Debug, Clone)]
+struct FrontChunk {
+    planes: Arc<Vec<BitPlane>>,
+    fronts: Vec<PlaneFront>,
+    ahead: NearAhead,
+}
+
+/// Replays precomputed stages 1–4 to the tracker (stage 5) of the back end,
+/// with the answers the workers made ahead to its tests.
 #[derive(Debug, Default)]
 struct ReplayFrontEnd {
     width: usize,
     height: usize,
     queue: VecDeque<PlaneFront>,
     current: PlaneFront,
+    /// The plane being tracked.
+    t: u64,
+    /// The current chunk's answers made ahead.
+    ahead: NearAhead,
+    /// Each slot's track's answers, when the worker followed it.
+    bound: Vec<Option<Bound>>,
 }
 
 impl ReplayFrontEnd {
-    /// Takes the next plane's stages 1–4 from the queue.
-    fn next_plane(&mut self) {
+    /// Takes a chunk's stages 1–4 and answers, and binds the tracks in
+    /// `slots` to them (the answers of the chunk before end with it).
+    fn start_chunk(&mut self, fronts: Vec<PlaneFront>, ahead: NearAhead, slots: &[Slot]) {
+        self.queue.extend(fronts);
+        self.ahead = ahead;
+        let mut bound = std::mem::take(&mut self.bound);
+        for (b, slot) in bound.iter_mut().zip(slots) {
+            *b = match slot {
+                Slot::Busy(seg) if seg.live => self.find(seg.anchor_x, seg.anchor_y),
+                _ => None,
+            };
+        }
+        self.bound = bound;
+    }
+
+    /// The answers at anchor (x, y), if the workers made them.
+    fn find(&self, x: u16, y: u16) -> Option<Bound> {
+        self.ahead
+            .find((y as usize * self.width + x as usize) as u32)
+    }
+
+    /// Takes plane `t`'s stages 1–4 from the queue.
+    fn next_plane(&mut self, t: u64) {
+        self.t = t;
         self.current = self
             .queue
             .pop_front()
             .expect("a precomputed front end per plane");
-        // The tracker's 3×3 tests read the plane's pixels at the hold
-        // level: a worker wrote them a while ago, and on a large field
-        // (thousands of them) each test would wait on memory. Fetch the
-        // next plane's while this one is tracked.
+        // The tests the workers did not answer read the plane's pixels at
+        // the hold level: a worker wrote them a while ago, and on a large
+        // field (thousands of them) each test would wait on memory. Fetch
+        // the next plane's while this one is tracked.
         if let Some(next) = self.queue.front() {
             next.above.prefetch();
+        }
+    }
+
+    /// Binds the tracks opened at the current plane to the workers' answers.
+    fn bind(&mut self, opened: &[(u16, u16, u16)]) {
+        for &(slot, x, y) in opened {
+            self.bound[slot as usize] = self.find(x, y);
         }
     }
 }
 
 impl FrontEnd for ReplayFrontEnd {
     fn push(&mut self, _live: &BitPlane, _delayed: &BitPlane) {
-        self.next_plane();
+        self.next_plane(self.t + 1);
     }
 
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
         self.current.above.near(self.width, self.height, x, y)
+    }
+
+    fn slot_on(&self, slot: usize, x: usize, y: usize) -> bool {
+        self.bound[slot]
+            .and_then(|b| self.ahead.on(b, self.t))
+            .unwrap_or_else(|| self.neighbourhood_on(x, y))
     }
 
     fn candidates(&self) -> &[Candidate] {
@@ -87,7 +140,7 @@ struct Job<P> {
 /// why its planes could not be written.
 struct Done<E> {
     index: usize,
-    result: Result<(Arc<Vec<BitPlane>>, Vec<PlaneFront>), E>,
+    result: Result<FrontChunk, E>,
 }
 
 /// The time chunk [`run_parallel`] is best given for a window of `n_window`
@@ -109,7 +162,7 @@ pub fn default_chunk(n_window: u32) -> usize {
 pub struct FrontResults {
     cfg: PipelineConfig,
     /// The planes in chunks of [`default_chunk`], each with its stages 1–4.
-    chunks: Vec<(Arc<Vec<BitPlane>>, Vec<PlaneFront>)>,
+    chunks: Vec<FrontChunk>,
 }
 
 impl FrontResults {
@@ -119,15 +172,39 @@ impl FrontResults {
             Some(m) => planes.iter().map(|p| m.apply(p)).collect(),
             None => planes.to_vec(),
         };
-        let mut fronts = chunk_fronts(&mut FastFrontEnd::new(cfg), cfg, &[], &planes).into_iter();
-        // The planes move into their chunks: no second copy.
+        // Chunk by chunk, as the workers compute them.
         let chunk = default_chunk(cfg.n_window);
+        let n = cfg.n_window as usize;
+        let mut fe = FastFrontEnd::new(cfg);
+        let mut seen = Vec::new();
+        let mut fronts = (0..planes.len())
+            .step_by(chunk)
+            .map(|start| {
+                let history: Vec<&BitPlane> =
+                    planes[start.saturating_sub(n)..start].iter().collect();
+                let end = (start + chunk).min(planes.len());
+                chunk_fronts(
+                    &mut fe,
+                    cfg,
+                    start as u64,
+                    &history,
+                    &planes[start..end],
+                    &mut seen,
+                )
+            })
+            .collect::<Vec<_>>()
+            .into_iter();
+        // The planes move into their chunks: no second copy.
         let mut planes = planes.into_iter().peekable();
         let mut chunks = Vec::new();
         while planes.peek().is_some() {
             let c: Vec<BitPlane> = planes.by_ref().take(chunk).collect();
-            let f = fronts.by_ref().take(c.len()).collect();
-            chunks.push((Arc::new(c), f));
+            let (fronts, ahead) = fronts.next().expect("stages 1–4 of every chunk");
+            chunks.push(FrontChunk {
+                planes: Arc::new(c),
+                fronts,
+                ahead,
+            });
         }
         FrontResults {
             cfg: cfg.clone(),
@@ -137,7 +214,7 @@ impl FrontResults {
 
     /// Planes held.
     pub fn len(&self) -> usize {
-        self.chunks.iter().map(|(c, _)| c.len()).sum()
+        self.chunks.iter().map(|c| c.planes.len()).sum()
     }
 
     /// Whether no plane is held.
@@ -209,7 +286,7 @@ fn split_back_end<C>(
     chunk_done: impl FnMut(),
 ) -> Result<Vec<Record>, PipelineError>
 where
-    C: Iterator<Item = (Arc<Vec<BitPlane>>, Vec<PlaneFront>)> + Send,
+    C: Iterator<Item = FrontChunk> + Send,
 {
     let (tx, rx) = std::sync::mpsc::sync_channel::<Tracked>(4);
     std::thread::scope(|scope| {
@@ -218,20 +295,27 @@ where
             let mut front = ReplayFrontEnd {
                 width: cfg.width,
                 height: cfg.height,
+                bound: vec![None; cfg.slots],
                 ..Default::default()
             };
             let mut t = 0u64;
-            'chunks: for (planes, fronts) in chunks {
-                front.queue.extend(fronts);
+            'chunks: for FrontChunk {
+                planes,
+                fronts,
+                ahead,
+            } in chunks
+            {
+                front.start_chunk(fronts, ahead, tracking.tracker().slots());
                 let len = planes.len();
                 for start in (0..len).step_by(HANDOFF) {
                     let range = start..(start + HANDOFF).min(len);
                     let steps = range
                         .clone()
                         .map(|_| {
-                            front.next_plane();
+                            front.next_plane(t);
                             let mut step = TrackStep::default();
                             tracking.step(t, &front, &mut step);
+                            front.bind(&step.opened);
                             t += 1;
                             step
                         })
@@ -430,7 +514,7 @@ where
             let (rx, tx) = (job_rx.clone(), done_tx.clone());
             spawn_named(scope, WORKER_THREAD, move || {
                 let mut fe = FastFrontEnd::new(worker_cfg);
-                let mut scratch = Vec::new();
+                let (mut scratch, mut seen) = (Vec::new(), Vec::new());
                 loop {
                     let job = match rx.lock() {
                         Ok(rx) => rx.recv(),
@@ -473,10 +557,16 @@ where
                         .iter()
                         .flat_map(|(c, r)| c[r.clone()].iter())
                         .collect();
-                    let fronts = chunk_fronts(&mut fe, worker_cfg, &history, &planes);
+                    let start = (job.index * chunk) as u64;
+                    let (fronts, ahead) =
+                        chunk_fronts(&mut fe, worker_cfg, start, &history, &planes, &mut seen);
                     let done = Done {
                         index: job.index,
-                        result: Ok((planes, fronts)),
+                        result: Ok(FrontChunk {
+                            planes,
+                            fronts,
+                            ahead,
+                        }),
                     };
                     if tx.send(done).is_err() {
                         return;
@@ -523,15 +613,19 @@ where
     })
 }
 
-/// Stages 1–4 of every plane of a chunk. `history` holds the (up to N)
-/// planes before it, oldest first: all N of them, or every plane since
-/// stream start (earlier planes are zero).
+/// Stages 1–4 of every plane of a chunk that begins at plane `start`, and
+/// the answers to the tracker's tests made ahead over it. `history` holds
+/// the (up to N) planes before it, oldest first: all N of them, or every
+/// plane since stream start (earlier planes are zero); `seen` is the
+/// worker's scratch for the answers (a bitmap of the field, all clear).
 fn chunk_fronts(
     fe: &mut FastFrontEnd,
     cfg: &PipelineConfig,
+    start: u64,
     history: &[&BitPlane],
     planes: &[BitPlane],
-) -> Vec<PlaneFront> {
+    seen: &mut Vec<u64>,
+) -> (Vec<PlaneFront>, NearAhead) {
     let n = cfg.n_window as usize;
     let zero = BitPlane::zeros(cfg.width, cfg.height);
     let h = history.len();
@@ -545,18 +639,24 @@ fn chunk_fronts(
     };
     fe.above.keep_bits(cfg.width * cfg.height);
     fe.rewarm(history.iter().copied());
-    planes
+    let mut tests = AheadTests::new(start, planes.len(), cfg.width, cfg.slots);
+    if seen.is_empty() {
+        *seen = vec![0; (cfg.width * cfg.height).div_ceil(64)];
+    }
+    let fronts = planes
         .iter()
         .enumerate()
         .map(|(i, p)| {
             let delayed = (h + i).checked_sub(n).map_or(&zero, get);
             fe.push(p, delayed);
+            tests.plane(fe, seen);
             PlaneFront {
                 candidates: fe.candidates.clone(),
                 above: fe.above.handed_on(),
             }
         })
-        .collect()
+        .collect();
+    (fronts, tests.finish(seen))
 }
 
 /// Why a parallel run stopped.
