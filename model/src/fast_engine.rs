@@ -39,8 +39,8 @@ mod parallel;
 
 pub use chunks::SourcePlane;
 pub use parallel::{
-    default_chunk, run_parallel, FrontResults, ParallelError, READER_THREAD, TRACKER_THREAD,
-    WORKER_THREAD,
+    default_chunk, run_parallel, FrontResults, ParallelError, ParallelStats, READER_THREAD,
+    TRACKER_THREAD, WORKER_THREAD,
 };
 
 use crate::candidates::Candidate;

@@ -5,6 +5,7 @@ use smartagg_model::config::PipelineConfig;
 use smartagg_model::delay_line::SharedPlane;
 use smartagg_model::fast_engine::{
     default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa, ParallelError,
+    ParallelStats,
 };
 use smartagg_model::hot_pixel_mask::HotPixelMask;
 use smartagg_model::pipeline::{run, run_with, FrontEnd, GoldenFrontEnd, PipelineError};
@@ -303,6 +304,45 @@ fn source_errors_stop_the_parallel_run() {
     let mut n = 0;
     let e = run_parallel(cfg, src, 2, 4, |_| n += 1).unwrap_err();
     assert!(matches!(e, ParallelError::Source("disk on fire")));
+}
+
+/// A molecule on through the whole stream that moves one pixel after its
+/// track opens: its anchor is a candidate in the first planes only, so the
+/// workers answer its track's tests ahead only because the tracker publishes
+/// its live anchors. A worker takes chunk k once the back end is done with
+/// chunk k − (3·threads + 1), hence sees the anchors of a chunk start at
+/// least that late: from chunk 3·threads + 2 on, every test is answered
+/// ahead. The records are the golden ones throughout.
+#[test]
+fn the_workers_answer_a_long_tracks_tests_ahead() {
+    let (w, h) = (20, 16);
+    let cfg = PipelineConfig::new(w, h, 4, vec![1, 2, 1], 2, 40);
+    let planes: Vec<BitPlane> = (0..2000usize)
+        .map(|t| {
+            let cx = if t < 8 { 8 } else { 9 };
+            BitPlane::from_fn(w, h, |x, y| x.abs_diff(cx) <= 1 && y.abs_diff(7) <= 1)
+        })
+        .collect();
+    let golden = run(cfg.clone(), planes.clone()).unwrap();
+    assert_eq!(golden.len(), 3, "start, one truncated blink, end");
+    for threads in [1, 2, 3] {
+        let chunk = 64;
+        let mut got = Vec::new();
+        let stats: ParallelStats =
+            run_parallel::<(), _, _, _>(cfg.clone(), planes.iter().map(Ok), threads, chunk, |r| {
+                got.push(r)
+            })
+            .unwrap();
+        assert_eq!(got, golden, "{threads} threads");
+        // Tested from the plane after it opened (plane 2) to the last.
+        assert_eq!(stats.tracker_tests, 1997, "{threads} threads");
+        let unanswered = stats.tracker_tests - stats.answered_ahead;
+        assert!(
+            unanswered <= ((3 * threads + 2) * chunk) as u64,
+            "{threads} threads: {unanswered} of {} tests not answered ahead",
+            stats.tracker_tests
+        );
+    }
 }
 
 #[test]

@@ -596,7 +596,7 @@ fn stream(
         }
         Some(Ok::<_, std::convert::Infallible>(plane))
     });
-    run_parallel(
+    let stats = run_parallel(
         cfg.clone(),
         src,
         threads,
@@ -612,14 +612,16 @@ fn stream(
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     // The rows above count a plane when the reader takes it, up to
     // (3·threads + 1) chunks before its records: the rate of a run that is
-    // short beside that (the SPAD512S's chunks are 4,036 planes) reads high.
+    // short beside that (the SPAD512S's chunks are 1,009 planes) reads high.
     // This one counts them all through.
     let (rate, cpu) = t.rates(planes as usize);
     println!(
-        "all {planes} planes through the engine in {:.2} s: {rate:.0} planes/s, {} planes/CPU-s ({:.3} Gpixel/s); {records} records, {bytes} bytes of packets; the rows above count planes when read (the rate includes the replay copy, and the chunks in flight until the end); load average now {}",
+        "all {planes} planes through the engine in {:.2} s: {rate:.0} planes/s, {} planes/CPU-s ({:.3} Gpixel/s); {records} records, {bytes} bytes of packets; the tracker's 3×3 tests: {}, {:.1} % answered ahead by the workers; the rows above count planes when read (the rate includes the replay copy, and the chunks in flight until the end); load average now {}",
         t.wall.elapsed().as_secs_f64(),
         cpu.map_or("-".into(), |c| format!("{c:.0}")),
         rate * (cfg.width * cfg.height) as f64 * 1e-9,
+        stats.tracker_tests,
+        100.0 * stats.answered_ahead as f64 / stats.tracker_tests.max(1) as f64,
         load_average().unwrap_or_else(|| "unknown".into())
     );
     Ok(())

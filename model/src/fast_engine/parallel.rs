@@ -5,7 +5,7 @@
 
 use super::above::AbovePlane;
 use super::chunks::{fill_chunk, put_plane, CellState, ChunkCell, ChunkPool, Filling, SourcePlane};
-use super::near_ahead::{AheadTests, Bound, NearAhead};
+use super::near_ahead::{AheadTests, Bound, LiveAnchors, NearAhead};
 use super::FastFrontEnd;
 use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
 use crate::blink_tracker::Slot;
@@ -46,8 +46,10 @@ struct ReplayFrontEnd {
     t: u64,
     /// The current chunk's answers made ahead.
     ahead: NearAhead,
-    /// Each slot's track's answers, when the worker followed it.
+    /// Each slot's track's answers, when the workers made them.
     bound: Vec<Option<Bound>>,
+    /// The tests so far, and those answered ahead.
+    stats: std::cell::Cell<ParallelStats>,
 }
 
 impl ReplayFrontEnd {
@@ -106,9 +108,12 @@ impl FrontEnd for ReplayFrontEnd {
     }
 
     fn slot_on(&self, slot: usize, x: usize, y: usize) -> bool {
-        self.bound[slot]
-            .and_then(|b| self.ahead.on(b, self.t))
-            .unwrap_or_else(|| self.neighbourhood_on(x, y))
+        let ahead = self.bound[slot].and_then(|b| self.ahead.on(b, self.t));
+        let mut stats = self.stats.get();
+        stats.tracker_tests += 1;
+        stats.answered_ahead += u64::from(ahead.is_some());
+        self.stats.set(stats);
+        ahead.unwrap_or_else(|| self.neighbourhood_on(x, y))
     }
 
     fn candidates(&self) -> &[Candidate] {
@@ -189,6 +194,7 @@ impl FrontResults {
                     start as u64,
                     &history,
                     &planes[start..end],
+                    &[],
                     &mut seen,
                 )
             })
@@ -231,10 +237,34 @@ impl FrontResults {
         let cfg = self.cfg;
         cfg.validate()?;
         let mut out = vec![Record::Start(cfg.stream_start())];
-        let end = split_back_end(&cfg, self.chunks.into_iter(), |r| out.push(r), || {})?;
-        out.extend(end);
+        let anchors = LiveAnchors::default();
+        let end = split_back_end(
+            &cfg,
+            self.chunks.into_iter(),
+            &anchors,
+            |r| out.push(r),
+            || {},
+        )?;
+        out.extend(end.records);
         Ok(out)
     }
+}
+
+/// What a run of [`run_parallel`] did besides its records.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ParallelStats {
+    /// The tracker's 3×3 tests: one a live track a plane.
+    pub tracker_tests: u64,
+    /// Of those, the ones the workers had made ahead (see the fast engine's
+    /// module doc): the tracker read their answers instead of the plane.
+    pub answered_ahead: u64,
+}
+
+/// The end of [`split_back_end`]'s stream.
+struct BackEnd {
+    /// The records of the stream's end.
+    records: Vec<Record>,
+    stats: ParallelStats,
 }
 
 /// The name of [`run_parallel`]'s reader thread (what `top -H` and
@@ -282,60 +312,77 @@ const HANDOFF: usize = 128;
 fn split_back_end<C>(
     cfg: &PipelineConfig,
     chunks: C,
+    anchors: &LiveAnchors,
     mut sink: impl FnMut(Record),
     chunk_done: impl FnMut(),
-) -> Result<Vec<Record>, PipelineError>
+) -> Result<BackEnd, PipelineError>
 where
     C: Iterator<Item = FrontChunk> + Send,
 {
     let (tx, rx) = std::sync::mpsc::sync_channel::<Tracked>(4);
     std::thread::scope(|scope| {
-        let tracker = spawn_named(scope, TRACKER_THREAD, move || -> TrackEnd {
-            let mut tracking = Tracking::new(cfg);
-            let mut front = ReplayFrontEnd {
-                width: cfg.width,
-                height: cfg.height,
-                bound: vec![None; cfg.slots],
-                ..Default::default()
-            };
-            let mut t = 0u64;
-            'chunks: for FrontChunk {
-                planes,
-                fronts,
-                ahead,
-            } in chunks
-            {
-                front.start_chunk(fronts, ahead, tracking.tracker().slots());
-                let len = planes.len();
-                for start in (0..len).step_by(HANDOFF) {
-                    let range = start..(start + HANDOFF).min(len);
-                    let steps = range
-                        .clone()
-                        .map(|_| {
-                            front.next_plane(t);
-                            let mut step = TrackStep::default();
-                            tracking.step(t, &front, &mut step);
-                            front.bind(&step.opened);
-                            t += 1;
-                            step
-                        })
-                        .collect();
-                    let planes = planes.clone();
-                    // A failed send: the sums have stopped.
-                    if tx
-                        .send(Tracked {
-                            planes,
-                            range,
-                            steps,
-                        })
-                        .is_err()
-                    {
-                        break 'chunks;
+        let tracker = spawn_named(
+            scope,
+            TRACKER_THREAD,
+            move || -> (TrackEnd, ParallelStats) {
+                let mut tracking = Tracking::new(cfg);
+                let mut front = ReplayFrontEnd {
+                    width: cfg.width,
+                    height: cfg.height,
+                    bound: vec![None; cfg.slots],
+                    ..Default::default()
+                };
+                let mut t = 0u64;
+                'chunks: for FrontChunk {
+                    planes,
+                    fronts,
+                    ahead,
+                } in chunks
+                {
+                    let slots = tracking.tracker().slots();
+                    front.start_chunk(fronts, ahead, slots);
+                    anchors.publish(
+                        slots
+                            .iter()
+                            .filter_map(|s| match s {
+                                Slot::Busy(seg) if seg.live => Some(
+                                    seg.anchor_y as u32 * cfg.width as u32 + seg.anchor_x as u32,
+                                ),
+                                _ => None,
+                            })
+                            .collect(),
+                    );
+                    let len = planes.len();
+                    for start in (0..len).step_by(HANDOFF) {
+                        let range = start..(start + HANDOFF).min(len);
+                        let steps = range
+                            .clone()
+                            .map(|_| {
+                                front.next_plane(t);
+                                let mut step = TrackStep::default();
+                                tracking.step(t, &front, &mut step);
+                                front.bind(&step.opened);
+                                t += 1;
+                                step
+                            })
+                            .collect();
+                        let planes = planes.clone();
+                        // A failed send: the sums have stopped.
+                        if tx
+                            .send(Tracked {
+                                planes,
+                                range,
+                                steps,
+                            })
+                            .is_err()
+                        {
+                            break 'chunks;
+                        }
                     }
                 }
-            }
-            tracking.finish(t)
-        });
+                (tracking.finish(t), front.stats.get())
+            },
+        );
         let mut chunk_done = chunk_done;
         let mut delay = DelayLine::new(cfg.n_window as usize, cfg.width, cfg.height);
         let mut summing = Summing::new(cfg);
@@ -363,9 +410,12 @@ where
         // stops whoever feeds them); `chunk_done` may hold what lets them
         // be fed, so it goes first.
         drop((rx, chunk_done));
-        let end = tracker.join().expect("the tracker's thread panicked");
+        let (end, stats) = tracker.join().expect("the tracker's thread panicked");
         result?;
-        Ok(summing.finish(t, end, &delay))
+        Ok(BackEnd {
+            records: summing.finish(t, end, &delay),
+            stats,
+        })
     })
 }
 
@@ -395,7 +445,7 @@ pub fn run_parallel<E, P, I, S>(
     threads: usize,
     chunk: usize,
     mut sink: S,
-) -> Result<(), ParallelError<E>>
+) -> Result<ParallelStats, ParallelError<E>>
 where
     E: Send,
     P: SourcePlane<E>,
@@ -425,8 +475,9 @@ where
     }
     let worker_cfg = &cfg;
     let pool = &ChunkPool::default();
+    let anchors = &LiveAnchors::default();
     let failed = &Mutex::new(None);
-    std::thread::scope(|scope| -> Result<(), ParallelError<E>> {
+    std::thread::scope(|scope| -> Result<ParallelStats, ParallelError<E>> {
         let (w, h) = (cfg.width, cfg.height);
         let reader = spawn_named(
             scope,
@@ -558,8 +609,10 @@ where
                         .flat_map(|(c, r)| c[r.clone()].iter())
                         .collect();
                     let start = (job.index * chunk) as u64;
-                    let (fronts, ahead) =
-                        chunk_fronts(&mut fe, worker_cfg, start, &history, &planes, &mut seen);
+                    let live = anchors.latest();
+                    let (fronts, ahead) = chunk_fronts(
+                        &mut fe, worker_cfg, start, &history, &planes, &live, &mut seen,
+                    );
                     let done = Done {
                         index: job.index,
                         result: Ok(FrontChunk {
@@ -596,7 +649,7 @@ where
         });
         // The back end holds no credit: a failed send only means the reader
         // has finished.
-        let back = split_back_end(&cfg, in_order, &mut sink, move || {
+        let back = split_back_end(&cfg, in_order, anchors, &mut sink, move || {
             let _ = credit_tx.send(());
         });
         // The back end has stopped the workers (their sends fail), hence
@@ -608,22 +661,24 @@ where
             return Err(ParallelError::Source(e));
         }
         read?;
-        end.into_iter().for_each(&mut sink);
-        Ok(())
+        end.records.into_iter().for_each(&mut sink);
+        Ok(end.stats)
     })
 }
 
 /// Stages 1–4 of every plane of a chunk that begins at plane `start`, and
 /// the answers to the tracker's tests made ahead over it. `history` holds
 /// the (up to N) planes before it, oldest first: all N of them, or every
-/// plane since stream start (earlier planes are zero); `seen` is the
-/// worker's scratch for the answers (a bitmap of the field, all clear).
+/// plane since stream start (earlier planes are zero). `live` are the
+/// anchors the tracker last published, and `seen` the worker's scratch for
+/// the answers (a bitmap of the field, all clear).
 fn chunk_fronts(
     fe: &mut FastFrontEnd,
     cfg: &PipelineConfig,
     start: u64,
     history: &[&BitPlane],
     planes: &[BitPlane],
+    live: &[u32],
     seen: &mut Vec<u64>,
 ) -> (Vec<PlaneFront>, NearAhead) {
     let n = cfg.n_window as usize;
@@ -643,6 +698,7 @@ fn chunk_fronts(
     if seen.is_empty() {
         *seen = vec![0; (cfg.width * cfg.height).div_ceil(64)];
     }
+    tests.seed(live, seen);
     let fronts = planes
         .iter()
         .enumerate()
