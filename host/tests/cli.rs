@@ -630,12 +630,13 @@ fn bench_aggregate_streams_the_scene_asked_for() {
             out.contains("RSS MiB")
                 && out.contains(" records, ")
                 && out.contains("all 2000 planes through the engine in ")
-                && out.contains("reader/tracker/sums/workers"),
+                && out.contains("reader/tracker/sums/records/workers")
+                && out.contains(" % answered ahead by the workers"),
             "{out}"
         );
         // The last row (all planes read) names each role's CPU. The reader
-        // prints the row and the calling thread runs the sums: both are
-        // alive, so both are numbers. The tracker and the workers may not
+        // prints the row and the calling thread makes the records: both are
+        // alive, so both are numbers. The tracker, the sums and the workers may not
         // have started yet when a short run's planes are all read (the
         // reader runs up to 3·threads + 1 chunks of at least 512 planes
         // ahead): each is a number (the two workers a lowest and a
@@ -652,12 +653,13 @@ fn bench_aggregate_streams_the_scene_asked_for() {
             .collect();
         let number = |p: &str| p.parse::<f64>().is_ok();
         assert!(
-            roles.len() == 4
+            roles.len() == 5
                 && number(roles[0])
                 && (number(roles[1]) || roles[1] == "-")
-                && number(roles[2])
-                && (roles[3] == "-"
-                    || roles[3].split_once('-').is_some_and(|(lo, hi)| {
+                && (number(roles[2]) || roles[2] == "-")
+                && number(roles[3])
+                && (roles[4] == "-"
+                    || roles[4].split_once('-').is_some_and(|(lo, hi)| {
                         number(lo) && number(hi) && lo.parse::<f64>().ok() <= hi.parse::<f64>().ok()
                     })),
             "{last}"
@@ -691,7 +693,7 @@ fn bench_aggregate_prints_the_scaling_curve_and_the_serial_ceiling() {
     ]);
     for row in [
         "stages 1-4 portable",
-        "stages 5-7, 2 thr",
+        "stages 5-7, 3 thr",
         "fast, chunked x1 ",
         "fast, chunked x2 ",
         "fast, chunked x3 ",

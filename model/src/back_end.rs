@@ -1,14 +1,16 @@
-//! Stages 5–7 in two halves that can run in two threads: [`Tracking`] (stage
-//! 5, the blink tracker's decisions) and [`Summing`] (stage 6, the ROI sums,
-//! and stage 7, the records).
+//! Stages 5–7 in parts that can run in threads of their own: [`Tracking`]
+//! (stage 5, the blink tracker's decisions), [`RoiSums`] (stage 6, the ROI
+//! sums, for every slot or for a part of them) and [`Records`] (stage 7);
+//! [`Summing`] is stages 6–7 in one.
 //!
 //! [`Pipeline`](crate::pipeline::Pipeline) runs them one after the other on
 //! every plane. The parallel engine
 //! ([`run_parallel`](crate::fast_engine::run_parallel)) runs the tracker a
-//! chunk ahead in a thread of its own: on a large field each half is about
-//! half of the sequential back end. A plane's [`TrackStep`] carries all that
-//! the sums and records need from the tracker, so the records are the same
-//! whichever way the halves run.
+//! chunk ahead in a thread of its own, the sums of each part of the slots in
+//! another, and the records in a third. A plane's [`TrackStep`] carries all
+//! that the sums and records need from the tracker, and each part's sums
+//! come to the records in the tracker's order, so the records are the same
+//! whichever way the parts run.
 
 use crate::blink_tracker::{BlinkTracker, Completed, Drops, Slot, TrackerCounters};
 use crate::config::PipelineConfig;
@@ -125,52 +127,148 @@ impl Tracking {
     }
 }
 
-/// Stages 6–7 driven plane by plane: each slot's ROI sums of the planes
-/// leaving the delay line, and the records.
+/// A completed segment's ROI: its counts and flags
+/// ([`RoiAggregator::take`]).
+pub type RoiSum = (Vec<u32>, u8);
+
+/// Stage 6 driven plane by plane, for every slot or for a part of them
+/// (`slot % parts == part`: parts can run in threads of their own, each
+/// with the same steps and the same delay line): each slot's ROI sums of
+/// the planes leaving the delay line.
 #[derive(Debug, Clone)]
-pub struct Summing {
+pub struct RoiSums {
     cfg: PipelineConfig,
     rois: RoiAggregator,
-    blinks: u64,
+    part: usize,
+    parts: usize,
 }
 
-impl Summing {
-    /// Every ROI empty, for a validated configuration.
-    pub fn new(cfg: &PipelineConfig) -> Summing {
-        Summing {
+impl RoiSums {
+    /// Every ROI empty, for a validated configuration: the slots with
+    /// `slot % parts == part` (`part < parts`).
+    pub fn new(cfg: &PipelineConfig, part: usize, parts: usize) -> RoiSums {
+        debug_assert!(part < parts);
+        RoiSums {
             rois: RoiAggregator::new(cfg.slots, cfg.roi_size, cfg.width, cfg.height),
-            blinks: 0,
             cfg: cfg.clone(),
+            part,
+            parts,
         }
     }
 
-    /// The ROI accumulators.
+    /// The ROI accumulators (the slots of other parts stay empty).
     pub fn rois(&self) -> &RoiAggregator {
         &self.rois
     }
 
-    /// Stages 6–7 of plane `t`, the delay line holding `B_t` (so that it
-    /// gives `B_{t−N}`): the plane's records, in the order of
-    /// `model/PACKETS.md` §8.
-    pub fn step(&mut self, t: u64, step: &TrackStep, delay: &DelayLine) -> Vec<Record> {
+    /// Whether this part sums `slot`.
+    pub fn owns(&self, slot: usize) -> bool {
+        slot % self.parts == self.part
+    }
+
+    /// Stage 6 of a plane, the delay line holding `B_t` (so that it gives
+    /// `B_{t−N}`): pushes onto `done` the ROI of each of this part's
+    /// segments that `step` completes, in its order.
+    pub fn step(&mut self, step: &TrackStep, delay: &DelayLine, done: &mut Vec<RoiSum>) {
         let mask = self.cfg.hot_mask.as_ref();
         for &(slot, x, y) in &step.opened {
-            self.rois.open(slot as usize, x, y, mask);
+            if self.owns(slot as usize) {
+                self.rois.open(slot as usize, x, y, mask);
+            }
         }
         let delayed = delay.delayed();
         for &slot in &step.summing {
-            self.rois.add(slot as usize, delayed);
+            if self.owns(slot as usize) {
+                self.rois.add(slot as usize, delayed);
+            }
         }
-        // Most planes complete nothing: no allocation then.
-        let mut out = Vec::with_capacity(step.completed.len() + usize::from(step.drops.is_some()));
         for c in &step.completed {
-            out.push(self.emit(c));
+            if self.owns(c.slot) {
+                done.push(self.rois.take(c.slot).expect("a busy slot has an ROI"));
+            }
         }
         for &slot in &step.closed {
-            self.rois.close(slot as usize);
+            if self.owns(slot as usize) {
+                self.rois.close(slot as usize);
+            }
         }
         // The ROIs sum B_{t+1−N} next: fetch their rows meanwhile.
         self.rois.prefetch(delay.peek(0));
+    }
+
+    /// Stream end after `planes` planes, the delay line holding the last
+    /// ones: pushes onto `done` the ROI of each of this part's segments
+    /// still held, summed to its last plane, in `end`'s order.
+    pub fn finish(
+        &mut self,
+        planes: u64,
+        end: &TrackEnd,
+        delay: &DelayLine,
+        done: &mut Vec<RoiSum>,
+    ) {
+        if planes == 0 {
+            return;
+        }
+        let n = self.cfg.n_window as u64;
+        let (part, parts) = (self.part, self.parts);
+        for c in end.completed.iter().filter(|c| c.slot % parts == part) {
+            let seg = &c.segment;
+            let first = seg
+                .first_plane(self.cfg.n_window)
+                .max(planes.saturating_sub(n));
+            let last = seg
+                .last_plane(self.cfg.n_window, self.cfg.end_trim)
+                .expect("a finished segment has ended");
+            // Planes not yet summed: u in [max(first, p − N), last], still
+            // inside the delay line, which holds B_{p−N} … B_{p−1}.
+            for u in first as i64..=last {
+                let i = (u as u64 + n - planes) as usize;
+                // A few planes ahead: these planes are old, out of cache.
+                if u + 4 <= last {
+                    self.rois.prefetch_slot(c.slot, delay.peek(i + 4));
+                }
+                self.rois.add(c.slot, delay.peek(i));
+            }
+            done.push(self.rois.take(c.slot).expect("a busy slot has an ROI"));
+        }
+        // The tracker has freed every slot.
+        for slot in (part..self.cfg.slots).step_by(parts) {
+            self.rois.close(slot);
+        }
+    }
+}
+
+/// Stage 7 driven plane by plane: the records, from the tracker's steps and
+/// the completed segments' ROIs ([`RoiSums`]).
+#[derive(Debug, Clone)]
+pub struct Records {
+    cfg: PipelineConfig,
+    blinks: u64,
+}
+
+impl Records {
+    /// No blink yet.
+    pub fn new(cfg: &PipelineConfig) -> Records {
+        Records {
+            cfg: cfg.clone(),
+            blinks: 0,
+        }
+    }
+
+    /// The records of plane `t`, in the order of `model/PACKETS.md` §8;
+    /// `roi(slot)` gives each completed segment's ROI, in `step`'s order.
+    pub fn step(
+        &mut self,
+        t: u64,
+        step: &TrackStep,
+        mut roi: impl FnMut(usize) -> RoiSum,
+    ) -> Vec<Record> {
+        // Most planes complete nothing: no allocation then.
+        let mut out = Vec::with_capacity(step.completed.len() + usize::from(step.drops.is_some()));
+        for c in &step.completed {
+            let sum = roi(c.slot);
+            out.push(self.blink(c, sum));
+        }
         if let Some(d) = step.drops {
             out.push(Record::Dropped(DroppedRecord {
                 plane: t,
@@ -182,36 +280,20 @@ impl Summing {
         out
     }
 
-    /// Stream end after `planes` planes, the delay line holding the last
-    /// ones: the segments still held summed to their last plane, in slot
-    /// order, then the stream-end record.
-    pub fn finish(&mut self, planes: u64, end: TrackEnd, delay: &DelayLine) -> Vec<Record> {
+    /// Stream end after `planes` planes: the segments still held, in
+    /// `end`'s (slot) order, then the stream-end record; `roi(slot)` as for
+    /// [`Records::step`].
+    pub fn finish(
+        &mut self,
+        planes: u64,
+        end: TrackEnd,
+        mut roi: impl FnMut(usize) -> RoiSum,
+    ) -> Vec<Record> {
         let mut out = Vec::with_capacity(end.completed.len() + 1);
         if planes > 0 {
-            let n = self.cfg.n_window as u64;
             for c in &end.completed {
-                let seg = &c.segment;
-                let first = seg
-                    .first_plane(self.cfg.n_window)
-                    .max(planes.saturating_sub(n));
-                let last = seg
-                    .last_plane(self.cfg.n_window, self.cfg.end_trim)
-                    .expect("a finished segment has ended");
-                // Planes not yet summed: u in [max(first, p − N), last], still
-                // inside the delay line, which holds B_{p−N} … B_{p−1}.
-                for u in first as i64..=last {
-                    let i = (u as u64 + n - planes) as usize;
-                    // A few planes ahead: these planes are old, out of cache.
-                    if u + 4 <= last {
-                        self.rois.prefetch_slot(c.slot, delay.peek(i + 4));
-                    }
-                    self.rois.add(c.slot, delay.peek(i));
-                }
-                out.push(self.emit(c));
-            }
-            // The tracker has freed every slot.
-            for slot in 0..self.cfg.slots {
-                self.rois.close(slot);
+                let sum = roi(c.slot);
+                out.push(self.blink(c, sum));
             }
         }
         let counters = end.counters;
@@ -226,12 +308,11 @@ impl Summing {
         out
     }
 
-    fn emit(&mut self, c: &Completed) -> Record {
+    fn blink(&mut self, c: &Completed, (counts, roi_flags): RoiSum) -> Record {
         let seg = &c.segment;
         let n = self.cfg.n_window;
         let half = (n / 2) as i64;
         let t_drop = seg.t_drop.expect("a completed segment has ended");
-        let (counts, roi_flags) = self.rois.take(c.slot).expect("a busy slot has an ROI");
         let f = seg.flags(n) | roi_flags;
         let t_s = if seg.continuation {
             seg.t_cross as i64
@@ -258,6 +339,54 @@ impl Summing {
                 .expect("a completed segment has ended") as u32,
             roi_size: self.cfg.roi_size as u8,
             counts,
+        })
+    }
+}
+
+/// Stages 6–7 driven plane by plane in one thread: each slot's ROI sums of
+/// the planes leaving the delay line ([`RoiSums`], every slot), and the
+/// records ([`Records`]).
+#[derive(Debug, Clone)]
+pub struct Summing {
+    sums: RoiSums,
+    records: Records,
+    done: Vec<RoiSum>,
+}
+
+impl Summing {
+    /// Every ROI empty, for a validated configuration.
+    pub fn new(cfg: &PipelineConfig) -> Summing {
+        Summing {
+            sums: RoiSums::new(cfg, 0, 1),
+            records: Records::new(cfg),
+            done: Vec::new(),
+        }
+    }
+
+    /// The ROI accumulators.
+    pub fn rois(&self) -> &RoiAggregator {
+        self.sums.rois()
+    }
+
+    /// Stages 6–7 of plane `t`, the delay line holding `B_t` (so that it
+    /// gives `B_{t−N}`): the plane's records, in the order of
+    /// `model/PACKETS.md` §8.
+    pub fn step(&mut self, t: u64, step: &TrackStep, delay: &DelayLine) -> Vec<Record> {
+        self.sums.step(step, delay, &mut self.done);
+        let mut done = self.done.drain(..);
+        self.records.step(t, step, |_| {
+            done.next().expect("an ROI for each completed segment")
+        })
+    }
+
+    /// Stream end after `planes` planes, the delay line holding the last
+    /// ones: the segments still held summed to their last plane, in slot
+    /// order, then the stream-end record.
+    pub fn finish(&mut self, planes: u64, end: TrackEnd, delay: &DelayLine) -> Vec<Record> {
+        self.sums.finish(planes, &end, delay, &mut self.done);
+        let mut done = self.done.drain(..);
+        self.records.finish(planes, end, |_| {
+            done.next().expect("an ROI for each completed segment")
         })
     }
 }

@@ -22,7 +22,13 @@
 //!   warming its counts up on the N planes before it; the workers' per-plane
 //!   results (candidates and the pixels at the hold level, as a list or,
 //!   on a crowded plane, as a bitmap: `fast_engine/above.rs`) then feed the
-//!   one sequential tracker, which is cheap. A reader thread pulls the planes
+//!   one sequential tracker. Its 3×3 tests, which on a large field would
+//!   each wait on memory, are made ahead by the workers on H while it is in
+//!   their cache, at the pixels the tracks are likely anchored at (the
+//!   chunk's candidates and the anchors the tracker last published:
+//!   `fast_engine/near_ahead.rs`); the ROI sums run in threads of their own,
+//!   each the slots of one part (`fast_engine/back_threads.rs`). A reader
+//!   thread pulls the planes
 //!   meanwhile, and each worker takes the next chunk as soon as it is free;
 //!   planes lent (references, or a recording's planes at their indices:
 //!   [`crate::recording::PlaneFile`]) are copied or read by that worker, not
@@ -32,14 +38,16 @@
 //!   length, the threads, N and the field, not by the stream's length.
 
 mod above;
+mod back_threads;
 mod block;
 mod chunks;
 mod near_ahead;
 mod parallel;
 
+pub use back_threads::{sum_parts, ParallelStats};
 pub use chunks::SourcePlane;
 pub use parallel::{
-    default_chunk, run_parallel, FrontResults, ParallelError, ParallelStats, READER_THREAD,
+    default_chunk, run_parallel, FrontResults, ParallelError, READER_THREAD, SUMS_THREAD,
     TRACKER_THREAD, WORKER_THREAD,
 };
 

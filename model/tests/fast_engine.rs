@@ -119,17 +119,24 @@ fn spcimager_like_field_matches_golden_single_and_parallel() {
     );
     let fast = run_with(fast_pipeline(cfg.clone()).unwrap(), planes.clone()).unwrap();
     assert_eq!(fast, golden);
-    for (threads, chunk) in [(1, 900), (2, 100), (3, 37), (2, 1), (2, 250)] {
+    for (threads, chunk) in [(1, 900), (2, 100), (3, 37), (2, 1), (2, 250), (9, 100)] {
         assert_eq!(
             parallel(cfg.clone(), planes.clone(), threads, chunk),
             golden,
             "threads {threads} chunk {chunk}"
         );
     }
-    // Stages 5–7 alone on precomputed stages 1–4: the same records.
+    // Stages 5–7 alone on precomputed stages 1–4: the same records, with
+    // the ROI sums in 1 to 4 threads.
     let fronts = FrontResults::compute(&cfg, &planes);
     assert_eq!(fronts.len(), planes.len());
-    assert_eq!(fronts.replay_back_end().unwrap(), golden);
+    for threads in [1, 9, 17, 25] {
+        assert_eq!(
+            fronts.clone().replay_back_end(threads).unwrap(),
+            golden,
+            "{threads} threads"
+        );
+    }
 }
 
 /// The parallel engine and the replay mask each plane once, in the reader or
@@ -147,7 +154,7 @@ fn hot_pixels_are_masked_once_and_the_records_stay_golden() {
     let (mask, _) = HotPixelMask::from_pixels(64, 48, &[(30, 20)]);
     cfg.hot_mask = Some(mask.clone());
     let golden = run(cfg.clone(), planes.clone()).unwrap();
-    for (threads, chunk) in [(1, 700), (2, 64), (3, 1)] {
+    for (threads, chunk) in [(1, 700), (2, 64), (3, 1), (17, 64)] {
         assert_eq!(
             parallel(cfg.clone(), planes.clone(), threads, chunk),
             golden
@@ -155,7 +162,7 @@ fn hot_pixels_are_masked_once_and_the_records_stay_golden() {
     }
     assert_eq!(
         FrontResults::compute(&cfg, &planes)
-            .replay_back_end()
+            .replay_back_end(9)
             .unwrap(),
         golden
     );
@@ -418,7 +425,7 @@ fn a_recording_read_at_its_planes_gives_the_golden_records() {
             cfg.hot_mask = Some(HotPixelMask::from_pixels(w, h, &[(20, 12), (0, 0)]).0);
         }
         let golden = run(cfg.clone(), planes.clone()).unwrap();
-        for (threads, chunk) in [(1, 900), (2, 64), (3, 37), (2, 1)] {
+        for (threads, chunk) in [(1, 900), (2, 64), (3, 37), (2, 1), (10, 50)] {
             let at = open();
             let mut got = Vec::new();
             run_parallel(cfg.clone(), at.planes(), threads, chunk, |r| got.push(r)).unwrap();

@@ -11,8 +11,8 @@
 use crate::setup::{self, PipelineArgs};
 use smartagg_model::config::PipelineConfig;
 use smartagg_model::fast_engine::{
-    default_chunk, fast_pipeline, run_parallel, FastFrontEnd, FrontResults, Isa, READER_THREAD,
-    TRACKER_THREAD, WORKER_THREAD,
+    default_chunk, fast_pipeline, run_parallel, sum_parts, FastFrontEnd, FrontResults, Isa,
+    READER_THREAD, SUMS_THREAD, TRACKER_THREAD, WORKER_THREAD,
 };
 use smartagg_model::packetiser::Packetiser;
 use smartagg_model::params::{Camera, Preset, PresetName};
@@ -173,9 +173,9 @@ fn thread_ticks() -> Option<BTreeMap<u32, (String, u64)>> {
 }
 
 /// Each role's CPU between two [`thread_ticks`] `seconds` apart, in percent
-/// of one core: `reader/tracker/sums/workers` (the sums run in this, the
-/// calling, thread; the workers as their lowest–highest), `-` for a role with
-/// no thread. Where the planes/s stop growing with the threads, the role at
+/// of one core: `reader/tracker/sums/records/workers` (the busiest thread of
+/// ROI sums; the records are made in this, the calling, thread; the workers
+/// as their lowest–highest), `-` for a role with no thread. Where the planes/s stop growing with the threads, the role at
 /// 100 % is the one that holds them back.
 fn role_cpu(
     before: &BTreeMap<u32, (String, u64)>,
@@ -183,7 +183,8 @@ fn role_cpu(
     seconds: f64,
 ) -> String {
     let pid = std::process::id();
-    let (mut reader, mut tracker, mut sums, mut workers) = (None, None, None, Vec::new());
+    let (mut reader, mut tracker, mut sums, mut records, mut workers) =
+        (None, None, None::<f64>, None, Vec::new());
     for (tid, (name, t1)) in after {
         // A thread born in the interval used all its ticks in it.
         let t0 = before.get(tid).map_or(0, |(_, t)| *t);
@@ -192,7 +193,8 @@ fn role_cpu(
             READER_THREAD => reader = Some(pct),
             TRACKER_THREAD => tracker = Some(pct),
             WORKER_THREAD => workers.push(pct),
-            _ if *tid == pid => sums = Some(pct),
+            SUMS_THREAD => sums = Some(sums.map_or(pct, |s| s.max(pct))),
+            _ if *tid == pid => records = Some(pct),
             _ => {}
         }
     }
@@ -204,7 +206,13 @@ fn role_cpu(
         }
         None => "-".into(),
     };
-    format!("{}/{}/{}/{w}", one(reader), one(tracker), one(sums))
+    format!(
+        "{}/{}/{}/{}/{w}",
+        one(reader),
+        one(tracker),
+        one(sums),
+        one(records)
+    )
 }
 
 /// The 1-minute load average, to judge how shared the machine was.
@@ -469,17 +477,18 @@ fn measure(
         bytes_of(&fast)?.len(),
         single_rate,
     );
-    // Stages 5–7 alone (the back end of the chunked engine, in its two
-    // threads: the part that the workers do not share): the ceiling of any
-    // thread count.
+    // Stages 5–7 alone (the back end of the chunked engine, in its threads
+    // for the most workers: the part that the workers do not share): the
+    // ceiling of the curve.
     let fronts = FrontResults::compute(cfg, &planes);
     let t = Timing::start();
-    let back = fronts.replay_back_end()?;
+    let back = fronts.replay_back_end(threads)?;
     let rates = t.rates(planes.len());
     if back != fast {
         anyhow::bail!("stages 5-7 replayed alone differ from the fast engine on the {name} scene");
     }
-    row("stages 5-7, 2 thr", planes.len(), rates, 0, single_rate);
+    let label = format!("stages 5-7, {} thr", sum_parts(threads) + 2);
+    row(&label, planes.len(), rates, 0, single_rate);
     // The scaling curve: one worker overlaps the reader and the back end;
     // more workers share the chunks. A run must be long beside the chunks
     // in flight (3·threads + 1), or the curve measures the stream's start,
@@ -565,7 +574,7 @@ fn stream(
     let mut packetiser = Packetiser::new();
     let mut buf = Vec::new();
     println!(
-        "{:>10} {:>8} {:>10} {:>11} {:>8} {:>8}  CPU % since the last row: reader/tracker/sums/workers",
+        "{:>10} {:>8} {:>10} {:>11} {:>8} {:>8}  CPU % since the last row: reader/tracker/sums/records/workers",
         "planes", "seconds", "planes/s", "planes/CPUs", "RSS MiB", "HWM MiB"
     );
     let mut last = (Instant::now(), thread_ticks());
@@ -656,11 +665,14 @@ mod tests {
             (pid + 3, WORKER_THREAD, 85),
             (pid + 4, TRACKER_THREAD, 30),
             (pid + 5, "other", 999),
+            (pid + 6, SUMS_THREAD, 40),
+            (pid + 7, SUMS_THREAD, 60),
         ]);
-        assert_eq!(role_cpu(&before, &after, 1.0), "100/30/50/20-80");
-        assert_eq!(role_cpu(&before, &after, 2.0), "50/15/25/10-40");
-        assert_eq!(role_cpu(&before, &before, 1.0), "0/-/0/0-0");
+        // The busiest thread of sums.
+        assert_eq!(role_cpu(&before, &after, 1.0), "100/30/60/50/20-80");
+        assert_eq!(role_cpu(&before, &after, 2.0), "50/15/30/25/10-40");
+        assert_eq!(role_cpu(&before, &before, 1.0), "0/-/-/0/0-0");
         let alone = ticks(&[(pid, "smartagg", 7)]);
-        assert_eq!(role_cpu(&alone, &alone, 1.0), "-/-/0/-");
+        assert_eq!(role_cpu(&alone, &alone, 1.0), "-/-/-/0/-");
     }
 }

@@ -3,123 +3,16 @@
 //! 5–7); and [`FrontResults`], the workers' results kept for a second back
 //! end.
 
-use super::above::AbovePlane;
+use super::back_threads::{split_back_end, sum_parts, FrontChunk, ParallelStats, PlaneFront};
 use super::chunks::{fill_chunk, put_plane, CellState, ChunkCell, ChunkPool, Filling, SourcePlane};
-use super::near_ahead::{AheadTests, Bound, LiveAnchors, NearAhead};
+use super::near_ahead::{AheadTests, LiveAnchors, NearAhead};
 use super::FastFrontEnd;
-use crate::back_end::{Summing, TrackEnd, TrackStep, Tracking};
-use crate::blink_tracker::Slot;
-use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
-use crate::delay_line::{DelayLine, SharedPlane};
-use crate::pipeline::{check_plane_number, FrontEnd, PipelineError};
+use crate::pipeline::{FrontEnd, PipelineError};
 use crate::plane::BitPlane;
 use crate::record::Record;
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, PoisonError};
-
-/// Stages 1–4 of one plane, as computed by a worker.
-#[derive(Debug, Clone, Default)]
-struct PlaneFront {
-    candidates: Vec<Candidate>,
-    above: AbovePlane,
-}
-
-/// A chunk's planes with the workers' results: stages 1–4 of each plane,
-/// and the answers to the tracker's tests made ahead.
-#[derive(Debug, Clone)]
-struct FrontChunk {
-    planes: Arc<Vec<BitPlane>>,
-    fronts: Vec<PlaneFront>,
-    ahead: NearAhead,
-}
-
-/// Replays precomputed stages 1–4 to the tracker (stage 5) of the back end,
-/// with the answers the workers made ahead to its tests.
-#[derive(Debug, Default)]
-struct ReplayFrontEnd {
-    width: usize,
-    height: usize,
-    queue: VecDeque<PlaneFront>,
-    current: PlaneFront,
-    /// The plane being tracked.
-    t: u64,
-    /// The current chunk's answers made ahead.
-    ahead: NearAhead,
-    /// Each slot's track's answers, when the workers made them.
-    bound: Vec<Option<Bound>>,
-    /// The tests so far, and those answered ahead.
-    stats: std::cell::Cell<ParallelStats>,
-}
-
-impl ReplayFrontEnd {
-    /// Takes a chunk's stages 1–4 and answers, and binds the tracks in
-    /// `slots` to them (the answers of the chunk before end with it).
-    fn start_chunk(&mut self, fronts: Vec<PlaneFront>, ahead: NearAhead, slots: &[Slot]) {
-        self.queue.extend(fronts);
-        self.ahead = ahead;
-        let mut bound = std::mem::take(&mut self.bound);
-        for (b, slot) in bound.iter_mut().zip(slots) {
-            *b = match slot {
-                Slot::Busy(seg) if seg.live => self.find(seg.anchor_x, seg.anchor_y),
-                _ => None,
-            };
-        }
-        self.bound = bound;
-    }
-
-    /// The answers at anchor (x, y), if the workers made them.
-    fn find(&self, x: u16, y: u16) -> Option<Bound> {
-        self.ahead
-            .find((y as usize * self.width + x as usize) as u32)
-    }
-
-    /// Takes plane `t`'s stages 1–4 from the queue.
-    fn next_plane(&mut self, t: u64) {
-        self.t = t;
-        self.current = self
-            .queue
-            .pop_front()
-            .expect("a precomputed front end per plane");
-        // The tests the workers did not answer read the plane's pixels at
-        // the hold level: a worker wrote them a while ago, and on a large
-        // field (thousands of them) each test would wait on memory. Fetch
-        // the next plane's while this one is tracked.
-        if let Some(next) = self.queue.front() {
-            next.above.prefetch();
-        }
-    }
-
-    /// Binds the tracks opened at the current plane to the workers' answers.
-    fn bind(&mut self, opened: &[(u16, u16, u16)]) {
-        for &(slot, x, y) in opened {
-            self.bound[slot as usize] = self.find(x, y);
-        }
-    }
-}
-
-impl FrontEnd for ReplayFrontEnd {
-    fn push(&mut self, _live: &BitPlane, _delayed: &BitPlane) {
-        self.next_plane(self.t + 1);
-    }
-
-    fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
-        self.current.above.near(self.width, self.height, x, y)
-    }
-
-    fn slot_on(&self, slot: usize, x: usize, y: usize) -> bool {
-        let ahead = self.bound[slot].and_then(|b| self.ahead.on(b, self.t));
-        let mut stats = self.stats.get();
-        stats.tracker_tests += 1;
-        stats.answered_ahead += u64::from(ahead.is_some());
-        self.stats.set(stats);
-        ahead.unwrap_or_else(|| self.neighbourhood_on(x, y))
-    }
-
-    fn candidates(&self) -> &[Candidate] {
-        &self.current.candidates
-    }
-}
 
 /// A chunk's planes as the reader hands them on.
 enum ChunkPlanes<P> {
@@ -229,11 +122,14 @@ impl FrontResults {
     }
 
     /// Stages 5–7 alone — the tracker, the ROI sums and the records — on the
-    /// planes and their stages 1–4, as [`run_parallel`] runs them (the
-    /// tracker a chunk ahead in a thread of its own): the records of the
-    /// whole stream (start to end), the same as [`fast_pipeline`](super::fast_pipeline)'s on the
-    /// same planes.
-    pub fn replay_back_end(self) -> Result<Vec<Record>, PipelineError> {
+    /// planes and their stages 1–4, as [`run_parallel`] runs them for
+    /// `threads` workers (the tracker, [`sum_parts`] threads of ROI sums and
+    /// the records in threads of their own): the records of the whole
+    /// stream (start to end), the same as
+    /// [`fast_pipeline`](super::fast_pipeline)'s on the same planes. (No
+    /// tracker runs beside the workers here, so the tests a worker makes
+    /// ahead are those at its own candidates only.)
+    pub fn replay_back_end(self, threads: usize) -> Result<Vec<Record>, PipelineError> {
         let cfg = self.cfg;
         cfg.validate()?;
         let mut out = vec![Record::Start(cfg.stream_start())];
@@ -241,6 +137,7 @@ impl FrontResults {
         let end = split_back_end(
             &cfg,
             self.chunks.into_iter(),
+            sum_parts(threads),
             &anchors,
             |r| out.push(r),
             || {},
@@ -250,36 +147,21 @@ impl FrontResults {
     }
 }
 
-/// What a run of [`run_parallel`] did besides its records.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct ParallelStats {
-    /// The tracker's 3×3 tests: one a live track a plane.
-    pub tracker_tests: u64,
-    /// Of those, the ones the workers had made ahead (see the fast engine's
-    /// module doc): the tracker read their answers instead of the plane.
-    pub answered_ahead: u64,
-}
-
-/// The end of [`split_back_end`]'s stream.
-struct BackEnd {
-    /// The records of the stream's end.
-    records: Vec<Record>,
-    stats: ParallelStats,
-}
-
 /// The name of [`run_parallel`]'s reader thread (what `top -H` and
 /// `/proc/PID/task/*/comm` show; `smartagg bench aggregate --stream` reports
-/// the CPU of each role by these names). The ROI sums and the records run in
-/// the thread that called [`run_parallel`].
+/// the CPU of each role by these names). The records are made in the thread
+/// that called [`run_parallel`].
 pub const READER_THREAD: &str = "sa-reader";
 /// The name of each of [`run_parallel`]'s worker threads (stages 1–4).
 pub const WORKER_THREAD: &str = "sa-worker";
 /// The name of [`run_parallel`]'s tracker thread (stage 5).
 pub const TRACKER_THREAD: &str = "sa-tracker";
+/// The name of each of [`run_parallel`]'s threads of ROI sums (stage 6).
+pub const SUMS_THREAD: &str = "sa-sums";
 
 /// Spawns `f` in `scope` as a thread named `name`; like `scope.spawn`, it
 /// panics if the system cannot start a thread.
-fn spawn_named<'scope, T: Send + 'scope>(
+pub(super) fn spawn_named<'scope, T: Send + 'scope>(
     scope: &'scope std::thread::Scope<'scope, '_>,
     name: &str,
     f: impl FnOnce() -> T + Send + 'scope,
@@ -288,135 +170,6 @@ fn spawn_named<'scope, T: Send + 'scope>(
         .name(name.into())
         .spawn_scoped(scope, f)
         .expect("the system could not start a thread")
-}
-
-/// Planes of a chunk and the tracker's decisions at each, on their way from
-/// the tracker's thread to the sums: a few hundred at a time, so that the
-/// sums start soon after the tracker (a chunk can be thousands of planes).
-struct Tracked {
-    planes: Arc<Vec<BitPlane>>,
-    range: std::ops::Range<usize>,
-    steps: Vec<TrackStep>,
-}
-
-/// Planes the tracker hands to the sums at a time.
-const HANDOFF: usize = 128;
-
-/// Stages 5–7 on chunks in stream order (each chunk's planes with their
-/// stages 1–4), in two threads: the tracker ([`Tracking`]) runs in a thread
-/// of its own, a few hundred planes ahead of the ROI sums and the records
-/// ([`Summing`]), which run in the calling thread. `sink` gets each plane's
-/// records in stream order and `chunk_done` is called once a chunk's have
-/// all gone; the records of the stream's end are returned (not sunk), so
-/// that the caller can hold them back if the stream failed.
-fn split_back_end<C>(
-    cfg: &PipelineConfig,
-    chunks: C,
-    anchors: &LiveAnchors,
-    mut sink: impl FnMut(Record),
-    chunk_done: impl FnMut(),
-) -> Result<BackEnd, PipelineError>
-where
-    C: Iterator<Item = FrontChunk> + Send,
-{
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Tracked>(4);
-    std::thread::scope(|scope| {
-        let tracker = spawn_named(
-            scope,
-            TRACKER_THREAD,
-            move || -> (TrackEnd, ParallelStats) {
-                let mut tracking = Tracking::new(cfg);
-                let mut front = ReplayFrontEnd {
-                    width: cfg.width,
-                    height: cfg.height,
-                    bound: vec![None; cfg.slots],
-                    ..Default::default()
-                };
-                let mut t = 0u64;
-                'chunks: for FrontChunk {
-                    planes,
-                    fronts,
-                    ahead,
-                } in chunks
-                {
-                    let slots = tracking.tracker().slots();
-                    front.start_chunk(fronts, ahead, slots);
-                    anchors.publish(
-                        slots
-                            .iter()
-                            .filter_map(|s| match s {
-                                Slot::Busy(seg) if seg.live => Some(
-                                    seg.anchor_y as u32 * cfg.width as u32 + seg.anchor_x as u32,
-                                ),
-                                _ => None,
-                            })
-                            .collect(),
-                    );
-                    let len = planes.len();
-                    for start in (0..len).step_by(HANDOFF) {
-                        let range = start..(start + HANDOFF).min(len);
-                        let steps = range
-                            .clone()
-                            .map(|_| {
-                                front.next_plane(t);
-                                let mut step = TrackStep::default();
-                                tracking.step(t, &front, &mut step);
-                                front.bind(&step.opened);
-                                t += 1;
-                                step
-                            })
-                            .collect();
-                        let planes = planes.clone();
-                        // A failed send: the sums have stopped.
-                        if tx
-                            .send(Tracked {
-                                planes,
-                                range,
-                                steps,
-                            })
-                            .is_err()
-                        {
-                            break 'chunks;
-                        }
-                    }
-                }
-                (tracking.finish(t), front.stats.get())
-            },
-        );
-        let mut chunk_done = chunk_done;
-        let mut delay = DelayLine::new(cfg.n_window as usize, cfg.width, cfg.height);
-        let mut summing = Summing::new(cfg);
-        let mut t = 0u64;
-        let mut result = Ok(());
-        'chunks: for tracked in &rx {
-            let planes = SharedPlane::within(&tracked.planes, tracked.range.clone());
-            for (plane, step) in planes.zip(&tracked.steps) {
-                if let Err(e) = check_plane_number(t) {
-                    result = Err(e);
-                    break 'chunks;
-                }
-                delay.push_shared(plane);
-                summing
-                    .step(t, step, &delay)
-                    .into_iter()
-                    .for_each(&mut sink);
-                t += 1;
-            }
-            if tracked.range.end == tracked.planes.len() {
-                chunk_done();
-            }
-        }
-        // The tracker stops at its next send, and drops its chunks (which
-        // stops whoever feeds them); `chunk_done` may hold what lets them
-        // be fed, so it goes first.
-        drop((rx, chunk_done));
-        let (end, stats) = tracker.join().expect("the tracker's thread panicked");
-        result?;
-        Ok(BackEnd {
-            records: summing.finish(t, end, &delay),
-            stats,
-        })
-    })
 }
 
 /// Runs a stream on `threads` worker threads in time chunks of `chunk` planes,
@@ -431,14 +184,18 @@ where
 /// next chunk as soon as it is free (no barrier between chunks), copies and
 /// masks a lent chunk's planes into a recycled one, and computes its stages
 /// 1–4, warmed up on the N planes before the chunk (the other chunks'
-/// copies, by reference); stages 5–7 take the chunks in stream order, in
-/// two threads (see [`crate::back_end`]): the tracker in a thread of its
-/// own, the ROI sums and the records in the calling thread, which calls
-/// `sink`. At most `3·threads + 1` chunks are in flight, and the back end's
-/// delay line keeps the chunks that hold its last N + 1 planes (by
+/// copies, by reference), and makes the tracker's 3×3 tests ahead at the
+/// pixels its tracks are likely anchored at (`fast_engine/near_ahead.rs`);
+/// stages 5–7 take the chunks in stream order, in threads (see
+/// [`crate::back_end`] and `fast_engine/back_threads.rs`): the tracker in
+/// a thread of its own, the ROI sums in [`sum_parts`] threads (each the
+/// slots of one part), and the records in the calling thread, which calls
+/// `sink`. At most `3·threads + 1` chunks are in flight, and the sums'
+/// delay lines keep the chunks that hold their last N + 1 planes (by
 /// reference: no plane is copied twice), so memory is bounded by
 /// `(3·threads + 3)·chunk + (threads + 1)·N` planes, whatever the stream's
-/// length.
+/// length. The answers made ahead take a bit a plane for each of at most
+/// twice the slots a chunk.
 pub fn run_parallel<E, P, I, S>(
     cfg: PipelineConfig,
     planes: I,
@@ -649,9 +406,16 @@ where
         });
         // The back end holds no credit: a failed send only means the reader
         // has finished.
-        let back = split_back_end(&cfg, in_order, anchors, &mut sink, move || {
-            let _ = credit_tx.send(());
-        });
+        let back = split_back_end(
+            &cfg,
+            in_order,
+            sum_parts(threads),
+            anchors,
+            &mut sink,
+            move || {
+                let _ = credit_tx.send(());
+            },
+        );
         // The back end has stopped the workers (their sends fail), hence
         // the reader.
         let read = reader.join().expect("the plane reader panicked");
