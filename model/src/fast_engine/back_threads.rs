@@ -1,4 +1,4 @@
-//! Stages 5–7 of [`run_parallel`](super::run_parallel)(super::run_parallel) in threads, on the
+//! Stages 5–7 of [`run_parallel`](super::run_parallel) in threads, on the
 //! workers' results: the tracker (stage 5) in a thread of its own, replaying
 //! the workers' stages 1–4 and reading the answers they made ahead to its
 //! tests; the ROI sums (stage 6) in [`sum_parts`] threads, each the slots
