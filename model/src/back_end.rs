@@ -91,6 +91,9 @@ impl Tracking {
             }
         }
         step.summing.clear();
+        // At most every slot: one allocation for a new step, not one each
+        // time the list doubles (the parallel engine makes a step a plane).
+        step.summing.reserve(self.roi_open.len());
         for slot in 0..self.roi_open.len() {
             if self.tracker.sums_delayed(slot, t) {
                 step.summing.push(slot as u16);
