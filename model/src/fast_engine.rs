@@ -28,8 +28,8 @@
 //!   chunk's candidates and the anchors the tracker last published:
 //!   `fast_engine/near_ahead.rs`); the ROI sums run in threads of their own,
 //!   each the slots of one part (`fast_engine/back_threads.rs`). A reader
-//!   thread pulls the planes
-//!   meanwhile, and each worker takes the next chunk as soon as it is free;
+//!   thread pulls the planes meanwhile, and each worker takes the next chunk
+//!   as soon as it is free;
 //!   planes lent (references, or a recording's planes at their indices:
 //!   [`crate::recording::PlaneFile`]) are copied or read by that worker, not
 //!   the reader (`fast_engine/chunks.rs`).
@@ -55,7 +55,7 @@ use crate::candidates::Candidate;
 use crate::config::PipelineConfig;
 use crate::pipeline::{FrontEnd, Pipeline, PipelineError};
 use crate::plane::BitPlane;
-use above::{pixels_near, AboveHold};
+use above::AboveHold;
 use block::{add_row, below_run, scan_block};
 
 /// The instruction sets [`FastFrontEnd`] is compiled for; the fastest one
@@ -256,21 +256,6 @@ impl FastFrontEnd {
     /// `H_t` at (x, y).
     pub fn filtered_at(&self, x: usize, y: usize) -> u32 {
         self.filtered[(y + self.pad) * self.stride + x + self.pad]
-    }
-
-    /// Whether the 3×3 around (x, y) holds a pixel at the hold level (as
-    /// [`FrontEnd::neighbourhood_on`]), read from H itself: no search of the
-    /// pixels, nine cells in cache (the ring outside the field reads 0,
-    /// below any level but 0, at which every pixel is).
-    pub(crate) fn near_hold(&self, x: usize, y: usize) -> bool {
-        let (f, s) = (&self.filtered, self.stride);
-        let c = (y + self.pad) * s + x + self.pad;
-        let most = [c - s, c, c + s]
-            .iter()
-            .map(|&r| f[r - 1].max(f[r]).max(f[r + 1]))
-            .max()
-            .unwrap_or(0);
-        most >= self.threshold_hold
     }
 
     /// Rolling count `S_t` at (x, y).
@@ -591,8 +576,18 @@ impl FrontEnd for FastFrontEnd {
         }
     }
 
+    /// Read from H itself: no search of the pixels at the hold level, nine
+    /// cells (the ring outside the field reads 0, below any level but 0, at
+    /// which every pixel is).
     fn neighbourhood_on(&self, x: usize, y: usize) -> bool {
-        pixels_near(&self.above.pixels, self.width, self.height, x, y)
+        let (f, s) = (&self.filtered, self.stride);
+        let c = (y + self.pad) * s + x + self.pad;
+        let most = [c - s, c, c + s]
+            .iter()
+            .map(|&r| f[r - 1].max(f[r]).max(f[r + 1]))
+            .max()
+            .unwrap_or(0);
+        most >= self.threshold_hold
     }
 
     fn candidates(&self) -> &[Candidate] {

@@ -53,25 +53,29 @@ struct ReplayFrontEnd {
 }
 
 impl ReplayFrontEnd {
-    /// Takes a chunk's stages 1–4 and answers, and binds the tracks in
-    /// `slots` to them (the answers of the chunk before end with it).
-    fn start_chunk(&mut self, fronts: Vec<PlaneFront>, ahead: NearAhead, slots: &[Slot]) {
+    /// Takes a chunk's stages 1–4 and answers, and binds the live tracks in
+    /// `slots` to them (the answers of the chunk before end with it);
+    /// returns the live tracks' anchors, for the workers of later chunks.
+    fn start_chunk(
+        &mut self,
+        fronts: Vec<PlaneFront>,
+        ahead: NearAhead,
+        slots: &[Slot],
+    ) -> Vec<u32> {
         self.queue.extend(fronts);
         self.ahead = ahead;
-        let mut bound = std::mem::take(&mut self.bound);
-        for (b, slot) in bound.iter_mut().zip(slots) {
+        let mut live = Vec::new();
+        for (b, slot) in self.bound.iter_mut().zip(slots) {
             *b = match slot {
-                Slot::Busy(seg) if seg.live => self.find(seg.anchor_x, seg.anchor_y),
+                Slot::Busy(seg) if seg.live => {
+                    let pixel = raster(self.width, seg.anchor_x, seg.anchor_y);
+                    live.push(pixel);
+                    self.ahead.find(pixel)
+                }
                 _ => None,
             };
         }
-        self.bound = bound;
-    }
-
-    /// The answers at anchor (x, y), if the workers made them.
-    fn find(&self, x: u16, y: u16) -> Option<Bound> {
-        self.ahead
-            .find((y as usize * self.width + x as usize) as u32)
+        live
     }
 
     /// Takes plane `t`'s stages 1–4 from the queue.
@@ -93,7 +97,7 @@ impl ReplayFrontEnd {
     /// Binds the tracks opened at the current plane to the workers' answers.
     fn bind(&mut self, opened: &[(u16, u16, u16)]) {
         for &(slot, x, y) in opened {
-            self.bound[slot as usize] = self.find(x, y);
+            self.bound[slot as usize] = self.ahead.find(raster(self.width, x, y));
         }
     }
 }
@@ -119,6 +123,11 @@ impl FrontEnd for ReplayFrontEnd {
     fn candidates(&self) -> &[Candidate] {
         &self.current.candidates
     }
+}
+
+/// Pixel (x, y)'s raster index on a field `width` wide.
+fn raster(width: usize, x: u16, y: u16) -> u32 {
+    (y as usize * width + x as usize) as u32
 }
 
 /// What a run of [`run_parallel`](super::run_parallel) did besides its records.
@@ -219,19 +228,7 @@ where
                     ahead,
                 } in chunks
                 {
-                    let slots = tracking.tracker().slots();
-                    front.start_chunk(fronts, ahead, slots);
-                    anchors.publish(
-                        slots
-                            .iter()
-                            .filter_map(|s| match s {
-                                Slot::Busy(seg) if seg.live => Some(
-                                    seg.anchor_y as u32 * cfg.width as u32 + seg.anchor_x as u32,
-                                ),
-                                _ => None,
-                            })
-                            .collect(),
-                    );
+                    anchors.publish(front.start_chunk(fronts, ahead, tracking.tracker().slots()));
                     let len = planes.len();
                     for start in (0..len).step_by(HANDOFF) {
                         let range = start..(start + HANDOFF).min(len);
@@ -304,8 +301,8 @@ where
             let mut done = Vec::with_capacity(parts);
             for rx in &from_sums {
                 match rx.recv() {
-                    Ok(FromSums::Planes(t, d)) => {
-                        tracked = Some(t);
+                    Ok(FromSums::Planes(planes, d)) => {
+                        tracked = Some(planes);
                         done.push(d.into_iter());
                     }
                     Ok(FromSums::End(d)) => done.push(d.into_iter()),

@@ -54,21 +54,21 @@ impl<E> SourcePlane<E> for BitPlane {
     }
 }
 
+/// The same plane, lent: written by the worker.
 impl<E> SourcePlane<E> for &BitPlane {
     const WRITTEN_BY_READER: bool = false;
 
     fn size(&self) -> (usize, usize) {
-        (self.width(), self.height())
+        SourcePlane::<E>::size(*self)
     }
 
     fn write_into(
         &self,
         dst: &mut BitPlane,
         mask: Option<&HotPixelMask>,
-        _: &mut Vec<u8>,
+        scratch: &mut Vec<u8>,
     ) -> Result<(), E> {
-        dst.copy_masked(self, mask);
-        Ok(())
+        SourcePlane::<E>::write_into(*self, dst, mask, scratch)
     }
 }
 

@@ -20,6 +20,7 @@
 //! made.
 
 use super::FastFrontEnd;
+use crate::pipeline::FrontEnd;
 use std::sync::{Arc, Mutex, PoisonError};
 
 /// The workers' answers over one chunk.
@@ -169,7 +170,7 @@ impl AheadTests {
         let (word, bit) = (i / 64, i % 64);
         for (k, &(p, _)) in a.pixels.iter().enumerate() {
             let (x, y) = (p as usize % self.width, p as usize / self.width);
-            a.bits[k * a.words + word] |= u64::from(front.near_hold(x, y)) << bit;
+            a.bits[k * a.words + word] |= u64::from(front.neighbourhood_on(x, y)) << bit;
         }
         self.plane += 1;
     }
@@ -191,7 +192,6 @@ impl AheadTests {
 mod tests {
     use super::*;
     use crate::config::PipelineConfig;
-    use crate::pipeline::FrontEnd;
     use crate::plane::BitPlane;
     use proptest::prelude::*;
 
@@ -240,9 +240,12 @@ mod tests {
             let mut want = Vec::new();
             for (t, p) in planes.iter().enumerate() {
                 front.push(p, t.checked_sub(4).map_or(&zero, |d| &planes[d]));
-                let on: Vec<bool> = (0..w * h).map(|i| front.neighbourhood_on(i % w, i / w)).collect();
+                // The test on H is the test on the pixels at the hold level.
+                let on: Vec<bool> = (0..w * h)
+                    .map(|i| super::super::above::pixels_near(front.above(), w, h, i % w, i / w))
+                    .collect();
                 for (i, &o) in on.iter().enumerate() {
-                    prop_assert_eq!(front.near_hold(i % w, i / w), o);
+                    prop_assert_eq!(front.neighbourhood_on(i % w, i / w), o);
                 }
                 if t >= start {
                     tests.plane(&front, &mut seen);
