@@ -172,9 +172,14 @@ pub struct BlinkTracker {
     active_prev: Vec<bool>,
     free_prev: Vec<bool>,
     counters: TrackerCounters,
-    /// Scratch of [`BlinkTracker::associate`], kept between planes so that
-    /// no plane allocates it.
-    anchors: Anchors,
+    /// The anchors of the tracks active at the end of the previous plane, by
+    /// row, for [`BlinkTracker::associate`]; rebuilt when `anchors_stale`.
+    anchors: AnchorRows,
+    /// Whether the active tracks changed since `anchors` was built.
+    anchors_stale: bool,
+    /// Scratch of [`BlinkTracker::associate`] (the anchors a plane opens),
+    /// kept between planes so that no plane allocates it.
+    opened_anchors: Vec<(u16, u16)>,
 }
 
 /// Candidates dropped during one plane.
@@ -208,7 +213,9 @@ impl BlinkTracker {
             active_prev: vec![false; slots],
             free_prev: vec![true; slots],
             counters: TrackerCounters::default(),
-            anchors: Anchors::default(),
+            anchors: AnchorRows::default(),
+            anchors_stale: true,
+            opened_anchors: Vec::new(),
         }
     }
 
@@ -264,25 +271,28 @@ impl BlinkTracker {
         let mut opened: Vec<usize> = Vec::new();
         let mut drops: Option<Drops> = None;
         // The anchors that absorb a candidate: tracks active at the end of
-        // t − 1, then each track this plane opens. (Dense scenes bring tens of
-        // candidates per plane against full slots: a flat list of anchors,
-        // its x and y apart so that they compare as vectors, keeps this stage
-        // a small share of the fast engine's time.)
-        let mut anchors = std::mem::take(&mut self.anchors);
-        anchors.clear();
-        for (s, &active) in self.slots.iter().zip(&self.active_prev) {
-            if let Slot::Busy(seg) = s {
-                if active {
-                    anchors.push(seg.anchor_x, seg.anchor_y);
-                }
-            }
+        // t − 1 (listed by row, rebuilt only when that set changed: a dense
+        // scene brings hundreds of candidates a plane against a set that
+        // changes every few tens of planes), then each track this plane opens.
+        if self.anchors_stale {
+            self.anchors
+                .rebuild(self.slots.iter().zip(&self.active_prev).filter_map(
+                    |(s, &active)| match s {
+                        Slot::Busy(seg) if active => Some((seg.anchor_x, seg.anchor_y)),
+                        _ => None,
+                    },
+                ));
+            self.anchors_stale = false;
         }
+        let mut rows = self.anchors.sweep(self.r_assoc);
+        let mut opened_here = std::mem::take(&mut self.opened_anchors);
+        opened_here.clear();
         // Slots free at the end of t − 1, lowest first; each is taken once.
         // Only the slot taken changes, and the search goes on past it, so
         // searching as it goes finds the same slots as listing them first.
         let mut first_free = 0;
         for c in candidates {
-            if anchors.any_within(c.x, c.y, self.r_assoc) {
+            if rows.any_within(c.x, c.y) || within(&opened_here, c.x, c.y, self.r_assoc) {
                 continue;
             }
             let free = (first_free..self.slots.len())
@@ -302,7 +312,7 @@ impl BlinkTracker {
                         end_flags: 0,
                         confirmed: false,
                     });
-                    anchors.push(c.x, c.y);
+                    opened_here.push((c.x, c.y));
                     opened.push(i);
                 }
                 None => {
@@ -319,7 +329,7 @@ impl BlinkTracker {
                 }
             }
         }
-        self.anchors = anchors;
+        self.opened_anchors = opened_here;
         (opened, drops)
     }
 
@@ -424,53 +434,90 @@ impl BlinkTracker {
 
     fn snapshot(&mut self) {
         for (i, s) in self.slots.iter().enumerate() {
-            self.active_prev[i] = matches!(s, Slot::Busy(seg) if seg.live);
+            let active = matches!(s, Slot::Busy(seg) if seg.live);
+            // A slot active before and after holds the same anchor (only a
+            // free slot opens; a cut continues with its anchor).
+            self.anchors_stale |= active != self.active_prev[i];
+            self.active_prev[i] = active;
             self.free_prev[i] = *s == Slot::Free;
         }
     }
 }
 
-/// Track anchors, their x and y in lists of their own.
-#[derive(Debug, Clone, Default)]
-struct Anchors {
-    x: Vec<u32>,
-    y: Vec<u32>,
+/// Whether `|a − c| ≤ r`, as `a − (c − r) ≤ 2r` in wrapping arithmetic (one
+/// unsigned compare; coordinates are u16 and r ≤ 255, as the configuration
+/// checks, so nothing wraps onto a near value).
+fn near(a: u16, c: u16, r: u32) -> bool {
+    u32::from(a).wrapping_sub(u32::from(c).wrapping_sub(r)) <= 2 * r
 }
 
-impl Anchors {
-    fn clear(&mut self) {
-        self.x.clear();
-        self.y.clear();
+/// Whether one of `anchors` lies within `r` of (x, y) on both axes.
+fn within(anchors: &[(u16, u16)], x: u16, y: u16, r: u32) -> bool {
+    anchors
+        .iter()
+        .any(|&(ax, ay)| near(ax, x, r) && near(ay, y, r))
+}
+
+/// Track anchors sorted by row, then column.
+#[derive(Debug, Clone, Default)]
+struct AnchorRows {
+    /// (row, column), ascending.
+    by_row: Vec<(u16, u16)>,
+}
+
+impl AnchorRows {
+    fn rebuild(&mut self, anchors: impl Iterator<Item = (u16, u16)>) {
+        self.by_row.clear();
+        self.by_row.extend(anchors.map(|(x, y)| (y, x)));
+        self.by_row.sort_unstable();
     }
 
-    fn push(&mut self, x: u16, y: u16) {
-        self.x.push(x.into());
-        self.y.push(y.into());
+    /// A search of these anchors for candidates in raster order, at radius `r`.
+    fn sweep(&self, r: u32) -> RowSweep<'_> {
+        RowSweep {
+            by_row: &self.by_row,
+            r,
+            first: 0,
+            row: 0,
+        }
     }
+}
 
-    /// Whether an anchor lies within `r` of (x, y) on both axes. `|a − c| ≤
-    /// r` is tested as `a − (c − r) ≤ 2r` in wrapping arithmetic (one
-    /// unsigned compare; r ≤ 255 as the configuration checks, coordinates
-    /// are u16), and eight anchors are taken at a time without stopping
-    /// among them, so that the compiler compares them as vectors.
-    fn any_within(&self, x: u16, y: u16, r: u32) -> bool {
-        let (x0, y0) = (u32::from(x).wrapping_sub(r), u32::from(y).wrapping_sub(r));
-        let span = 2 * r;
-        let near = |ax: u32, ay: u32| (ax.wrapping_sub(x0) <= span) & (ay.wrapping_sub(y0) <= span);
-        let (mut xs, mut ys) = (self.x.chunks_exact(8), self.y.chunks_exact(8));
-        for (x8, y8) in (&mut xs).zip(&mut ys) {
-            let mut hit = false;
-            for l in 0..8 {
-                hit |= near(x8[l], y8[l]);
-            }
-            if hit {
-                return true;
+/// [`AnchorRows`] searched for one plane's candidates: the first anchor of a
+/// row within `r` of the last candidate's row only moves forward while the
+/// candidates do (raster order), so a plane costs its candidates plus its
+/// anchors, and a candidate only meets the anchors of its rows.
+struct RowSweep<'a> {
+    by_row: &'a [(u16, u16)],
+    r: u32,
+    /// The first anchor whose row is ≥ `row − r`.
+    first: usize,
+    /// The last candidate's row.
+    row: u16,
+}
+
+impl RowSweep<'_> {
+    /// Whether an anchor lies within `r` of (x, y) on both axes.
+    fn any_within(&mut self, x: u16, y: u16) -> bool {
+        let top = u32::from(y).saturating_sub(self.r);
+        if y < self.row {
+            // Out of raster order: search again from the start.
+            self.first = self.by_row.partition_point(|&(ay, _)| u32::from(ay) < top);
+        } else {
+            while self
+                .by_row
+                .get(self.first)
+                .is_some_and(|&(ay, _)| u32::from(ay) < top)
+            {
+                self.first += 1;
             }
         }
-        xs.remainder()
+        self.row = y;
+        let bottom = u32::from(y) + self.r;
+        self.by_row[self.first..]
             .iter()
-            .zip(ys.remainder())
-            .any(|(&ax, &ay)| near(ax, ay))
+            .take_while(|&&(ay, _)| u32::from(ay) <= bottom)
+            .any(|&(_, ax)| near(ax, x, self.r))
     }
 }
 
@@ -537,29 +584,46 @@ mod tests {
     }
 
     proptest! {
-        /// Anchors anywhere on a u16 field, any radius the configuration
-        /// allows, any count (whole eights and a remainder): the wrapping,
-        /// eight-at-a-time test is the definition.
+        /// Anchors anywhere on a u16 field (its edges included), any radius
+        /// the configuration allows, candidates near some of them and
+        /// anywhere, in raster order or not: each answer of one sweep is the
+        /// square around its candidate.
         #[test]
-        fn any_within_is_the_square_around_the_candidate(
-            anchors in proptest::collection::vec((any::<u16>(), any::<u16>()), 0..40),
-            near in proptest::collection::vec((-300i32..300, -300i32..300), 0..4),
-            (x, y) in (any::<u16>(), any::<u16>()),
+        fn row_sweep_is_the_square_around_each_candidate(
+            anchors in proptest::collection::vec((any::<u16>(), any::<u16>()), 1..40),
+            picks in proptest::collection::vec(
+                (any::<prop::sample::Index>(), -300i32..300, -300i32..300), 0..30),
+            anywhere in proptest::collection::vec((any::<u16>(), any::<u16>()), 0..4),
+            edges in any::<bool>(),
             r in 0u32..=255,
+            raster in any::<bool>(),
         ) {
-            let mut list = Anchors::default();
-            // Some anchors near the candidate, so that both answers occur.
-            let close = near.iter().filter_map(|&(dx, dy)| {
-                Some((u16::try_from(x as i32 + dx).ok()?, u16::try_from(y as i32 + dy).ok()?))
-            });
-            let all: Vec<(u16, u16)> = anchors.iter().copied().chain(close).collect();
-            for &(ax, ay) in &all {
-                list.push(ax, ay);
+            let mut all = anchors.clone();
+            if edges {
+                all.extend([(0, 0), (u16::MAX, u16::MAX), (0, u16::MAX), (u16::MAX, 0)]);
             }
-            let expected = all.iter().any(|&(ax, ay)| {
-                (ax as i64 - x as i64).abs() <= r as i64 && (ay as i64 - y as i64).abs() <= r as i64
-            });
-            prop_assert_eq!(list.any_within(x, y, r), expected);
+            let mut list = AnchorRows::default();
+            list.rebuild(all.iter().copied());
+            let mut cands: Vec<(u16, u16)> = picks
+                .iter()
+                .filter_map(|&(i, dx, dy)| {
+                    let (ax, ay) = all[i.index(all.len())];
+                    Some((u16::try_from(ax as i32 + dx).ok()?, u16::try_from(ay as i32 + dy).ok()?))
+                })
+                .chain(anywhere)
+                .collect();
+            if raster {
+                cands.sort_by_key(|&(x, y)| (y, x));
+            }
+            let mut sweep = list.sweep(r);
+            for (x, y) in cands {
+                let expected = all.iter().any(|&(ax, ay)| {
+                    (ax as i64 - x as i64).abs() <= r as i64
+                        && (ay as i64 - y as i64).abs() <= r as i64
+                });
+                prop_assert_eq!(sweep.any_within(x, y), expected, "({}, {}) r {}", x, y, r);
+                prop_assert_eq!(within(&all, x, y, r), expected);
+            }
         }
     }
 
@@ -610,6 +674,40 @@ mod tests {
             prop_assert_eq!(got, want);
             prop_assert_eq!(&tr.slots, &oracle.slots);
             prop_assert_eq!(tr.counters(), oracle.counters());
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+        /// Plane after plane (tracks opening, dropping, dipping, cut,
+        /// completing and freeing their slots, so the set of active anchors
+        /// changes and stays as it was in turns): the tracker that lists its
+        /// anchors only when that set changed opens, drops and completes as
+        /// the oracle does at every plane.
+        #[test]
+        fn association_over_planes_equals_the_stated_rule(
+            planes in proptest::collection::vec(
+                (proptest::collection::btree_set((0u16..10, 0u16..16), 0..12),
+                 proptest::collection::vec(any::<bool>(), 8)),
+                1..60),
+            slots in 1usize..8,
+            r_assoc in 0u32..4,
+            l_max in 2u32..12,
+        ) {
+            let mut tr = BlinkTracker::new(slots, 4, 1, 2, l_max, r_assoc);
+            let mut oracle = tr.clone();
+            for (t, (cands, on)) in planes.iter().enumerate() {
+                let t = t as u64;
+                let cs: Vec<Candidate> = cands.iter().map(|&(y, x)| Candidate { x, y }).collect();
+                tr.evaluate_slots(t, |i, _, _| on[i]);
+                oracle.evaluate_slots(t, |i, _, _| on[i]);
+                let got = tr.associate(t, &cs);
+                let want = associate_reference(&mut oracle, t, &cs);
+                prop_assert_eq!(got, want, "plane {}", t);
+                prop_assert_eq!(tr.end_of_plane(t), oracle.end_of_plane(t));
+                prop_assert_eq!(&tr.slots, &oracle.slots);
+                prop_assert_eq!(tr.counters(), oracle.counters());
+            }
         }
     }
 }
