@@ -177,9 +177,6 @@ pub struct BlinkTracker {
     anchors: AnchorRows,
     /// Whether the active tracks changed since `anchors` was built.
     anchors_stale: bool,
-    /// Scratch of [`BlinkTracker::associate`] (the anchors a plane opens),
-    /// kept between planes so that no plane allocates it.
-    opened_anchors: Vec<(u16, u16)>,
 }
 
 /// Candidates dropped during one plane.
@@ -215,7 +212,6 @@ impl BlinkTracker {
             counters: TrackerCounters::default(),
             anchors: AnchorRows::default(),
             anchors_stale: true,
-            opened_anchors: Vec::new(),
         }
     }
 
@@ -273,7 +269,7 @@ impl BlinkTracker {
         // The anchors that absorb a candidate: tracks active at the end of
         // t − 1 (listed by row, rebuilt only when that set changed: a dense
         // scene brings hundreds of candidates a plane against a set that
-        // changes every few tens of planes), then each track this plane opens.
+        // changes every few tens of planes), then each track this plane opens (few: read from their slots).
         if self.anchors_stale {
             self.anchors
                 .rebuild(self.slots.iter().zip(&self.active_prev).filter_map(
@@ -285,14 +281,19 @@ impl BlinkTracker {
             self.anchors_stale = false;
         }
         let mut rows = self.anchors.sweep(self.r_assoc);
-        let mut opened_here = std::mem::take(&mut self.opened_anchors);
-        opened_here.clear();
         // Slots free at the end of t − 1, lowest first; each is taken once.
         // Only the slot taken changes, and the search goes on past it, so
         // searching as it goes finds the same slots as listing them first.
         let mut first_free = 0;
         for c in candidates {
-            if rows.any_within(c.x, c.y) || within(&opened_here, c.x, c.y, self.r_assoc) {
+            let r = self.r_assoc;
+            let opened_near = || {
+                opened.iter().any(|&i| match &self.slots[i] {
+                    Slot::Busy(seg) => near(seg.anchor_x, c.x, r) && near(seg.anchor_y, c.y, r),
+                    Slot::Free => false,
+                })
+            };
+            if rows.any_within(c.x, c.y) || opened_near() {
                 continue;
             }
             let free = (first_free..self.slots.len())
@@ -312,7 +313,6 @@ impl BlinkTracker {
                         end_flags: 0,
                         confirmed: false,
                     });
-                    opened_here.push((c.x, c.y));
                     opened.push(i);
                 }
                 None => {
@@ -329,7 +329,6 @@ impl BlinkTracker {
                 }
             }
         }
-        self.opened_anchors = opened_here;
         (opened, drops)
     }
 
@@ -449,13 +448,6 @@ impl BlinkTracker {
 /// checks, so nothing wraps onto a near value).
 fn near(a: u16, c: u16, r: u32) -> bool {
     u32::from(a).wrapping_sub(u32::from(c).wrapping_sub(r)) <= 2 * r
-}
-
-/// Whether one of `anchors` lies within `r` of (x, y) on both axes.
-fn within(anchors: &[(u16, u16)], x: u16, y: u16, r: u32) -> bool {
-    anchors
-        .iter()
-        .any(|&(ax, ay)| near(ax, x, r) && near(ay, y, r))
 }
 
 /// Track anchors sorted by row, then column.
@@ -622,7 +614,6 @@ mod tests {
                         && (ay as i64 - y as i64).abs() <= r as i64
                 });
                 prop_assert_eq!(sweep.any_within(x, y), expected, "({}, {}) r {}", x, y, r);
-                prop_assert_eq!(within(&all, x, y, r), expected);
             }
         }
     }
